@@ -1,0 +1,130 @@
+//! Typed configuration: built-in defaults, then a TOML file (`config/default.toml` unless
+//! another is named), then `TERRASTITCH_*` environment variables (`__` separates sections:
+//! `TERRASTITCH_SERVER__LISTEN=0.0.0.0:8080`), then command-line flags.
+//! Relative paths are relative to the working directory.
+
+use std::path::{Path, PathBuf};
+
+use figment::providers::{Env, Format, Serialized, Toml};
+use figment::Figment;
+use serde::{Deserialize, Serialize};
+
+use crate::render::RenderSettings;
+
+/// The configuration file read when none is named.
+pub const DEFAULT_CONFIG_FILE: &str = "config/default.toml";
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default)]
+pub struct Config {
+    pub server: ServerConfig,
+    pub sources: SourcesConfig,
+    pub cache: CacheConfig,
+    pub render: RenderSettings,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ServerConfig {
+    /// Address to listen on.
+    pub listen: String,
+    /// The zoom level tiles are served at.
+    pub zoom: u8,
+    /// Renders that may run at once (0: one per core).
+    pub render_threads: usize,
+}
+
+impl Default for ServerConfig {
+    fn default() -> Self {
+        ServerConfig {
+            listen: "127.0.0.1:8080".to_string(),
+            zoom: 14,
+            render_threads: 0,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SourcesConfig {
+    /// OSM extracts (`.osm.pbf`).
+    pub osm: Vec<PathBuf>,
+    /// Directory of SRTM files (`.hgt`, `.hgt.zip`).
+    pub srtm: PathBuf,
+}
+
+impl Default for SourcesConfig {
+    fn default() -> Self {
+        SourcesConfig {
+            osm: vec![PathBuf::from("data/monaco-osrm-2016.osm.pbf")],
+            srtm: PathBuf::from("data"),
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct CacheConfig {
+    /// The SQLite file tiles are kept in (created with its directory if missing).
+    pub path: PathBuf,
+    /// Memory for the in-process cache in front of SQLite, in MiB.
+    pub memory_mib: u64,
+}
+
+impl Default for CacheConfig {
+    fn default() -> Self {
+        CacheConfig {
+            path: PathBuf::from("cache/tiles.sqlite"),
+            memory_mib: 256,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("configuration file {0} does not exist")]
+    Missing(PathBuf),
+    #[error("invalid configuration: {0}")]
+    Invalid(#[from] Box<figment::Error>),
+}
+
+impl Config {
+    /// Loads defaults, the file (the default one if it exists, or `file`, which must exist)
+    /// and the environment.
+    pub fn load(file: Option<&Path>) -> Result<Config, ConfigError> {
+        let mut figment = Figment::from(Serialized::defaults(Config::default()));
+        match file {
+            Some(path) if !path.exists() => return Err(ConfigError::Missing(path.to_path_buf())),
+            Some(path) => figment = figment.merge(Toml::file(path)),
+            None if Path::new(DEFAULT_CONFIG_FILE).exists() => {
+                figment = figment.merge(Toml::file(DEFAULT_CONFIG_FILE))
+            }
+            None => {}
+        }
+        figment = figment.merge(Env::prefixed("TERRASTITCH_").split("__"));
+        figment
+            .extract()
+            .map_err(|e| ConfigError::Invalid(Box::new(e)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_default_file_matches_the_built_in_defaults() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_CONFIG_FILE);
+        let from_file: Config = Figment::from(Serialized::defaults(Config::default()))
+            .merge(Toml::file(&path))
+            .extract()
+            .unwrap();
+        assert_eq!(from_file, Config::default());
+    }
+
+    #[test]
+    fn a_missing_named_file_is_an_error() {
+        let error = Config::load(Some(Path::new("/nonexistent/terrastitch.toml"))).unwrap_err();
+        assert!(error.to_string().contains("/nonexistent/terrastitch.toml"));
+    }
+}

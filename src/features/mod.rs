@@ -1,0 +1,325 @@
+//! Feature families: each module turns OSM elements into what the mesh stage needs, in global
+//! tile units (`u`, `v`), so the result is the same whichever tile asks.
+//!
+//! * ground [`Surface`]s: areas of the ground triangulation with a class, a feature id and the
+//!   outline edges to stitch into it (roads, railways, water; building footprints, which are cut
+//!   out of the ground);
+//! * [`BuildingShape`]s: footprints with heights, extruded by the mesh stage;
+//! * the feature table: one row per feature, tracing every vertex back to its OSM element.
+
+pub mod buildings;
+pub mod railways;
+pub mod roads;
+pub mod water;
+
+use crate::geometry::{Point, Polygon, Rect};
+use crate::osm::index::Selection;
+use crate::osm::{multipolygon::AreaPolygon, ElementRef, ElementType, LonLat, Tags};
+use crate::tile::{lon_lat_to_uv, mercator_scale};
+
+/// What a feature is, as written in the feature table and used to name glTF nodes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum FeatureClass {
+    Terrain,
+    Road,
+    Railway,
+    Water,
+    Building,
+}
+
+impl FeatureClass {
+    pub const ALL: [FeatureClass; 5] = [
+        FeatureClass::Terrain,
+        FeatureClass::Road,
+        FeatureClass::Railway,
+        FeatureClass::Water,
+        FeatureClass::Building,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FeatureClass::Terrain => "terrain",
+            FeatureClass::Road => "road",
+            FeatureClass::Railway => "railway",
+            FeatureClass::Water => "water",
+            FeatureClass::Building => "building",
+        }
+    }
+
+    /// Which surface wins where two overlap: lower is stronger. Buildings cut the ground, roads
+    /// lie on water (bridges until elevation lifts them), water on the default ground.
+    pub fn ground_priority(self) -> u8 {
+        match self {
+            FeatureClass::Building => 0,
+            FeatureClass::Road => 1,
+            FeatureClass::Railway => 2,
+            FeatureClass::Water => 3,
+            FeatureClass::Terrain => 4,
+        }
+    }
+}
+
+/// One row of the feature table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FeatureInfo {
+    pub element: Option<ElementRef>,
+    pub class: FeatureClass,
+    pub tags: Tags,
+}
+
+impl FeatureInfo {
+    pub fn name(&self) -> Option<&str> {
+        self.tags.get("name")
+    }
+}
+
+/// An area of the ground surface.
+#[derive(Debug, Clone)]
+pub struct Surface {
+    pub class: FeatureClass,
+    /// Row in the feature table.
+    pub feature: u32,
+    /// The area is the union of these polygons.
+    pub pieces: Vec<Polygon>,
+    /// Polylines along the area's border, stitched into the triangulation as constraint edges.
+    pub outline: Vec<Vec<Point>>,
+    pub bounds: Rect,
+}
+
+impl Surface {
+    pub fn contains(&self, p: Point) -> bool {
+        self.bounds.contains(p) && self.pieces.iter().any(|piece| piece.contains(p))
+    }
+
+    /// A surface covering the union of polygons, outlined by their rings.
+    fn from_polygons(class: FeatureClass, feature: u32, pieces: Vec<Polygon>) -> Option<Surface> {
+        let outline: Vec<Vec<Point>> = pieces
+            .iter()
+            .flat_map(|p| p.rings())
+            .map(|ring| {
+                let mut closed = ring.clone();
+                closed.push(ring[0]);
+                closed
+            })
+            .collect();
+        let bounds = pieces
+            .iter()
+            .map(Polygon::bounds)
+            .reduce(|a, b| a.union(&b))?;
+        Some(Surface {
+            class,
+            feature,
+            pieces,
+            outline,
+            bounds,
+        })
+    }
+}
+
+/// A building footprint to extrude.
+#[derive(Debug, Clone)]
+pub struct BuildingShape {
+    pub feature: u32,
+    pub footprint: Polygon,
+    /// Height of the top above the lowest ground under the footprint, in metres.
+    pub height_m: f64,
+    /// True when the height came from tags rather than a default.
+    pub height_tagged: bool,
+}
+
+/// Everything the features of one tile contribute.
+#[derive(Debug, Clone, Default)]
+pub struct FeatureSet {
+    pub features: Vec<FeatureInfo>,
+    pub surfaces: Vec<Surface>,
+    pub buildings: Vec<BuildingShape>,
+}
+
+impl FeatureSet {
+    fn add_feature(
+        &mut self,
+        element: Option<ElementRef>,
+        class: FeatureClass,
+        tags: &Tags,
+    ) -> u32 {
+        self.features.push(FeatureInfo {
+            element,
+            class,
+            tags: tags.clone(),
+        });
+        (self.features.len() - 1) as u32
+    }
+
+    pub fn count(&self, class: FeatureClass) -> usize {
+        self.features.iter().filter(|f| f.class == class).count()
+    }
+}
+
+/// Settings of the feature stage.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct FeatureSettings {
+    /// Width of one lane, metres (seed 001 §4.4).
+    pub lane_width_m: f64,
+    /// Height of one building level, metres.
+    pub level_height_m: f64,
+    /// Height of a building with no height tags, metres (seed 001 §4.2).
+    pub default_building_height_m: f64,
+}
+
+impl Default for FeatureSettings {
+    fn default() -> Self {
+        FeatureSettings {
+            lane_width_m: 3.5,
+            level_height_m: 3.0,
+            default_building_height_m: 6.0,
+        }
+    }
+}
+
+/// The projection from degrees to global tile units at one zoom, with the ground-metre scale.
+#[derive(Debug, Clone, Copy)]
+pub struct Projection {
+    tiles_per_axis: f64,
+    tile_size_m: f64,
+}
+
+impl Projection {
+    pub fn new(zoom: u8) -> Projection {
+        let tiles_per_axis = f64::from(1u32 << zoom);
+        Projection {
+            tiles_per_axis,
+            tile_size_m: crate::tile::EARTH_CIRCUMFERENCE_M / tiles_per_axis,
+        }
+    }
+
+    pub fn point(&self, p: LonLat) -> Point {
+        let (u, v) = lon_lat_to_uv(p.lon, p.lat, self.tiles_per_axis);
+        [u, v]
+    }
+
+    pub fn points(&self, ps: &[LonLat]) -> Vec<Point> {
+        ps.iter().map(|&p| self.point(p)).collect()
+    }
+
+    /// Ground metres at a latitude, in tile units.
+    pub fn metres(&self, metres: f64, lat: f64) -> f64 {
+        metres * mercator_scale(lat) / self.tile_size_m
+    }
+
+    pub fn polygon(&self, area: &AreaPolygon) -> Option<Polygon> {
+        let outer = crate::geometry::dedup_ring(&self.points(&area.outer));
+        if outer.len() < 3 || crate::geometry::signed_area2(&outer) == 0.0 {
+            return None;
+        }
+        let holes = area
+            .holes
+            .iter()
+            .map(|h| crate::geometry::dedup_ring(&self.points(h)))
+            .filter(|h| h.len() >= 3)
+            .collect();
+        Some(Polygon { outer, holes })
+    }
+}
+
+/// Runs every feature family over the elements near a tile.
+pub fn collect(selection: &Selection<'_>, zoom: u8, settings: &FeatureSettings) -> FeatureSet {
+    let projection = Projection::new(zoom);
+    let mut set = FeatureSet::default();
+    set.add_feature(None, FeatureClass::Terrain, &Tags::default());
+    let areas = areas_of(selection);
+    for way in &selection.ways {
+        roads::add_way(&mut set, way, &projection, settings);
+        railways::add_way(&mut set, way, &projection);
+        water::add_waterway(&mut set, way, &projection);
+    }
+    for area in &areas {
+        roads::add_area(&mut set, area, &projection);
+        water::add_area(&mut set, area, &projection);
+        buildings::add_area(&mut set, area, &projection, settings);
+    }
+    set
+}
+
+/// A closed way or an assembled multipolygon, with the tags that describe it.
+#[derive(Debug, Clone)]
+pub struct Area<'a> {
+    pub element: ElementRef,
+    pub tags: &'a Tags,
+    pub polygons: Vec<AreaPolygon>,
+}
+
+/// The areas among the selected elements, in id order (ways, then relations).
+fn areas_of<'a>(selection: &Selection<'a>) -> Vec<Area<'a>> {
+    let mut areas = Vec::new();
+    for way in &selection.ways {
+        if way.tags.get("area") == Some("no") {
+            continue;
+        }
+        if let Some(polygon) = crate::osm::multipolygon::way_area(way) {
+            areas.push(Area {
+                element: ElementRef {
+                    element_type: ElementType::Way,
+                    id: way.id,
+                },
+                tags: &way.tags,
+                polygons: vec![polygon],
+            });
+        }
+    }
+    let way_of = |id: i64| {
+        selection
+            .ways
+            .binary_search_by_key(&id, |w| w.id)
+            .ok()
+            .map(|i| selection.ways[i])
+    };
+    for relation in &selection.relations {
+        if !matches!(relation.tags.get("type"), Some("multipolygon")) {
+            continue;
+        }
+        let polygons = crate::osm::multipolygon::assemble(relation, way_of);
+        if !polygons.is_empty() {
+            areas.push(Area {
+                element: ElementRef {
+                    element_type: ElementType::Relation,
+                    id: relation.id,
+                },
+                tags: &relation.tags,
+                polygons,
+            });
+        }
+    }
+    areas
+}
+
+/// A linear feature widened into a ground surface: the quads between the offset polylines.
+fn widened_surface(
+    class: FeatureClass,
+    feature: u32,
+    line: &[Point],
+    half_width: f64,
+) -> Option<Surface> {
+    let (left, right) = crate::geometry::offset_polyline(line, half_width)?;
+    let pieces: Vec<Polygon> = (0..left.len() - 1)
+        .map(|i| Polygon {
+            outer: vec![left[i], left[i + 1], right[i + 1], right[i]],
+            holes: Vec::new(),
+        })
+        .collect();
+    let last = left.len() - 1;
+    let outline = vec![
+        left.clone(),
+        right.clone(),
+        vec![left[0], right[0]],
+        vec![left[last], right[last]],
+    ];
+    let bounds = Rect::around(&left).union(&Rect::around(&right));
+    Some(Surface {
+        class,
+        feature,
+        pieces,
+        outline,
+        bounds,
+    })
+}

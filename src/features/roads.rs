@@ -1,0 +1,144 @@
+//! Roads and paths (`highway=*`) as ground surfaces of their width (thesis §2.3.2).
+//!
+//! Width: the `width` tag, else `lanes` × the lane width, else a default per class. The paper's
+//! default is 5 m for an ordinary road (seed 001 §4.4); the other defaults scale from it with the
+//! usual lane counts of each class. Ways in tunnels are under the ground and not drawn on it.
+
+use super::{
+    widened_surface, Area, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface,
+};
+use crate::osm::units::{parse_count, parse_length_m};
+use crate::osm::{ElementRef, ElementType, Tags, Way};
+
+/// Width when nothing is tagged, by `highway` value; `None` for values that are not drawn as
+/// carriageways (bus stops, proposed roads, indoor corridors…).
+pub fn default_width_m(highway: &str) -> Option<f64> {
+    let width = match highway {
+        "motorway" | "trunk" => 10.0,
+        "primary" => 8.0,
+        "secondary" => 7.0,
+        "tertiary" => 6.0,
+        "unclassified" | "residential" | "living_street" | "road" | "pedestrian" | "raceway"
+        | "busway" => 5.0,
+        "motorway_link" | "trunk_link" | "primary_link" | "secondary_link" | "tertiary_link" => 5.0,
+        "service" => 3.5,
+        "track" => 3.0,
+        "footway" | "cycleway" | "bridleway" | "steps" => 2.0,
+        "path" => 1.5,
+        _ => return None,
+    };
+    Some(width)
+}
+
+/// Widths outside this range (metres) are taken as tagging mistakes.
+const PLAUSIBLE_WIDTH_M: std::ops::RangeInclusive<f64> = 0.5..=80.0;
+
+/// The width of a road way in metres, `None` if the way is not a drawn road.
+pub fn width_m(tags: &Tags, settings: &FeatureSettings) -> Option<f64> {
+    let class_default = default_width_m(tags.get("highway")?)?;
+    if let Some(width) = tags.get("width").and_then(parse_length_m) {
+        if PLAUSIBLE_WIDTH_M.contains(&width) {
+            return Some(width);
+        }
+        tracing::debug!(width, "implausible road width ignored");
+    }
+    if let Some(lanes) = tags.get("lanes").and_then(parse_count) {
+        if (1.0..=20.0).contains(&lanes) {
+            return Some(lanes.round() * settings.lane_width_m);
+        }
+    }
+    Some(class_default)
+}
+
+/// True for ways drawn below or away from the ground surface.
+pub fn is_off_ground(tags: &Tags) -> bool {
+    tags.is_set("tunnel")
+        || tags.get("indoor").is_some_and(|v| v != "no")
+        || tags.get("location") == Some("underground")
+        || tags.get("area") == Some("yes")
+}
+
+pub(super) fn add_way(
+    set: &mut FeatureSet,
+    way: &Way,
+    projection: &Projection,
+    settings: &FeatureSettings,
+) {
+    if is_off_ground(&way.tags) {
+        return;
+    }
+    let Some(width) = width_m(&way.tags, settings) else {
+        return;
+    };
+    let line = projection.points(&way.positions);
+    let half_width = projection.metres(width / 2.0, way.positions[0].lat);
+    let element = ElementRef {
+        element_type: ElementType::Way,
+        id: way.id,
+    };
+    let feature = set.add_feature(Some(element), FeatureClass::Road, &way.tags);
+    match widened_surface(FeatureClass::Road, feature, &line, half_width) {
+        Some(surface) => set.surfaces.push(surface),
+        None => {
+            set.features.pop();
+        }
+    }
+}
+
+/// Squares and plazas: `highway=* + area=yes` and `area:highway=*`.
+pub(super) fn add_area(set: &mut FeatureSet, area: &Area<'_>, projection: &Projection) {
+    let is_square = area.tags.get("area:highway").is_some()
+        || (area.tags.get("highway").is_some() && area.tags.get("area") == Some("yes"));
+    if !is_square || area.tags.is_set("tunnel") {
+        return;
+    }
+    let pieces: Vec<_> = area
+        .polygons
+        .iter()
+        .filter_map(|p| projection.polygon(p))
+        .collect();
+    let feature = set.add_feature(Some(area.element), FeatureClass::Road, area.tags);
+    match Surface::from_polygons(FeatureClass::Road, feature, pieces) {
+        Some(surface) => set.surfaces.push(surface),
+        None => {
+            set.features.pop();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn width_prefers_the_tag_then_lanes_then_the_class() {
+        let settings = FeatureSettings::default();
+        let tags = |pairs: &[(&str, &str)]| Tags::from_pairs(pairs.iter().copied());
+        assert_eq!(
+            width_m(&tags(&[("highway", "residential")]), &settings),
+            Some(5.0)
+        );
+        assert_eq!(
+            width_m(
+                &tags(&[("highway", "residential"), ("lanes", "3")]),
+                &settings
+            ),
+            Some(10.5)
+        );
+        assert_eq!(
+            width_m(
+                &tags(&[("highway", "residential"), ("lanes", "3"), ("width", "7 m")]),
+                &settings
+            ),
+            Some(7.0)
+        );
+        assert_eq!(
+            width_m(
+                &tags(&[("highway", "residential"), ("width", "900")]),
+                &settings
+            ),
+            Some(5.0)
+        );
+        assert_eq!(width_m(&tags(&[("highway", "bus_stop")]), &settings), None);
+    }
+}

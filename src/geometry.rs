@@ -1,0 +1,357 @@
+//! Small 2D geometry shared by the feature and mesh stages: rings, point-in-polygon, clipping
+//! to a tile square, polylines offset to a width.
+//!
+//! Geometry is held in global tile units (`u`, `v`, see [`crate::tile`]) until it is placed in a
+//! tile, so that a computation that decides a point on a tile edge gives the same bits in both
+//! tiles that share the edge.
+
+/// A point `[u, v]` (or `[x, z]` once local).
+pub type Point = [f64; 2];
+
+/// A closed ring without the repeated last point.
+pub type Ring = Vec<Point>;
+
+/// An outer ring and its holes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Polygon {
+    pub outer: Ring,
+    pub holes: Vec<Ring>,
+}
+
+impl Polygon {
+    pub fn rings(&self) -> impl Iterator<Item = &Ring> {
+        std::iter::once(&self.outer).chain(self.holes.iter())
+    }
+
+    /// Even-odd containment over all rings.
+    pub fn contains(&self, p: Point) -> bool {
+        self.rings().filter(|r| ring_contains(r, p)).count() % 2 == 1
+    }
+
+    pub fn bounds(&self) -> Rect {
+        Rect::around(&self.outer)
+    }
+}
+
+/// An axis-aligned rectangle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rect {
+    pub min: Point,
+    pub max: Point,
+}
+
+impl Rect {
+    pub fn around(points: &[Point]) -> Rect {
+        let mut rect = Rect {
+            min: [f64::INFINITY; 2],
+            max: [f64::NEG_INFINITY; 2],
+        };
+        for p in points {
+            for (axis, &value) in p.iter().enumerate() {
+                rect.min[axis] = rect.min[axis].min(value);
+                rect.max[axis] = rect.max[axis].max(value);
+            }
+        }
+        rect
+    }
+
+    pub fn union(&self, other: &Rect) -> Rect {
+        Rect {
+            min: [self.min[0].min(other.min[0]), self.min[1].min(other.min[1])],
+            max: [self.max[0].max(other.max[0]), self.max[1].max(other.max[1])],
+        }
+    }
+
+    pub fn intersects(&self, other: &Rect) -> bool {
+        self.min[0] <= other.max[0]
+            && other.min[0] <= self.max[0]
+            && self.min[1] <= other.max[1]
+            && other.min[1] <= self.max[1]
+    }
+
+    pub fn contains(&self, p: Point) -> bool {
+        (self.min[0]..=self.max[0]).contains(&p[0]) && (self.min[1]..=self.max[1]).contains(&p[1])
+    }
+}
+
+/// Twice the signed area; positive when the ring turns counter-clockwise in a y-up plane
+/// (clockwise in `u`, `v`, whose `v` axis points south).
+pub fn signed_area2(ring: &[Point]) -> f64 {
+    let n = ring.len();
+    (0..n)
+        .map(|i| {
+            let a = ring[i];
+            let b = ring[(i + 1) % n];
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum()
+}
+
+/// Crossing-number test; points exactly on the boundary may go either way.
+pub fn ring_contains(ring: &[Point], p: Point) -> bool {
+    let n = ring.len();
+    let mut inside = false;
+    let mut j = n.wrapping_sub(1);
+    for i in 0..n {
+        let (a, b) = (ring[i], ring[j]);
+        if (a[1] > p[1]) != (b[1] > p[1]) {
+            let u = (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1]) + a[0];
+            if p[0] < u {
+                inside = !inside;
+            }
+        }
+        j = i;
+    }
+    inside
+}
+
+/// Drops consecutive duplicates (and a last point equal to the first).
+pub fn dedup_ring(points: &[Point]) -> Ring {
+    let mut ring: Ring = Vec::with_capacity(points.len());
+    for &p in points {
+        if ring.last() != Some(&p) {
+            ring.push(p);
+        }
+    }
+    while ring.len() > 1 && ring.first() == ring.last() {
+        ring.pop();
+    }
+    ring
+}
+
+/// Clips segment `a`–`b` to `rect`. A point where the segment crosses a side of the rectangle
+/// gets that side's coordinate exactly and the other coordinate interpolated from `a` and `b`
+/// alone, so two rectangles that share the side compute the same point.
+pub fn clip_segment(a: Point, b: Point, rect: &Rect) -> Option<(Point, Point)> {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    // (t, axis, value) of the binding entry and exit sides.
+    let mut enter: (f64, Option<(usize, f64)>) = (0.0, None);
+    let mut leave: (f64, Option<(usize, f64)>) = (1.0, None);
+    for axis in 0..2 {
+        if d[axis] == 0.0 {
+            if a[axis] < rect.min[axis] || a[axis] > rect.max[axis] {
+                return None;
+            }
+            continue;
+        }
+        let (near, far) = if d[axis] > 0.0 {
+            (rect.min[axis], rect.max[axis])
+        } else {
+            (rect.max[axis], rect.min[axis])
+        };
+        let t_near = (near - a[axis]) / d[axis];
+        let t_far = (far - a[axis]) / d[axis];
+        if t_near > enter.0 {
+            enter = (t_near, Some((axis, near)));
+        }
+        if t_far < leave.0 {
+            leave = (t_far, Some((axis, far)));
+        }
+    }
+    if enter.0 > leave.0 {
+        return None;
+    }
+    let place = |(t, side): (f64, Option<(usize, f64)>), default: Point| -> Point {
+        match side {
+            None => default,
+            Some((axis, value)) => {
+                let other = 1 - axis;
+                let mut p = [0.0; 2];
+                p[axis] = value;
+                p[other] = (a[other] + t * d[other]).clamp(rect.min[other], rect.max[other]);
+                snap_to_corner(p, rect)
+            }
+        }
+    };
+    Some((place(enter, a), place(leave, b)))
+}
+
+/// A point within this distance of a rectangle's corner (in the rectangle's units) is the corner.
+const CORNER_SNAP: f64 = 1e-9;
+
+fn snap_to_corner(p: Point, rect: &Rect) -> Point {
+    for cu in [rect.min[0], rect.max[0]] {
+        for cv in [rect.min[1], rect.max[1]] {
+            if (p[0] - cu).abs() <= CORNER_SNAP && (p[1] - cv).abs() <= CORNER_SNAP {
+                return [cu, cv];
+            }
+        }
+    }
+    p
+}
+
+/// Sutherland–Hodgman clipping of a convex or concave polygon to a rectangle (the result may
+/// have edges along the rectangle's sides; good enough for roof caps, not for shared edges).
+pub fn clip_ring(ring: &[Point], rect: &Rect) -> Ring {
+    let mut output: Ring = ring.to_vec();
+    for axis in 0..2 {
+        for (bound, keep_greater) in [(rect.min[axis], true), (rect.max[axis], false)] {
+            let inside = |p: &Point| {
+                if keep_greater {
+                    p[axis] >= bound
+                } else {
+                    p[axis] <= bound
+                }
+            };
+            let input = std::mem::take(&mut output);
+            let n = input.len();
+            for i in 0..n {
+                let current = input[i];
+                let previous = input[(i + n - 1) % n];
+                let crossing = || {
+                    let t = (bound - previous[axis]) / (current[axis] - previous[axis]);
+                    let mut p = [0.0; 2];
+                    p[axis] = bound;
+                    p[1 - axis] = previous[1 - axis] + t * (current[1 - axis] - previous[1 - axis]);
+                    p
+                };
+                match (inside(&previous), inside(&current)) {
+                    (true, true) => output.push(current),
+                    (true, false) => output.push(crossing()),
+                    (false, true) => {
+                        output.push(crossing());
+                        output.push(current);
+                    }
+                    (false, false) => {}
+                }
+            }
+        }
+    }
+    dedup_ring(&output)
+}
+
+/// Distance from `p` to the segment `a`–`b`.
+pub fn distance_to_segment(p: Point, a: Point, b: Point) -> f64 {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let len2 = d[0] * d[0] + d[1] * d[1];
+    let t = if len2 > 0.0 {
+        (((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1]) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let q = [a[0] + t * d[0], a[1] + t * d[1]];
+    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt()
+}
+
+/// Longest a mitre may grow, as a multiple of the half width, before the join is cut short.
+const MITRE_LIMIT: f64 = 2.0;
+
+/// The outline of a polyline widened by `half_width` on each side: the left and right offset
+/// polylines, joined with mitres (limited to [`MITRE_LIMIT`]). Returns `None` for a polyline
+/// with fewer than two distinct points.
+pub fn offset_polyline(line: &[Point], half_width: f64) -> Option<(Vec<Point>, Vec<Point>)> {
+    let line = {
+        let mut l: Vec<Point> = Vec::with_capacity(line.len());
+        for &p in line {
+            if l.last() != Some(&p) {
+                l.push(p);
+            }
+        }
+        l
+    };
+    if line.len() < 2 {
+        return None;
+    }
+    let normal = |a: Point, b: Point| {
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let len = (d[0] * d[0] + d[1] * d[1]).sqrt();
+        // Left of the direction of travel in a plane whose second axis points south.
+        [d[1] / len, -d[0] / len]
+    };
+    let n = line.len();
+    let mut left = Vec::with_capacity(n);
+    let mut right = Vec::with_capacity(n);
+    for i in 0..n {
+        let normal_in = (i > 0).then(|| normal(line[i - 1], line[i]));
+        let normal_out = (i + 1 < n).then(|| normal(line[i], line[i + 1]));
+        let offset = match (normal_in, normal_out) {
+            (Some(a), Some(b)) => {
+                let sum = [a[0] + b[0], a[1] + b[1]];
+                let len = (sum[0] * sum[0] + sum[1] * sum[1]).sqrt();
+                if len < 1e-12 {
+                    // A full reversal: no sensible join, use the incoming normal.
+                    [a[0] * half_width, a[1] * half_width]
+                } else {
+                    let m = [sum[0] / len, sum[1] / len];
+                    let cos = m[0] * a[0] + m[1] * a[1];
+                    let scale = (half_width / cos.max(1e-12)).min(half_width * MITRE_LIMIT);
+                    [m[0] * scale, m[1] * scale]
+                }
+            }
+            (Some(a), None) | (None, Some(a)) => [a[0] * half_width, a[1] * half_width],
+            (None, None) => unreachable!("a polyline of two or more points"),
+        };
+        left.push([line[i][0] + offset[0], line[i][1] + offset[1]]);
+        right.push([line[i][0] - offset[0], line[i][1] - offset[1]]);
+    }
+    Some((left, right))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const UNIT: Rect = Rect {
+        min: [0.0, 0.0],
+        max: [1.0, 1.0],
+    };
+
+    #[test]
+    fn clipping_a_crossing_segment_gives_the_same_point_in_both_squares() {
+        let (a, b) = ([0.3, 0.123456789], [1.7, 0.987654321]);
+        let east = Rect {
+            min: [1.0, 0.0],
+            max: [2.0, 1.0],
+        };
+        let (_, exit) = clip_segment(a, b, &UNIT).unwrap();
+        let (entry, _) = clip_segment(a, b, &east).unwrap();
+        assert_eq!(exit[0], 1.0);
+        assert_eq!(exit, entry);
+    }
+
+    #[test]
+    fn segments_outside_are_dropped_and_inside_kept() {
+        assert_eq!(clip_segment([2.0, 2.0], [3.0, 3.0], &UNIT), None);
+        assert_eq!(
+            clip_segment([0.2, 0.2], [0.4, 0.6], &UNIT),
+            Some(([0.2, 0.2], [0.4, 0.6]))
+        );
+        assert_eq!(clip_segment([-1.0, 0.5], [-0.5, 0.5], &UNIT), None);
+    }
+
+    #[test]
+    fn point_in_polygon_with_a_hole() {
+        let polygon = Polygon {
+            outer: vec![[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]],
+            holes: vec![vec![[1.0, 1.0], [3.0, 1.0], [3.0, 3.0], [1.0, 3.0]]],
+        };
+        assert!(polygon.contains([0.5, 0.5]));
+        assert!(!polygon.contains([2.0, 2.0]));
+        assert!(!polygon.contains([5.0, 2.0]));
+    }
+
+    #[test]
+    fn ring_clipping_keeps_the_inside() {
+        let ring = vec![[-1.0, -1.0], [0.5, -1.0], [0.5, 0.5], [-1.0, 0.5]];
+        let clipped = clip_ring(&ring, &UNIT);
+        assert!(
+            (signed_area2(&clipped).abs() - 0.5).abs() < 1e-12,
+            "{clipped:?}"
+        );
+    }
+
+    #[test]
+    fn offset_of_a_straight_line_is_parallel() {
+        let (left, right) = offset_polyline(&[[0.0, 0.0], [10.0, 0.0]], 1.0).unwrap();
+        // With v pointing south, the left of an eastward line is north (smaller v).
+        assert_eq!(left, vec![[0.0, -1.0], [10.0, -1.0]]);
+        assert_eq!(right, vec![[0.0, 1.0], [10.0, 1.0]]);
+    }
+
+    #[test]
+    fn mitre_keeps_the_width_at_a_right_angle() {
+        let (left, _) = offset_polyline(&[[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]], 1.0).unwrap();
+        let corner = left[1];
+        assert!((corner[0] - 11.0).abs() < 1e-12 && (corner[1] + 1.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,23 @@
+//! terrastitch turns OpenStreetMap extracts and SRTM elevation tiles into seamless 3D map tiles.
+//!
+//! The data flows through the modules in this order: [`source`] (extracts and rasters) →
+//! [`osm`] (the OSM model and its spatial index) → [`features`] (roads, water, buildings…) →
+//! [`terrain`] (elevation between samples) → [`mesh`] (the ground triangulation with features
+//! stitched in, extruded buildings) → [`output`] (glb) → [`cache`] → [`server`].
+//! [`render::render`] is the pure core from one tile's inputs to its bytes.
+
+pub mod cache;
+pub mod config;
+pub mod features;
+pub mod geometry;
+pub mod mesh;
+pub mod osm;
+pub mod output;
+pub mod render;
+pub mod server;
+pub mod source;
+pub mod terrain;
+pub mod tile;
+
+pub use render::{render as render_tile, RenderSettings, RenderedTile};
+pub use tile::TileId;

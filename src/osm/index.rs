@@ -1,0 +1,192 @@
+//! A spatial index over the OSM data, built once at start in memory.
+//!
+//! Every way, tagged node and relation is registered in each cell of a regular grid of
+//! slippy-map tiles (at [`OsmIndex::zoom`]) that its bounding box touches. A tile query then
+//! reads only the cells around the tile: no extract is reread per request. An in-memory grid
+//! is the right size for city and region extracts (Monaco: 27k ways, under 100 MB); a country
+//! would call for the same cells kept in SQLite instead.
+
+use std::collections::HashMap;
+
+use super::{Bounds, LonLat, Node, OsmData, Relation, Way};
+use crate::tile::{lon_lat_to_uv, TileId};
+
+/// The OSM data and its grid.
+#[derive(Debug)]
+pub struct OsmIndex {
+    data: OsmData,
+    zoom: u8,
+    cells: HashMap<(u32, u32), CellContent>,
+}
+
+#[derive(Debug, Default)]
+struct CellContent {
+    ways: Vec<u32>,
+    nodes: Vec<u32>,
+    relations: Vec<u32>,
+}
+
+/// The elements near one tile, each in ascending id order.
+#[derive(Debug, Default)]
+pub struct Selection<'a> {
+    pub nodes: Vec<&'a Node>,
+    pub ways: Vec<&'a Way>,
+    pub relations: Vec<&'a Relation>,
+}
+
+impl OsmIndex {
+    /// Indexes `data` on a grid of zoom-`zoom` tiles.
+    pub fn new(data: OsmData, zoom: u8) -> OsmIndex {
+        let mut cells: HashMap<(u32, u32), CellContent> = HashMap::new();
+        let n = f64::from(1u32 << zoom);
+        let mut register = |bounds: Bounds, push: &mut dyn FnMut(&mut CellContent)| {
+            for cell in cells_of(&bounds, n) {
+                push(cells.entry(cell).or_default());
+            }
+        };
+        for (i, way) in data.ways.iter().enumerate() {
+            if let Some(bounds) = bounds_of(&way.positions) {
+                register(bounds, &mut |c| c.ways.push(i as u32));
+            }
+        }
+        for (i, node) in data.nodes.iter().enumerate() {
+            let bounds = bounds_of(&[node.position]).expect("one position has bounds");
+            register(bounds, &mut |c| c.nodes.push(i as u32));
+        }
+        for (i, relation) in data.relations.iter().enumerate() {
+            let member_positions: Vec<LonLat> = relation
+                .members
+                .iter()
+                .filter_map(|m| match m.element.element_type {
+                    super::ElementType::Way => data.way(m.element.id),
+                    _ => None,
+                })
+                .flat_map(|w| w.positions.iter().copied())
+                .collect();
+            if let Some(bounds) = bounds_of(&member_positions) {
+                register(bounds, &mut |c| c.relations.push(i as u32));
+            }
+        }
+        OsmIndex { data, zoom, cells }
+    }
+
+    pub fn data(&self) -> &OsmData {
+        &self.data
+    }
+
+    pub fn zoom(&self) -> u8 {
+        self.zoom
+    }
+
+    /// The elements whose bounding box meets `tile` grown by `margin_deg` degrees.
+    pub fn query(&self, tile: TileId, margin_deg: f64) -> Selection<'_> {
+        let area = tile.bounds().expanded(margin_deg);
+        let n = f64::from(1u32 << self.zoom);
+        let mut ways: Vec<u32> = Vec::new();
+        let mut nodes: Vec<u32> = Vec::new();
+        let mut relations: Vec<u32> = Vec::new();
+        for cell in cells_of(&area, n) {
+            if let Some(content) = self.cells.get(&cell) {
+                ways.extend(&content.ways);
+                nodes.extend(&content.nodes);
+                relations.extend(&content.relations);
+            }
+        }
+        for list in [&mut ways, &mut nodes, &mut relations] {
+            list.sort_unstable();
+            list.dedup();
+        }
+        let meets = |positions: &[LonLat]| bounds_of(positions).is_some_and(|b| meets(&b, &area));
+        Selection {
+            ways: ways
+                .into_iter()
+                .map(|i| &self.data.ways[i as usize])
+                .filter(|w| meets(&w.positions))
+                .collect(),
+            nodes: nodes
+                .into_iter()
+                .map(|i| &self.data.nodes[i as usize])
+                .filter(|n| meets(&[n.position]))
+                .collect(),
+            relations: relations
+                .into_iter()
+                .map(|i| &self.data.relations[i as usize])
+                .collect(),
+        }
+    }
+}
+
+/// Like [`Bounds::intersects`], but a box of zero width (a node, a north–south way) counts.
+fn meets(a: &Bounds, b: &Bounds) -> bool {
+    a.west <= b.east && b.west <= a.east && a.south <= b.north && b.south <= a.north
+}
+
+/// The bounding box of some positions.
+pub fn bounds_of(positions: &[LonLat]) -> Option<Bounds> {
+    let first = positions.first()?;
+    let mut bounds = Bounds {
+        west: first.lon,
+        east: first.lon,
+        south: first.lat,
+        north: first.lat,
+    };
+    for p in &positions[1..] {
+        bounds.west = bounds.west.min(p.lon);
+        bounds.east = bounds.east.max(p.lon);
+        bounds.south = bounds.south.min(p.lat);
+        bounds.north = bounds.north.max(p.lat);
+    }
+    Some(bounds)
+}
+
+/// The grid cells a box touches at `n` cells per axis.
+fn cells_of(bounds: &Bounds, n: f64) -> impl Iterator<Item = (u32, u32)> {
+    let max = n - 1.0;
+    let (u0, v0) = lon_lat_to_uv(bounds.west, bounds.north, n);
+    let (u1, v1) = lon_lat_to_uv(bounds.east, bounds.south, n);
+    let clamp = |t: f64| t.floor().clamp(0.0, max) as u32;
+    let (x0, x1, y0, y1) = (clamp(u0), clamp(u1), clamp(v0), clamp(v1));
+    (x0..=x1).flat_map(move |x| (y0..=y1).map(move |y| (x, y)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::osm::Tags;
+
+    fn way(id: i64, points: &[(f64, f64)]) -> Way {
+        Way {
+            id,
+            tags: Tags::from_pairs([("highway", "residential")]),
+            nodes: (0..points.len() as i64).collect(),
+            positions: points
+                .iter()
+                .map(|&(lon, lat)| LonLat { lon, lat })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn finds_ways_near_a_tile_and_not_far_ones() {
+        let data = OsmData {
+            ways: vec![
+                way(1, &[(7.41, 43.745), (7.42, 43.746)]),
+                way(2, &[(7.60, 43.745), (7.61, 43.746)]),
+                // Crosses the tile without a node in it.
+                way(3, &[(7.39, 43.747), (7.44, 43.747)]),
+            ],
+            ..OsmData::default()
+        };
+        let index = OsmIndex::new(data, 14);
+        let selection = index.query(
+            TileId {
+                z: 14,
+                x: 8529,
+                y: 5973,
+            },
+            0.0005,
+        );
+        let ids: Vec<i64> = selection.ways.iter().map(|w| w.id).collect();
+        assert_eq!(ids, [1, 3]);
+    }
+}

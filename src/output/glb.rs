@@ -1,0 +1,467 @@
+//! glTF binary (`.glb`) writer.
+//!
+//! One node per feature class, named after it, each with one mesh whose primitives are the
+//! class's [`Part`]s. Every primitive carries `POSITION`, `NORMAL` and `_FEATURE_ID_0`
+//! (`EXT_mesh_features`); the feature ids index one property table (`EXT_structural_metadata`)
+//! of class `osm_feature` with the OSM type, id, class, name and all tags (as a JSON object) of
+//! each feature. The frame is described in `asset.extras.terrastitch`.
+//!
+//! The container is written here (gltf-json writes only the JSON): a 12-byte header, the JSON
+//! chunk padded with spaces and the binary chunk padded with zeros, both to 4 bytes.
+
+use std::collections::{BTreeMap, BTreeSet};
+
+use gltf_json as json;
+use json::validation::{Checked::Valid, USize64};
+use serde_json::{json as value, Value};
+
+use crate::features::{FeatureClass, FeatureInfo};
+use crate::mesh::{MeshBuffers, Part};
+use crate::tile::{LonLatBounds, TileId};
+
+/// Credit shown wherever tiles are shown.
+pub const ATTRIBUTION: &str = "© OpenStreetMap contributors, SRTM: NASA/USGS";
+
+/// What the writer needs to describe the tile.
+#[derive(Debug, Clone)]
+pub struct TileDescription {
+    pub tile: TileId,
+    pub bounds: LonLatBounds,
+    pub size_m: f64,
+    pub generator: String,
+}
+
+/// Accumulates the binary chunk and the buffer views that point into it.
+struct BinaryBuilder {
+    bytes: Vec<u8>,
+    root: json::Root,
+}
+
+impl BinaryBuilder {
+    /// Appends `data` as a buffer view aligned to `align` bytes.
+    fn view(
+        &mut self,
+        data: &[u8],
+        align: usize,
+        target: Option<json::buffer::Target>,
+    ) -> json::Index<json::buffer::View> {
+        while self.bytes.len() % align != 0 {
+            self.bytes.push(0);
+        }
+        let offset = self.bytes.len();
+        self.bytes.extend_from_slice(data);
+        self.root.push(json::buffer::View {
+            buffer: json::Index::new(0),
+            byte_length: USize64::from(data.len()),
+            byte_offset: Some(USize64::from(offset)),
+            byte_stride: None,
+            name: None,
+            target: target.map(Valid),
+            extensions: None,
+            extras: Default::default(),
+        })
+    }
+
+    fn accessor(
+        &mut self,
+        view: json::Index<json::buffer::View>,
+        count: usize,
+        component_type: json::accessor::ComponentType,
+        type_: json::accessor::Type,
+        min_max: Option<(Value, Value)>,
+    ) -> json::Index<json::Accessor> {
+        let (min, max) = match min_max {
+            Some((min, max)) => (Some(min), Some(max)),
+            None => (None, None),
+        };
+        self.root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(count),
+            component_type: Valid(json::accessor::GenericComponentType(component_type)),
+            extensions: None,
+            extras: Default::default(),
+            type_: Valid(type_),
+            min,
+            max,
+            name: None,
+            normalized: false,
+            sparse: None,
+        })
+    }
+}
+
+fn floats_to_bytes(values: impl Iterator<Item = f32>) -> Vec<u8> {
+    values.flat_map(f32::to_le_bytes).collect()
+}
+
+/// Base colour, roughness per part (metallic is 0 everywhere: nothing here is bare metal).
+fn material_of(part: Part) -> ([f32; 4], f32) {
+    match part {
+        Part::Terrain => ([0.42, 0.52, 0.30, 1.0], 0.95),
+        Part::Road => ([0.32, 0.32, 0.34, 1.0], 0.9),
+        Part::Railway => ([0.45, 0.40, 0.35, 1.0], 0.95),
+        Part::Water => ([0.16, 0.36, 0.62, 1.0], 0.15),
+        Part::BuildingWalls => ([0.86, 0.80, 0.70, 1.0], 0.85),
+        Part::BuildingRoofs => ([0.62, 0.36, 0.30, 1.0], 0.8),
+    }
+}
+
+/// Writes a tile's parts and feature table as glb bytes.
+pub fn write(
+    description: &TileDescription,
+    parts: &BTreeMap<Part, MeshBuffers>,
+    features: &[FeatureInfo],
+) -> Vec<u8> {
+    let mut builder = BinaryBuilder {
+        bytes: Vec::new(),
+        root: json::Root::default(),
+    };
+
+    let mut class_nodes: BTreeMap<FeatureClass, Vec<json::mesh::Primitive>> = BTreeMap::new();
+    for (&part, buffers) in parts {
+        if buffers.is_empty() {
+            continue;
+        }
+        let primitive = write_primitive(&mut builder, part, buffers);
+        class_nodes.entry(part.class()).or_default().push(primitive);
+    }
+
+    let mut nodes = Vec::new();
+    for (class, primitives) in class_nodes {
+        let mesh = builder.root.push(json::Mesh {
+            extensions: None,
+            extras: Default::default(),
+            name: Some(class.as_str().to_string()),
+            primitives,
+            weights: None,
+        });
+        nodes.push(builder.root.push(json::Node {
+            mesh: Some(mesh),
+            name: Some(class.as_str().to_string()),
+            ..Default::default()
+        }));
+    }
+    let scene = builder.root.push(json::Scene {
+        extensions: None,
+        extras: Default::default(),
+        name: Some(description.tile.to_string()),
+        nodes,
+    });
+    builder.root.scene = Some(scene);
+
+    let metadata = write_property_table(&mut builder, features);
+    builder.root.extensions = Some(json::extensions::root::Root {
+        others: [("EXT_structural_metadata".to_string(), metadata)]
+            .into_iter()
+            .collect(),
+    });
+    builder.root.extensions_used = vec![
+        "EXT_mesh_features".to_string(),
+        "EXT_structural_metadata".to_string(),
+    ];
+
+    while builder.bytes.len() % 4 != 0 {
+        builder.bytes.push(0);
+    }
+    builder.root.buffers = vec![json::Buffer {
+        byte_length: USize64::from(builder.bytes.len()),
+        name: None,
+        uri: None,
+        extensions: None,
+        extras: Default::default(),
+    }];
+    builder.root.asset = asset(description);
+
+    let json_bytes = serde_json::to_vec(&builder.root).expect("glTF JSON serializes");
+    container(&json_bytes, &builder.bytes)
+}
+
+fn write_primitive(
+    builder: &mut BinaryBuilder,
+    part: Part,
+    buffers: &MeshBuffers,
+) -> json::mesh::Primitive {
+    let count = buffers.positions.len();
+    let mut min = [f32::INFINITY; 3];
+    let mut max = [f32::NEG_INFINITY; 3];
+    for p in &buffers.positions {
+        for axis in 0..3 {
+            min[axis] = min[axis].min(p[axis]);
+            max[axis] = max[axis].max(p[axis]);
+        }
+    }
+    let array = Some(json::buffer::Target::ArrayBuffer);
+    let positions = builder.view(
+        &floats_to_bytes(buffers.positions.iter().flatten().copied()),
+        4,
+        array,
+    );
+    let positions = builder.accessor(
+        positions,
+        count,
+        json::accessor::ComponentType::F32,
+        json::accessor::Type::Vec3,
+        Some((value!(min), value!(max))),
+    );
+    let normals = builder.view(
+        &floats_to_bytes(buffers.normals.iter().flatten().copied()),
+        4,
+        array,
+    );
+    let normals = builder.accessor(
+        normals,
+        count,
+        json::accessor::ComponentType::F32,
+        json::accessor::Type::Vec3,
+        None,
+    );
+
+    // Feature ids: 16-bit where they fit (vertex attributes may not be 32-bit integers), each
+    // element padded to the 4-byte alignment vertex attributes need.
+    let max_id = buffers.feature_ids.iter().copied().max().unwrap_or(0);
+    let (id_view, id_type) = if max_id < u32::from(u16::MAX) {
+        let padded: Vec<u8> = buffers
+            .feature_ids
+            .iter()
+            .flat_map(|&id| {
+                let [a, b] = (id as u16).to_le_bytes();
+                [a, b, 0, 0]
+            })
+            .collect();
+        let view = builder.view(&padded, 4, array);
+        builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(4));
+        (view, json::accessor::ComponentType::U16)
+    } else {
+        let bytes = floats_to_bytes(buffers.feature_ids.iter().map(|&id| id as f32));
+        (
+            builder.view(&bytes, 4, array),
+            json::accessor::ComponentType::F32,
+        )
+    };
+    let feature_ids = builder.accessor(id_view, count, id_type, json::accessor::Type::Scalar, None);
+
+    let element = Some(json::buffer::Target::ElementArrayBuffer);
+    let indices = if count <= usize::from(u16::MAX) {
+        let bytes: Vec<u8> = buffers
+            .indices
+            .iter()
+            .flat_map(|&i| (i as u16).to_le_bytes())
+            .collect();
+        let view = builder.view(&bytes, 4, element);
+        builder.accessor(
+            view,
+            buffers.indices.len(),
+            json::accessor::ComponentType::U16,
+            json::accessor::Type::Scalar,
+            None,
+        )
+    } else {
+        let bytes: Vec<u8> = buffers
+            .indices
+            .iter()
+            .flat_map(|&i| i.to_le_bytes())
+            .collect();
+        let view = builder.view(&bytes, 4, element);
+        builder.accessor(
+            view,
+            buffers.indices.len(),
+            json::accessor::ComponentType::U32,
+            json::accessor::Type::Scalar,
+            None,
+        )
+    };
+
+    let (colour, roughness) = material_of(part);
+    let material = builder.root.push(json::Material {
+        name: Some(part.name().to_string()),
+        pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+            base_color_factor: json::material::PbrBaseColorFactor(colour),
+            metallic_factor: json::material::StrengthFactor(0.0),
+            roughness_factor: json::material::StrengthFactor(roughness),
+            ..Default::default()
+        },
+        ..Default::default()
+    });
+
+    let distinct: BTreeSet<u32> = buffers.feature_ids.iter().copied().collect();
+    let mut attributes = BTreeMap::new();
+    attributes.insert(Valid(json::mesh::Semantic::Positions), positions);
+    attributes.insert(Valid(json::mesh::Semantic::Normals), normals);
+    attributes.insert(
+        Valid(json::mesh::Semantic::Extras("FEATURE_ID_0".to_string())),
+        feature_ids,
+    );
+    json::mesh::Primitive {
+        attributes,
+        extensions: Some(json::extensions::mesh::Primitive {
+            others: [(
+                "EXT_mesh_features".to_string(),
+                value!({
+                    "featureIds": [{
+                        "featureCount": distinct.len(),
+                        "attribute": 0,
+                        "propertyTable": 0,
+                        "label": "osm"
+                    }]
+                }),
+            )]
+            .into_iter()
+            .collect(),
+        }),
+        extras: Default::default(),
+        indices: Some(indices),
+        material: Some(material),
+        mode: Valid(json::mesh::Mode::Triangles),
+        targets: None,
+    }
+}
+
+/// The schema and the one property table of `EXT_structural_metadata`.
+fn write_property_table(builder: &mut BinaryBuilder, features: &[FeatureInfo]) -> Value {
+    let strings = |builder: &mut BinaryBuilder, values: Vec<String>| {
+        let mut data = Vec::new();
+        let mut offsets: Vec<u8> = Vec::with_capacity((values.len() + 1) * 4);
+        offsets.extend_from_slice(&0u32.to_le_bytes());
+        for v in &values {
+            data.extend_from_slice(v.as_bytes());
+            offsets.extend_from_slice(&(data.len() as u32).to_le_bytes());
+        }
+        // Property table buffer views start on 8-byte boundaries.
+        let values_view = builder.view(&data, 8, None);
+        let offsets_view = builder.view(&offsets, 8, None);
+        value!({
+            "values": values_view.value(),
+            "stringOffsets": offsets_view.value(),
+            "stringOffsetType": "UINT32"
+        })
+    };
+    let osm_type = strings(
+        builder,
+        features
+            .iter()
+            .map(|f| {
+                f.element
+                    .map_or("none", |e| e.element_type.as_str())
+                    .to_string()
+            })
+            .collect(),
+    );
+    let class = strings(
+        builder,
+        features
+            .iter()
+            .map(|f| f.class.as_str().to_string())
+            .collect(),
+    );
+    let name = strings(
+        builder,
+        features
+            .iter()
+            .map(|f| f.name().unwrap_or("").to_string())
+            .collect(),
+    );
+    let tags = strings(
+        builder,
+        features
+            .iter()
+            .map(|f| {
+                let object: serde_json::Map<String, Value> = f
+                    .tags
+                    .iter()
+                    .map(|(k, v)| (k.to_string(), Value::String(v.to_string())))
+                    .collect();
+                Value::Object(object).to_string()
+            })
+            .collect(),
+    );
+    let ids: Vec<u8> = features
+        .iter()
+        .flat_map(|f| f.element.map_or(0i64, |e| e.id).to_le_bytes())
+        .collect();
+    let ids_view = builder.view(&ids, 8, None);
+    value!({
+        "schema": {
+            "id": "terrastitch",
+            "classes": {
+                "osm_feature": {
+                    "name": "OpenStreetMap feature",
+                    "properties": {
+                        "osm_type": {"type": "STRING", "description": "node, way, relation, or none for the default ground"},
+                        "osm_id": {"type": "SCALAR", "componentType": "INT64", "description": "OSM element id (0 for the default ground)"},
+                        "class": {"type": "STRING", "description": "terrain, road, railway, water or building"},
+                        "name": {"type": "STRING", "description": "the name tag, empty if none"},
+                        "tags": {"type": "STRING", "description": "all OSM tags as a JSON object"}
+                    }
+                }
+            }
+        },
+        "propertyTables": [{
+            "name": "osm_features",
+            "class": "osm_feature",
+            "count": features.len(),
+            "properties": {
+                "osm_type": osm_type,
+                "osm_id": {"values": ids_view.value()},
+                "class": class,
+                "name": name,
+                "tags": tags
+            }
+        }]
+    })
+}
+
+fn asset(description: &TileDescription) -> json::Asset {
+    let b = description.bounds;
+    let extras = value!({
+        "terrastitch": {
+            "tile": {"z": description.tile.z, "x": description.tile.x, "y": description.tile.y},
+            "bounds": {"west": b.west, "south": b.south, "east": b.east, "north": b.north},
+            "tile_size_m": description.size_m,
+            "frame": "glTF Y-up. x: Web Mercator metres east of the tile's north-west corner; z: Web Mercator metres south of it; y: elevation in metres times the Web Mercator scale factor 1/cos(latitude) at the vertex. Tiles line up when translated by tile_size_m per step in x or y.",
+            "vertical_scale": "mercator_scale_factor_per_vertex",
+            "attribution": ATTRIBUTION
+        }
+    });
+    json::Asset {
+        copyright: Some(ATTRIBUTION.to_string()),
+        extensions: None,
+        extras: Some(serde_json::value::to_raw_value(&extras).expect("asset extras serialize")),
+        generator: Some(description.generator.clone()),
+        min_version: None,
+        version: "2.0".to_string(),
+    }
+}
+
+/// Wraps JSON and binary chunks in the glb container.
+pub fn container(json_bytes: &[u8], binary: &[u8]) -> Vec<u8> {
+    let mut json_chunk = json_bytes.to_vec();
+    while json_chunk.len() % 4 != 0 {
+        json_chunk.push(b' ');
+    }
+    let mut binary_chunk = binary.to_vec();
+    while binary_chunk.len() % 4 != 0 {
+        binary_chunk.push(0);
+    }
+    let total = 12
+        + 8
+        + json_chunk.len()
+        + if binary_chunk.is_empty() {
+            0
+        } else {
+            8 + binary_chunk.len()
+        };
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json_chunk.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json_chunk);
+    if !binary_chunk.is_empty() {
+        out.extend_from_slice(&(binary_chunk.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&binary_chunk);
+    }
+    out
+}

@@ -1,0 +1,3 @@
+//! Writers of the formats tiles are served in.
+
+pub mod glb;

@@ -1,0 +1,176 @@
+//! `GET /tiles/{z}/{x}/{y}.glb`.
+//!
+//! The route captures the last segment whole (`{y}.glb`): axum 0.8 panics on a capture followed
+//! by a literal in one segment.
+
+use std::time::Instant;
+
+use axum::extract::{Path, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+
+use super::error::ApiError;
+use super::metrics::Metrics;
+use super::AppState;
+use crate::cache::{Format, Origin, TileKey};
+use crate::tile::{TileId, TileIdError};
+
+/// Parses `z`, `x` and `y.ext` into a tile and a format.
+pub fn parse_tile_path(z: &str, x: &str, file: &str) -> Result<(TileId, Format), ApiError> {
+    let (y, extension) = file.rsplit_once('.').ok_or_else(|| {
+        ApiError::bad_request(format!("'{file}' has no format extension; expected Y.glb"))
+    })?;
+    let format = match extension {
+        "glb" => Format::Glb,
+        other => {
+            return Err(ApiError::bad_request(format!(
+                "unknown tile format '.{other}'; expected .glb"
+            )))
+        }
+    };
+    let number = |name: &str, text: &str| {
+        text.parse::<u64>().map_err(|_| {
+            ApiError::bad_request(format!("{name} = '{text}' is not a non-negative integer"))
+        })
+    };
+    let z = number("z", z)?;
+    let x = number("x", x)?;
+    let y = number("y", y)?;
+    let z =
+        u32::try_from(z).map_err(|_| ApiError::bad_request(format!("zoom {z} is out of range")))?;
+    let tile =
+        TileId::new(z, x, y).map_err(|e: TileIdError| ApiError::bad_request(e.to_string()))?;
+    Ok((tile, format))
+}
+
+pub async fn tile(
+    State(state): State<AppState>,
+    Path((z, x, file)): Path<(String, String, String)>,
+) -> Result<Response, ApiError> {
+    Metrics::count(&state.metrics.tile_requests);
+    let (tile, format) = parse_tile_path(&z, &x, &file)?;
+    if tile.z != state.zoom {
+        return Err(ApiError::not_found(format!(
+            "zoom {} is not served; this server serves zoom {}",
+            tile.z, state.zoom
+        )));
+    }
+    state
+        .sources
+        .check_coverage(tile)
+        .map_err(|e| ApiError::not_found(e.to_string()))?;
+
+    let key = TileKey { tile, format };
+    let render_state = state.clone();
+    let permits = state.render_permits.clone();
+    let runtime = tokio::runtime::Handle::current();
+    let render = move || -> Result<Vec<u8>, RenderFailure> {
+        // Runs on the blocking pool: wait here for one of the render slots.
+        let _permit = runtime
+            .block_on(permits.acquire_owned())
+            .map_err(|_| RenderFailure("the server is shutting down".to_string()))?;
+        let started = Instant::now();
+        let result = render_glb(&render_state, tile);
+        let metrics = &render_state.metrics;
+        Metrics::count(&metrics.renders);
+        metrics.render_seconds_micros.fetch_add(
+            started.elapsed().as_micros() as u64,
+            std::sync::atomic::Ordering::Relaxed,
+        );
+        if result.is_err() {
+            Metrics::count(&metrics.render_failures);
+        }
+        result
+    };
+    let (cached, origin) = state.cache.get_or_render(key, render).await.map_err(|e| {
+        tracing::error!(%tile, error = %e, "tile failed");
+        ApiError::internal(format!("tile {tile} could not be made: {e}"))
+    })?;
+    match origin {
+        Origin::Memory => Metrics::count(&state.metrics.hits_memory),
+        Origin::Store => Metrics::count(&state.metrics.hits_store),
+        Origin::Rendered => {}
+    }
+
+    let mut headers = HeaderMap::new();
+    headers.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("model/gltf-binary"),
+    );
+    if let Ok(etag) = HeaderValue::from_str(&cached.etag) {
+        headers.insert(header::ETAG, etag);
+    }
+    headers.insert(
+        "x-cache",
+        HeaderValue::from_static(if origin == Origin::Rendered {
+            "miss"
+        } else {
+            "hit"
+        }),
+    );
+    headers.insert("x-cache-layer", HeaderValue::from_static(origin.as_str()));
+    if let Ok(disposition) = HeaderValue::from_str(&format!(
+        "attachment; filename=\"{}_{}_{}.{}\"",
+        tile.z,
+        tile.x,
+        tile.y,
+        format.as_str()
+    )) {
+        headers.insert(header::CONTENT_DISPOSITION, disposition);
+    }
+    Ok((StatusCode::OK, headers, cached.data.as_ref().clone()).into_response())
+}
+
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct RenderFailure(String);
+
+/// Loads the tile's inputs and renders it (runs on the blocking pool).
+fn render_glb(state: &AppState, tile: TileId) -> Result<Vec<u8>, RenderFailure> {
+    let mosaic = state
+        .sources
+        .mosaic(tile)
+        .map_err(|e| RenderFailure(e.to_string()))?;
+    let selection = state.sources.selection(tile);
+    let rendered = crate::render::render(tile, &selection, &mosaic, &state.settings)
+        .map_err(|e| RenderFailure(e.to_string()))?;
+    tracing::info!(
+        %tile,
+        triangles = rendered.stats.triangles,
+        bytes = rendered.stats.glb_bytes,
+        ms = rendered.timings.total().as_millis() as u64,
+        "rendered"
+    );
+    Ok(rendered.glb)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_good_paths_and_rejects_bad_ones() {
+        let (tile, format) = parse_tile_path("14", "8529", "5973.glb").unwrap();
+        assert_eq!(
+            (tile, format),
+            (
+                TileId {
+                    z: 14,
+                    x: 8529,
+                    y: 5973
+                },
+                Format::Glb
+            )
+        );
+        for (z, x, file) in [
+            ("14", "abc", "1.glb"),
+            ("14", "99999", "1.glb"),
+            ("14", "1", "1.png"),
+            ("14", "1", "1"),
+            ("-1", "0", "0.glb"),
+        ] {
+            let error = parse_tile_path(z, x, file).unwrap_err();
+            assert_eq!(error.status, StatusCode::BAD_REQUEST, "{z}/{x}/{file}");
+        }
+    }
+}

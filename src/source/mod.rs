@@ -1,0 +1,123 @@
+//! Getting data: OSM extracts and SRTM files, opened and checked once at start, and the
+//! per-tile view of them that rendering needs.
+
+pub mod osm_pbf;
+pub mod srtm;
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use crate::osm::index::Selection;
+use crate::osm::OsmIndex;
+use crate::terrain::Mosaic;
+use crate::tile::TileId;
+use srtm::{CellId, SrtmDirectory, SrtmError};
+
+/// How far around a tile elements are fetched, in degrees (about 110 m): wide enough for the
+/// widest road polygon and for buildings that straddle the edge.
+pub const QUERY_MARGIN_DEG: f64 = 0.001;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SourceError {
+    #[error(transparent)]
+    Osm(#[from] osm_pbf::OsmReadError),
+    #[error(transparent)]
+    Srtm(#[from] SrtmError),
+}
+
+/// Why a tile cannot be rendered from the data the server has.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum Uncovered {
+    #[error("no data for tile {tile}: no OSM extract covers it and there is no SRTM file {}", .missing.join(", "))]
+    Nothing { tile: TileId, missing: Vec<String> },
+    #[error("no SRTM data for tile {tile}: missing {} in {directory}", .missing.join(", "))]
+    MissingSrtm {
+        tile: TileId,
+        missing: Vec<String>,
+        directory: String,
+    },
+}
+
+/// The opened data sources.
+#[derive(Debug)]
+pub struct Sources {
+    pub osm: OsmIndex,
+    pub srtm: SrtmDirectory,
+    pub osm_paths: Vec<PathBuf>,
+}
+
+impl Sources {
+    /// Reads the extracts, indexes them at `zoom`, and checks the SRTM directory.
+    pub fn open(
+        osm_paths: &[PathBuf],
+        srtm_dir: &std::path::Path,
+        zoom: u8,
+    ) -> Result<Sources, SourceError> {
+        let data = osm_pbf::read_extracts(osm_paths)?;
+        let srtm = SrtmDirectory::open(srtm_dir)?;
+        Ok(Sources {
+            osm: OsmIndex::new(data, zoom),
+            srtm,
+            osm_paths: osm_paths.to_vec(),
+        })
+    }
+
+    /// The SRTM cells a tile needs.
+    fn cells_for(tile: TileId) -> Vec<CellId> {
+        let b = tile.bounds();
+        let mut cells = Vec::new();
+        let (lat0, lat1) = (
+            b.south.floor() as i32,
+            (b.north.ceil() as i32 - 1).max(b.south.floor() as i32),
+        );
+        let (lon0, lon1) = (
+            b.west.floor() as i32,
+            (b.east.ceil() as i32 - 1).max(b.west.floor() as i32),
+        );
+        for lat in lat0..=lat1 {
+            for lon in lon0..=lon1 {
+                cells.push(CellId { lat, lon });
+            }
+        }
+        cells
+    }
+
+    /// Checks that the tile can be rendered: SRTM must cover all of it.
+    pub fn check_coverage(&self, tile: TileId) -> Result<(), Uncovered> {
+        let missing: Vec<String> = Self::cells_for(tile)
+            .into_iter()
+            .filter(|c| !self.srtm.has(*c))
+            .map(|c| format!("{}.hgt", c.name()))
+            .collect();
+        if missing.is_empty() {
+            return Ok(());
+        }
+        if !self.osm.data().covers(&tile.bounds()) {
+            return Err(Uncovered::Nothing { tile, missing });
+        }
+        Err(Uncovered::MissingSrtm {
+            tile,
+            missing,
+            directory: self.srtm.root().display().to_string(),
+        })
+    }
+
+    /// The SRTM files around a tile (its own cells and any its margin reaches).
+    pub fn mosaic(&self, tile: TileId) -> Result<Mosaic, SrtmError> {
+        let b = tile.bounds().expanded(QUERY_MARGIN_DEG);
+        let mut tiles: Vec<Arc<srtm::SrtmTile>> = Vec::new();
+        for lat in b.south.floor() as i32..=b.north.floor() as i32 {
+            for lon in b.west.floor() as i32..=b.east.floor() as i32 {
+                if let Some(t) = self.srtm.tile(CellId { lat, lon })? {
+                    tiles.push(t);
+                }
+            }
+        }
+        Ok(Mosaic::new(tiles))
+    }
+
+    /// The OSM elements near a tile.
+    pub fn selection(&self, tile: TileId) -> Selection<'_> {
+        self.osm.query(tile, QUERY_MARGIN_DEG)
+    }
+}

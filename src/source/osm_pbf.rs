@@ -1,0 +1,205 @@
+//! Reading `.osm.pbf` extracts (with `osmpbf`) into [`OsmData`].
+//!
+//! Each file is read once, block by block. Node positions are kept only until the ways have been
+//! resolved; ways that reference nodes missing from the extract keep the nodes that are there
+//! (and are dropped if fewer than two remain), with a debug log. When several extracts hold the
+//! same element, the first file listed wins.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+
+use osmpbf::{BlobDecode, BlobReader, Element};
+use tracing::debug;
+
+use crate::osm::{
+    Bounds, ElementRef, ElementType, LonLat, Member, Node, OsmData, Relation, Tags, Way,
+};
+
+#[derive(Debug, thiserror::Error)]
+pub enum OsmReadError {
+    #[error("cannot read OSM extract {path}: {message}")]
+    Pbf { path: PathBuf, message: String },
+    #[error("OSM extract {path} holds no nodes")]
+    Empty { path: PathBuf },
+}
+
+/// Ways as read, before their nodes are resolved.
+struct RawWay {
+    tags: Tags,
+    nodes: Vec<i64>,
+}
+
+#[derive(Default)]
+struct Accumulator {
+    positions: HashMap<i64, LonLat>,
+    nodes: BTreeMap<i64, Node>,
+    ways: BTreeMap<i64, RawWay>,
+    relations: BTreeMap<i64, Relation>,
+}
+
+/// Reads and merges several extracts.
+pub fn read_extracts(paths: &[PathBuf]) -> Result<OsmData, OsmReadError> {
+    let mut accumulator = Accumulator::default();
+    let mut coverage = Vec::new();
+    for path in paths {
+        coverage.push(read_one(path, &mut accumulator)?);
+    }
+    let Accumulator {
+        positions,
+        nodes,
+        ways,
+        relations,
+    } = accumulator;
+
+    let mut resolved = Vec::with_capacity(ways.len());
+    for (id, raw) in ways {
+        let mut node_ids = Vec::with_capacity(raw.nodes.len());
+        let mut way_positions = Vec::with_capacity(raw.nodes.len());
+        for node in &raw.nodes {
+            if let Some(position) = positions.get(node) {
+                node_ids.push(*node);
+                way_positions.push(*position);
+            }
+        }
+        if node_ids.len() < raw.nodes.len() {
+            debug!(
+                way = id,
+                missing = raw.nodes.len() - node_ids.len(),
+                "way references nodes missing from the extract; keeping the nodes that are present"
+            );
+        }
+        if node_ids.len() < 2 {
+            debug!(way = id, "way has fewer than two resolvable nodes; dropped");
+            continue;
+        }
+        resolved.push(Way {
+            id,
+            tags: raw.tags,
+            nodes: node_ids,
+            positions: way_positions,
+        });
+    }
+    Ok(OsmData {
+        nodes: nodes.into_values().collect(),
+        ways: resolved,
+        relations: relations.into_values().collect(),
+        coverage,
+    })
+}
+
+/// Reads one file into the accumulator and returns the area it covers.
+fn read_one(path: &Path, acc: &mut Accumulator) -> Result<Bounds, OsmReadError> {
+    let error = |message: String| OsmReadError::Pbf {
+        path: path.to_path_buf(),
+        message,
+    };
+    let reader = BlobReader::from_path(path).map_err(|e| error(e.to_string()))?;
+    let mut header_bounds: Option<Bounds> = None;
+    let mut extent: Option<Bounds> = None;
+    let mut grow = |p: LonLat| {
+        let b = extent.get_or_insert(Bounds {
+            west: p.lon,
+            east: p.lon,
+            south: p.lat,
+            north: p.lat,
+        });
+        b.west = b.west.min(p.lon);
+        b.east = b.east.max(p.lon);
+        b.south = b.south.min(p.lat);
+        b.north = b.north.max(p.lat);
+    };
+    for blob in reader {
+        let blob = blob.map_err(|e| error(e.to_string()))?;
+        match blob.decode().map_err(|e| error(e.to_string()))? {
+            BlobDecode::OsmHeader(header) => {
+                if let Some(b) = header.bbox() {
+                    header_bounds = Some(Bounds {
+                        west: b.left,
+                        east: b.right,
+                        south: b.bottom,
+                        north: b.top,
+                    });
+                }
+            }
+            BlobDecode::OsmData(block) => {
+                for element in block.elements() {
+                    match element {
+                        Element::Node(node) => {
+                            let position = LonLat {
+                                lon: node.lon(),
+                                lat: node.lat(),
+                            };
+                            grow(position);
+                            add_node(acc, node.id(), position, node.tags());
+                        }
+                        Element::DenseNode(node) => {
+                            let position = LonLat {
+                                lon: node.lon(),
+                                lat: node.lat(),
+                            };
+                            grow(position);
+                            add_node(acc, node.id(), position, node.tags());
+                        }
+                        Element::Way(way) => {
+                            acc.ways.entry(way.id()).or_insert_with(|| RawWay {
+                                tags: Tags::from_pairs(way.tags()),
+                                nodes: way.refs().collect(),
+                            });
+                        }
+                        Element::Relation(relation) => {
+                            if acc.relations.contains_key(&relation.id()) {
+                                continue;
+                            }
+                            let members = relation
+                                .members()
+                                .map(|m| Member {
+                                    element: ElementRef {
+                                        element_type: match m.member_type {
+                                            osmpbf::RelMemberType::Node => ElementType::Node,
+                                            osmpbf::RelMemberType::Way => ElementType::Way,
+                                            osmpbf::RelMemberType::Relation => {
+                                                ElementType::Relation
+                                            }
+                                        },
+                                        id: m.member_id,
+                                    },
+                                    role: m.role().unwrap_or_default().to_string(),
+                                })
+                                .collect();
+                            acc.relations.insert(
+                                relation.id(),
+                                Relation {
+                                    id: relation.id(),
+                                    tags: Tags::from_pairs(relation.tags()),
+                                    members,
+                                },
+                            );
+                        }
+                    }
+                }
+            }
+            BlobDecode::Unknown(kind) => {
+                debug!(path = %path.display(), kind, "skipping unknown blob");
+            }
+        }
+    }
+    header_bounds.or(extent).ok_or_else(|| OsmReadError::Empty {
+        path: path.to_path_buf(),
+    })
+}
+
+fn add_node<'a>(
+    acc: &mut Accumulator,
+    id: i64,
+    position: LonLat,
+    tags: impl Iterator<Item = (&'a str, &'a str)>,
+) {
+    if acc.positions.contains_key(&id) {
+        return;
+    }
+    acc.positions.insert(id, position);
+    let tags = Tags::from_pairs(tags);
+    if !tags.is_empty() {
+        acc.nodes.insert(id, Node { id, position, tags });
+    }
+}

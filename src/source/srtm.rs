@@ -1,0 +1,482 @@
+//! SRTM elevation tiles: `.hgt` and `.hgt.zip` files, 1 and 3 arc-seconds.
+//!
+//! A file named after its south-west corner (`N43E007.hgt`) holds a square of big-endian `i16`
+//! samples, 1201² (3″) or 3601² (1″), row 0 on the north edge, column 0 on the west edge.
+//! Neighbouring files share their edge rows and columns. A void is −32768; voids are filled from
+//! their neighbours when a file is read (inverse-distance blend of the nearest valid samples
+//! along the eight compass directions), so nothing downstream ever sees one.
+//!
+//! [`SrtmDirectory`] indexes a directory once, checks every file's size at start, and decodes a
+//! file the first time a tile needs it (kept in a bounded in-memory cache).
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// The value SRTM uses for a sample without data.
+pub const VOID: i16 = -32768;
+
+/// Samples per side of a 3-arc-second file.
+pub const SAMPLES_3_ARCSEC: usize = 1201;
+/// Samples per side of a 1-arc-second file.
+pub const SAMPLES_1_ARCSEC: usize = 3601;
+
+/// Decoded files kept in memory at once (a 3″ file takes 5.8 MB as `f32`).
+const DECODED_FILES_CACHED: u64 = 64;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SrtmError {
+    #[error("SRTM file {path} has {actual} bytes; a 3-arc-second tile has {} and a 1-arc-second tile {}", SAMPLES_3_ARCSEC * SAMPLES_3_ARCSEC * 2, SAMPLES_1_ARCSEC * SAMPLES_1_ARCSEC * 2)]
+    BadSize { path: PathBuf, actual: u64 },
+    #[error("cannot read SRTM file {path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("SRTM archive {path} is not a readable zip file: {message}")]
+    Zip { path: PathBuf, message: String },
+    #[error("SRTM archive {path} holds no .hgt file")]
+    EmptyZip { path: PathBuf },
+    #[error("SRTM file {path} holds only voids")]
+    AllVoid { path: PathBuf },
+    #[error("SRTM directory {path} cannot be read: {source}")]
+    Directory {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// The integer degree cell a file covers, named by its south-west corner.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct CellId {
+    pub lat: i32,
+    pub lon: i32,
+}
+
+impl CellId {
+    /// The cell that contains a point (a point on a cell edge belongs to the cell north/east of it).
+    pub fn containing(lon: f64, lat: f64) -> CellId {
+        CellId {
+            lat: lat.floor() as i32,
+            lon: lon.floor() as i32,
+        }
+    }
+
+    /// Parses a file stem such as `N43E007` or `S12W071`.
+    pub fn from_name(stem: &str) -> Option<CellId> {
+        let bytes = stem.as_bytes();
+        if bytes.len() != 7 {
+            return None;
+        }
+        let lat_sign = match bytes[0].to_ascii_uppercase() {
+            b'N' => 1,
+            b'S' => -1,
+            _ => return None,
+        };
+        let lon_sign = match bytes[3].to_ascii_uppercase() {
+            b'E' => 1,
+            b'W' => -1,
+            _ => return None,
+        };
+        let lat: i32 = stem.get(1..3)?.parse().ok()?;
+        let lon: i32 = stem.get(4..7)?.parse().ok()?;
+        if lat > 90 || lon > 180 {
+            return None;
+        }
+        Some(CellId {
+            lat: lat_sign * lat,
+            lon: lon_sign * lon,
+        })
+    }
+
+    /// The conventional file stem, e.g. `N43E007`.
+    pub fn name(self) -> String {
+        format!(
+            "{}{:02}{}{:03}",
+            if self.lat >= 0 { 'N' } else { 'S' },
+            self.lat.abs(),
+            if self.lon >= 0 { 'E' } else { 'W' },
+            self.lon.abs()
+        )
+    }
+}
+
+/// One decoded SRTM file, voids filled.
+#[derive(Debug, Clone)]
+pub struct SrtmTile {
+    pub cell: CellId,
+    /// Samples per side (1201 or 3601).
+    pub size: usize,
+    /// Row-major, row 0 north, in metres.
+    pub heights: Vec<f32>,
+}
+
+impl SrtmTile {
+    /// Decodes the raw big-endian bytes of a `.hgt` file; `path` names the file in errors.
+    pub fn from_bytes(cell: CellId, bytes: &[u8], path: &Path) -> Result<SrtmTile, SrtmError> {
+        let size = side_for_len(bytes.len() as u64).ok_or_else(|| SrtmError::BadSize {
+            path: path.to_path_buf(),
+            actual: bytes.len() as u64,
+        })?;
+        let raw: Vec<i16> = bytes
+            .chunks_exact(2)
+            .map(|pair| i16::from_be_bytes([pair[0], pair[1]]))
+            .collect();
+        let heights = fill_voids(&raw, size).ok_or_else(|| SrtmError::AllVoid {
+            path: path.to_path_buf(),
+        })?;
+        Ok(SrtmTile {
+            cell,
+            size,
+            heights,
+        })
+    }
+
+    /// Reads a `.hgt` or `.hgt.zip` file.
+    pub fn read(cell: CellId, path: &Path) -> Result<SrtmTile, SrtmError> {
+        let bytes = read_hgt_bytes(path)?;
+        SrtmTile::from_bytes(cell, &bytes, path)
+    }
+
+    /// The sample at `row`, `column` (row 0 north).
+    pub fn sample(&self, row: usize, column: usize) -> f32 {
+        self.heights[row * self.size + column]
+    }
+
+    /// Bilinear interpolation at a point inside the cell; `None` outside it.
+    pub fn bilinear(&self, lon: f64, lat: f64) -> Option<f64> {
+        let (row, column) = self.fractional_index(lon, lat)?;
+        let last = self.size - 1;
+        let r0 = (row.floor() as usize).min(last - 1);
+        let c0 = (column.floor() as usize).min(last - 1);
+        let fr = row - r0 as f64;
+        let fc = column - c0 as f64;
+        let h = |r: usize, c: usize| f64::from(self.sample(r, c));
+        let north = h(r0, c0) * (1.0 - fc) + h(r0, c0 + 1) * fc;
+        let south = h(r0 + 1, c0) * (1.0 - fc) + h(r0 + 1, c0 + 1) * fc;
+        Some(north * (1.0 - fr) + south * fr)
+    }
+
+    /// Fractional (row, column) of a point, `None` if it lies outside the cell.
+    pub fn fractional_index(&self, lon: f64, lat: f64) -> Option<(f64, f64)> {
+        let steps = (self.size - 1) as f64;
+        let row = (f64::from(self.cell.lat) + 1.0 - lat) * steps;
+        let column = (lon - f64::from(self.cell.lon)) * steps;
+        let range = -1e-9..=steps + 1e-9;
+        (range.contains(&row) && range.contains(&column))
+            .then(|| (row.clamp(0.0, steps), column.clamp(0.0, steps)))
+    }
+
+    /// Longitude and latitude of a sample.
+    pub fn sample_position(&self, row: usize, column: usize) -> (f64, f64) {
+        let steps = (self.size - 1) as f64;
+        (
+            f64::from(self.cell.lon) + column as f64 / steps,
+            f64::from(self.cell.lat) + 1.0 - row as f64 / steps,
+        )
+    }
+}
+
+fn side_for_len(len: u64) -> Option<usize> {
+    [SAMPLES_3_ARCSEC, SAMPLES_1_ARCSEC]
+        .into_iter()
+        .find(|&side| (side * side * 2) as u64 == len)
+}
+
+fn read_hgt_bytes(path: &Path) -> Result<Vec<u8>, SrtmError> {
+    let io = |source| SrtmError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    if !is_zip(path) {
+        return fs::read(path).map_err(io);
+    }
+    let file = fs::File::open(path).map_err(io)?;
+    let zip_error = |error: zip::result::ZipError| SrtmError::Zip {
+        path: path.to_path_buf(),
+        message: error.to_string(),
+    };
+    let mut archive = zip::ZipArchive::new(file).map_err(zip_error)?;
+    let index = (0..archive.len())
+        .find(|&i| {
+            archive
+                .name_for_index(i)
+                .is_some_and(|name| name.to_ascii_lowercase().ends_with(".hgt"))
+        })
+        .ok_or_else(|| SrtmError::EmptyZip {
+            path: path.to_path_buf(),
+        })?;
+    let mut entry = archive.by_index(index).map_err(zip_error)?;
+    let mut bytes = Vec::with_capacity(entry.size() as usize);
+    entry.read_to_end(&mut bytes).map_err(io)?;
+    Ok(bytes)
+}
+
+/// The uncompressed length of the `.hgt` data in a file, read without decoding the samples.
+fn hgt_len(path: &Path) -> Result<u64, SrtmError> {
+    let io = |source| SrtmError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    if !is_zip(path) {
+        return Ok(fs::metadata(path).map_err(io)?.len());
+    }
+    let file = fs::File::open(path).map_err(io)?;
+    let zip_error = |error: zip::result::ZipError| SrtmError::Zip {
+        path: path.to_path_buf(),
+        message: error.to_string(),
+    };
+    let mut archive = zip::ZipArchive::new(file).map_err(zip_error)?;
+    for i in 0..archive.len() {
+        let entry = archive.by_index_raw(i).map_err(zip_error)?;
+        if entry.name().to_ascii_lowercase().ends_with(".hgt") {
+            return Ok(entry.size());
+        }
+    }
+    Err(SrtmError::EmptyZip {
+        path: path.to_path_buf(),
+    })
+}
+
+fn is_zip(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|ext| ext.eq_ignore_ascii_case("zip"))
+}
+
+/// Fills voids: each void takes the inverse-distance blend of the nearest valid sample in each of
+/// the eight compass directions (a cheap, deterministic stand-in for a full interpolation that
+/// behaves well for the small holes SRTM has). Returns `None` if every sample is void.
+pub fn fill_voids(raw: &[i16], size: usize) -> Option<Vec<f32>> {
+    let mut heights: Vec<f32> = raw.iter().map(|&h| f32::from(h)).collect();
+    let voids: Vec<usize> = (0..raw.len()).filter(|&i| raw[i] == VOID).collect();
+    if voids.is_empty() {
+        return Some(heights);
+    }
+    if voids.len() == raw.len() {
+        return None;
+    }
+    const DIRECTIONS: [(isize, isize); 8] = [
+        (-1, 0),
+        (1, 0),
+        (0, -1),
+        (0, 1),
+        (-1, -1),
+        (-1, 1),
+        (1, -1),
+        (1, 1),
+    ];
+    for &index in &voids {
+        let (row, column) = ((index / size) as isize, (index % size) as isize);
+        let mut weighted = 0.0f64;
+        let mut weights = 0.0f64;
+        for (dr, dc) in DIRECTIONS {
+            let (mut r, mut c, mut steps) = (row + dr, column + dc, 1.0f64);
+            while r >= 0 && c >= 0 && (r as usize) < size && (c as usize) < size {
+                let value = raw[r as usize * size + c as usize];
+                if value != VOID {
+                    let distance = steps * ((dr * dr + dc * dc) as f64).sqrt();
+                    let weight = 1.0 / (distance * distance);
+                    weighted += weight * f64::from(value);
+                    weights += weight;
+                    break;
+                }
+                r += dr;
+                c += dc;
+                steps += 1.0;
+            }
+        }
+        if weights > 0.0 {
+            heights[index] = (weighted / weights) as f32;
+        }
+    }
+    // A void with no valid sample on any of its eight rays (only possible in a nearly empty
+    // file) takes the mean of the valid samples.
+    let still_void: Vec<usize> = voids
+        .iter()
+        .copied()
+        .filter(|&i| heights[i] == f32::from(VOID))
+        .collect();
+    if !still_void.is_empty() {
+        let valid: Vec<f64> = raw
+            .iter()
+            .filter(|&&h| h != VOID)
+            .map(|&h| f64::from(h))
+            .collect();
+        let mean = (valid.iter().sum::<f64>() / valid.len() as f64) as f32;
+        for i in still_void {
+            heights[i] = mean;
+        }
+    }
+    Some(heights)
+}
+
+/// The SRTM files of one directory, checked at start and decoded on demand.
+pub struct SrtmDirectory {
+    root: PathBuf,
+    files: BTreeMap<CellId, PathBuf>,
+    decoded: moka::sync::Cache<CellId, Arc<SrtmTile>>,
+}
+
+impl std::fmt::Debug for SrtmDirectory {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SrtmDirectory")
+            .field("root", &self.root)
+            .field("files", &self.files.len())
+            .finish()
+    }
+}
+
+impl SrtmDirectory {
+    /// Indexes `root` (not recursively) and checks the size of every `.hgt`/`.hgt.zip` in it.
+    /// When both forms of a cell exist, the plain `.hgt` is used.
+    pub fn open(root: &Path) -> Result<SrtmDirectory, SrtmError> {
+        let entries = fs::read_dir(root).map_err(|source| SrtmError::Directory {
+            path: root.to_path_buf(),
+            source,
+        })?;
+        let mut files: BTreeMap<CellId, PathBuf> = BTreeMap::new();
+        for entry in entries {
+            let entry = entry.map_err(|source| SrtmError::Directory {
+                path: root.to_path_buf(),
+                source,
+            })?;
+            let path = entry.path();
+            let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
+                continue;
+            };
+            let lower = name.to_ascii_lowercase();
+            let stem = lower
+                .strip_suffix(".hgt.zip")
+                .or_else(|| lower.strip_suffix(".hgt"));
+            let Some(cell) = stem.and_then(CellId::from_name) else {
+                continue;
+            };
+            let len = hgt_len(&path)?;
+            if side_for_len(len).is_none() {
+                return Err(SrtmError::BadSize { path, actual: len });
+            }
+            let plain_exists = files.get(&cell).is_some_and(|p| !is_zip(p));
+            if !plain_exists {
+                files.insert(cell, path);
+            }
+        }
+        Ok(SrtmDirectory {
+            root: root.to_path_buf(),
+            files,
+            decoded: moka::sync::Cache::new(DECODED_FILES_CACHED),
+        })
+    }
+
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// The cells with a file.
+    pub fn cells(&self) -> impl Iterator<Item = CellId> + '_ {
+        self.files.keys().copied()
+    }
+
+    pub fn has(&self, cell: CellId) -> bool {
+        self.files.contains_key(&cell)
+    }
+
+    /// The decoded file of a cell, `None` if the directory has no file for it.
+    pub fn tile(&self, cell: CellId) -> Result<Option<Arc<SrtmTile>>, SrtmError> {
+        let Some(path) = self.files.get(&cell) else {
+            return Ok(None);
+        };
+        self.decoded
+            .try_get_with(cell, || SrtmTile::read(cell, path).map(Arc::new))
+            .map(Some)
+            .map_err(|error| match Arc::try_unwrap(error) {
+                Ok(error) => error,
+                Err(shared) => SrtmError::Io {
+                    path: path.clone(),
+                    source: std::io::Error::other(shared.to_string()),
+                },
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tile_from(values: &[i16], size: usize) -> SrtmTile {
+        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_be_bytes()).collect();
+        let heights = fill_voids(
+            &bytes
+                .chunks_exact(2)
+                .map(|p| i16::from_be_bytes([p[0], p[1]]))
+                .collect::<Vec<_>>(),
+            size,
+        )
+        .unwrap();
+        SrtmTile {
+            cell: CellId { lat: 43, lon: 7 },
+            size,
+            heights,
+        }
+    }
+
+    #[test]
+    fn names_round_trip() {
+        for name in ["N43E007", "S12W071", "N00E000", "S01W001"] {
+            assert_eq!(CellId::from_name(name).unwrap().name(), name);
+        }
+        assert_eq!(
+            CellId::from_name("N44W072"),
+            Some(CellId { lat: 44, lon: -72 })
+        );
+        assert_eq!(CellId::from_name("X44W072"), None);
+        assert_eq!(
+            CellId::containing(-71.3, 44.27),
+            CellId { lat: 44, lon: -72 }
+        );
+    }
+
+    #[test]
+    fn rejects_a_truncated_file_and_names_it() {
+        let path = Path::new("N43E007.hgt");
+        let error = SrtmTile::from_bytes(CellId { lat: 43, lon: 7 }, &[0u8; 1000], path)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.contains("N43E007.hgt") && error.contains("1000"),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn voids_take_the_values_around_them() {
+        let size = 3;
+        let tile = tile_from(&[10, 10, 10, 10, VOID, 10, 10, 10, 10], size);
+        assert_eq!(tile.sample(1, 1), 10.0);
+        let tile = tile_from(&[0, 0, 0, 0, VOID, VOID, 0, 0, 0], size);
+        assert!(tile.heights.iter().all(|&h| h == 0.0));
+    }
+
+    #[test]
+    fn all_void_is_an_error() {
+        assert!(fill_voids(&[VOID; 4], 2).is_none());
+    }
+
+    #[test]
+    fn row_zero_is_north() {
+        // 2×2 is not a real SRTM size, but the interpolation only needs the side length.
+        let tile = SrtmTile {
+            cell: CellId { lat: 43, lon: 7 },
+            size: 2,
+            heights: vec![100.0, 200.0, 0.0, 0.0],
+        };
+        assert_eq!(tile.bilinear(7.0, 44.0), Some(100.0));
+        assert_eq!(tile.bilinear(8.0, 44.0), Some(200.0));
+        assert_eq!(tile.bilinear(7.5, 43.0), Some(0.0));
+        assert_eq!(tile.bilinear(7.5, 43.5), Some(75.0));
+        assert_eq!(tile.bilinear(8.5, 43.5), None);
+    }
+}
