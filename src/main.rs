@@ -200,8 +200,13 @@ fn render(args: RenderArgs) -> Result<()> {
         );
         let s = &rendered.stats;
         eprintln!(
-            "triangles {} vertices {} primitives {} glb {} bytes features {:?}",
-            s.triangles, s.vertices, s.primitives, s.glb_bytes, s.features_by_class
+            "triangles {} vertices {} primitives {} glb {} bytes slivers dropped {} features {:?}",
+            s.triangles,
+            s.vertices,
+            s.primitives,
+            s.glb_bytes,
+            s.slivers_dropped,
+            s.features_by_class
         );
     }
     Ok(())

@@ -77,6 +77,8 @@ pub struct RenderStats {
     pub primitives: usize,
     pub features_by_class: BTreeMap<&'static str, usize>,
     pub glb_bytes: usize,
+    /// Ground triangles dropped because they have no area once positions are `f32`.
+    pub slivers_dropped: usize,
 }
 
 #[derive(Debug, Clone)]
@@ -101,7 +103,7 @@ pub fn render(
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
 
     let started = Instant::now();
-    let feature_set = features::collect(selection, tile.z, &settings.features);
+    let feature_set = features::collect(selection, tile, &settings.features);
     timings.features = started.elapsed();
 
     let started = Instant::now();
@@ -130,6 +132,7 @@ pub fn render(
         .collect();
     let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
     let mut vertex_slots: HashMap<(Part, u32, u32), u32> = HashMap::new();
+    let mut slivers = 0;
     for triangle in &ground.triangles {
         let (class, feature) = match triangle.surface {
             Some(index) => {
@@ -141,9 +144,14 @@ pub fn render(
         let Some(part) = Part::of_ground_class(class) else {
             continue;
         };
-        let buffers = parts.entry(part).or_default();
         // Counter-clockwise in (x, z) faces down in a Y-up frame: reverse to face up.
         let [a, b, c] = triangle.vertices;
+        if !faces_up_in_f32([a, c, b].map(|v| ground.vertices[v as usize])) {
+            // A sliver that collapses or flips at the output's precision covers no area.
+            slivers += 1;
+            continue;
+        }
+        let buffers = parts.entry(part).or_default();
         for vertex in [a, c, b] {
             let slot = *vertex_slots
                 .entry((part, vertex, feature))
@@ -197,12 +205,21 @@ pub fn render(
             .map(|&c| (c.as_str(), feature_set.count(c)))
             .collect(),
         glb_bytes: bytes.len(),
+        slivers_dropped: slivers,
     };
     Ok(RenderedTile {
         glb: bytes,
         stats,
         timings,
     })
+}
+
+/// True when the triangle `(a, b, c)` of local `(x, z)` points, rounded to `f32` as the glb
+/// stores them, has a positive area facing +y.
+fn faces_up_in_f32(corners: [[f64; 2]; 3]) -> bool {
+    let [a, b, c] = corners.map(|p| p.map(|v| f64::from(v as f32)));
+    let cross_y = (b[1] - a[1]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[1] - a[1]);
+    cross_y > 0.0
 }
 
 /// The east–west spacing of 3-arc-second samples in global tile units at this zoom.

@@ -9,6 +9,7 @@ pub mod store;
 
 use std::sync::Arc;
 
+use axum::body::Bytes;
 use sha2::Digest;
 
 use crate::tile::TileId;
@@ -55,7 +56,8 @@ impl Origin {
 /// A cached tile.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CachedTile {
-    pub data: Arc<Vec<u8>>,
+    /// Shared, so a response costs a reference count, not a copy.
+    pub data: Bytes,
     pub etag: String,
     /// Where the tile was found when it entered memory.
     pub loaded_from: Origin,
@@ -138,7 +140,7 @@ impl TileCache {
             };
             if let Some(found) = lookup {
                 return Ok(Arc::new(CachedTile {
-                    data: Arc::new(found.data),
+                    data: Bytes::from(found.data),
                     etag: found.etag,
                     loaded_from: Origin::Store,
                 }));
@@ -155,7 +157,7 @@ impl TileCache {
             .await
             .map_err(|e| CacheError::Panicked(panic_message(e)))??;
             Ok(Arc::new(CachedTile {
-                data: Arc::new(rendered.data),
+                data: Bytes::from(rendered.data),
                 etag: rendered.etag,
                 loaded_from: Origin::Rendered,
             }))

@@ -15,7 +15,7 @@ pub mod water;
 use crate::geometry::{Point, Polygon, Rect};
 use crate::osm::index::Selection;
 use crate::osm::{multipolygon::AreaPolygon, ElementRef, ElementType, LonLat, Tags};
-use crate::tile::{lon_lat_to_uv, mercator_scale};
+use crate::tile::{lon_lat_to_uv, mercator_scale, TileId};
 
 /// What a feature is, as written in the feature table and used to name glTF nodes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -153,6 +153,44 @@ impl FeatureSet {
     pub fn count(&self, class: FeatureClass) -> usize {
         self.features.iter().filter(|f| f.class == class).count()
     }
+
+    /// Drops the surfaces and buildings whose bounds miss `rect`, and the features left without
+    /// geometry; the default ground (feature 0) stays. Feature ids are renumbered in order.
+    pub fn retain_touching(&mut self, rect: &Rect) {
+        self.surfaces.retain(|s| s.bounds.intersects(rect));
+        self.buildings
+            .retain(|b| b.footprint.bounds().intersects(rect));
+        let mut used = vec![false; self.features.len()];
+        used[0] = true;
+        for feature in self
+            .surfaces
+            .iter()
+            .map(|s| s.feature)
+            .chain(self.buildings.iter().map(|b| b.feature))
+        {
+            used[feature as usize] = true;
+        }
+        let mut renumbered = vec![0u32; self.features.len()];
+        let mut next = 0u32;
+        for (old, keep) in used.iter().enumerate() {
+            if *keep {
+                renumbered[old] = next;
+                next += 1;
+            }
+        }
+        let mut index = 0;
+        self.features.retain(|_| {
+            let keep = used[index];
+            index += 1;
+            keep
+        });
+        for surface in &mut self.surfaces {
+            surface.feature = renumbered[surface.feature as usize];
+        }
+        for building in &mut self.buildings {
+            building.feature = renumbered[building.feature as usize];
+        }
+    }
 }
 
 /// Settings of the feature stage.
@@ -222,9 +260,9 @@ impl Projection {
     }
 }
 
-/// Runs every feature family over the elements near a tile.
-pub fn collect(selection: &Selection<'_>, zoom: u8, settings: &FeatureSettings) -> FeatureSet {
-    let projection = Projection::new(zoom);
+/// Runs every feature family over the elements near a tile, keeping those that reach it.
+pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettings) -> FeatureSet {
+    let projection = Projection::new(tile.z);
     let mut set = FeatureSet::default();
     set.add_feature(None, FeatureClass::Terrain, &Tags::default());
     let areas = areas_of(selection);
@@ -238,7 +276,16 @@ pub fn collect(selection: &Selection<'_>, zoom: u8, settings: &FeatureSettings) 
         water::add_area(&mut set, area, &projection);
         buildings::add_area(&mut set, area, &projection, settings);
     }
+    set.retain_touching(&tile_rect(tile));
     set
+}
+
+/// A tile's square in global tile units.
+pub fn tile_rect(tile: TileId) -> Rect {
+    Rect {
+        min: [f64::from(tile.x), f64::from(tile.y)],
+        max: [f64::from(tile.x) + 1.0, f64::from(tile.y) + 1.0],
+    }
 }
 
 /// A closed way or an assembled multipolygon, with the tags that describe it.

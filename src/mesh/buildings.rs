@@ -10,7 +10,7 @@ use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
 use super::MeshBuffers;
 use crate::features::BuildingShape;
-use crate::geometry::{clip_ring, clip_segment, signed_area2, Point, Polygon, Rect};
+use crate::geometry::{clip_ring, clip_segment, signed_area2, Point, Polygon};
 use crate::terrain::TerrainModel;
 use crate::tile::TileFrame;
 
@@ -67,11 +67,7 @@ pub fn extrude(
     walls: &mut MeshBuffers,
     roofs: &mut MeshBuffers,
 ) {
-    let tile = frame.tile;
-    let rect = Rect {
-        min: [f64::from(tile.x), f64::from(tile.y)],
-        max: [f64::from(tile.x) + 1.0, f64::from(tile.y) + 1.0],
-    };
+    let rect = crate::features::tile_rect(frame.tile);
     let footprint = &building.footprint;
     if !footprint.bounds().intersects(&rect) {
         return;
@@ -117,25 +113,14 @@ pub fn extrude(
                 frame.elevation_to_y(top, bz),
             );
             let corners = [[ax, ya0, az], [bx, yb0, bz], [bx, yb1, bz], [ax, ya1, az]];
-            walls.push_flat_triangle(
-                [corners[0], corners[1], corners[2]],
-                facing,
-                building.feature,
-            );
-            walls.push_flat_triangle(
-                [corners[0], corners[2], corners[3]],
-                facing,
-                building.feature,
-            );
+            walls.push_flat_polygon(&corners, facing, building.feature);
         }
     }
 
     // Roof: the footprint triangulated, each triangle clipped to the tile.
+    let mut roof: Vec<[[f64; 3]; 3]> = Vec::new();
     for triangle in triangulate_polygon(footprint) {
         let clipped = clip_ring(&triangle, &rect);
-        if clipped.len() < 3 {
-            continue;
-        }
         let corners: Vec<[f64; 3]> = clipped
             .iter()
             .map(|&p| {
@@ -143,14 +128,11 @@ pub fn extrude(
                 [x, frame.elevation_to_y(top, z), z]
             })
             .collect();
-        for i in 1..corners.len() - 1 {
-            roofs.push_flat_triangle(
-                [corners[0], corners[i], corners[i + 1]],
-                [0.0, 1.0, 0.0],
-                building.feature,
-            );
+        for i in 1..corners.len().saturating_sub(1) {
+            roof.push([corners[0], corners[i], corners[i + 1]]);
         }
     }
+    roofs.push_flat_triangles(&roof, [0.0, 1.0, 0.0], building.feature);
 }
 
 /// Triangles covering a polygon with holes (a CDT of its rings, keeping the triangles inside).

@@ -110,11 +110,7 @@ pub fn triangulate(
     grid_cells: u32,
     surfaces: &[Surface],
 ) -> Result<Ground, GroundError> {
-    let tile = frame.tile;
-    let rect = Rect {
-        min: [f64::from(tile.x), f64::from(tile.y)],
-        max: [f64::from(tile.x) + 1.0, f64::from(tile.y) + 1.0],
-    };
+    let rect = crate::features::tile_rect(frame.tile);
     let size = frame.size_m;
     let cells = grid_cells.max(1);
     let mut grid = Vec::with_capacity(((cells + 1) * (cells + 1)) as usize);

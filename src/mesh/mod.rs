@@ -85,22 +85,61 @@ impl MeshBuffers {
         (self.positions.len() - 1) as u32
     }
 
-    /// Adds a flat-shaded triangle whose front faces `facing` (the winding is chosen to match).
-    /// Degenerate triangles are skipped.
-    pub fn push_flat_triangle(&mut self, corners: [[f64; 3]; 3], facing: [f64; 3], feature: u32) {
-        let normal = triangle_normal(corners);
+    /// Adds a flat convex polygon (corners in order, either winding) as a fan sharing its
+    /// vertices, front towards `facing`. Degenerate polygons are skipped.
+    pub fn push_flat_polygon(&mut self, corners: &[[f64; 3]], facing: [f64; 3], feature: u32) {
+        if corners.len() < 3 {
+            return;
+        }
+        // Newell's method: robust for any planar polygon, whatever vertex it starts at.
+        let mut normal = [0.0; 3];
+        for i in 0..corners.len() {
+            let (a, b) = (corners[i], corners[(i + 1) % corners.len()]);
+            normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+            normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+            normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+        }
         let Some(normal) = normalize(normal) else {
             return;
         };
-        let flip = dot(normal, facing) < 0.0;
-        let (normal, order) = if flip {
-            (normal.map(|c| -c), [0, 2, 1])
-        } else {
-            (normal, [0, 1, 2])
-        };
-        for i in order {
-            let index = self.push_vertex(corners[i], normal, feature);
-            self.indices.push(index);
+        let reversed = dot(normal, facing) < 0.0;
+        let normal = if reversed { normal.map(|c| -c) } else { normal };
+        let first = self.positions.len() as u32;
+        for &corner in corners {
+            self.push_vertex(corner, normal, feature);
+        }
+        for i in 1..corners.len() as u32 - 1 {
+            let (b, c) = if reversed { (i + 1, i) } else { (i, i + 1) };
+            self.indices
+                .extend_from_slice(&[first, first + b, first + c]);
+        }
+    }
+
+    /// Adds flat triangles that share one normal (a flat roof, say), sharing vertices between
+    /// them; each triangle is wound to face `normal`. Degenerate triangles are skipped.
+    pub fn push_flat_triangles(
+        &mut self,
+        triangles: &[[[f64; 3]; 3]],
+        normal: [f64; 3],
+        feature: u32,
+    ) {
+        let mut slots: std::collections::HashMap<[u64; 3], u32> = std::collections::HashMap::new();
+        for &corners in triangles {
+            let Some(own) = normalize(triangle_normal(corners)) else {
+                continue;
+            };
+            let order = if dot(own, normal) < 0.0 {
+                [0, 2, 1]
+            } else {
+                [0, 1, 2]
+            };
+            for i in order {
+                let corner = corners[i];
+                let slot = *slots
+                    .entry(corner.map(f64::to_bits))
+                    .or_insert_with(|| self.push_vertex(corner, normal, feature));
+                self.indices.push(slot);
+            }
         }
     }
 }
@@ -131,15 +170,34 @@ mod tests {
     use super::*;
 
     #[test]
-    fn flat_triangles_face_the_requested_way() {
+    fn flat_polygons_share_vertices_and_face_the_requested_way() {
         let mut buffers = MeshBuffers::default();
-        let corners = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
-        buffers.push_flat_triangle(corners, [0.0, 1.0, 0.0], 7);
-        let p = |i: usize| buffers.positions[buffers.indices[i] as usize].map(f64::from);
-        let n = triangle_normal([p(0), p(1), p(2)]);
-        assert!(n[1] > 0.0);
-        assert_eq!(buffers.normals[0], [0.0, 1.0, 0.0]);
-        buffers.push_flat_triangle([[0.0; 3]; 3], [0.0, 1.0, 0.0], 7);
-        assert_eq!(buffers.triangle_count(), 1, "degenerate triangle skipped");
+        let quad = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        buffers.push_flat_polygon(&quad, [0.0, 0.0, -1.0], 3);
+        assert_eq!((buffers.positions.len(), buffers.triangle_count()), (4, 2));
+        for t in buffers.indices.chunks(3) {
+            let p = |i: u32| buffers.positions[i as usize].map(f64::from);
+            assert!(triangle_normal([p(t[0]), p(t[1]), p(t[2])])[2] < 0.0);
+        }
+        assert_eq!(buffers.normals[0], [0.0, 0.0, -1.0]);
+    }
+
+    #[test]
+    fn flat_triangles_share_vertices_and_face_up() {
+        let mut buffers = MeshBuffers::default();
+        let a = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
+        let b = [[1.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.0, 0.0, 1.0]];
+        buffers.push_flat_triangles(&[a, b, [[0.0; 3]; 3]], [0.0, 1.0, 0.0], 7);
+        assert_eq!(buffers.triangle_count(), 2, "degenerate triangle skipped");
+        assert_eq!(buffers.positions.len(), 4);
+        for t in buffers.indices.chunks(3) {
+            let p = |i: u32| buffers.positions[i as usize].map(f64::from);
+            assert!(triangle_normal([p(t[0]), p(t[1]), p(t[2])])[1] > 0.0);
+        }
     }
 }

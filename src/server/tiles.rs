@@ -118,7 +118,7 @@ pub async fn tile(
     )) {
         headers.insert(header::CONTENT_DISPOSITION, disposition);
     }
-    Ok((StatusCode::OK, headers, cached.data.as_ref().clone()).into_response())
+    Ok((StatusCode::OK, headers, cached.data.clone()).into_response())
 }
 
 #[derive(Debug, thiserror::Error)]

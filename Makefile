@@ -1,0 +1,31 @@
+# terrastitch: `make run` serves the bundled Monaco sample on http://127.0.0.1:8080,
+# `make test` runs every check and test.
+
+CARGO ?= cargo
+NPM ?= npm
+
+.PHONY: run test lint unit bench clean-cache
+
+run:
+	$(CARGO) run --release -- serve
+
+test: tests/js/node_modules/.installed lint
+	$(CARGO) test --release
+
+lint:
+	$(CARGO) fmt --all -- --check
+	$(CARGO) clippy --release --all-targets -- -D warnings
+
+# Node tools the tests use (the Khronos glTF validator), pinned by the lock file.
+tests/js/node_modules/.installed: tests/js/package.json tests/js/package-lock.json
+	cd tests/js && $(NPM) ci --no-audit --no-fund
+	touch $@
+
+# Figures for tile 14/8529/5973: stage times, peak memory, triangles, size; then warm
+# requests per second on loopback (needs `oha` or `wrk` on the PATH for that part).
+bench:
+	$(CARGO) build --release
+	scripts/bench.sh
+
+clean-cache:
+	rm -rf cache

@@ -1,0 +1,96 @@
+//! The `terrastitch` binary: corrupt data files stop it with a named error, and `render`
+//! writes a tile.
+
+mod common;
+
+use std::process::Command;
+
+fn terrastitch() -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_terrastitch"));
+    command.current_dir(common::repo());
+    command
+}
+
+#[test]
+fn a_truncated_hgt_file_is_named_and_fatal() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = std::fs::read(common::sample_srtm().join("N43E007.hgt")).unwrap();
+    std::fs::write(
+        dir.path().join("N43E007.hgt"),
+        &original[..original.len() / 2],
+    )
+    .unwrap();
+    let output = terrastitch()
+        .args(["serve", "--listen", "127.0.0.1:0", "--srtm"])
+        .arg(dir.path())
+        .arg("--cache")
+        .arg(dir.path().join("cache.sqlite"))
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("N43E007.hgt") && stderr.contains("1442401"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_truncated_pbf_file_is_named_and_fatal() {
+    let dir = tempfile::tempdir().unwrap();
+    let original = std::fs::read(common::sample_osm()).unwrap();
+    let truncated = dir.path().join("truncated.osm.pbf");
+    std::fs::write(&truncated, &original[..original.len() * 2 / 3]).unwrap();
+    let output = terrastitch()
+        .args(["serve", "--listen", "127.0.0.1:0", "--osm"])
+        .arg(&truncated)
+        .arg("--cache")
+        .arg(dir.path().join("cache.sqlite"))
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("truncated.osm.pbf"), "{stderr}");
+}
+
+#[test]
+fn render_writes_a_glb_and_reports_stage_times() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tile.glb");
+    let output = terrastitch()
+        .args(["render", "14/8529/5973", "--timings", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    for stage in [
+        "load",
+        "terrain",
+        "triangulation",
+        "features",
+        "elevation",
+        "glb",
+        "total",
+    ] {
+        assert!(stderr.contains(stage), "no '{stage}' in:\n{stderr}");
+    }
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(&bytes[..4], b"glTF");
+}
+
+#[test]
+fn help_shows_the_defaults() {
+    let output = terrastitch().args(["serve", "--help"]).output().unwrap();
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        text.contains("127.0.0.1:8080") && text.contains("monaco-osrm-2016.osm.pbf"),
+        "{text}"
+    );
+    let output = terrastitch().args(["render", "--help"]).output().unwrap();
+    assert!(String::from_utf8_lossy(&output.stdout).contains("--timings"));
+}

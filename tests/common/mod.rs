@@ -1,0 +1,335 @@
+//! Shared helpers of the integration tests: a server on 127.0.0.1:0 with the bundled sample,
+//! a glb decoder (the `gltf` crate plus the feature table), the Khronos validator, and a point
+//! locator over the ground triangles.
+#![allow(dead_code)]
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use terrastitch::cache::{TileCache, TileStore};
+use terrastitch::config::Config;
+use terrastitch::server::{self, AppState};
+use terrastitch::source::Sources;
+
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+pub fn sample_osm() -> PathBuf {
+    repo().join("data/monaco-osrm-2016.osm.pbf")
+}
+
+pub fn sample_srtm() -> PathBuf {
+    repo().join("data")
+}
+
+/// A server running in this process.
+pub struct TestServer {
+    pub base: String,
+    pub state: AppState,
+    shutdown: Option<tokio::sync::oneshot::Sender<()>>,
+    handle: Option<tokio::task::JoinHandle<()>>,
+}
+
+impl TestServer {
+    /// Starts a server on the bundled sample with its cache in `cache`.
+    pub async fn start(cache: &Path) -> TestServer {
+        let config = Config::default();
+        let sources = Sources::open(&[sample_osm()], &sample_srtm(), config.server.zoom)
+            .expect("sample data loads");
+        let store = TileStore::open(cache).expect("cache opens");
+        let tile_cache = TileCache::new(store, 64 << 20, server::pipeline_id(&config.render));
+        let state = AppState::new(
+            sources,
+            tile_cache,
+            config.render.clone(),
+            config.server.zoom,
+            2,
+        );
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+            .await
+            .expect("bind");
+        let base = format!("http://{}", listener.local_addr().expect("address"));
+        let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+        let serving = state.clone();
+        let handle = tokio::spawn(async move {
+            server::serve(listener, serving, async {
+                let _ = rx.await;
+            })
+            .await
+            .expect("server runs");
+        });
+        TestServer {
+            base,
+            state,
+            shutdown: Some(tx),
+            handle: Some(handle),
+        }
+    }
+
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{}", self.base, path)
+    }
+
+    pub async fn stop(mut self) {
+        if let Some(tx) = self.shutdown.take() {
+            let _ = tx.send(());
+        }
+        if let Some(handle) = self.handle.take() {
+            let _ = handle.await;
+        }
+    }
+
+    /// The value of a counter in `/metrics`.
+    pub async fn metric(&self, name: &str) -> f64 {
+        let text = reqwest::get(self.url("/metrics"))
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        text.lines()
+            .find_map(|line| {
+                line.strip_prefix(name)
+                    .and_then(|rest| rest.trim().parse().ok())
+            })
+            .unwrap_or_else(|| panic!("metric {name} missing from:\n{text}"))
+    }
+}
+
+/// One primitive's vertices.
+#[derive(Debug, Default, Clone)]
+pub struct Primitive {
+    pub material: String,
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+    pub feature_ids: Vec<u32>,
+    pub indices: Vec<u32>,
+}
+
+impl Primitive {
+    pub fn triangles(&self) -> impl Iterator<Item = [usize; 3]> + '_ {
+        self.indices
+            .chunks_exact(3)
+            .map(|t| [t[0] as usize, t[1] as usize, t[2] as usize])
+    }
+}
+
+/// A row of the feature table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Feature {
+    pub osm_type: String,
+    pub osm_id: i64,
+    pub class: String,
+    pub name: String,
+    pub tags: serde_json::Map<String, serde_json::Value>,
+}
+
+#[derive(Debug)]
+pub struct DecodedTile {
+    /// Primitives by node name.
+    pub nodes: BTreeMap<String, Vec<Primitive>>,
+    pub features: Vec<Feature>,
+    pub asset_extras: serde_json::Value,
+}
+
+impl DecodedTile {
+    pub fn primitives(&self, node: &str) -> &[Primitive] {
+        self.nodes.get(node).map(Vec::as_slice).unwrap_or(&[])
+    }
+
+    pub fn tile_size(&self) -> f64 {
+        self.asset_extras["terrastitch"]["tile_size_m"]
+            .as_f64()
+            .expect("tile size in extras")
+    }
+}
+
+/// Decodes a glb with the `gltf` crate and reads the EXT_structural_metadata table.
+pub fn decode(bytes: &[u8]) -> DecodedTile {
+    let gltf = gltf::Gltf::from_slice(bytes).expect("valid glb");
+    let blob = gltf.blob.clone().expect("binary chunk");
+    let view_bytes = |index: usize| -> &[u8] {
+        let view = gltf.document.views().nth(index).expect("buffer view");
+        &blob[view.offset()..view.offset() + view.length()]
+    };
+    let mut nodes = BTreeMap::new();
+    for node in gltf.document.nodes() {
+        let name = node.name().unwrap_or_default().to_string();
+        let Some(mesh) = node.mesh() else { continue };
+        let mut primitives = Vec::new();
+        for primitive in mesh.primitives() {
+            let reader = primitive.reader(|_| Some(&blob[..]));
+            let positions: Vec<[f32; 3]> = reader.read_positions().expect("positions").collect();
+            let normals: Vec<[f32; 3]> = reader.read_normals().expect("normals").collect();
+            let indices: Vec<u32> = reader.read_indices().expect("indices").into_u32().collect();
+            let accessor = primitive
+                .get(&gltf::Semantic::Extras("FEATURE_ID_0".to_string()))
+                .expect("_FEATURE_ID_0");
+            let feature_ids: Vec<u32> = match accessor.data_type() {
+                gltf::accessor::DataType::U16 => {
+                    gltf::accessor::Iter::<u16>::new(accessor, |_| Some(&blob[..]))
+                        .expect("ids")
+                        .map(u32::from)
+                        .collect()
+                }
+                gltf::accessor::DataType::F32 => {
+                    gltf::accessor::Iter::<f32>::new(accessor, |_| Some(&blob[..]))
+                        .expect("ids")
+                        .map(|v| v as u32)
+                        .collect()
+                }
+                other => panic!("feature ids of type {other:?}"),
+            };
+            assert_eq!(feature_ids.len(), positions.len());
+            primitives.push(Primitive {
+                material: primitive.material().name().unwrap_or_default().to_string(),
+                positions,
+                normals,
+                feature_ids,
+                indices,
+            });
+        }
+        nodes.insert(name, primitives);
+    }
+
+    let root: serde_json::Value =
+        serde_json::to_value(gltf.document.clone().into_json()).expect("json");
+    let table = &root["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
+    let count = table["count"].as_u64().expect("count") as usize;
+    let strings = |property: &str| -> Vec<String> {
+        let p = &table["properties"][property];
+        let values = view_bytes(p["values"].as_u64().expect("values") as usize);
+        let offsets = view_bytes(p["stringOffsets"].as_u64().expect("offsets") as usize);
+        let offset =
+            |i: usize| u32::from_le_bytes(offsets[i * 4..i * 4 + 4].try_into().unwrap()) as usize;
+        (0..count)
+            .map(|i| String::from_utf8(values[offset(i)..offset(i + 1)].to_vec()).expect("utf-8"))
+            .collect()
+    };
+    let ids = view_bytes(
+        table["properties"]["osm_id"]["values"]
+            .as_u64()
+            .expect("ids") as usize,
+    );
+    let (osm_type, class, name, tags) = (
+        strings("osm_type"),
+        strings("class"),
+        strings("name"),
+        strings("tags"),
+    );
+    let features = (0..count)
+        .map(|i| Feature {
+            osm_type: osm_type[i].clone(),
+            osm_id: i64::from_le_bytes(ids[i * 8..i * 8 + 8].try_into().unwrap()),
+            class: class[i].clone(),
+            name: name[i].clone(),
+            tags: serde_json::from_str(&tags[i]).expect("tags are a JSON object"),
+        })
+        .collect();
+    DecodedTile {
+        nodes,
+        features,
+        asset_extras: root["asset"]["extras"].clone(),
+    }
+}
+
+/// What the Khronos validator says of one file.
+#[derive(Debug, serde::Deserialize)]
+pub struct Validation {
+    pub file: String,
+    pub errors: u64,
+    pub warnings: u64,
+    pub messages: Vec<String>,
+    #[serde(rename = "drawCalls")]
+    pub draw_calls: Option<u64>,
+}
+
+/// Runs the Khronos glTF validator (installed by `make test` into tests/js).
+pub fn validate(files: &[&Path]) -> Vec<Validation> {
+    let script = repo().join("tests/js/validate.mjs");
+    assert!(
+        repo().join("tests/js/node_modules/gltf-validator").exists(),
+        "the glTF validator is not installed: run `make test` (it runs npm ci in tests/js)"
+    );
+    let output = Command::new("node")
+        .arg(script)
+        .args(files)
+        .output()
+        .expect("node runs");
+    String::from_utf8_lossy(&output.stdout)
+        .lines()
+        .map(|line| serde_json::from_str(line).expect("validator report"))
+        .collect()
+}
+
+/// Finds the ground triangles under a point (in the x/z plane) and interpolates their height.
+pub struct GroundLocator {
+    triangles: Vec<[[f64; 3]; 3]>,
+    cells: usize,
+    size: f64,
+    grid: Vec<Vec<usize>>,
+}
+
+impl GroundLocator {
+    pub fn new(triangles: Vec<[[f64; 3]; 3]>, size: f64) -> GroundLocator {
+        let cells = 128;
+        let mut grid = vec![Vec::new(); cells * cells];
+        let cell = |v: f64| ((v / size * cells as f64).floor().max(0.0) as usize).min(cells - 1);
+        for (i, t) in triangles.iter().enumerate() {
+            let (x0, x1) = (
+                t.iter().map(|p| p[0]).fold(f64::MAX, f64::min),
+                t.iter().map(|p| p[0]).fold(f64::MIN, f64::max),
+            );
+            let (z0, z1) = (
+                t.iter().map(|p| p[2]).fold(f64::MAX, f64::min),
+                t.iter().map(|p| p[2]).fold(f64::MIN, f64::max),
+            );
+            for row in cell(z0)..=cell(z1) {
+                for column in cell(x0)..=cell(x1) {
+                    grid[row * cells + column].push(i);
+                }
+            }
+        }
+        GroundLocator {
+            triangles,
+            cells,
+            size,
+            grid,
+        }
+    }
+
+    /// Heights of every triangle that contains (x, z) within `tolerance` (barycentric).
+    pub fn heights_at(&self, x: f64, z: f64, tolerance: f64) -> Vec<f64> {
+        let cell = |v: f64| {
+            ((v / self.size * self.cells as f64).floor().max(0.0) as usize).min(self.cells - 1)
+        };
+        let mut heights = Vec::new();
+        for &i in &self.grid[cell(z) * self.cells + cell(x)] {
+            let [a, b, c] = self.triangles[i];
+            let det = (b[0] - a[0]) * (c[2] - a[2]) - (c[0] - a[0]) * (b[2] - a[2]);
+            if det.abs() < 1e-12 {
+                continue;
+            }
+            let l1 = ((x - a[0]) * (c[2] - a[2]) - (c[0] - a[0]) * (z - a[2])) / det;
+            let l2 = ((b[0] - a[0]) * (z - a[2]) - (x - a[0]) * (b[2] - a[2])) / det;
+            let l0 = 1.0 - l1 - l2;
+            if l0 >= -tolerance && l1 >= -tolerance && l2 >= -tolerance {
+                heights.push(l0 * a[1] + l1 * b[1] + l2 * c[1]);
+            }
+        }
+        heights
+    }
+}
+
+/// The triangles of some primitives as f64 corner positions.
+pub fn corners(primitives: &[Primitive]) -> Vec<[[f64; 3]; 3]> {
+    primitives
+        .iter()
+        .flat_map(|p| {
+            p.triangles()
+                .map(move |t| t.map(|i| p.positions[i].map(f64::from)))
+        })
+        .collect()
+}
