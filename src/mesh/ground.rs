@@ -268,6 +268,48 @@ mod tests {
         assert!(ground.removed > 0);
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// Random outlines (crossing, touching, collinear, reaching past the tile, repeated
+        /// points): the triangulation never fails, covers the tile exactly, and its edge
+        /// vertices lie on the tile edge.
+        #[test]
+        fn any_outlines_give_a_tiling_of_the_square(
+            rings in proptest::collection::vec(
+                proptest::collection::vec((-0.2f64..1.2, -0.2f64..1.2), 3..8), 1..12),
+            snap in proptest::bool::ANY,
+        ) {
+            let tile = TileId { z: 14, x: 8529, y: 5973 };
+            let frame = tile.frame();
+            let surfaces: Vec<Surface> = rings
+                .iter()
+                .enumerate()
+                .map(|(i, ring)| {
+                    // Snapping to a coarse grid makes repeated and collinear points likely.
+                    let q = |v: f64| if snap { (v * 8.0).round() / 8.0 } else { v };
+                    let ring: Vec<Point> = ring.iter().map(|&(u, v)| [8529.0 + q(u), 5973.0 + q(v)]).collect();
+                    let mut closed = ring.clone();
+                    closed.push(ring[0]);
+                    Surface {
+                        class: if i % 2 == 0 { FeatureClass::Road } else { FeatureClass::Water },
+                        feature: i as u32 + 1,
+                        bounds: Rect::around(&ring),
+                        pieces: vec![Polygon { outer: ring, holes: vec![] }],
+                        outline: vec![closed],
+                    }
+                })
+                .collect();
+            let ground = triangulate(&frame, 4, &surfaces).unwrap();
+            let s = frame.size_m;
+            let total = area(&ground, |_| true);
+            proptest::prop_assert!((total - s * s).abs() < 1e-6 * s * s, "area {} of {}", total, s * s);
+            for v in &ground.vertices {
+                proptest::prop_assert!(v[0] >= 0.0 && v[0] <= s && v[1] >= 0.0 && v[1] <= s, "{:?}", v);
+            }
+        }
+    }
+
     #[test]
     fn crossing_outlines_are_split_not_fatal() {
         let tile = TileId {

@@ -461,6 +461,47 @@ mod tests {
     }
 
     #[test]
+    fn reads_a_zipped_file_and_prefers_nothing_else_in_the_directory() {
+        use std::io::Write;
+        let dir = tempfile::tempdir().unwrap();
+        let side = SAMPLES_3_ARCSEC;
+        let mut samples = vec![0u8; side * side * 2];
+        // North-west sample 100 m, one void next to it.
+        samples[0..2].copy_from_slice(&100i16.to_be_bytes());
+        samples[2..4].copy_from_slice(&VOID.to_be_bytes());
+        let file = fs::File::create(dir.path().join("N43E007.hgt.zip")).unwrap();
+        let mut zip = zip::ZipWriter::new(file);
+        zip.start_file("N43E007.hgt", zip::write::SimpleFileOptions::default())
+            .unwrap();
+        zip.write_all(&samples).unwrap();
+        zip.finish().unwrap();
+        fs::write(dir.path().join("notes.txt"), "not a tile").unwrap();
+
+        let directory = SrtmDirectory::open(dir.path()).unwrap();
+        let cell = CellId { lat: 43, lon: 7 };
+        assert_eq!(directory.cells().collect::<Vec<_>>(), vec![cell]);
+        let tile = directory.tile(cell).unwrap().unwrap();
+        assert_eq!(tile.sample(0, 0), 100.0);
+        assert!(
+            tile.sample(0, 1) > 0.0 && tile.sample(0, 1) < 100.0,
+            "void filled"
+        );
+        assert_eq!(tile.bilinear(7.0, 44.0), Some(100.0));
+        assert!(directory.tile(CellId { lat: 0, lon: 0 }).unwrap().is_none());
+    }
+
+    #[test]
+    fn a_truncated_file_in_a_directory_is_rejected_at_open() {
+        let dir = tempfile::tempdir().unwrap();
+        fs::write(dir.path().join("N43E007.hgt"), vec![0u8; 1000]).unwrap();
+        let error = SrtmDirectory::open(dir.path()).unwrap_err().to_string();
+        assert!(
+            error.contains("N43E007.hgt") && error.contains("1000 bytes"),
+            "{error}"
+        );
+    }
+
+    #[test]
     fn all_void_is_an_error() {
         assert!(fill_voids(&[VOID; 4], 2).is_none());
     }
