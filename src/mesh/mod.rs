@@ -3,6 +3,7 @@
 
 pub mod buildings;
 pub mod ground;
+pub mod tin;
 
 /// The parts of a tile's mesh, one glTF primitive each.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]

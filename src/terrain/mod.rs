@@ -1,118 +1,68 @@
-//! Terrain: an elevation for every point of a tile, approximated from the SRTM samples.
+//! Terrain: an elevation for every point, approximated from the SRTM samples (thesis ch. 3).
 //!
-//! [`Mosaic`] holds the SRTM files a tile needs, so a tile that straddles two files reads both
-//! and no method sees a cut. [`Interpolation`] chooses how points between samples are
-//! approximated; bilinear interpolation within the four surrounding samples is the baseline.
+//! [`Mosaic`] holds the SRTM files around a tile as one grid of sites, so a tile that straddles
+//! two files reads both and no method sees a cut. [`Interpolation`] chooses how points between
+//! sites are approximated: local quadratic least squares (the default, §3.3), natural-neighbour
+//! interpolation (§3.4), or bilinear interpolation as the cheap baseline. Every method computes a
+//! point's elevation from the sites around it alone, in global coordinates, so the same point
+//! gets the same value whichever tile asks.
 
-use std::collections::BTreeMap;
-use std::sync::Arc;
+pub mod least_squares;
+pub mod mosaic;
+pub mod natural_neighbor;
 
-use crate::source::srtm::{CellId, SrtmTile};
+pub use least_squares::LeastSquares;
+pub use mosaic::Mosaic;
+pub use natural_neighbor::NaturalNeighbor;
 
 /// How elevations between SRTM samples are approximated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Interpolation {
     /// Bilinear within the four surrounding samples.
-    #[default]
     Bilinear,
+    /// Blended local quadratic least-squares fits (thesis §3.3).
+    #[default]
+    LeastSquares,
+    /// Sibson's natural-neighbour interpolation (thesis §3.4).
+    NaturalNeighbor,
 }
 
-/// The SRTM files around a tile.
-#[derive(Debug, Clone, Default)]
-pub struct Mosaic {
-    tiles: BTreeMap<CellId, Arc<SrtmTile>>,
+enum Method<'a> {
+    Bilinear,
+    LeastSquares(Box<LeastSquares<'a>>),
+    NaturalNeighbor(NaturalNeighbor<'a>),
 }
 
-impl Mosaic {
-    pub fn new(tiles: impl IntoIterator<Item = Arc<SrtmTile>>) -> Mosaic {
-        Mosaic {
-            tiles: tiles.into_iter().map(|t| (t.cell, t)).collect(),
-        }
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.tiles.is_empty()
-    }
-
-    /// The file that holds a point. A point on the edge between two files belongs to the one
-    /// north/east of it; both hold the same samples along a shared edge, so the value agrees.
-    fn tile_at(&self, lon: f64, lat: f64) -> Option<&SrtmTile> {
-        let cell = CellId::containing(lon, lat);
-        if let Some(tile) = self.tiles.get(&cell) {
-            return Some(tile);
-        }
-        // On the north or east edge of the mosaic, the point's cell may be absent while the
-        // file below/left of it still contains the point on its edge.
-        let candidates = [
-            CellId {
-                lat: cell.lat - 1,
-                ..cell
-            },
-            CellId {
-                lon: cell.lon - 1,
-                ..cell
-            },
-            CellId {
-                lat: cell.lat - 1,
-                lon: cell.lon - 1,
-            },
-        ];
-        candidates
-            .iter()
-            .filter_map(|c| self.tiles.get(c))
-            .find(|t| t.fractional_index(lon, lat).is_some())
-            .map(|t| t.as_ref())
-    }
-
-    /// The elevation in metres at a point, or `None` where no file covers it.
-    pub fn elevation(&self, interpolation: Interpolation, lon: f64, lat: f64) -> Option<f64> {
-        let tile = self.tile_at(lon, lat)?;
-        match interpolation {
-            Interpolation::Bilinear => tile.bilinear(lon, lat),
-        }
-    }
-
-    /// The SRTM samples that lie inside a box, with their positions (used for minima over areas).
-    pub fn samples_in(&self, west: f64, south: f64, east: f64, north: f64) -> Vec<(f64, f64, f64)> {
-        let mut out = Vec::new();
-        for tile in self.tiles.values() {
-            let steps = (tile.size - 1) as f64;
-            let row_of = |lat: f64| (f64::from(tile.cell.lat) + 1.0 - lat) * steps;
-            let column_of = |lon: f64| (lon - f64::from(tile.cell.lon)) * steps;
-            let last = tile.size as f64 - 1.0;
-            let r0 = row_of(north).ceil().max(0.0);
-            let r1 = row_of(south).floor().min(last);
-            let c0 = column_of(west).ceil().max(0.0);
-            let c1 = column_of(east).floor().min(last);
-            if r0 > r1 || c0 > c1 {
-                continue;
-            }
-            for row in r0 as usize..=r1 as usize {
-                for column in c0 as usize..=c1 as usize {
-                    let (lon, lat) = tile.sample_position(row, column);
-                    out.push((lon, lat, f64::from(tile.sample(row, column))));
-                }
-            }
-        }
-        out
-    }
-}
-
-/// The terrain surface as the mesh stage sees it: elevations at points in global tile units.
-#[derive(Debug, Clone, Copy)]
+/// The terrain surface as the mesh stage sees it. Holds per-site caches, so keep one per render.
 pub struct TerrainModel<'a> {
     pub mosaic: &'a Mosaic,
     pub interpolation: Interpolation,
+    method: Method<'a>,
     tiles_per_axis: f64,
 }
 
 impl<'a> TerrainModel<'a> {
     pub fn new(mosaic: &'a Mosaic, interpolation: Interpolation, zoom: u8) -> TerrainModel<'a> {
+        let method = match interpolation {
+            Interpolation::Bilinear => Method::Bilinear,
+            Interpolation::LeastSquares => Method::LeastSquares(Box::new(LeastSquares::new(mosaic))),
+            Interpolation::NaturalNeighbor => Method::NaturalNeighbor(NaturalNeighbor::new(mosaic)),
+        };
         TerrainModel {
             mosaic,
             interpolation,
+            method,
             tiles_per_axis: f64::from(1u32 << zoom),
+        }
+    }
+
+    /// The elevation in metres at a point in degrees, `None` where no file covers it.
+    pub fn elevation(&self, lon: f64, lat: f64) -> Option<f64> {
+        match &self.method {
+            Method::Bilinear => self.mosaic.bilinear(lon, lat),
+            Method::LeastSquares(ls) => ls.elevation(lon, lat),
+            Method::NaturalNeighbor(nn) => nn.elevation(lon, lat),
         }
     }
 
@@ -121,9 +71,7 @@ impl<'a> TerrainModel<'a> {
     pub fn elevation_uv(&self, p: [f64; 2]) -> f64 {
         let lon = crate::tile::u_to_lon(p[0], self.tiles_per_axis);
         let lat = crate::tile::v_to_lat(p[1], self.tiles_per_axis);
-        self.mosaic
-            .elevation(self.interpolation, lon, lat)
-            .unwrap_or(0.0)
+        self.elevation(lon, lat).unwrap_or(0.0)
     }
 
     /// The raster samples inside a box of tile units, as `([u, v], elevation)`.
@@ -136,49 +84,11 @@ impl<'a> TerrainModel<'a> {
         self.mosaic
             .samples_in(west, south, east, north)
             .into_iter()
-            .map(|(lon, lat, h)| {
+            .map(|(lon, lat, _)| {
                 let (u, v) = crate::tile::lon_lat_to_uv(lon, lat, n);
-                ([u, v], h)
+                // The approximated surface at the site (least squares smooths the raw sample).
+                ([u, v], self.elevation(lon, lat).unwrap_or(0.0))
             })
             .collect()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn flat(cell: CellId, height: f32) -> Arc<SrtmTile> {
-        Arc::new(SrtmTile {
-            cell,
-            size: 3,
-            heights: vec![height; 9],
-        })
-    }
-
-    #[test]
-    fn a_point_on_the_east_edge_of_the_mosaic_is_still_covered() {
-        let mosaic = Mosaic::new([flat(CellId { lat: 48, lon: 9 }, 470.0)]);
-        assert_eq!(
-            mosaic.elevation(Interpolation::Bilinear, 10.0, 48.5),
-            Some(470.0)
-        );
-        assert_eq!(mosaic.elevation(Interpolation::Bilinear, 10.2, 48.5), None);
-    }
-
-    #[test]
-    fn reads_across_two_files() {
-        let mosaic = Mosaic::new([
-            flat(CellId { lat: 48, lon: 9 }, 470.0),
-            flat(CellId { lat: 48, lon: 10 }, 480.0),
-        ]);
-        assert_eq!(
-            mosaic.elevation(Interpolation::Bilinear, 9.9, 48.5),
-            Some(470.0)
-        );
-        assert_eq!(
-            mosaic.elevation(Interpolation::Bilinear, 10.1, 48.5),
-            Some(480.0)
-        );
     }
 }
