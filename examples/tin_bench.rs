@@ -39,8 +39,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let grid = HeightGrid {
         columns: size,
         rows: size,
-        dx: 1.0,
-        dz: 1.0,
+        width: (size - 1) as f64,
+        depth: (size - 1) as f64,
         heights,
         weights: None,
     };

@@ -10,31 +10,20 @@ use std::collections::{BTreeMap, HashMap};
 use std::time::{Duration, Instant};
 
 use crate::features::{self, FeatureClass, FeatureSettings};
-use crate::mesh::{self, ground, MeshBuffers, Part};
+use crate::mesh::ground::{self, MeshSettings};
+use crate::mesh::{self, MeshBuffers, Part};
 use crate::osm::index::Selection;
 use crate::output::glb;
 use crate::terrain::{Interpolation, Mosaic, TerrainModel};
 use crate::tile::TileId;
 
 /// Settings that change what a tile looks like (and so belong in the cache key).
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default)]
 pub struct RenderSettings {
-    /// Grid cells along a tile edge for the terrain points of the ground triangulation.
-    pub grid_cells: u32,
     pub interpolation: Interpolation,
+    pub mesh: MeshSettings,
     pub features: FeatureSettings,
-}
-
-impl Default for RenderSettings {
-    fn default() -> Self {
-        RenderSettings {
-            // 64 cells: 38 m at zoom 14, finer than SRTM3's 90 m × 67 m near 44° N.
-            grid_cells: 64,
-            interpolation: Interpolation::default(),
-            features: FeatureSettings::default(),
-        }
-    }
 }
 
 impl RenderSettings {
@@ -51,6 +40,8 @@ impl RenderSettings {
 pub enum RenderError {
     #[error(transparent)]
     Ground(#[from] ground::GroundError),
+    #[error("rendering tile {tile} failed unexpectedly: {message}")]
+    Panicked { tile: TileId, message: String },
 }
 
 /// Time spent in each stage.
@@ -79,6 +70,9 @@ pub struct RenderStats {
     pub glb_bytes: usize,
     /// Ground triangles dropped because they have no area once positions are `f32`.
     pub slivers_dropped: usize,
+    /// Interior terrain samples the adaptive mesh needed.
+    pub ground_vertices_inserted: usize,
+    pub edge_vertices: usize,
 }
 
 #[derive(Debug, Clone)]
@@ -92,7 +86,29 @@ pub struct RenderedTile {
 const NORMAL_STEP_M: f64 = 10.0;
 
 /// Renders one tile from the elements near it and the SRTM files around it.
+///
+/// A panic inside a stage (a bug, or a library tripping on degenerate input) becomes an error for
+/// this tile only.
 pub fn render(
+    tile: TileId,
+    selection: &Selection<'_>,
+    mosaic: &Mosaic,
+    settings: &RenderSettings,
+) -> Result<RenderedTile, RenderError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        render_stages(tile, selection, mosaic, settings)
+    }))
+    .unwrap_or_else(|payload| {
+        let message = payload
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "panic".to_string());
+        Err(RenderError::Panicked { tile, message })
+    })
+}
+
+fn render_stages(
     tile: TileId,
     selection: &Selection<'_>,
     mosaic: &Mosaic,
@@ -107,7 +123,13 @@ pub fn render(
     timings.features = started.elapsed();
 
     let started = Instant::now();
-    let ground = ground::triangulate(&frame, settings.grid_cells, &feature_set.surfaces)?;
+    let ground = ground::triangulate(
+        &frame,
+        &settings.mesh,
+        &feature_set.surfaces,
+        &feature_set.nearby_outlines,
+        &terrain,
+    )?;
     timings.triangulation = started.elapsed();
 
     let started = Instant::now();
@@ -118,7 +140,8 @@ pub fn render(
     let vertex_y: Vec<f64> = ground
         .vertices
         .iter()
-        .map(|p| height_at(p[0], p[1]))
+        .zip(&ground.elevations)
+        .map(|(p, &elevation)| frame.elevation_to_y(elevation, p[1]))
         .collect();
     let vertex_normal: Vec<[f64; 3]> = ground
         .vertices
@@ -206,6 +229,8 @@ pub fn render(
             .collect(),
         glb_bytes: bytes.len(),
         slivers_dropped: slivers,
+        ground_vertices_inserted: ground.inserted,
+        edge_vertices: ground.edge_vertices,
     };
     Ok(RenderedTile {
         glb: bytes,

@@ -133,6 +133,9 @@ pub struct FeatureSet {
     pub features: Vec<FeatureInfo>,
     pub surfaces: Vec<Surface>,
     pub buildings: Vec<BuildingShape>,
+    /// Outlines of the roads, railways and water near the tile, also those just outside it:
+    /// they weigh the terrain error on both sides of a shared edge alike.
+    pub nearby_outlines: Vec<Vec<Point>>,
 }
 
 impl FeatureSet {
@@ -276,6 +279,12 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         water::add_area(&mut set, area, &projection);
         buildings::add_area(&mut set, area, &projection, settings);
     }
+    set.nearby_outlines = set
+        .surfaces
+        .iter()
+        .filter(|s| s.class != FeatureClass::Building)
+        .flat_map(|s| s.outline.iter().cloned())
+        .collect();
     set.retain_touching(&tile_rect(tile));
     set
 }

@@ -20,14 +20,16 @@ use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
 pub type Cdt = ConstrainedDelaunayTriangulation<Point2<f64>>;
 
-/// Heights sampled on a regular grid: sample `(i, j)` lies at `(i·dx, j·dz)`.
+/// Heights sampled on a regular grid: sample `(i, j)` lies at
+/// `(width · i/(columns − 1), depth · j/(rows − 1))`, so the last column lies exactly at `width`.
 #[derive(Debug, Clone)]
 pub struct HeightGrid {
     /// Samples per row (x) and per column (z).
     pub columns: usize,
     pub rows: usize,
-    pub dx: f64,
-    pub dz: f64,
+    /// Extent in x and z.
+    pub width: f64,
+    pub depth: f64,
     /// Row-major heights.
     pub heights: Vec<f64>,
     /// Row-major weights the error is multiplied by (1 where features do not matter).
@@ -43,14 +45,27 @@ impl HeightGrid {
         self.weights.as_ref().map_or(1.0, |w| f64::from(w[index]))
     }
 
+    /// Spacing in x.
+    pub fn dx(&self) -> f64 {
+        self.width / (self.columns - 1) as f64
+    }
+
+    /// Spacing in z.
+    pub fn dz(&self) -> f64 {
+        self.depth / (self.rows - 1) as f64
+    }
+
     pub fn position(&self, i: usize, j: usize) -> Point2<f64> {
-        Point2::new(i as f64 * self.dx, j as f64 * self.dz)
+        Point2::new(
+            self.width * (i as f64 / (self.columns - 1) as f64),
+            self.depth * (j as f64 / (self.rows - 1) as f64),
+        )
     }
 
     /// The sample at a position, if the position is exactly a grid point.
     pub fn sample_at(&self, p: Point2<f64>) -> Option<usize> {
-        let i = (p.x / self.dx).round();
-        let j = (p.y / self.dz).round();
+        let i = (p.x / self.dx()).round();
+        let j = (p.y / self.dz()).round();
         if i < 0.0 || j < 0.0 || i as usize >= self.columns || j as usize >= self.rows {
             return None;
         }
@@ -278,6 +293,7 @@ impl Refiner<'_> {
 
     fn worst_sample(&self, p: [Point2<f64>; 3], h: [f64; 3]) -> Option<(f64, usize)> {
         let g = self.grid;
+        let (dx, dz) = (g.dx(), g.dz());
         let det = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
         if det.abs() < 1e-12 {
             return None;
@@ -296,10 +312,10 @@ impl Refiner<'_> {
         let max_x = p.iter().map(|q| q.x).fold(f64::NEG_INFINITY, f64::max);
         let min_z = p.iter().map(|q| q.y).fold(f64::INFINITY, f64::min);
         let max_z = p.iter().map(|q| q.y).fold(f64::NEG_INFINITY, f64::max);
-        let i0 = ((min_x / g.dx).ceil().max(0.0) as usize).max(lo_i);
-        let i1 = ((max_x / g.dx).floor().max(0.0) as usize).min(hi_i);
-        let j0 = ((min_z / g.dz).ceil().max(0.0) as usize).max(lo_j);
-        let j1 = ((max_z / g.dz).floor().max(0.0) as usize).min(hi_j);
+        let i0 = ((min_x / dx).ceil().max(0.0) as usize).max(lo_i);
+        let i1 = ((max_x / dx).floor().max(0.0) as usize).min(hi_i);
+        let j0 = ((min_z / dz).ceil().max(0.0) as usize).max(lo_j);
+        let j1 = ((max_z / dz).floor().max(0.0) as usize).min(hi_j);
         if i0 > i1 || j0 > j1 {
             return None;
         }
@@ -312,7 +328,7 @@ impl Refiner<'_> {
         const INSIDE: f64 = -1e-9;
         let mut best: Option<(f64, usize)> = None;
         for j in j0..=j1 {
-            let z = j as f64 * g.dz - p[0].y;
+            let z = j as f64 * dz - p[0].y;
             // b1, b2 and b0 = 1 − b1 − b2 at x − p0.x = 0, and their slopes in x.
             let (a1, a2) = (z * db1_dz, z * db2_dz);
             let rows = [
@@ -320,7 +336,7 @@ impl Refiner<'_> {
                 (a1, db1_dx),
                 (a2, db2_dx),
             ];
-            let (mut lo, mut hi) = (i0 as f64 * g.dx - p[0].x, i1 as f64 * g.dx - p[0].x);
+            let (mut lo, mut hi) = (i0 as f64 * dx - p[0].x, i1 as f64 * dx - p[0].x);
             for (alpha, beta) in rows {
                 // alpha + beta·x ≥ INSIDE
                 if beta > 0.0 {
@@ -334,11 +350,11 @@ impl Refiner<'_> {
             if lo > hi {
                 continue;
             }
-            let first = (((lo + p[0].x) / g.dx).ceil().max(i0 as f64)) as usize;
-            let last = (((hi + p[0].x) / g.dx).floor().min(i1 as f64)) as usize;
+            let first = (((lo + p[0].x) / dx).ceil().max(i0 as f64)) as usize;
+            let last = (((hi + p[0].x) / dx).floor().min(i1 as f64)) as usize;
             let row = j * g.columns;
             for i in first..=last {
-                let x = i as f64 * g.dx - p[0].x;
+                let x = i as f64 * dx - p[0].x;
                 let b1 = a1 + x * db1_dx;
                 let b2 = a2 + x * db2_dx;
                 let b0 = 1.0 - b1 - b2;
@@ -380,8 +396,8 @@ mod tests {
         HeightGrid {
             columns: size,
             rows: size,
-            dx: 1.0,
-            dz: 1.0,
+            width: (size - 1) as f64,
+            depth: (size - 1) as f64,
             heights,
             weights: None,
         }

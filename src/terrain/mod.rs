@@ -46,7 +46,9 @@ impl<'a> TerrainModel<'a> {
     pub fn new(mosaic: &'a Mosaic, interpolation: Interpolation, zoom: u8) -> TerrainModel<'a> {
         let method = match interpolation {
             Interpolation::Bilinear => Method::Bilinear,
-            Interpolation::LeastSquares => Method::LeastSquares(Box::new(LeastSquares::new(mosaic))),
+            Interpolation::LeastSquares => {
+                Method::LeastSquares(Box::new(LeastSquares::new(mosaic)))
+            }
             Interpolation::NaturalNeighbor => Method::NaturalNeighbor(NaturalNeighbor::new(mosaic)),
         };
         TerrainModel {
