@@ -9,8 +9,8 @@ NPM ?= npm
 run:
 	$(CARGO) run --release -- serve
 
-test: tests/js/node_modules/.installed lint
-	$(CARGO) test --release
+test: tests/js/node_modules/.installed tests/py/.venv/.installed lint
+	TERRASTITCH_PYTHON=$(CURDIR)/tests/py/.venv/bin/python $(CARGO) test --release
 
 lint:
 	$(CARGO) fmt --all -- --check
@@ -19,6 +19,12 @@ lint:
 # Node tools the tests use (the Khronos glTF validator), pinned by the lock file.
 tests/js/node_modules/.installed: tests/js/package.json tests/js/package-lock.json
 	cd tests/js && $(NPM) ci --no-audit --no-fund
+	touch $@
+
+# Python tools the tests use (numpy for the quantized-mesh checker, a second reader), pinned.
+tests/py/.venv/.installed: tests/py/requirements.txt
+	python3 -m venv tests/py/.venv
+	tests/py/.venv/bin/python -m pip install --quiet --disable-pip-version-check -r tests/py/requirements.txt
 	touch $@
 
 # Figures for tile 14/8529/5973: stage times, peak memory, triangles, size; then warm

@@ -9,13 +9,13 @@
 use std::collections::{BTreeMap, HashMap};
 use std::time::{Duration, Instant};
 
-use crate::features::{self, FeatureClass, FeatureSettings};
-use crate::mesh::ground::{self, MeshSettings};
+use crate::features::{self, FeatureClass, FeatureSet, FeatureSettings};
+use crate::mesh::ground::{self, Ground, MeshSettings};
 use crate::mesh::{self, MeshBuffers, Part};
 use crate::osm::index::Selection;
-use crate::output::glb;
+use crate::output::{glb, quantized_mesh};
 use crate::terrain::{Interpolation, Mosaic, TerrainModel};
-use crate::tile::TileId;
+use crate::tile::{TileFrame, TileId};
 
 /// Settings that change what a tile looks like (and so belong in the cache key).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -85,20 +85,10 @@ pub struct RenderedTile {
 /// The distance used for the ground normals' central differences, in local metres.
 const NORMAL_STEP_M: f64 = 10.0;
 
-/// Renders one tile from the elements near it and the SRTM files around it.
-///
-/// A panic inside a stage (a bug, or a library tripping on degenerate input) becomes an error for
-/// this tile only.
-pub fn render(
-    tile: TileId,
-    selection: &Selection<'_>,
-    mosaic: &Mosaic,
-    settings: &RenderSettings,
-) -> Result<RenderedTile, RenderError> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        render_stages(tile, selection, mosaic, settings)
-    }))
-    .unwrap_or_else(|payload| {
+/// Runs `f`, turning a panic (a bug, or a library tripping on degenerate input) into an error
+/// for this tile only.
+fn guarded<T>(tile: TileId, f: impl FnOnce() -> Result<T, RenderError>) -> Result<T, RenderError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|payload| {
         let message = payload
             .downcast_ref::<&str>()
             .map(|s| s.to_string())
@@ -108,13 +98,23 @@ pub fn render(
     })
 }
 
-fn render_stages(
+/// What both outputs are made from: the features and the ground with its elevations and normals.
+struct Prepared<'a> {
+    frame: TileFrame,
+    terrain: TerrainModel<'a>,
+    feature_set: FeatureSet,
+    ground: Ground,
+    /// Unit normal of each ground vertex in the local frame.
+    normals: Vec<[f64; 3]>,
+}
+
+fn prepare<'a>(
     tile: TileId,
     selection: &Selection<'_>,
-    mosaic: &Mosaic,
+    mosaic: &'a Mosaic,
     settings: &RenderSettings,
-) -> Result<RenderedTile, RenderError> {
-    let mut timings = StageTimings::default();
+    timings: &mut StageTimings,
+) -> Result<Prepared<'a>, RenderError> {
     let frame = tile.frame();
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
 
@@ -132,18 +132,14 @@ fn render_stages(
     )?;
     timings.triangulation = started.elapsed();
 
+    // Normals from the terrain's gradient at each vertex: a function of global data, so a
+    // vertex on a shared edge gets the same normal in both tiles.
     let started = Instant::now();
     let height_at = |x: f64, z: f64| {
         let (u, v) = frame.local_to_uv(x, z);
         frame.elevation_to_y(terrain.elevation_uv([u, v]), z)
     };
-    let vertex_y: Vec<f64> = ground
-        .vertices
-        .iter()
-        .zip(&ground.elevations)
-        .map(|(p, &elevation)| frame.elevation_to_y(elevation, p[1]))
-        .collect();
-    let vertex_normal: Vec<[f64; 3]> = ground
+    let normals: Vec<[f64; 3]> = ground
         .vertices
         .iter()
         .map(|&[x, z]| {
@@ -152,6 +148,45 @@ fn render_stages(
             let dy_dz = (height_at(x, z + h) - height_at(x, z - h)) / (2.0 * h);
             mesh::normalize([-dy_dx, 1.0, -dy_dz]).unwrap_or([0.0, 1.0, 0.0])
         })
+        .collect();
+    timings.terrain = started.elapsed();
+    Ok(Prepared {
+        frame,
+        terrain,
+        feature_set,
+        ground,
+        normals,
+    })
+}
+
+/// Renders one tile as glb from the elements near it and the SRTM files around it.
+pub fn render(
+    tile: TileId,
+    selection: &Selection<'_>,
+    mosaic: &Mosaic,
+    settings: &RenderSettings,
+) -> Result<RenderedTile, RenderError> {
+    guarded(tile, || {
+        let mut timings = StageTimings::default();
+        let prepared = prepare(tile, selection, mosaic, settings, &mut timings)?;
+        Ok(render_glb(tile, &prepared, timings))
+    })
+}
+
+fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) -> RenderedTile {
+    let Prepared {
+        frame,
+        terrain,
+        feature_set,
+        ground,
+        normals,
+    } = prepared;
+    let started = Instant::now();
+    let vertex_y: Vec<f64> = ground
+        .vertices
+        .iter()
+        .zip(&ground.elevations)
+        .map(|(p, &elevation)| frame.elevation_to_y(elevation, p[1]))
         .collect();
     let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
     let mut vertex_slots: HashMap<(Part, u32, u32), u32> = HashMap::new();
@@ -182,14 +217,14 @@ fn render_stages(
                     let [x, z] = ground.vertices[vertex as usize];
                     buffers.push_vertex(
                         [x, vertex_y[vertex as usize], z],
-                        vertex_normal[vertex as usize],
+                        normals[vertex as usize],
                         feature,
                     )
                 });
             buffers.indices.push(slot);
         }
     }
-    timings.terrain = started.elapsed();
+    timings.terrain += started.elapsed();
 
     let started = Instant::now();
     let sample_step_uv = srtm_step_uv(tile);
@@ -198,8 +233,8 @@ fn render_stages(
     for building in &feature_set.buildings {
         mesh::buildings::extrude(
             building,
-            &frame,
-            &terrain,
+            frame,
+            terrain,
             sample_step_uv,
             &mut walls,
             &mut roofs,
@@ -232,10 +267,97 @@ fn render_stages(
         ground_vertices_inserted: ground.inserted,
         edge_vertices: ground.edge_vertices,
     };
-    Ok(RenderedTile {
+    RenderedTile {
         glb: bytes,
         stats,
         timings,
+    }
+}
+
+/// Cells of the quantized-mesh water mask along each side.
+const WATER_MASK_CELLS: usize = 256;
+
+/// A tile's terrain as quantized-mesh.
+#[derive(Debug, Clone)]
+pub struct RenderedTerrain {
+    pub bytes: Vec<u8>,
+    pub report: quantized_mesh::EncodeReport,
+    pub timings: StageTimings,
+}
+
+/// Renders one tile's ground (the same triangulation as the glb's, with the ground under
+/// buildings kept) as quantized-mesh-1.0, uncompressed.
+pub fn render_terrain(
+    tile: TileId,
+    selection: &Selection<'_>,
+    mosaic: &Mosaic,
+    settings: &RenderSettings,
+    extensions: quantized_mesh::Extensions,
+) -> Result<RenderedTerrain, RenderError> {
+    guarded(tile, || {
+        let mut timings = StageTimings::default();
+        let prepared = prepare(tile, selection, mosaic, settings, &mut timings)?;
+        let started = Instant::now();
+        let Prepared {
+            frame,
+            feature_set,
+            ground,
+            normals,
+            ..
+        } = &prepared;
+        let size = frame.size_m;
+        let b = tile.bounds();
+        let water = extensions.watermask.then(|| {
+            let waters: Vec<&features::Surface> = feature_set
+                .surfaces
+                .iter()
+                .filter(|s| s.class == FeatureClass::Water)
+                .collect();
+            let n = WATER_MASK_CELLS;
+            let mut cells = Vec::with_capacity(n * n);
+            for row in 0..n {
+                for column in 0..n {
+                    let x = (column as f64 + 0.5) / n as f64 * size;
+                    let z = (row as f64 + 0.5) / n as f64 * size;
+                    let (u, v) = frame.local_to_uv(x, z);
+                    cells.push(waters.iter().any(|s| s.contains([u, v])));
+                }
+            }
+            cells
+        });
+        let terrain_tile = quantized_mesh::TerrainTile {
+            bounds: [b.west, b.south, b.east, b.north],
+            positions: ground
+                .vertices
+                .iter()
+                .map(|&[x, z]| [x / size, 1.0 - z / size])
+                .collect(),
+            lon_lat: ground
+                .vertices
+                .iter()
+                .map(|&[x, z]| {
+                    let (lon, lat) = frame.to_lon_lat(x, z);
+                    [lon, lat]
+                })
+                .collect(),
+            heights: ground.elevations.clone(),
+            // Local (x east, y up, z south) to (east, north, up).
+            normals: normals.iter().map(|n| [n[0], -n[2], n[1]]).collect(),
+            // Counter-clockwise in (x, z) with z south is clockwise in (east, north).
+            triangles: ground
+                .triangles
+                .iter()
+                .map(|t| [t.vertices[0], t.vertices[2], t.vertices[1]])
+                .collect(),
+            water,
+        };
+        let (bytes, report) = quantized_mesh::encode(&terrain_tile, extensions);
+        timings.glb = started.elapsed();
+        Ok(RenderedTerrain {
+            bytes,
+            report,
+            timings,
+        })
     })
 }
 

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use axum::body::Bytes;
 use sha2::Digest;
 
+use crate::output::quantized_mesh::Extensions;
 use crate::tile::TileId;
 pub use store::{StoreError, StoredTile, TileStore};
 
@@ -19,12 +20,23 @@ pub use store::{StoreError, StoredTile, TileStore};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Format {
     Glb,
+    /// quantized-mesh-1.0 with the extensions asked for, stored gzipped.
+    Terrain(Extensions),
 }
 
 impl Format {
     pub fn as_str(self) -> &'static str {
         match self {
             Format::Glb => "glb",
+            Format::Terrain(extensions) => extensions.key(),
+        }
+    }
+
+    /// The file extension in URLs.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Format::Glb => "glb",
+            Format::Terrain(_) => "terrain",
         }
     }
 }

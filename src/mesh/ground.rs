@@ -14,7 +14,7 @@
 //! 4. Greedy insertion ([`super::tin`]) adds interior samples until every sample is within the
 //!    bound; it never inserts on the tile's edges.
 //! 5. Each triangle belongs to exactly one surface, decided at its centroid by priority
-//!    ([`FeatureClass::ground_priority`]); triangles under buildings are removed.
+//!    ([`FeatureClass::ground_priority`]), buildings first.
 
 use spade::{Point2, Triangulation};
 
@@ -55,7 +55,8 @@ impl Default for MeshSettings {
     }
 }
 
-/// A triangle of the ground and the surface it belongs to.
+/// A triangle of the ground and the surface it belongs to (a building's, for the ground under
+/// a building: the 3D tile leaves those out, the terrain keeps them).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GroundTriangle {
     /// Vertex indices, counter-clockwise in the local `(x, z)` plane.
@@ -72,7 +73,7 @@ pub struct Ground {
     /// Elevation of each vertex in metres (not yet scaled into the local frame).
     pub elevations: Vec<f64>,
     pub triangles: Vec<GroundTriangle>,
-    /// Triangles removed because a building stands on them.
+    /// Triangles under buildings.
     pub removed: usize,
     /// Interior samples added by greedy insertion.
     pub inserted: usize,
@@ -305,7 +306,6 @@ pub fn triangulate(
             });
         if surface.is_some_and(|i| surfaces[i as usize].class == FeatureClass::Building) {
             removed += 1;
-            continue;
         }
         triangles.push(GroundTriangle {
             vertices: [a, b, c],
@@ -616,8 +616,10 @@ mod tests {
         .size_m();
         let water = area(&ground, |t| t.surface == Some(0));
         assert!((water - 0.04 * s * s).abs() < 1e-6 * s * s, "water {water}");
-        let total = area(&ground, |_| true);
+        let total = area(&ground, |t| t.surface != Some(1));
         let expected = s * s * (1.0 - 0.1 * 0.1);
+        let with_buildings = area(&ground, |_| true);
+        assert!((with_buildings - s * s).abs() < 1e-6 * s * s);
         assert!(
             (total - expected).abs() < 1e-6 * s * s,
             "total {total} vs {expected}"

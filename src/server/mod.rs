@@ -1,6 +1,7 @@
 //! The HTTP server: routes, shared state, and how requests reach the cache and the renderer.
 
 pub mod error;
+pub mod layer;
 pub mod metrics;
 pub mod tiles;
 
@@ -62,6 +63,7 @@ pub fn pipeline_id(settings: &RenderSettings) -> String {
 pub fn router(state: AppState) -> Router {
     Router::new()
         .route("/tiles/{z}/{x}/{file}", get(tiles::tile))
+        .route("/layer.json", get(layer::layer))
         .route("/health", get(health))
         .route("/metrics", get(metrics))
         .fallback(not_found)

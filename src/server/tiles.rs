@@ -13,18 +13,28 @@ use super::error::ApiError;
 use super::metrics::Metrics;
 use super::AppState;
 use crate::cache::{Format, Origin, TileKey};
+use crate::output::quantized_mesh::Extensions;
 use crate::tile::{TileId, TileIdError};
 
-/// Parses `z`, `x` and `y.ext` into a tile and a format.
-pub fn parse_tile_path(z: &str, x: &str, file: &str) -> Result<(TileId, Format), ApiError> {
+/// Parses `z`, `x` and `y.ext` into a tile and a format; `accept` chooses quantized-mesh
+/// extensions.
+pub fn parse_tile_path(
+    z: &str,
+    x: &str,
+    file: &str,
+    accept: &str,
+) -> Result<(TileId, Format), ApiError> {
     let (y, extension) = file.rsplit_once('.').ok_or_else(|| {
-        ApiError::bad_request(format!("'{file}' has no format extension; expected Y.glb"))
+        ApiError::bad_request(format!(
+            "'{file}' has no format extension; expected Y.glb or Y.terrain"
+        ))
     })?;
     let format = match extension {
         "glb" => Format::Glb,
+        "terrain" => Format::Terrain(Extensions::from_accept(accept)),
         other => {
             return Err(ApiError::bad_request(format!(
-                "unknown tile format '.{other}'; expected .glb"
+                "unknown tile format '.{other}'; expected .glb or .terrain"
             )))
         }
     };
@@ -46,9 +56,14 @@ pub fn parse_tile_path(z: &str, x: &str, file: &str) -> Result<(TileId, Format),
 pub async fn tile(
     State(state): State<AppState>,
     Path((z, x, file)): Path<(String, String, String)>,
+    request_headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     Metrics::count(&state.metrics.tile_requests);
-    let (tile, format) = parse_tile_path(&z, &x, &file)?;
+    let accept = request_headers
+        .get(header::ACCEPT)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    let (tile, format) = parse_tile_path(&z, &x, &file, accept)?;
     if tile.z != state.zoom {
         return Err(ApiError::not_found(format!(
             "zoom {} is not served; this server serves zoom {}",
@@ -70,7 +85,7 @@ pub async fn tile(
             .block_on(permits.acquire_owned())
             .map_err(|_| RenderFailure("the server is shutting down".to_string()))?;
         let started = Instant::now();
-        let result = render_glb(&render_state, tile);
+        let result = render_format(&render_state, tile, format);
         let metrics = &render_state.metrics;
         Metrics::count(&metrics.renders);
         metrics.render_seconds_micros.fetch_add(
@@ -93,10 +108,22 @@ pub async fn tile(
     }
 
     let mut headers = HeaderMap::new();
-    headers.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("model/gltf-binary"),
-    );
+    match format {
+        Format::Glb => {
+            headers.insert(
+                header::CONTENT_TYPE,
+                HeaderValue::from_static("model/gltf-binary"),
+            );
+        }
+        Format::Terrain(_) => {
+            headers.insert(
+                header::CONTENT_TYPE,
+                HeaderValue::from_static("application/vnd.quantized-mesh"),
+            );
+            headers.insert(header::CONTENT_ENCODING, HeaderValue::from_static("gzip"));
+            headers.insert(header::VARY, HeaderValue::from_static("Accept"));
+        }
+    }
     if let Ok(etag) = HeaderValue::from_str(&cached.etag) {
         headers.insert(header::ETAG, etag);
     }
@@ -114,7 +141,7 @@ pub async fn tile(
         tile.z,
         tile.x,
         tile.y,
-        format.as_str()
+        format.extension()
     )) {
         headers.insert(header::CONTENT_DISPOSITION, disposition);
     }
@@ -125,23 +152,53 @@ pub async fn tile(
 #[error("{0}")]
 pub struct RenderFailure(String);
 
-/// Loads the tile's inputs and renders it (runs on the blocking pool).
-fn render_glb(state: &AppState, tile: TileId) -> Result<Vec<u8>, RenderFailure> {
+/// Loads the tile's inputs and renders it in a format (runs on the blocking pool).
+fn render_format(state: &AppState, tile: TileId, format: Format) -> Result<Vec<u8>, RenderFailure> {
     let mosaic = state
         .sources
         .mosaic(tile)
         .map_err(|e| RenderFailure(e.to_string()))?;
     let selection = state.sources.selection(tile);
-    let rendered = crate::render::render(tile, &selection, &mosaic, &state.settings)
-        .map_err(|e| RenderFailure(e.to_string()))?;
-    tracing::info!(
-        %tile,
-        triangles = rendered.stats.triangles,
-        bytes = rendered.stats.glb_bytes,
-        ms = rendered.timings.total().as_millis() as u64,
-        "rendered"
-    );
-    Ok(rendered.glb)
+    let failure = |e: crate::render::RenderError| RenderFailure(e.to_string());
+    match format {
+        Format::Glb => {
+            let rendered = crate::render::render(tile, &selection, &mosaic, &state.settings)
+                .map_err(failure)?;
+            tracing::info!(
+                %tile,
+                triangles = rendered.stats.triangles,
+                bytes = rendered.stats.glb_bytes,
+                ms = rendered.timings.total().as_millis() as u64,
+                "rendered glb"
+            );
+            Ok(rendered.glb)
+        }
+        Format::Terrain(extensions) => {
+            let rendered = crate::render::render_terrain(
+                tile,
+                &selection,
+                &mosaic,
+                &state.settings,
+                extensions,
+            )
+            .map_err(failure)?;
+            tracing::info!(
+                %tile,
+                triangles = rendered.report.triangles,
+                bytes = rendered.bytes.len(),
+                ms = rendered.timings.total().as_millis() as u64,
+                "rendered terrain"
+            );
+            gzip(&rendered.bytes).map_err(|e| RenderFailure(format!("gzip: {e}")))
+        }
+    }
+}
+
+fn gzip(data: &[u8]) -> std::io::Result<Vec<u8>> {
+    use std::io::Write;
+    let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    encoder.write_all(data)?;
+    encoder.finish()
 }
 
 #[cfg(test)]
@@ -150,18 +207,23 @@ mod tests {
 
     #[test]
     fn parses_good_paths_and_rejects_bad_ones() {
-        let (tile, format) = parse_tile_path("14", "8529", "5973.glb").unwrap();
+        let (tile, format) = parse_tile_path("14", "8529", "5973.glb", "").unwrap();
         assert_eq!(
-            (tile, format),
-            (
-                TileId {
-                    z: 14,
-                    x: 8529,
-                    y: 5973
-                },
-                Format::Glb
-            )
+            tile,
+            TileId {
+                z: 14,
+                x: 8529,
+                y: 5973
+            }
         );
+        assert_eq!(format, Format::Glb);
+        let accept = "application/vnd.quantized-mesh;extensions=watermask";
+        let (_, format) = parse_tile_path("14", "8529", "5973.terrain", accept).unwrap();
+        let watermask = Extensions {
+            normals: false,
+            watermask: true,
+        };
+        assert_eq!(format, Format::Terrain(watermask));
         for (z, x, file) in [
             ("14", "abc", "1.glb"),
             ("14", "99999", "1.glb"),
@@ -169,7 +231,7 @@ mod tests {
             ("14", "1", "1"),
             ("-1", "0", "0.glb"),
         ] {
-            let error = parse_tile_path(z, x, file).unwrap_err();
+            let error = parse_tile_path(z, x, file, "").unwrap_err();
             assert_eq!(error.status, StatusCode::BAD_REQUEST, "{z}/{x}/{file}");
         }
     }
