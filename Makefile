@@ -4,7 +4,7 @@
 CARGO ?= cargo
 NPM ?= npm
 
-.PHONY: run test lint unit bench clean-cache
+.PHONY: run test lint bench bench-terrain clean-cache
 
 run:
 	$(CARGO) run --release -- serve
@@ -32,6 +32,14 @@ tests/py/.venv/.installed: tests/py/requirements.txt
 bench:
 	$(CARGO) build --release
 	scripts/bench.sh
+
+# Terrain figures: greedy insertion against pydelatin and pymartini on windows of the SRTM files
+# (every mesh checked by the same error measure), and least squares against natural neighbour.
+bench-terrain: tests/py/.venv/.installed
+	$(CARGO) build --release --examples
+	tests/py/.venv/bin/python -m pip install --quiet --disable-pip-version-check -r tests/py/requirements-bench.txt
+	tests/py/.venv/bin/python scripts/terrain_compare.py tests/data/N48E009.hgt data/N43E007.hgt --windows win257,crop1025
+	target/release/examples/approximation_compare tests/data/N48E009.hgt
 
 clean-cache:
 	rm -rf cache

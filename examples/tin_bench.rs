@@ -49,40 +49,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut result = None;
     for _ in 0..3 {
         let started = Instant::now();
-        let mut cdt = corner_seed(&grid);
-        let mut vertex_heights = Vec::new();
         let limits = RefineLimits {
             max_error,
             keep_border: false,
             max_insertions: usize::MAX,
         };
-        refine(&mut cdt, &grid, limits, &mut vertex_heights, &mut |_| {
-            f64::NAN
-        });
+        let (tin, _) = refine(&corner_seed(&grid), &grid, limits, &mut |_| f64::NAN);
         best = best.min(started.elapsed().as_secs_f64());
-        result = Some((cdt, vertex_heights));
+        result = Some(tin);
     }
-    let (cdt, vertex_heights) = result.ok_or("no run")?;
-    use spade::Triangulation;
+    let tin = result.ok_or("no run")?;
     let mut vertices = Vec::new();
-    for v in cdt.vertices() {
-        let p = v.position();
-        for value in [p.x, p.y, vertex_heights[v.fix().index()]] {
+    for (p, h) in tin.positions.iter().zip(&tin.heights) {
+        for value in [p.x, p.y, *h] {
             vertices.extend_from_slice(&value.to_le_bytes());
         }
     }
-    let mut triangles = Vec::new();
-    for face in cdt.inner_faces() {
-        for v in face.vertices() {
-            triangles.extend_from_slice(&(v.fix().index() as u32).to_le_bytes());
-        }
-    }
+    let triangles: Vec<u8> = tin
+        .triangles
+        .iter()
+        .flatten()
+        .flat_map(|i| i.to_le_bytes())
+        .collect();
     std::fs::write(format!("{prefix}.vertices"), vertices)?;
     std::fs::write(format!("{prefix}.triangles"), triangles)?;
     println!(
         "{{\"tool\":\"terrastitch\",\"window\":\"{window}\",\"max_error\":{max_error},\"seconds\":{best:.4},\"triangles\":{},\"vertices\":{}}}",
-        cdt.num_inner_faces(),
-        cdt.num_vertices()
+        tin.triangles.len(),
+        tin.positions.len()
     );
     Ok(())
 }

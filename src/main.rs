@@ -200,11 +200,12 @@ fn render(args: RenderArgs) -> Result<()> {
         );
         let s = &rendered.stats;
         eprintln!(
-            "triangles {} vertices {} primitives {} glb {} bytes; ground: {} samples inserted, {} edge vertices, {} slivers dropped; features {:?}",
+            "triangles {} vertices {} primitives {} glb {} bytes; ground: {} triangles, {} samples inserted, {} edge vertices, {} slivers dropped; features {:?}",
             s.triangles,
             s.vertices,
             s.primitives,
             s.glb_bytes,
+            s.ground_triangles,
             s.ground_vertices_inserted,
             s.edge_vertices,
             s.slivers_dropped,

@@ -72,6 +72,8 @@ pub struct RenderStats {
     pub slivers_dropped: usize,
     /// Interior terrain samples the adaptive mesh needed.
     pub ground_vertices_inserted: usize,
+    /// Triangles of the ground (terrain, roads, railways, water; not under buildings).
+    pub ground_triangles: usize,
     pub edge_vertices: usize,
 }
 
@@ -265,6 +267,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         glb_bytes: bytes.len(),
         slivers_dropped: slivers,
         ground_vertices_inserted: ground.inserted,
+        ground_triangles: ground.triangles.len() - ground.removed,
         edge_vertices: ground.edge_vertices,
     };
     RenderedTile {

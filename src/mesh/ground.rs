@@ -263,29 +263,26 @@ pub fn triangulate(
     let cdt = Cdt::bulk_load(edge_points).map_err(|e| GroundError::Insertion(format!("{e:?}")))?;
 
     // 3. Feature outlines as constraints.
-    let (mut cdt, dropped) = insert_constraints(&cdt, size, &segments, &to_local);
+    let (cdt, dropped) = insert_constraints(&cdt, size, &segments, &to_local);
+
     // 4. Greedy insertion inside.
-    let mut elevations = Vec::new();
     let limits = RefineLimits {
         max_error: settings.max_error_m,
         keep_border: true,
         max_insertions: usize::MAX,
     };
-    let report = refine(&mut cdt, &grid, limits, &mut elevations, &mut |p| {
+    let (tin, report) = refine(&cdt, &grid, limits, &mut |p| {
         let (u, v) = frame.local_to_uv(p.x, p.y);
         terrain.elevation_uv([u, v])
     });
 
     // 5. Classification.
     let buckets = SurfaceBuckets::new(rect, BUCKETS_PER_SIDE, surfaces);
-    let vertices: Vec<Point> = cdt
-        .vertices()
-        .map(|v| [v.position().x, v.position().y])
-        .collect();
-    let mut triangles = Vec::with_capacity(cdt.num_inner_faces());
+    let vertices: Vec<Point> = tin.positions.iter().map(|p| [p.x, p.y]).collect();
+    let elevations = tin.heights;
+    let mut triangles = Vec::with_capacity(tin.triangles.len());
     let mut removed = 0;
-    for face in cdt.inner_faces() {
-        let [a, b, c] = face.vertices().map(|v| v.fix().index() as u32);
+    for &[a, b, c] in &tin.triangles {
         let centroid = {
             let [pa, pb, pc] = [a, b, c].map(|i| vertices[i as usize]);
             let x = (pa[0] + pb[0] + pc[0]) / 3.0;

@@ -15,7 +15,6 @@
 
 use std::cmp::Ordering;
 
-use spade::handles::{FixedFaceHandle, FixedVertexHandle, InnerTag};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
 pub type Cdt = ConstrainedDelaunayTriangulation<Point2<f64>>;
@@ -90,8 +89,6 @@ pub struct RefineLimits {
 struct Candidate {
     error: f64,
     sample: usize,
-    /// A corner of the face, where the search for the point starts.
-    corner: usize,
 }
 
 impl Candidate {
@@ -193,105 +190,494 @@ impl FaceHeap {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RefineReport {
     pub inserted: usize,
-    /// The largest weighted error left (at most the bound unless `max_insertions` stopped it).
-    pub max_error: f64,
+    /// True when `max_insertions` stopped it before every sample was within the bound.
+    pub stopped_early: bool,
 }
 
-/// Refines `cdt` against `grid`. `vertex_height` gives the height of vertices that are not grid
-/// samples (feature vertices, constraint crossings); `heights` is filled for every vertex.
+/// A triangulated irregular network: positions, a height per vertex, counter-clockwise
+/// triangles.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Tin {
+    pub positions: Vec<Point2<f64>>,
+    pub heights: Vec<f64>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Refines the triangulation `seed` against `grid`. `vertex_height` gives the height of seed
+/// vertices that are not grid samples (feature vertices, constraint crossings).
+///
+/// The seed is copied into a half-edge mesh made for this one job: a point is always inserted
+/// into the triangle known to hold it (or on one of its edges), and Delaunay flips never cross a
+/// constraint edge of the seed, so the result stays a constrained Delaunay triangulation.
 pub fn refine(
-    cdt: &mut Cdt,
+    seed: &Cdt,
     grid: &HeightGrid,
     limits: RefineLimits,
-    heights: &mut Vec<f64>,
     vertex_height: &mut dyn FnMut(Point2<f64>) -> f64,
-) -> RefineReport {
-    let mut state = Refiner {
-        grid,
-        limits,
-        heap: FaceHeap::default(),
-    };
-    state.complete_heights(cdt, heights, vertex_height);
-    let faces: Vec<FixedFaceHandle<InnerTag>> = cdt.fixed_inner_faces().collect();
-    for face in faces {
-        state.scan(cdt, heights, face);
+) -> (Tin, RefineReport) {
+    let mut mesh = Mesh::from_cdt(seed, grid);
+    let mut heights: Vec<f64> = mesh
+        .points
+        .iter()
+        .zip(&mesh.samples)
+        .map(|(&p, &sample)| match sample {
+            NO_SAMPLE => vertex_height(p),
+            sample => grid.heights[sample as usize],
+        })
+        .collect();
+    // spade's seed may hold slightly inverted slivers (rounded constraint split points); the
+    // refinement must never add one.
+    #[cfg(test)]
+    let seed_inverted = mesh
+        .check()
+        .unwrap_or_else(|problem| panic!("seed: {problem}"));
+    let scanner = Scanner { grid, limits };
+    let mut heap = FaceHeap::default();
+    for t in 0..mesh.triangle_count() {
+        heap.set(t, scanner.scan(&mesh, &heights, t));
     }
     let mut report = RefineReport::default();
-    while let Some((face, candidate)) = state.heap.peek() {
-        if candidate.error <= limits.max_error || report.inserted >= limits.max_insertions {
-            report.max_error = candidate.error;
+    let mut touched: Vec<usize> = Vec::new();
+    let mut used = vec![false; grid.heights.len()];
+    // Each sample can be inserted once: whatever happens, the loop ends.
+    let max_insertions = limits.max_insertions.min(grid.heights.len());
+    while let Some((face, candidate)) = heap.peek() {
+        if used[candidate.sample] {
+            // A sample on the border of two triangles is a candidate of both; the other one may
+            // not have changed when the sample became a vertex. Look again, past vertices.
+            heap.set(face, scanner.scan_skipping(&mesh, &heights, face, &used));
+            continue;
+        }
+        used[candidate.sample] = true;
+        if report.inserted >= max_insertions {
+            report.stopped_early = true;
             break;
         }
         let (i, j) = (
             candidate.sample % grid.columns,
             candidate.sample / grid.columns,
         );
-        let before = cdt.num_vertices();
-        // The candidate's face contains the point: start the search there, not at the last
-        // inserted vertex (greedy insertion jumps across the grid).
-        let hint = FixedVertexHandle::from_index(candidate.corner);
-        let Ok(vertex) = cdt.insert_with_hint(grid.position(i, j), hint) else {
-            state.heap.set(face, None);
-            continue;
-        };
-        if cdt.num_vertices() == before {
-            // Already a vertex (its error is then zero, so this only happens for a vertex whose
-            // height differs from its sample): leave the face be rather than loop.
-            state.heap.set(face, None);
+        let point = grid.position(i, j);
+        touched.clear();
+        if mesh
+            .insert(face, point, candidate.sample as u32, &mut touched)
+            .is_none()
+        {
+            // Already a vertex (possible only for a vertex whose height differs from its
+            // sample): leave the triangle be rather than loop.
+            heap.set(face, None);
             continue;
         }
+        heights.push(grid.heights[candidate.sample]);
         report.inserted += 1;
-        state.complete_heights(cdt, heights, vertex_height);
-        let around: Vec<FixedFaceHandle<InnerTag>> = cdt
-            .vertex(vertex)
-            .out_edges()
-            .filter_map(|edge| edge.face().as_inner().map(|f| f.fix()))
-            .collect();
-        for face in around {
-            state.scan(cdt, heights, face);
+        #[cfg(test)]
+        match mesh.check() {
+            Ok(inverted) => assert!(
+                inverted <= seed_inverted,
+                "inserting sample {} inverted a triangle",
+                candidate.sample
+            ),
+            Err(problem) => panic!("after inserting sample {}: {problem}", candidate.sample),
+        }
+        touched.sort_unstable();
+        touched.dedup();
+        for &t in &touched {
+            heap.set(t, scanner.scan(&mesh, &heights, t));
         }
     }
-    report
+    let triangles = (0..mesh.triangle_count())
+        .map(|t| [0, 1, 2].map(|k| mesh.triangles[3 * t + k]))
+        .collect();
+    (
+        Tin {
+            positions: mesh.points,
+            heights,
+            triangles,
+        },
+        report,
+    )
 }
 
-struct Refiner<'a> {
+/// No twin: a half-edge on the hull.
+const NONE: u32 = u32::MAX;
+
+fn next(e: usize) -> usize {
+    if e % 3 == 2 {
+        e - 2
+    } else {
+        e + 1
+    }
+}
+
+fn prev(e: usize) -> usize {
+    if e % 3 == 0 {
+        e + 2
+    } else {
+        e - 1
+    }
+}
+
+/// Triangles as half-edges: half-edge `e` of triangle `e / 3` runs from vertex `triangles[e]` to
+/// `triangles[next(e)]`; `twins[e]` is the opposite half-edge, `constrained[e]` marks both halves
+/// of a constraint edge.
+struct Mesh {
+    points: Vec<Point2<f64>>,
+    /// The grid sample each vertex is, or [`NO_SAMPLE`].
+    samples: Vec<u32>,
+    triangles: Vec<u32>,
+    twins: Vec<u32>,
+    constrained: Vec<bool>,
+    /// Scratch space of `legalize`, kept to avoid an allocation per insertion.
+    stack: Vec<usize>,
+}
+
+/// Steps a point-location walk takes before it searches every triangle.
+const MAX_WALK_STEPS: usize = 256;
+
+/// A vertex that is not a grid sample.
+const NO_SAMPLE: u32 = u32::MAX;
+
+fn coord(p: Point2<f64>) -> robust::Coord<f64> {
+    robust::Coord { x: p.x, y: p.y }
+}
+
+impl Mesh {
+    fn from_cdt(cdt: &Cdt, grid: &HeightGrid) -> Mesh {
+        let points: Vec<Point2<f64>> = cdt.vertices().map(|v| v.position()).collect();
+        let samples = points
+            .iter()
+            .map(|&p| grid.sample_at(p).map_or(NO_SAMPLE, |s| s as u32))
+            .collect();
+        let mut triangles = Vec::with_capacity(cdt.num_inner_faces() * 3);
+        for face in cdt.inner_faces() {
+            triangles.extend(face.vertices().map(|v| v.fix().index() as u32));
+        }
+        let mut by_ends: std::collections::HashMap<(u32, u32), u32> =
+            std::collections::HashMap::with_capacity(triangles.len());
+        for e in 0..triangles.len() {
+            by_ends.insert((triangles[e], triangles[next(e)]), e as u32);
+        }
+        let twins = (0..triangles.len())
+            .map(|e| {
+                by_ends
+                    .get(&(triangles[next(e)], triangles[e]))
+                    .copied()
+                    .unwrap_or(NONE)
+            })
+            .collect();
+        let mut constrained = vec![false; triangles.len()];
+        for edge in cdt.undirected_edges() {
+            if cdt.is_constraint_edge(edge.fix()) {
+                let [a, b] = edge.vertices().map(|v| v.fix().index() as u32);
+                for key in [(a, b), (b, a)] {
+                    if let Some(&e) = by_ends.get(&key) {
+                        constrained[e as usize] = true;
+                    }
+                }
+            }
+        }
+        Mesh {
+            points,
+            samples,
+            triangles,
+            twins,
+            constrained,
+            stack: Vec::new(),
+        }
+    }
+
+    /// Checks the half-edge structure: twins are mutual with reversed ends and constraint flags
+    /// agree. Returns the number of triangles that are not counter-clockwise. For tests.
+    #[cfg(test)]
+    fn check(&self) -> Result<usize, String> {
+        for e in 0..self.triangles.len() {
+            let twin = self.twins[e];
+            if twin != NONE {
+                let f = twin as usize;
+                if self.twins[f] as usize != e {
+                    return Err(format!(
+                        "twin of {e} is {f}, whose twin is {}",
+                        self.twins[f]
+                    ));
+                }
+                if self.triangles[f] != self.triangles[next(e)]
+                    || self.triangles[next(f)] != self.triangles[e]
+                {
+                    return Err(format!(
+                        "half-edges {e} and {f} do not join the same vertices"
+                    ));
+                }
+                if self.constrained[e] != self.constrained[f] {
+                    return Err(format!("constraint flags of {e} and {f} differ"));
+                }
+            }
+        }
+        Ok((0..self.triangle_count())
+            .filter(|&t| {
+                let [a, b, c] = [0, 1, 2].map(|k| self.triangles[3 * t + k]);
+                self.orient(a, b, c) <= 0.0
+            })
+            .count())
+    }
+
+    /// `orient2d` of three vertices: positive when counter-clockwise.
+    fn orient(&self, a: u32, b: u32, c: u32) -> f64 {
+        let point = |i: u32| coord(self.points[i as usize]);
+        robust::orient2d(point(a), point(b), point(c))
+    }
+
+    /// `incircle` of three counter-clockwise vertices and a fourth: positive when it is inside.
+    fn in_circle(&self, a: u32, b: u32, c: u32, d: u32) -> f64 {
+        let point = |i: u32| coord(self.points[i as usize]);
+        robust::incircle(point(a), point(b), point(c), point(d))
+    }
+
+    fn triangle_count(&self) -> usize {
+        self.triangles.len() / 3
+    }
+
+    fn corners(&self, t: usize) -> [Point2<f64>; 3] {
+        [0, 1, 2].map(|k| self.points[self.triangles[3 * t + k] as usize])
+    }
+
+    fn link(&mut self, a: usize, b: u32, constrained: bool) {
+        self.twins[a] = b;
+        self.constrained[a] = constrained;
+        if b != NONE {
+            self.twins[b as usize] = a as u32;
+            self.constrained[b as usize] = constrained;
+        }
+    }
+
+    fn add_triangle(&mut self, a: u32, b: u32, c: u32) -> usize {
+        let t = self.triangle_count();
+        self.triangles.extend_from_slice(&[a, b, c]);
+        self.twins.extend_from_slice(&[NONE; 3]);
+        self.constrained.extend_from_slice(&[false; 3]);
+        t
+    }
+
+    fn set_triangle(&mut self, t: usize, a: u32, b: u32, c: u32) {
+        self.triangles[3 * t..3 * t + 3].copy_from_slice(&[a, b, c]);
+    }
+
+    /// Inserts `p`, starting the search at triangle `t`; returns the new vertex, or `None` if `p`
+    /// is already a vertex. Triangles created or changed are added to `touched`.
+    fn insert(
+        &mut self,
+        mut t: usize,
+        p: Point2<f64>,
+        sample: u32,
+        touched: &mut Vec<usize>,
+    ) -> Option<u32> {
+        // The new vertex goes in first so the predicates can use it; it is taken back out if the
+        // point turns out to be a vertex already.
+        let v = self.points.len() as u32;
+        self.points.push(p);
+        self.samples.push(sample);
+        // The point is in `t` or, where the scan's tolerance let it sit on the far side of an
+        // edge, a step or two away. A visibility walk can circle in a triangulation that is not
+        // Delaunay (constraints), so it never steps back through the edge it came from, takes
+        // turns between the edges the point lies beyond, and after a bounded number of steps
+        // searches every triangle.
+        let mut came_through = usize::MAX;
+        let mut located = None;
+        for step in 0..MAX_WALK_STEPS {
+            let [a, b, c] = [0, 1, 2].map(|k| self.triangles[3 * t + k]);
+            let o = [
+                self.orient(a, b, v),
+                self.orient(b, c, v),
+                self.orient(c, a, v),
+            ];
+            let beyond: Vec<usize> = (0..3)
+                .filter(|&k| o[k] < 0.0 && 3 * t + k != came_through)
+                .collect();
+            if beyond.is_empty() {
+                if o.iter().all(|&x| x >= 0.0) {
+                    located = Some((t, o));
+                }
+                break;
+            }
+            let k = beyond[step % beyond.len()];
+            let twin = self.twins[3 * t + k];
+            if twin == NONE {
+                break;
+            }
+            came_through = twin as usize;
+            t = twin as usize / 3;
+        }
+        let located = located.or_else(|| {
+            (0..self.triangle_count()).find_map(|t| {
+                let [a, b, c] = [0, 1, 2].map(|k| self.triangles[3 * t + k]);
+                let o = [
+                    self.orient(a, b, v),
+                    self.orient(b, c, v),
+                    self.orient(c, a, v),
+                ];
+                o.iter().all(|&x| x >= 0.0).then_some((t, o))
+            })
+        });
+        if let Some((t, o)) = located {
+            match o.iter().filter(|&&x| x == 0.0).count() {
+                0 => {
+                    self.split_triangle(t, v, touched);
+                    return Some(v);
+                }
+                1 => {
+                    let k = (0..3).find(|&k| o[k] == 0.0).unwrap_or(0);
+                    self.split_edge(3 * t + k, v, touched);
+                    return Some(v);
+                }
+                // On a vertex already.
+                _ => {}
+            }
+        }
+        self.points.pop();
+        self.samples.pop();
+        None
+    }
+
+    /// Splits triangle `t` = (a, b, c) at the new vertex `v` into (a, b, v), (b, c, v), (c, a, v).
+    fn split_triangle(&mut self, t: usize, v: u32, touched: &mut Vec<usize>) {
+        let [a, b, c] = [0, 1, 2].map(|k| self.triangles[3 * t + k]);
+        let outer = [1, 2].map(|k| (self.twins[3 * t + k], self.constrained[3 * t + k]));
+        self.set_triangle(t, a, b, v);
+        let t1 = self.add_triangle(b, c, v);
+        let t2 = self.add_triangle(c, a, v);
+        self.link(3 * t1, outer[0].0, outer[0].1);
+        self.link(3 * t2, outer[1].0, outer[1].1);
+        self.link(3 * t + 1, (3 * t1 + 2) as u32, false);
+        self.link(3 * t + 2, (3 * t2 + 1) as u32, false);
+        self.link(3 * t1 + 1, (3 * t2 + 2) as u32, false);
+        touched.extend([t, t1, t2]);
+        self.legalize(&[3 * t, 3 * t1, 3 * t2], touched);
+    }
+
+    /// Splits the edge of half-edge `e` at the new vertex `v` (and the triangle across it).
+    fn split_edge(&mut self, e: usize, v: u32, touched: &mut Vec<usize>) {
+        let t = e / 3;
+        let (a, b, c) = (
+            self.triangles[e],
+            self.triangles[next(e)],
+            self.triangles[prev(e)],
+        );
+        let (en, ep) = (next(e), prev(e));
+        let outer_t = [
+            (self.twins[en], self.constrained[en]),
+            (self.twins[ep], self.constrained[ep]),
+        ];
+        let (f, along) = (self.twins[e], self.constrained[e]);
+        // (a, v, c) and (v, b, c).
+        self.set_triangle(t, a, v, c);
+        let t1 = self.add_triangle(v, b, c);
+        self.link(3 * t + 2, outer_t[1].0, outer_t[1].1);
+        self.link(3 * t1 + 1, outer_t[0].0, outer_t[0].1);
+        self.link(3 * t + 1, (3 * t1 + 2) as u32, false);
+        touched.extend([t, t1]);
+        let mut legalize = [3 * t + 2, 3 * t1 + 1, NONE as usize, NONE as usize];
+        if f == NONE {
+            self.link(3 * t, NONE, along);
+            self.link(3 * t1, NONE, along);
+        } else {
+            let f = f as usize;
+            let u = f / 3;
+            let d = self.triangles[prev(f)];
+            let (fnext, fprev) = (next(f), prev(f));
+            let outer_u = [
+                (self.twins[fnext], self.constrained[fnext]),
+                (self.twins[fprev], self.constrained[fprev]),
+            ];
+            // (b, v, d) and (v, a, d).
+            self.set_triangle(u, b, v, d);
+            let u1 = self.add_triangle(v, a, d);
+            self.link(3 * u + 2, outer_u[1].0, outer_u[1].1);
+            self.link(3 * u1 + 1, outer_u[0].0, outer_u[0].1);
+            self.link(3 * u + 1, (3 * u1 + 2) as u32, false);
+            self.link(3 * t, (3 * u1) as u32, along);
+            self.link(3 * t1, (3 * u) as u32, along);
+            touched.extend([u, u1]);
+            legalize[2..].copy_from_slice(&[3 * u + 2, 3 * u1 + 1]);
+        }
+        let count = if f == NONE { 2 } else { 4 };
+        self.legalize(&legalize[..count], touched);
+    }
+
+    /// Restores the Delaunay property across the half-edges `edges`, whose triangles' third
+    /// vertex is the point just inserted, by flipping edges that are not constraints.
+    fn legalize(&mut self, edges: &[usize], touched: &mut Vec<usize>) {
+        let mut stack = std::mem::take(&mut self.stack);
+        stack.clear();
+        stack.extend_from_slice(edges);
+        while let Some(a) = stack.pop() {
+            let b = self.twins[a];
+            if b == NONE || self.constrained[a] {
+                continue;
+            }
+            let b = b as usize;
+            let (ar, al, bl, br) = (prev(a), next(a), prev(b), next(b));
+            let p0 = self.triangles[ar];
+            let pr = self.triangles[a];
+            let pl = self.triangles[al];
+            let p1 = self.triangles[bl];
+            if self.in_circle(pr, pl, p0, p1) <= 0.0 {
+                continue;
+            }
+            // Flip only to two counter-clockwise triangles: spade's seed may hold a slightly
+            // inverted sliver (its constraint split points are rounded), whose circle test means
+            // nothing; such an edge stays as it is.
+            if self.orient(p1, pl, p0) <= 0.0 || self.orient(p0, pr, p1) <= 0.0 {
+                continue;
+            }
+            // Flip (pr, pl) to (p0, p1): a's triangle becomes (p1, pl, p0), b's (p0, pr, p1).
+            self.triangles[a] = p1;
+            self.triangles[b] = p0;
+            let (hbl, cbl) = (self.twins[bl], self.constrained[bl]);
+            let (har, car) = (self.twins[ar], self.constrained[ar]);
+            self.link(a, hbl, cbl);
+            self.link(b, har, car);
+            self.link(ar, bl as u32, false);
+            touched.extend([a / 3, b / 3]);
+            stack.push(br);
+            stack.push(a);
+        }
+        self.stack = stack;
+    }
+}
+
+/// Finds each triangle's worst sample.
+struct Scanner<'a> {
     grid: &'a HeightGrid,
     limits: RefineLimits,
-    heap: FaceHeap,
 }
 
-impl Refiner<'_> {
-    /// Gives every vertex without a height one: its grid sample, or `vertex_height`.
-    fn complete_heights(
+impl Scanner<'_> {
+    fn scan(&self, mesh: &Mesh, heights: &[f64], t: usize) -> Option<Candidate> {
+        self.scan_skipping(mesh, heights, t, &[])
+    }
+
+    /// Like `scan`, passing over the samples marked in `skip` (which may be empty).
+    fn scan_skipping(
         &self,
-        cdt: &Cdt,
-        heights: &mut Vec<f64>,
-        vertex_height: &mut dyn FnMut(Point2<f64>) -> f64,
-    ) {
-        for index in heights.len()..cdt.num_vertices() {
-            let p = cdt.vertex(FixedVertexHandle::from_index(index)).position();
-            let h = match self.grid.sample_at(p) {
-                Some(sample) => self.grid.heights[sample],
-                None => vertex_height(p),
-            };
-            heights.push(h);
-        }
+        mesh: &Mesh,
+        heights: &[f64],
+        t: usize,
+        skip: &[bool],
+    ) -> Option<Candidate> {
+        let p = mesh.corners(t);
+        let h = [0, 1, 2].map(|k| heights[mesh.triangles[3 * t + k] as usize]);
+        // A triangle already within the bound is never refined: keeping it out of the queue keeps
+        // the queue small.
+        self.worst_sample(p, h, skip)
+            .filter(|&(error, _)| error > self.limits.max_error)
+            .map(|(error, sample)| Candidate { error, sample })
     }
 
-    /// Finds the worst sample inside a face and queues it.
-    fn scan(&mut self, cdt: &Cdt, heights: &[f64], face: FixedFaceHandle<InnerTag>) {
-        let vertices = cdt.face(face).vertices();
-        let p = vertices.map(|v| v.position());
-        let h = vertices.map(|v| heights[v.fix().index()]);
-        let candidate = self.worst_sample(p, h).map(|(error, sample)| Candidate {
-            error,
-            sample,
-            corner: vertices[0].fix().index(),
-        });
-        self.heap.set(face.index(), candidate);
-    }
-
-    fn worst_sample(&self, p: [Point2<f64>; 3], h: [f64; 3]) -> Option<(f64, usize)> {
+    fn worst_sample(
+        &self,
+        p: [Point2<f64>; 3],
+        h: [f64; 3],
+        skip: &[bool],
+    ) -> Option<(f64, usize)> {
         let g = self.grid;
         let (dx, dz) = (g.dx(), g.dz());
         let det = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
@@ -359,6 +745,9 @@ impl Refiner<'_> {
                 let b2 = a2 + x * db2_dx;
                 let b0 = 1.0 - b1 - b2;
                 let sample = row + i;
+                if !skip.is_empty() && skip[sample] {
+                    continue;
+                }
                 let approximation = b0 * h[0] + b1 * h[1] + b2 * h[2];
                 let error = (approximation - g.heights[sample]).abs() * g.weight(sample);
                 if best.is_none_or(|(e, s)| error > e || (error == e && sample < s)) {
@@ -403,12 +792,11 @@ mod tests {
         }
     }
 
-    fn max_error(cdt: &Cdt, heights: &[f64], grid: &HeightGrid) -> f64 {
+    fn max_error(tin: &Tin, grid: &HeightGrid) -> f64 {
         let mut worst: f64 = 0.0;
-        for face in cdt.inner_faces() {
-            let v = face.vertices();
-            let p = v.map(|v| v.position());
-            let h = v.map(|v| heights[v.fix().index()]);
+        for t in &tin.triangles {
+            let p = t.map(|i| tin.positions[i as usize]);
+            let h = t.map(|i| tin.heights[i as usize]);
             let det = (p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[2].x - p[0].x) * (p[1].y - p[0].y);
             for j in 0..grid.rows {
                 for i in 0..grid.columns {
@@ -426,19 +814,20 @@ mod tests {
         worst
     }
 
+    fn limits(max_error: f64) -> RefineLimits {
+        RefineLimits {
+            max_error,
+            keep_border: false,
+            max_insertions: usize::MAX,
+        }
+    }
+
     #[test]
     fn a_plane_needs_only_its_corners() {
         let g = grid(33, |x, z| 3.0 * x - 2.0 * z + 7.0);
-        let mut cdt = corner_seed(&g);
-        let mut heights = Vec::new();
-        let limits = RefineLimits {
-            max_error: 0.01,
-            keep_border: false,
-            max_insertions: usize::MAX,
-        };
-        let report = refine(&mut cdt, &g, limits, &mut heights, &mut |_| unreachable!());
+        let (tin, report) = refine(&corner_seed(&g), &g, limits(0.01), &mut |_| unreachable!());
         assert_eq!(report.inserted, 0);
-        assert_eq!(cdt.num_inner_faces(), 2);
+        assert_eq!(tin.triangles.len(), 2);
     }
 
     #[test]
@@ -447,15 +836,9 @@ mod tests {
             20.0 * (x / 6.0).sin() * (z / 9.0).cos() + 0.01 * x * z
         });
         for bound in [0.5, 2.0, 5.0] {
-            let mut cdt = corner_seed(&g);
-            let mut heights = Vec::new();
-            let limits = RefineLimits {
-                max_error: bound,
-                keep_border: false,
-                max_insertions: usize::MAX,
-            };
-            let report = refine(&mut cdt, &g, limits, &mut heights, &mut |_| unreachable!());
-            let measured = max_error(&cdt, &heights, &g);
+            let (tin, report) =
+                refine(&corner_seed(&g), &g, limits(bound), &mut |_| unreachable!());
+            let measured = max_error(&tin, &g);
             assert!(
                 measured <= bound + 1e-9,
                 "bound {bound}: measured {measured}"
@@ -465,6 +848,78 @@ mod tests {
                 "bound {bound}: {} insertions",
                 report.inserted
             );
+            assert_eq!(tin.heights.len(), tin.positions.len());
+        }
+    }
+
+    #[test]
+    fn the_result_is_delaunay_and_counter_clockwise() {
+        let g = grid(33, |x, z| ((x * 0.7).sin() + (z * 0.3).cos()) * 10.0);
+        let (tin, _) = refine(&corner_seed(&g), &g, limits(0.2), &mut |_| unreachable!());
+        let c = |i: u32| coord(tin.positions[i as usize]);
+        for t in &tin.triangles {
+            assert!(robust::orient2d(c(t[0]), c(t[1]), c(t[2])) > 0.0);
+        }
+        // No vertex lies strictly inside another triangle's circumcircle (sampled check).
+        for t in tin.triangles.iter().step_by(7) {
+            for v in (0..tin.positions.len() as u32).step_by(3) {
+                if !t.contains(&v) {
+                    assert!(
+                        robust::incircle(c(t[0]), c(t[1]), c(t[2]), c(v)) <= 1e-9,
+                        "{t:?} {v}"
+                    );
+                }
+            }
+        }
+        // The triangles tile the square exactly.
+        let area: f64 = tin
+            .triangles
+            .iter()
+            .map(|t| robust::orient2d(c(t[0]), c(t[1]), c(t[2])) / 2.0)
+            .sum();
+        assert!((area - 32.0 * 32.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn constraint_edges_survive_refinement() {
+        let g = grid(33, |x, z| 5.0 * (x / 3.0).sin() * (z / 4.0).cos());
+        let mut seed = corner_seed(&g);
+        let a = seed.insert(Point2::new(2.0, 3.5)).unwrap();
+        let b = seed.insert(Point2::new(30.0, 29.5)).unwrap();
+        seed.add_constraint_and_split(a, b, |p| p);
+        let (tin, _) = refine(&seed, &g, limits(0.3), &mut |p| {
+            5.0 * (p.x / 3.0).sin() * (p.y / 4.0).cos()
+        });
+        // Every point on the constraint line lies on an edge of the result: no triangle's
+        // interior crosses it (check the segment's midpoints between consecutive vertices on it).
+        let on_line: Vec<Point2<f64>> = {
+            let mut v: Vec<Point2<f64>> = tin
+                .positions
+                .iter()
+                .copied()
+                .filter(|p| {
+                    robust::orient2d(
+                        coord(Point2::new(2.0, 3.5)),
+                        coord(Point2::new(30.0, 29.5)),
+                        coord(*p),
+                    ) == 0.0
+                })
+                .filter(|p| p.x >= 2.0 && p.x <= 30.0)
+                .collect();
+            v.sort_by(|a, b| a.x.total_cmp(&b.x));
+            v
+        };
+        assert!(on_line.len() >= 2);
+        for pair in on_line.windows(2) {
+            let (ia, ib) = [pair[0], pair[1]]
+                .map(|p| tin.positions.iter().position(|q| *q == p).unwrap() as u32)
+                .into();
+            let has_edge = tin.triangles.iter().any(|t| {
+                (0..3).any(|k| {
+                    t[k] == ia && t[(k + 1) % 3] == ib || t[k] == ib && t[(k + 1) % 3] == ia
+                })
+            });
+            assert!(has_edge, "no edge between {:?} and {:?}", pair[0], pair[1]);
         }
     }
 
@@ -472,15 +927,8 @@ mod tests {
     fn weights_make_the_mesh_denser_where_they_are_high() {
         let mut g = grid(65, |x, z| 10.0 * (x / 5.0).sin() + 10.0 * (z / 7.0).cos());
         let count = |g: &HeightGrid| {
-            let mut cdt = corner_seed(g);
-            let mut heights = Vec::new();
-            let limits = RefineLimits {
-                max_error: 1.0,
-                keep_border: false,
-                max_insertions: usize::MAX,
-            };
-            refine(&mut cdt, g, limits, &mut heights, &mut |_| unreachable!());
-            cdt.vertices().filter(|v| v.position().x < 32.0).count()
+            let (tin, _) = refine(&corner_seed(g), g, limits(1.0), &mut |_| unreachable!());
+            tin.positions.iter().filter(|p| p.x < 32.0).count()
         };
         let plain = count(&g);
         g.weights = Some(
