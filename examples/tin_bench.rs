@@ -36,14 +36,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for row in offset..offset + size {
         heights.extend_from_slice(&raw[row * n + offset..row * n + offset + size]);
     }
-    let grid = HeightGrid {
-        columns: size,
-        rows: size,
-        width: (size - 1) as f64,
-        depth: (size - 1) as f64,
-        heights,
-        weights: None,
-    };
+    let grid = HeightGrid::unit(size, size, heights);
     let max_error: f64 = error.parse()?;
     let mut best = f64::INFINITY;
     let mut result = None;

@@ -11,6 +11,18 @@ fn terrastitch() -> Command {
     command
 }
 
+/// Runs `serve` with extra arguments and returns its stderr, asserting that it failed.
+fn serve_fails(dir: &std::path::Path, args: &[&std::ffi::OsStr]) -> String {
+    let output = terrastitch()
+        .args(["serve", "--listen", "127.0.0.1:0", "--cache"])
+        .arg(dir.join("cache.sqlite"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
 #[test]
 fn a_truncated_hgt_file_is_named_and_fatal() {
     let dir = tempfile::tempdir().unwrap();
@@ -20,15 +32,7 @@ fn a_truncated_hgt_file_is_named_and_fatal() {
         &original[..original.len() / 2],
     )
     .unwrap();
-    let output = terrastitch()
-        .args(["serve", "--listen", "127.0.0.1:0", "--srtm"])
-        .arg(dir.path())
-        .arg("--cache")
-        .arg(dir.path().join("cache.sqlite"))
-        .output()
-        .unwrap();
-    assert!(!output.status.success());
-    let stderr = String::from_utf8_lossy(&output.stderr);
+    let stderr = serve_fails(dir.path(), &["--srtm".as_ref(), dir.path().as_os_str()]);
     assert!(
         stderr.contains("N43E007.hgt") && stderr.contains("1442401"),
         "{stderr}"
@@ -41,15 +45,7 @@ fn a_truncated_pbf_file_is_named_and_fatal() {
     let original = std::fs::read(common::sample_osm()).unwrap();
     let truncated = dir.path().join("truncated.osm.pbf");
     std::fs::write(&truncated, &original[..original.len() * 2 / 3]).unwrap();
-    let output = terrastitch()
-        .args(["serve", "--listen", "127.0.0.1:0", "--osm"])
-        .arg(&truncated)
-        .arg("--cache")
-        .arg(dir.path().join("cache.sqlite"))
-        .output()
-        .unwrap();
-    assert!(!output.status.success());
-    let stderr = String::from_utf8_lossy(&output.stderr);
+    let stderr = serve_fails(dir.path(), &["--osm".as_ref(), truncated.as_os_str()]);
     assert!(stderr.contains("truncated.osm.pbf"), "{stderr}");
 }
 

@@ -36,6 +36,18 @@ pub struct HeightGrid {
 }
 
 impl HeightGrid {
+    /// A grid of unit spacing (sample `(i, j)` at `(i, j)`) without weights, for raw rasters.
+    pub fn unit(columns: usize, rows: usize, heights: Vec<f64>) -> HeightGrid {
+        HeightGrid {
+            columns,
+            rows,
+            width: (columns - 1) as f64,
+            depth: (rows - 1) as f64,
+            heights,
+            weights: None,
+        }
+    }
+
     pub fn height(&self, i: usize, j: usize) -> f64 {
         self.heights[j * self.columns + i]
     }
@@ -782,14 +794,7 @@ mod tests {
                 heights.push(f(i as f64, j as f64));
             }
         }
-        HeightGrid {
-            columns: size,
-            rows: size,
-            width: (size - 1) as f64,
-            depth: (size - 1) as f64,
-            heights,
-            weights: None,
-        }
+        HeightGrid::unit(size, size, heights)
     }
 
     fn max_error(tin: &Tin, grid: &HeightGrid) -> f64 {

@@ -125,6 +125,23 @@ impl Mosaic {
     }
 }
 
+/// A 3″ file for N43E007 whose samples follow `f(row, column)`, for tests.
+#[cfg(test)]
+pub(crate) fn synthetic(f: impl Fn(f64, f64) -> f64) -> Mosaic {
+    let size = 1201;
+    let mut heights = Vec::with_capacity(size * size);
+    for row in 0..size {
+        for column in 0..size {
+            heights.push(f(row as f64, column as f64) as f32);
+        }
+    }
+    Mosaic::new([Arc::new(SrtmTile {
+        cell: CellId { lat: 43, lon: 7 },
+        size,
+        heights,
+    })])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

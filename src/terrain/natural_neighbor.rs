@@ -115,23 +115,7 @@ impl<'a> NaturalNeighbor<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::source::srtm::{CellId, SrtmTile};
-    use std::sync::Arc;
-
-    fn file(f: impl Fn(f64, f64) -> f64) -> Mosaic {
-        let size = 1201;
-        let mut heights = Vec::with_capacity(size * size);
-        for row in 0..size {
-            for column in 0..size {
-                heights.push(f(row as f64, column as f64) as f32);
-            }
-        }
-        Mosaic::new([Arc::new(SrtmTile {
-            cell: CellId { lat: 43, lon: 7 },
-            size,
-            heights,
-        })])
-    }
+    use crate::terrain::mosaic::synthetic as file;
 
     #[test]
     fn honours_the_sites_and_linear_surfaces() {
