@@ -6,7 +6,7 @@
 //! iteration wherever order reaches the output, so the same inputs give the same bytes.
 //! Stage times are measured for reporting only; they never reach the output.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use crate::features::{self, FeatureClass, FeatureSet, FeatureSettings};
@@ -191,7 +191,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         .map(|(p, &elevation)| frame.elevation_to_y(elevation, p[1]))
         .collect();
     let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
-    let mut vertex_slots: HashMap<(Part, u32, u32), u32> = HashMap::new();
+    let mut vertex_slots: rustc_hash::FxHashMap<(Part, u32, u32), u32> = Default::default();
     let mut slivers = 0;
     for triangle in &ground.triangles {
         let (class, feature) = match triangle.surface {

@@ -83,11 +83,13 @@ pub struct Ground {
     pub dropped_constraints: usize,
 }
 
-/// Buckets of surfaces over the tile, so a centroid is tested against a few surfaces only.
+/// The pieces of the surfaces in buckets over the tile, so a centroid is tested against the
+/// few pieces near it (a road has a piece per segment) rather than whole surfaces.
 struct SurfaceBuckets {
     rect: Rect,
     cells: usize,
-    buckets: Vec<Vec<u32>>,
+    /// (surface, piece, piece bounds) per bucket.
+    buckets: Vec<Vec<(u32, u32, Rect)>>,
 }
 
 impl SurfaceBuckets {
@@ -103,17 +105,21 @@ impl SurfaceBuckets {
             if !surface.bounds.intersects(&rect) {
                 continue;
             }
-            let (c0, c1) = (
-                cell_of(surface.bounds.min[0], 0),
-                cell_of(surface.bounds.max[0], 0),
-            );
-            let (r0, r1) = (
-                cell_of(surface.bounds.min[1], 1),
-                cell_of(surface.bounds.max[1], 1),
-            );
-            for row in r0..=r1 {
-                for column in c0..=c1 {
-                    buckets[row * cells + column].push(index as u32);
+            for (piece_index, piece) in surface.pieces.iter().enumerate() {
+                let bounds = piece.bounds();
+                if !bounds.intersects(&rect) {
+                    continue;
+                }
+                let (c0, c1) = (cell_of(bounds.min[0], 0), cell_of(bounds.max[0], 0));
+                let (r0, r1) = (cell_of(bounds.min[1], 1), cell_of(bounds.max[1], 1));
+                for row in r0..=r1 {
+                    for column in c0..=c1 {
+                        buckets[row * cells + column].push((
+                            index as u32,
+                            piece_index as u32,
+                            bounds,
+                        ));
+                    }
                 }
             }
         }
@@ -124,7 +130,12 @@ impl SurfaceBuckets {
         }
     }
 
-    fn candidates(&self, p: Point) -> &[u32] {
+    /// The surfaces with a piece that contains `p`.
+    fn containing<'a>(
+        &'a self,
+        p: Point,
+        surfaces: &'a [Surface],
+    ) -> impl Iterator<Item = u32> + 'a {
         let size = [
             self.rect.max[0] - self.rect.min[0],
             self.rect.max[1] - self.rect.min[1],
@@ -134,7 +145,13 @@ impl SurfaceBuckets {
                 .floor()
                 .clamp(0.0, self.cells as f64 - 1.0) as usize
         };
-        &self.buckets[cell(1) * self.cells + cell(0)]
+        self.buckets[cell(1) * self.cells + cell(0)]
+            .iter()
+            .filter(move |(surface, piece, bounds)| {
+                bounds.contains(p)
+                    && surfaces[*surface as usize].pieces[*piece as usize].contains(p)
+            })
+            .map(|&(surface, _, _)| surface)
     }
 }
 
@@ -290,17 +307,12 @@ pub fn triangulate(
             let (u, v) = frame.local_to_uv(x, z);
             [u, v]
         };
-        let surface = buckets
-            .candidates(centroid)
-            .iter()
-            .copied()
-            .filter(|&i| surfaces[i as usize].contains(centroid))
-            .min_by_key(|&i| {
-                (
-                    surfaces[i as usize].class.ground_priority(),
-                    surfaces[i as usize].feature,
-                )
-            });
+        let surface = buckets.containing(centroid, surfaces).min_by_key(|&i| {
+            (
+                surfaces[i as usize].class.ground_priority(),
+                surfaces[i as usize].feature,
+            )
+        });
         if surface.is_some_and(|i| surfaces[i as usize].class == FeatureClass::Building) {
             removed += 1;
         }

@@ -14,7 +14,6 @@
 //! sites changes.
 
 use std::cell::RefCell;
-use std::collections::HashMap;
 
 use nalgebra::{SMatrix, SVector};
 
@@ -54,7 +53,7 @@ fn stencil() -> impl Iterator<Item = (i64, i64)> {
 pub struct LeastSquares<'a> {
     mosaic: &'a Mosaic,
     pseudo_inverse: SMatrix<f64, 6, 9>,
-    coefficients: RefCell<HashMap<(i64, i64, i64), Coefficients>>,
+    coefficients: RefCell<rustc_hash::FxHashMap<(i64, i64, i64), Coefficients>>,
 }
 
 impl<'a> LeastSquares<'a> {
@@ -62,7 +61,7 @@ impl<'a> LeastSquares<'a> {
         LeastSquares {
             mosaic,
             pseudo_inverse: pseudo_inverse(),
-            coefficients: RefCell::new(HashMap::new()),
+            coefficients: RefCell::new(rustc_hash::FxHashMap::default()),
         }
     }
 

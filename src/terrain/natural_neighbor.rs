@@ -8,7 +8,6 @@
 //! inside one cell reuse its triangulation.
 
 use std::cell::RefCell;
-use std::collections::HashMap;
 use std::rc::Rc;
 
 use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
@@ -41,7 +40,7 @@ struct Window {
 }
 
 /// Windows by (steps, lat_step, lon_step) of their cell; `None` where the data has too few sites.
-type WindowCache = HashMap<(i64, i64, i64), Option<Rc<Window>>>;
+type WindowCache = rustc_hash::FxHashMap<(i64, i64, i64), Option<Rc<Window>>>;
 
 pub struct NaturalNeighbor<'a> {
     mosaic: &'a Mosaic,
@@ -52,7 +51,7 @@ impl<'a> NaturalNeighbor<'a> {
     pub fn new(mosaic: &'a Mosaic) -> NaturalNeighbor<'a> {
         NaturalNeighbor {
             mosaic,
-            windows: RefCell::new(HashMap::new()),
+            windows: RefCell::new(WindowCache::default()),
         }
     }
 
