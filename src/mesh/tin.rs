@@ -52,10 +52,6 @@ impl HeightGrid {
         self.heights[j * self.columns + i]
     }
 
-    fn weight(&self, index: usize) -> f64 {
-        self.weights.as_ref().map_or(1.0, |w| f64::from(w[index]))
-    }
-
     /// Spacing in x.
     pub fn dx(&self) -> f64 {
         self.width / (self.columns - 1) as f64
@@ -724,7 +720,13 @@ impl Scanner<'_> {
         let db2_dx = -(p[1].y - p[0].y) * inv;
         let db2_dz = (p[1].x - p[0].x) * inv;
         const INSIDE: f64 = -1e-9;
-        let mut best: Option<(f64, usize)> = None;
+        // Along a row the approximation is affine in x too: h0 + b1·(h1 − h0) + b2·(h2 − h0).
+        let (dh1, dh2) = (h[1] - h[0], h[2] - h[0]);
+        let slope = db1_dx * dh1 + db2_dx * dh2;
+        let weights = g.weights.as_deref();
+        // Samples are visited in increasing order, so a strictly larger error is the only way to
+        // replace the best: ties keep the lowest sample.
+        let (mut best_error, mut best_sample) = (f64::NEG_INFINITY, usize::MAX);
         for j in j0..=j1 {
             let z = j as f64 * dz - p[0].y;
             // b1, b2 and b0 = 1 − b1 − b2 at x − p0.x = 0, and their slopes in x.
@@ -750,24 +752,26 @@ impl Scanner<'_> {
             }
             let first = (((lo + p[0].x) / dx).ceil().max(i0 as f64)) as usize;
             let last = (((hi + p[0].x) / dx).floor().min(i1 as f64)) as usize;
+            if first > last {
+                continue;
+            }
             let row = j * g.columns;
-            for i in first..=last {
-                let x = i as f64 * dx - p[0].x;
-                let b1 = a1 + x * db1_dx;
-                let b2 = a2 + x * db2_dx;
-                let b0 = 1.0 - b1 - b2;
-                let sample = row + i;
-                if !skip.is_empty() && skip[sample] {
-                    continue;
+            let base = h[0] + a1 * dh1 + a2 * dh2;
+            let samples = &g.heights[row + first..=row + last];
+            for (k, &height) in samples.iter().enumerate() {
+                let i = first + k;
+                let approximation = base + (i as f64 * dx - p[0].x) * slope;
+                let mut error = (approximation - height).abs();
+                if let Some(w) = weights {
+                    error *= f64::from(w[row + i]);
                 }
-                let approximation = b0 * h[0] + b1 * h[1] + b2 * h[2];
-                let error = (approximation - g.heights[sample]).abs() * g.weight(sample);
-                if best.is_none_or(|(e, s)| error > e || (error == e && sample < s)) {
-                    best = Some((error, sample));
+                if error > best_error && (skip.is_empty() || !skip[row + i]) {
+                    best_error = error;
+                    best_sample = row + i;
                 }
             }
         }
-        best
+        (best_sample != usize::MAX).then_some((best_error, best_sample))
     }
 }
 
