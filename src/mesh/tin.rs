@@ -339,6 +339,9 @@ struct Mesh {
     stack: Vec<usize>,
 }
 
+/// How far (in grid steps) a row's span is widened beyond a triangle's edges.
+const SPAN_SLACK: f64 = 1e-7;
+
 /// Steps a point-location walk takes before it searches every triangle.
 const MAX_WALK_STEPS: usize = 256;
 
@@ -706,10 +709,10 @@ impl Scanner<'_> {
         let max_x = p.iter().map(|q| q.x).fold(f64::NEG_INFINITY, f64::max);
         let min_z = p.iter().map(|q| q.y).fold(f64::INFINITY, f64::min);
         let max_z = p.iter().map(|q| q.y).fold(f64::NEG_INFINITY, f64::max);
-        let i0 = ((min_x / dx).ceil().max(0.0) as usize).max(lo_i);
-        let i1 = ((max_x / dx).floor().max(0.0) as usize).min(hi_i);
-        let j0 = ((min_z / dz).ceil().max(0.0) as usize).max(lo_j);
-        let j1 = ((max_z / dz).floor().max(0.0) as usize).min(hi_j);
+        let i0 = ((min_x / dx - SPAN_SLACK).ceil().max(0.0) as usize).max(lo_i);
+        let i1 = ((max_x / dx + SPAN_SLACK).floor().max(0.0) as usize).min(hi_i);
+        let j0 = ((min_z / dz - SPAN_SLACK).ceil().max(0.0) as usize).max(lo_j);
+        let j1 = ((max_z / dz + SPAN_SLACK).floor().max(0.0) as usize).min(hi_j);
         if i0 > i1 || j0 > j1 {
             return None;
         }
@@ -750,8 +753,10 @@ impl Scanner<'_> {
             if lo > hi {
                 continue;
             }
-            let first = (((lo + p[0].x) / dx).ceil().max(i0 as f64)) as usize;
-            let last = (((hi + p[0].x) / dx).floor().min(i1 as f64)) as usize;
+            // A sample on an edge must be scanned whatever the rounding of its position: the
+            // triangle across the edge may be a sliver too thin to scan at all.
+            let first = (((lo + p[0].x) / dx - SPAN_SLACK).ceil().max(i0 as f64)) as usize;
+            let last = (((hi + p[0].x) / dx + SPAN_SLACK).floor().min(i1 as f64)) as usize;
             if first > last {
                 continue;
             }
