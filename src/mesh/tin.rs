@@ -223,14 +223,13 @@ pub fn refine(
     limits: RefineLimits,
     vertex_height: &mut dyn FnMut(Point2<f64>) -> f64,
 ) -> (Tin, RefineReport) {
-    let mut mesh = Mesh::from_cdt(seed, grid);
+    let mut mesh = Mesh::from_cdt(seed);
     let mut heights: Vec<f64> = mesh
         .points
         .iter()
-        .zip(&mesh.samples)
-        .map(|(&p, &sample)| match sample {
-            NO_SAMPLE => vertex_height(p),
-            sample => grid.heights[sample as usize],
+        .map(|&p| match grid.sample_at(p) {
+            Some(sample) => grid.heights[sample],
+            None => vertex_height(p),
         })
         .collect();
     // spade's seed may hold slightly inverted slivers (rounded constraint split points); the
@@ -267,13 +266,9 @@ pub fn refine(
         );
         let point = grid.position(i, j);
         touched.clear();
-        if mesh
-            .insert(face, point, candidate.sample as u32, &mut touched)
-            .is_none()
-        {
-            // Already a vertex (possible only for a vertex whose height differs from its
-            // sample): leave the triangle be rather than loop.
-            heap.set(face, None);
+        if mesh.insert(face, point, &mut touched).is_none() {
+            // Already a vertex: look again past it (the triangle may hold other samples).
+            heap.set(face, scanner.scan_skipping(&mesh, &heights, face, &used));
             continue;
         }
         heights.push(grid.heights[candidate.sample]);
@@ -330,8 +325,6 @@ fn prev(e: usize) -> usize {
 /// of a constraint edge.
 struct Mesh {
     points: Vec<Point2<f64>>,
-    /// The grid sample each vertex is, or [`NO_SAMPLE`].
-    samples: Vec<u32>,
     triangles: Vec<u32>,
     twins: Vec<u32>,
     constrained: Vec<bool>,
@@ -345,20 +338,13 @@ const SPAN_SLACK: f64 = 1e-7;
 /// Steps a point-location walk takes before it searches every triangle.
 const MAX_WALK_STEPS: usize = 256;
 
-/// A vertex that is not a grid sample.
-const NO_SAMPLE: u32 = u32::MAX;
-
 fn coord(p: Point2<f64>) -> robust::Coord<f64> {
     robust::Coord { x: p.x, y: p.y }
 }
 
 impl Mesh {
-    fn from_cdt(cdt: &Cdt, grid: &HeightGrid) -> Mesh {
+    fn from_cdt(cdt: &Cdt) -> Mesh {
         let points: Vec<Point2<f64>> = cdt.vertices().map(|v| v.position()).collect();
-        let samples = points
-            .iter()
-            .map(|&p| grid.sample_at(p).map_or(NO_SAMPLE, |s| s as u32))
-            .collect();
         let mut triangles = Vec::with_capacity(cdt.num_inner_faces() * 3);
         for face in cdt.inner_faces() {
             triangles.extend(face.vertices().map(|v| v.fix().index() as u32));
@@ -389,7 +375,6 @@ impl Mesh {
         }
         Mesh {
             points,
-            samples,
             triangles,
             twins,
             constrained,
@@ -474,18 +459,11 @@ impl Mesh {
 
     /// Inserts `p`, starting the search at triangle `t`; returns the new vertex, or `None` if `p`
     /// is already a vertex. Triangles created or changed are added to `touched`.
-    fn insert(
-        &mut self,
-        mut t: usize,
-        p: Point2<f64>,
-        sample: u32,
-        touched: &mut Vec<usize>,
-    ) -> Option<u32> {
+    fn insert(&mut self, mut t: usize, p: Point2<f64>, touched: &mut Vec<usize>) -> Option<u32> {
         // The new vertex goes in first so the predicates can use it; it is taken back out if the
         // point turns out to be a vertex already.
         let v = self.points.len() as u32;
         self.points.push(p);
-        self.samples.push(sample);
         // The point is in `t` or, where the scan's tolerance let it sit on the far side of an
         // edge, a step or two away. A visibility walk can circle in a triangulation that is not
         // Delaunay (constraints), so it never steps back through the edge it came from, takes
@@ -544,7 +522,6 @@ impl Mesh {
             }
         }
         self.points.pop();
-        self.samples.pop();
         None
     }
 
