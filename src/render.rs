@@ -91,13 +91,20 @@ const NORMAL_STEP_M: f64 = 10.0;
 /// for this tile only.
 fn guarded<T>(tile: TileId, f: impl FnOnce() -> Result<T, RenderError>) -> Result<T, RenderError> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|payload| {
-        let message = payload
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| payload.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "panic".to_string());
-        Err(RenderError::Panicked { tile, message })
+        Err(RenderError::Panicked {
+            tile,
+            message: panic_text(payload.as_ref()),
+        })
     })
+}
+
+/// The message a panic carried.
+pub fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "panic".to_string())
 }
 
 /// What both outputs are made from: the features and the ground with its elevations and normals.

@@ -186,11 +186,7 @@ impl TileCache {
 
 fn panic_message(error: tokio::task::JoinError) -> String {
     match error.try_into_panic() {
-        Ok(payload) => payload
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| payload.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "panic".to_string()),
+        Ok(payload) => crate::render::panic_text(payload.as_ref()),
         Err(error) => error.to_string(),
     }
 }

@@ -94,12 +94,10 @@ struct SurfaceBuckets {
 
 impl SurfaceBuckets {
     fn new(rect: Rect, cells: usize, surfaces: &[Surface]) -> SurfaceBuckets {
-        let mut buckets = vec![Vec::new(); cells * cells];
-        let size = [rect.max[0] - rect.min[0], rect.max[1] - rect.min[1]];
-        let cell_of = |value: f64, axis: usize| {
-            (((value - rect.min[axis]) / size[axis]) * cells as f64)
-                .floor()
-                .clamp(0.0, cells as f64 - 1.0) as usize
+        let mut grid = SurfaceBuckets {
+            rect,
+            cells,
+            buckets: vec![Vec::new(); cells * cells],
         };
         for (index, surface) in surfaces.iter().enumerate() {
             if !surface.bounds.intersects(&rect) {
@@ -110,11 +108,11 @@ impl SurfaceBuckets {
                 if !bounds.intersects(&rect) {
                     continue;
                 }
-                let (c0, c1) = (cell_of(bounds.min[0], 0), cell_of(bounds.max[0], 0));
-                let (r0, r1) = (cell_of(bounds.min[1], 1), cell_of(bounds.max[1], 1));
+                let (c0, c1) = (grid.cell(bounds.min[0], 0), grid.cell(bounds.max[0], 0));
+                let (r0, r1) = (grid.cell(bounds.min[1], 1), grid.cell(bounds.max[1], 1));
                 for row in r0..=r1 {
                     for column in c0..=c1 {
-                        buckets[row * cells + column].push((
+                        grid.buckets[row * cells + column].push((
                             index as u32,
                             piece_index as u32,
                             bounds,
@@ -123,11 +121,15 @@ impl SurfaceBuckets {
                 }
             }
         }
-        SurfaceBuckets {
-            rect,
-            cells,
-            buckets,
-        }
+        grid
+    }
+
+    /// The bucket row or column of a coordinate on `axis`.
+    fn cell(&self, value: f64, axis: usize) -> usize {
+        let size = self.rect.max[axis] - self.rect.min[axis];
+        (((value - self.rect.min[axis]) / size) * self.cells as f64)
+            .floor()
+            .clamp(0.0, self.cells as f64 - 1.0) as usize
     }
 
     /// The surfaces with a piece that contains `p`.
@@ -136,16 +138,7 @@ impl SurfaceBuckets {
         p: Point,
         surfaces: &'a [Surface],
     ) -> impl Iterator<Item = u32> + 'a {
-        let size = [
-            self.rect.max[0] - self.rect.min[0],
-            self.rect.max[1] - self.rect.min[1],
-        ];
-        let cell = |axis: usize| {
-            (((p[axis] - self.rect.min[axis]) / size[axis]) * self.cells as f64)
-                .floor()
-                .clamp(0.0, self.cells as f64 - 1.0) as usize
-        };
-        self.buckets[cell(1) * self.cells + cell(0)]
+        self.buckets[self.cell(p[1], 1) * self.cells + self.cell(p[0], 0)]
             .iter()
             .filter(move |(surface, piece, bounds)| {
                 bounds.contains(p)
