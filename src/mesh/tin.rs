@@ -8,12 +8,10 @@
 //! within the bound. Errors may be weighted per sample (report 002 §2.2, D-IFATT: a sample near a
 //! road counts more, so the mesh is dense where features meet the ground).
 //!
-//! The triangulation is spade's constrained Delaunay triangulation, so feature edges stay in it.
-//! Inserting a point changes only the triangles around it (every triangle a flip creates is
-//! incident to the new point), so only those are rescanned; older queue entries for a reused
-//! face are recognised as stale by a per-face version number.
-
-use std::cmp::Ordering;
+//! The caller's seed is a spade constrained Delaunay triangulation (feature edges in it); it is
+//! copied into a half-edge mesh made for this one job. Inserting a point changes only the
+//! triangles around it (every triangle a flip creates is incident to the new point), so only
+//! those are rescanned; the queue is indexed by face and updated in place.
 
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
@@ -99,13 +97,22 @@ struct Candidate {
     sample: usize,
 }
 
-impl Candidate {
+/// A face and its candidate as the heap stores them (16 bytes).
+#[derive(Debug, Clone, Copy)]
+struct Entry {
+    error: f64,
+    sample: u32,
+    face: u32,
+}
+
+impl Entry {
     /// Larger error first; ties go to the lower sample index, so the result is deterministic.
-    fn before(&self, other: &Candidate) -> bool {
-        match self.error.total_cmp(&other.error) {
-            Ordering::Greater => true,
-            Ordering::Less => false,
-            Ordering::Equal => self.sample < other.sample,
+    /// (Errors are never NaN: heights are finite.)
+    fn before(&self, other: &Entry) -> bool {
+        if self.error != other.error {
+            self.error > other.error
+        } else {
+            self.sample < other.sample
         }
     }
 }
@@ -114,42 +121,61 @@ impl Candidate {
 /// heap never holds more entries than there are faces). Keys live in the heap array itself.
 #[derive(Default)]
 struct FaceHeap {
-    heap: Vec<(Candidate, usize)>,
-    /// Position of each face in `heap`, `usize::MAX` when absent.
-    position: Vec<usize>,
+    heap: Vec<Entry>,
+    /// Position of each face in `heap`, `ABSENT` when absent.
+    position: Vec<u32>,
 }
+
+const ABSENT: u32 = u32::MAX;
+
+/// Children per node of the heap: four halves its depth, and siblings share a cache line.
+const ARITY: usize = 4;
 
 impl FaceHeap {
     fn set(&mut self, face: usize, candidate: Option<Candidate>) {
         if self.position.len() <= face {
-            self.position.resize(face + 1, usize::MAX);
+            self.position.resize(face + 1, ABSENT);
         }
         let at = self.position[face];
-        match (candidate, at != usize::MAX) {
+        match (candidate, at != ABSENT) {
             (Some(c), true) => {
-                self.heap[at].0 = c;
+                let at = at as usize;
+                self.heap[at].error = c.error;
+                self.heap[at].sample = c.sample as u32;
                 let at = self.sift_up(at);
                 self.sift_down(at);
             }
             (Some(c), false) => {
-                self.heap.push((c, face));
-                self.position[face] = self.heap.len() - 1;
+                self.heap.push(Entry {
+                    error: c.error,
+                    sample: c.sample as u32,
+                    face: face as u32,
+                });
+                self.position[face] = (self.heap.len() - 1) as u32;
                 self.sift_up(self.heap.len() - 1);
             }
-            (None, true) => self.remove_at(at),
+            (None, true) => self.remove_at(at as usize),
             (None, false) => {}
         }
     }
 
     fn peek(&self) -> Option<(usize, Candidate)> {
-        self.heap.first().map(|&(c, face)| (face, c))
+        self.heap.first().map(|e| {
+            (
+                e.face as usize,
+                Candidate {
+                    error: e.error,
+                    sample: e.sample as usize,
+                },
+            )
+        })
     }
 
     fn remove_at(&mut self, at: usize) {
         let last = self.heap.len() - 1;
         self.swap(at, last);
-        let (_, face) = self.heap.pop().expect("non-empty heap");
-        self.position[face] = usize::MAX;
+        let entry = self.heap.pop().expect("non-empty heap");
+        self.position[entry.face as usize] = ABSENT;
         if at < self.heap.len() {
             let at = self.sift_up(at);
             self.sift_down(at);
@@ -158,39 +184,52 @@ impl FaceHeap {
 
     fn swap(&mut self, a: usize, b: usize) {
         self.heap.swap(a, b);
-        self.position[self.heap[a].1] = a;
-        self.position[self.heap[b].1] = b;
+        self.position[self.heap[a].face as usize] = a as u32;
+        self.position[self.heap[b].face as usize] = b as u32;
     }
 
+    /// Moves the entry at `at` up to its place; returns where it ended.
     fn sift_up(&mut self, mut at: usize) -> usize {
+        let entry = self.heap[at];
         while at > 0 {
-            let parent = (at - 1) / 2;
-            if !self.heap[at].0.before(&self.heap[parent].0) {
+            let parent = (at - 1) / ARITY;
+            if !entry.before(&self.heap[parent]) {
                 break;
             }
-            self.swap(at, parent);
+            self.place(at, self.heap[parent]);
             at = parent;
         }
+        self.place(at, entry);
         at
     }
 
+    /// Moves the entry at `at` down to its place.
     fn sift_down(&mut self, mut at: usize) {
+        let entry = self.heap[at];
         let len = self.heap.len();
         loop {
-            let (left, right) = (2 * at + 1, 2 * at + 2);
-            let mut best = at;
-            if left < len && self.heap[left].0.before(&self.heap[best].0) {
-                best = left;
+            let first = ARITY * at + 1;
+            if first >= len {
+                break;
             }
-            if right < len && self.heap[right].0.before(&self.heap[best].0) {
-                best = right;
+            let mut best = first;
+            for child in first + 1..(first + ARITY).min(len) {
+                if self.heap[child].before(&self.heap[best]) {
+                    best = child;
+                }
             }
-            if best == at {
-                return;
+            if !self.heap[best].before(&entry) {
+                break;
             }
-            self.swap(at, best);
+            self.place(at, self.heap[best]);
             at = best;
         }
+        self.place(at, entry);
+    }
+
+    fn place(&mut self, at: usize, entry: Entry) {
+        self.heap[at] = entry;
+        self.position[entry.face as usize] = at as u32;
     }
 }
 
@@ -343,35 +382,27 @@ fn coord(p: Point2<f64>) -> robust::Coord<f64> {
 }
 
 impl Mesh {
+    /// Copies spade's own half-edge structure (not a lookup by end vertices: rounded constraint
+    /// split points can leave two distinct edges between the same pair of vertices).
     fn from_cdt(cdt: &Cdt) -> Mesh {
         let points: Vec<Point2<f64>> = cdt.vertices().map(|v| v.position()).collect();
         let mut triangles = Vec::with_capacity(cdt.num_inner_faces() * 3);
+        let mut half_edge_of = vec![NONE; cdt.num_directed_edges()];
         for face in cdt.inner_faces() {
-            triangles.extend(face.vertices().map(|v| v.fix().index() as u32));
-        }
-        let mut by_ends: std::collections::HashMap<(u32, u32), u32> =
-            std::collections::HashMap::with_capacity(triangles.len());
-        for e in 0..triangles.len() {
-            by_ends.insert((triangles[e], triangles[next(e)]), e as u32);
-        }
-        let twins = (0..triangles.len())
-            .map(|e| {
-                by_ends
-                    .get(&(triangles[next(e)], triangles[e]))
-                    .copied()
-                    .unwrap_or(NONE)
-            })
-            .collect();
-        let mut constrained = vec![false; triangles.len()];
-        for edge in cdt.undirected_edges() {
-            if cdt.is_constraint_edge(edge.fix()) {
-                let [a, b] = edge.vertices().map(|v| v.fix().index() as u32);
-                for key in [(a, b), (b, a)] {
-                    if let Some(&e) = by_ends.get(&key) {
-                        constrained[e as usize] = true;
-                    }
-                }
+            for edge in face.adjacent_edges() {
+                half_edge_of[edge.fix().index()] = triangles.len() as u32;
+                triangles.push(edge.from().fix().index() as u32);
             }
+        }
+        let mut twins = vec![NONE; triangles.len()];
+        let mut constrained = vec![false; triangles.len()];
+        for edge in cdt.directed_edges() {
+            let e = half_edge_of[edge.fix().index()];
+            if e == NONE {
+                continue;
+            }
+            twins[e as usize] = half_edge_of[edge.rev().fix().index()];
+            constrained[e as usize] = cdt.is_constraint_edge(edge.fix().as_undirected());
         }
         Mesh {
             points,
@@ -422,10 +453,29 @@ impl Mesh {
         robust::orient2d(point(a), point(b), point(c))
     }
 
-    /// `incircle` of three counter-clockwise vertices and a fourth: positive when it is inside.
-    fn in_circle(&self, a: u32, b: u32, c: u32, d: u32) -> f64 {
-        let point = |i: u32| coord(self.points[i as usize]);
-        robust::incircle(point(a), point(b), point(c), point(d))
+    /// True when `d` is certainly inside the circle through the counter-clockwise `a`, `b`, `c`:
+    /// the floating-point determinant exceeds its rounding error bound (Shewchuk's first stage of
+    /// `incircle`). A point on the circle, or too close to it to tell, is not inside: either
+    /// diagonal of such a quadrilateral is Delaunay, and the grid's four-point circles are common
+    /// enough that settling them exactly costs more than the whole flip.
+    fn certainly_in_circle(&self, a: u32, b: u32, c: u32, d: u32) -> bool {
+        let [a, b, c, d] = [a, b, c, d].map(|i| self.points[i as usize]);
+        let (adx, ady) = (a.x - d.x, a.y - d.y);
+        let (bdx, bdy) = (b.x - d.x, b.y - d.y);
+        let (cdx, cdy) = (c.x - d.x, c.y - d.y);
+        let (bdxcdy, cdxbdy) = (bdx * cdy, cdx * bdy);
+        let (cdxady, adxcdy) = (cdx * ady, adx * cdy);
+        let (adxbdy, bdxady) = (adx * bdy, bdx * ady);
+        let alift = adx * adx + ady * ady;
+        let blift = bdx * bdx + bdy * bdy;
+        let clift = cdx * cdx + cdy * cdy;
+        let det = alift * (bdxcdy - cdxbdy) + blift * (cdxady - adxcdy) + clift * (adxbdy - bdxady);
+        let permanent = (bdxcdy.abs() + cdxbdy.abs()) * alift
+            + (cdxady.abs() + adxcdy.abs()) * blift
+            + (adxbdy.abs() + bdxady.abs()) * clift;
+        const EPSILON: f64 = f64::EPSILON / 2.0;
+        const ERROR_BOUND: f64 = (10.0 + 96.0 * EPSILON) * EPSILON;
+        det > ERROR_BOUND * permanent
     }
 
     fn triangle_count(&self) -> usize {
@@ -433,7 +483,12 @@ impl Mesh {
     }
 
     fn corners(&self, t: usize) -> [Point2<f64>; 3] {
-        [0, 1, 2].map(|k| self.points[self.triangles[3 * t + k] as usize])
+        let v = &self.triangles[3 * t..3 * t + 3];
+        [
+            self.points[v[0] as usize],
+            self.points[v[1] as usize],
+            self.points[v[2] as usize],
+        ]
     }
 
     fn link(&mut self, a: usize, b: u32, constrained: bool) {
@@ -478,16 +533,20 @@ impl Mesh {
                 self.orient(b, c, v),
                 self.orient(c, a, v),
             ];
-            let beyond: Vec<usize> = (0..3)
-                .filter(|&k| o[k] < 0.0 && 3 * t + k != came_through)
-                .collect();
-            if beyond.is_empty() {
+            let (mut beyond, mut count) = ([0usize; 3], 0);
+            for (k, &side) in o.iter().enumerate() {
+                if side < 0.0 && 3 * t + k != came_through {
+                    beyond[count] = k;
+                    count += 1;
+                }
+            }
+            if count == 0 {
                 if o.iter().all(|&x| x >= 0.0) {
                     located = Some((t, o));
                 }
                 break;
             }
-            let k = beyond[step % beyond.len()];
+            let k = beyond[step % count];
             let twin = self.twins[3 * t + k];
             if twin == NONE {
                 break;
@@ -514,8 +573,18 @@ impl Mesh {
                 }
                 1 => {
                     let k = (0..3).find(|&k| o[k] == 0.0).unwrap_or(0);
-                    self.split_edge(3 * t + k, v, touched);
-                    return Some(v);
+                    // Splitting the triangle across the edge as well would turn a sliver of the
+                    // seed that is inverted (or flat) into two; such a point is left out.
+                    let across = self.twins[3 * t + k];
+                    let clean = across == NONE || {
+                        let u = across as usize / 3;
+                        let [a, b, c] = [0, 1, 2].map(|k| self.triangles[3 * u + k]);
+                        self.orient(a, b, c) > 0.0
+                    };
+                    if clean {
+                        self.split_edge(3 * t + k, v, touched);
+                        return Some(v);
+                    }
                 }
                 // On a vertex already.
                 _ => {}
@@ -595,8 +664,17 @@ impl Mesh {
     fn legalize(&mut self, edges: &[usize], touched: &mut Vec<usize>) {
         let mut stack = std::mem::take(&mut self.stack);
         stack.clear();
-        stack.extend_from_slice(edges);
+        for &e in edges {
+            stack.push(e);
+        }
+        // Lawson's flips end in a valid triangulation; next to a sliver spade left inverted they
+        // might circle, so their number is bounded (a flip per half-edge is far more than the
+        // few a new vertex needs).
+        let mut flips_left = self.triangles.len();
         while let Some(a) = stack.pop() {
+            if flips_left == 0 {
+                break;
+            }
             let b = self.twins[a];
             if b == NONE || self.constrained[a] {
                 continue;
@@ -607,7 +685,7 @@ impl Mesh {
             let pr = self.triangles[a];
             let pl = self.triangles[al];
             let p1 = self.triangles[bl];
-            if self.in_circle(pr, pl, p0, p1) <= 0.0 {
+            if !self.certainly_in_circle(pr, pl, p0, p1) {
                 continue;
             }
             // Flip only to two counter-clockwise triangles: spade's seed may hold a slightly
@@ -625,6 +703,7 @@ impl Mesh {
             self.link(b, har, car);
             self.link(ar, bl as u32, false);
             touched.extend([a / 3, b / 3]);
+            flips_left -= 1;
             stack.push(br);
             stack.push(a);
         }
@@ -652,7 +731,12 @@ impl Scanner<'_> {
         skip: &[bool],
     ) -> Option<Candidate> {
         let p = mesh.corners(t);
-        let h = [0, 1, 2].map(|k| heights[mesh.triangles[3 * t + k] as usize]);
+        let v = &mesh.triangles[3 * t..3 * t + 3];
+        let h = [
+            heights[v[0] as usize],
+            heights[v[1] as usize],
+            heights[v[2] as usize],
+        ];
         // A triangle already within the bound is never refined: keeping it out of the queue keeps
         // the queue small.
         self.worst_sample(p, h, skip)
@@ -686,13 +770,15 @@ impl Scanner<'_> {
         let max_x = p.iter().map(|q| q.x).fold(f64::NEG_INFINITY, f64::max);
         let min_z = p.iter().map(|q| q.y).fold(f64::INFINITY, f64::min);
         let max_z = p.iter().map(|q| q.y).fold(f64::NEG_INFINITY, f64::max);
-        let i0 = ((min_x / dx - SPAN_SLACK).ceil().max(0.0) as usize).max(lo_i);
-        let i1 = ((max_x / dx + SPAN_SLACK).floor().max(0.0) as usize).min(hi_i);
-        let j0 = ((min_z / dz - SPAN_SLACK).ceil().max(0.0) as usize).max(lo_j);
-        let j1 = ((max_z / dz + SPAN_SLACK).floor().max(0.0) as usize).min(hi_j);
+        let (inv_dx, inv_dz) = (1.0 / dx, 1.0 / dz);
+        let i0 = ceil_index(min_x * inv_dx - SPAN_SLACK).max(lo_i as i64);
+        let i1 = floor_index(max_x * inv_dx + SPAN_SLACK).min(hi_i as i64);
+        let j0 = ceil_index(min_z * inv_dz - SPAN_SLACK).max(lo_j as i64);
+        let j1 = floor_index(max_z * inv_dz + SPAN_SLACK).min(hi_j as i64);
         if i0 > i1 || j0 > j1 {
             return None;
         }
+        let (i0, i1, j0, j1) = (i0 as usize, i1 as usize, j0 as usize, j1 as usize);
         // Barycentric coordinates are affine in x and z: b_k = α_k + β_k·x along a row.
         let inv = 1.0 / det;
         let db1_dx = (p[2].y - p[0].y) * inv;
@@ -703,6 +789,10 @@ impl Scanner<'_> {
         // Along a row the approximation is affine in x too: h0 + b1·(h1 − h0) + b2·(h2 − h0).
         let (dh1, dh2) = (h[1] - h[0], h[2] - h[0]);
         let slope = db1_dx * dh1 + db2_dx * dh2;
+        // The slopes in x of b0, b1, b2 and their reciprocals (a row's span is where each
+        // coordinate stays above INSIDE).
+        let betas = [-db1_dx - db2_dx, db1_dx, db2_dx];
+        let inv_betas = betas.map(|beta| if beta != 0.0 { 1.0 / beta } else { 0.0 });
         let weights = g.weights.as_deref();
         // Samples are visited in increasing order, so a strictly larger error is the only way to
         // replace the best: ties keep the lowest sample.
@@ -711,18 +801,15 @@ impl Scanner<'_> {
             let z = j as f64 * dz - p[0].y;
             // b1, b2 and b0 = 1 − b1 − b2 at x − p0.x = 0, and their slopes in x.
             let (a1, a2) = (z * db1_dz, z * db2_dz);
-            let rows = [
-                (1.0 - a1 - a2, -db1_dx - db2_dx),
-                (a1, db1_dx),
-                (a2, db2_dx),
-            ];
+            let alphas = [1.0 - a1 - a2, a1, a2];
             let (mut lo, mut hi) = (i0 as f64 * dx - p[0].x, i1 as f64 * dx - p[0].x);
-            for (alpha, beta) in rows {
+            for k in 0..3 {
                 // alpha + beta·x ≥ INSIDE
+                let (alpha, beta) = (alphas[k], betas[k]);
                 if beta > 0.0 {
-                    lo = lo.max((INSIDE - alpha) / beta);
+                    lo = lo.max((INSIDE - alpha) * inv_betas[k]);
                 } else if beta < 0.0 {
-                    hi = hi.min((INSIDE - alpha) / beta);
+                    hi = hi.min((INSIDE - alpha) * inv_betas[k]);
                 } else if alpha < INSIDE {
                     hi = f64::NEG_INFINITY;
                 }
@@ -732,28 +819,88 @@ impl Scanner<'_> {
             }
             // A sample on an edge must be scanned whatever the rounding of its position: the
             // triangle across the edge may be a sliver too thin to scan at all.
-            let first = (((lo + p[0].x) / dx - SPAN_SLACK).ceil().max(i0 as f64)) as usize;
-            let last = (((hi + p[0].x) / dx + SPAN_SLACK).floor().min(i1 as f64)) as usize;
+            let first = ceil_index((lo + p[0].x) * inv_dx - SPAN_SLACK).max(i0 as i64);
+            let last = floor_index((hi + p[0].x) * inv_dx + SPAN_SLACK).min(i1 as i64);
             if first > last {
                 continue;
             }
+            let (first, last) = (first as usize, last as usize);
             let row = j * g.columns;
             let base = h[0] + a1 * dh1 + a2 * dh2;
-            let samples = &g.heights[row + first..=row + last];
-            for (k, &height) in samples.iter().enumerate() {
-                let i = first + k;
-                let approximation = base + (i as f64 * dx - p[0].x) * slope;
-                let mut error = (approximation - height).abs();
-                if let Some(w) = weights {
-                    error *= f64::from(w[row + i]);
-                }
-                if error > best_error && (skip.is_empty() || !skip[row + i]) {
-                    best_error = error;
-                    best_sample = row + i;
-                }
+            let span = Span {
+                start: row + first,
+                end: row + last + 1,
+                approximation: base + (first as f64 * dx - p[0].x) * slope,
+                step: dx * slope,
+            };
+            let (error, sample) = match (weights, skip.is_empty()) {
+                (None, true) => span.worst::<false, false>(&g.heights, &[], &[]),
+                (None, false) => span.worst::<false, true>(&g.heights, &[], skip),
+                (Some(w), true) => span.worst::<true, false>(&g.heights, w, &[]),
+                (Some(w), false) => span.worst::<true, true>(&g.heights, w, skip),
+            };
+            if error > best_error {
+                best_error = error;
+                best_sample = sample;
             }
         }
         (best_sample != usize::MAX).then_some((best_error, best_sample))
+    }
+}
+
+/// The samples of one row inside a triangle, and the triangle's plane along them.
+struct Span {
+    start: usize,
+    end: usize,
+    /// The plane's height at `start`, and its change from one sample to the next.
+    approximation: f64,
+    step: f64,
+}
+
+impl Span {
+    /// The largest (weighted) error in the span and its sample, the first of equals; samples
+    /// marked in `skip` are passed over. `(−∞, usize::MAX)` when there is none.
+    #[inline(always)]
+    fn worst<const WEIGHTED: bool, const SKIP: bool>(
+        &self,
+        heights: &[f64],
+        weights: &[f32],
+        skip: &[bool],
+    ) -> (f64, usize) {
+        let (mut best_error, mut best_sample) = (f64::NEG_INFINITY, usize::MAX);
+        for (k, &height) in heights[self.start..self.end].iter().enumerate() {
+            let sample = self.start + k;
+            let approximation = self.approximation + k as f64 * self.step;
+            let mut error = (approximation - height).abs();
+            if WEIGHTED {
+                error *= f64::from(weights[sample]);
+            }
+            if error > best_error && (!SKIP || !skip[sample]) {
+                best_error = error;
+                best_sample = sample;
+            }
+        }
+        (best_error, best_sample)
+    }
+}
+
+/// `⌈x⌉` as an index, without a call into libm (saturating far outside the grid).
+fn ceil_index(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) < x {
+        t + 1
+    } else {
+        t
+    }
+}
+
+/// `⌊x⌋` as an index, without a call into libm (saturating far outside the grid).
+fn floor_index(x: f64) -> i64 {
+    let t = x as i64;
+    if (t as f64) > x {
+        t - 1
+    } else {
+        t
     }
 }
 
