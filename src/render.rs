@@ -84,8 +84,10 @@ pub struct RenderedTile {
     pub timings: StageTimings,
 }
 
-/// The distance used for the ground normals' central differences, in local metres.
+/// The distance used for the ground normals' central differences, in local metres, at zoom
+/// [`NORMAL_STEP_ZOOM`] and above; it doubles with each coarser level, as the mesh does.
 const NORMAL_STEP_M: f64 = 10.0;
+const NORMAL_STEP_ZOOM: u8 = 14;
 
 /// Runs `f`, turning a panic (a bug, or a library tripping on degenerate input) into an error
 /// for this tile only.
@@ -144,6 +146,7 @@ fn prepare<'a>(
     // Normals from the terrain's gradient at each vertex: a function of global data, so a
     // vertex on a shared edge gets the same normal in both tiles.
     let started = Instant::now();
+    let normal_step = NORMAL_STEP_M * 2f64.powi(i32::from(NORMAL_STEP_ZOOM.saturating_sub(tile.z)));
     let height_at = |x: f64, z: f64| {
         let (u, v) = frame.local_to_uv(x, z);
         frame.elevation_to_y(terrain.elevation_uv([u, v]), z)
@@ -152,7 +155,7 @@ fn prepare<'a>(
         .vertices
         .iter()
         .map(|&[x, z]| {
-            let h = NORMAL_STEP_M;
+            let h = normal_step;
             let dy_dx = (height_at(x + h, z) - height_at(x - h, z)) / (2.0 * h);
             let dy_dz = (height_at(x, z + h) - height_at(x, z - h)) / (2.0 * h);
             mesh::normalize([-dy_dx, 1.0, -dy_dz]).unwrap_or([0.0, 1.0, 0.0])
@@ -307,68 +310,98 @@ pub fn render_terrain(
     guarded(tile, || {
         let mut timings = StageTimings::default();
         let prepared = prepare(tile, selection, mosaic, settings, &mut timings)?;
-        let started = Instant::now();
-        let Prepared {
-            frame,
-            feature_set,
-            ground,
-            normals,
-            ..
-        } = &prepared;
-        let size = frame.size_m;
-        let b = tile.bounds();
-        let water = extensions.watermask.then(|| {
-            let waters: Vec<&features::Surface> = feature_set
-                .surfaces
-                .iter()
-                .filter(|s| s.class == FeatureClass::Water)
-                .collect();
-            let n = WATER_MASK_CELLS;
-            let mut cells = Vec::with_capacity(n * n);
-            for row in 0..n {
-                for column in 0..n {
-                    let x = (column as f64 + 0.5) / n as f64 * size;
-                    let z = (row as f64 + 0.5) / n as f64 * size;
-                    let (u, v) = frame.local_to_uv(x, z);
-                    cells.push(waters.iter().any(|s| s.contains([u, v])));
-                }
-            }
-            cells
-        });
-        let terrain_tile = quantized_mesh::TerrainTile {
-            bounds: [b.west, b.south, b.east, b.north],
-            positions: ground
-                .vertices
-                .iter()
-                .map(|&[x, z]| [x / size, 1.0 - z / size])
-                .collect(),
-            lon_lat: ground
-                .vertices
-                .iter()
-                .map(|&[x, z]| {
-                    let (lon, lat) = frame.to_lon_lat(x, z);
-                    [lon, lat]
-                })
-                .collect(),
-            heights: ground.elevations.clone(),
-            // Local (x east, y up, z south) to (east, north, up).
-            normals: normals.iter().map(|n| [n[0], -n[2], n[1]]).collect(),
-            // Counter-clockwise in (x, z) with z south is clockwise in (east, north).
-            triangles: ground
-                .triangles
-                .iter()
-                .map(|t| [t.vertices[0], t.vertices[2], t.vertices[1]])
-                .collect(),
-            water,
-        };
-        let (bytes, report) = quantized_mesh::encode(&terrain_tile, extensions);
-        timings.glb = started.elapsed();
-        Ok(RenderedTerrain {
-            bytes,
-            report,
-            timings,
-        })
+        Ok(encode_terrain(tile, &prepared, extensions, timings))
     })
+}
+
+/// Renders a tile above the served zoom (a coarser one, for Cesium's levels of detail) as
+/// terrain alone: no features, and an error bound that doubles with each level above
+/// `served_zoom`, so a tile holds about as many triangles at every level. Points no SRTM file
+/// covers are at sea level.
+pub fn render_overview_terrain(
+    tile: TileId,
+    mosaic: &Mosaic,
+    settings: &RenderSettings,
+    served_zoom: u8,
+    extensions: quantized_mesh::Extensions,
+) -> Result<RenderedTerrain, RenderError> {
+    let levels_above = i32::from(served_zoom) - i32::from(tile.z);
+    let mut settings = settings.clone();
+    settings.mesh.max_error_m *= 2f64.powi(levels_above.max(0));
+    guarded(tile, || {
+        let mut timings = StageTimings::default();
+        let prepared = prepare(tile, &Selection::default(), mosaic, &settings, &mut timings)?;
+        Ok(encode_terrain(tile, &prepared, extensions, timings))
+    })
+}
+
+fn encode_terrain(
+    tile: TileId,
+    prepared: &Prepared<'_>,
+    extensions: quantized_mesh::Extensions,
+    mut timings: StageTimings,
+) -> RenderedTerrain {
+    let started = Instant::now();
+    let Prepared {
+        frame,
+        feature_set,
+        ground,
+        normals,
+        ..
+    } = prepared;
+    let size = frame.size_m;
+    let b = tile.bounds();
+    let water = extensions.watermask.then(|| {
+        let waters: Vec<&features::Surface> = feature_set
+            .surfaces
+            .iter()
+            .filter(|s| s.class == FeatureClass::Water)
+            .collect();
+        let n = WATER_MASK_CELLS;
+        let mut cells = Vec::with_capacity(n * n);
+        for row in 0..n {
+            for column in 0..n {
+                let x = (column as f64 + 0.5) / n as f64 * size;
+                let z = (row as f64 + 0.5) / n as f64 * size;
+                let (u, v) = frame.local_to_uv(x, z);
+                cells.push(waters.iter().any(|s| s.contains([u, v])));
+            }
+        }
+        cells
+    });
+    let terrain_tile = quantized_mesh::TerrainTile {
+        bounds: [b.west, b.south, b.east, b.north],
+        positions: ground
+            .vertices
+            .iter()
+            .map(|&[x, z]| [x / size, 1.0 - z / size])
+            .collect(),
+        lon_lat: ground
+            .vertices
+            .iter()
+            .map(|&[x, z]| {
+                let (lon, lat) = frame.to_lon_lat(x, z);
+                [lon, lat]
+            })
+            .collect(),
+        heights: ground.elevations.clone(),
+        // Local (x east, y up, z south) to (east, north, up).
+        normals: normals.iter().map(|n| [n[0], -n[2], n[1]]).collect(),
+        // Counter-clockwise in (x, z) with z south is clockwise in (east, north).
+        triangles: ground
+            .triangles
+            .iter()
+            .map(|t| [t.vertices[0], t.vertices[2], t.vertices[1]])
+            .collect(),
+        water,
+    };
+    let (bytes, report) = quantized_mesh::encode(&terrain_tile, extensions);
+    timings.glb = started.elapsed();
+    RenderedTerrain {
+        bytes,
+        report,
+        timings,
+    }
 }
 
 /// True when the triangle `(a, b, c)` of local `(x, z)` points, rounded to `f32` as the glb

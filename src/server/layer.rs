@@ -1,8 +1,10 @@
 //! `GET /layer.json`: the quantized-mesh layer description Cesium's terrain provider reads.
 //!
 //! Tiles are addressed like the glb tiles: Web Mercator (`EPSG:3857`), slippy-map numbering
-//! (`scheme: slippyMap`, `y` grows southwards), at the served zoom only. `available` lists, per
-//! SRTM file, the range of tiles it covers, in the same numbering as the URLs.
+//! (`scheme: slippyMap`, `y` grows southwards). Every zoom from 0 up to the served one is
+//! available: coarser levels everywhere (terrain alone, sea level where there is no data), the
+//! served zoom where the SRTM files are; `available` lists, per SRTM file, the range of tiles it
+//! covers at the served zoom, in the same numbering as the URLs.
 
 use axum::extract::State;
 use axum::Json;
@@ -37,7 +39,12 @@ pub async fn layer(State(state): State<AppState>) -> Json<Value> {
         };
         ranges.push(json!({ "startX": nw.x, "startY": nw.y, "endX": se.x, "endY": se.y }));
     }
-    let mut available: Vec<Value> = (0..z).map(|_| json!([])).collect();
+    let mut available: Vec<Value> = (0..z)
+        .map(|level| {
+            let last = (1u64 << level) - 1;
+            json!([{ "startX": 0, "startY": 0, "endX": last, "endY": last }])
+        })
+        .collect();
     available.push(Value::Array(ranges));
     Json(json!({
         "tilejson": "2.1.0",
@@ -48,7 +55,7 @@ pub async fn layer(State(state): State<AppState>) -> Json<Value> {
         "scheme": "slippyMap",
         "projection": "EPSG:3857",
         "tiles": ["tiles/{z}/{x}/{y}.terrain"],
-        "minzoom": z,
+        "minzoom": 0,
         "maxzoom": z,
         "bounds": bounds.unwrap_or([-180.0, -85.051_128_78, 180.0, 85.051_128_78]),
         "available": available,

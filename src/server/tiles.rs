@@ -64,16 +64,26 @@ pub async fn tile(
         .and_then(|v| v.to_str().ok())
         .unwrap_or("");
     let (tile, format) = parse_tile_path(&z, &x, &file, accept)?;
-    if tile.z != state.zoom {
-        return Err(ApiError::not_found(format!(
-            "zoom {} is not served; this server serves zoom {}",
-            tile.z, state.zoom
-        )));
+    let overview = matches!(format, Format::Terrain(_)) && tile.z < state.zoom;
+    if tile.z != state.zoom && !overview {
+        return Err(ApiError::not_found(match format {
+            Format::Glb => format!(
+                "zoom {} is not served; this server serves glb tiles at zoom {}",
+                tile.z, state.zoom
+            ),
+            Format::Terrain(_) => format!(
+                "zoom {} is not served; this server serves terrain at zooms 0 to {}",
+                tile.z, state.zoom
+            ),
+        }));
     }
-    state
-        .sources
-        .check_coverage(tile)
-        .map_err(|e| ApiError::not_found(e.to_string()))?;
+    if !overview {
+        // Overview tiles cover whatever they cover: sea level where there is no data.
+        state
+            .sources
+            .check_coverage(tile)
+            .map_err(|e| ApiError::not_found(e.to_string()))?;
+    }
 
     let key = TileKey { tile, format };
     let render_state = state.clone();
@@ -158,10 +168,10 @@ fn render_format(state: &AppState, tile: TileId, format: Format) -> Result<Vec<u
         .sources
         .mosaic(tile)
         .map_err(|e| RenderFailure(e.to_string()))?;
-    let selection = state.sources.selection(tile);
     let failure = |e: crate::render::RenderError| RenderFailure(e.to_string());
     match format {
         Format::Glb => {
+            let selection = state.sources.selection(tile);
             let rendered = crate::render::render(tile, &selection, &mosaic, &state.settings)
                 .map_err(failure)?;
             tracing::info!(
@@ -174,13 +184,23 @@ fn render_format(state: &AppState, tile: TileId, format: Format) -> Result<Vec<u
             Ok(rendered.glb)
         }
         Format::Terrain(extensions) => {
-            let rendered = crate::render::render_terrain(
-                tile,
-                &selection,
-                &mosaic,
-                &state.settings,
-                extensions,
-            )
+            let rendered = if tile.z < state.zoom {
+                crate::render::render_overview_terrain(
+                    tile,
+                    &mosaic,
+                    &state.settings,
+                    state.zoom,
+                    extensions,
+                )
+            } else {
+                crate::render::render_terrain(
+                    tile,
+                    &state.sources.selection(tile),
+                    &mosaic,
+                    &state.settings,
+                    extensions,
+                )
+            }
             .map_err(failure)?;
             tracing::info!(
                 %tile,
