@@ -8,6 +8,7 @@
 //! * the feature table: one row per feature, tracing every vertex back to its OSM element.
 
 pub mod buildings;
+pub mod coastline;
 pub mod railways;
 pub mod roads;
 pub mod water;
@@ -285,8 +286,48 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         .filter(|s| s.class != FeatureClass::Building)
         .flat_map(|s| s.outline.iter().cloned())
         .collect();
+    add_sea(&mut set, selection, tile, &projection);
     set.retain_touching(&tile_rect(tile));
     set
+}
+
+/// The sea from the coastlines, as one water surface of the tile.
+fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, tile: TileId, projection: &Projection) {
+    if selection.coastlines.is_empty() {
+        return;
+    }
+    let project = |way: &crate::osm::Way| projection.points(&way.positions);
+    let near_ways: Vec<&crate::osm::Way> = selection
+        .ways
+        .iter()
+        .copied()
+        .filter(|w| coastline::is_coastline(w))
+        .collect();
+    let near = coastline::chains(&near_ways, &project);
+    let all = || coastline::chains(&selection.coastlines, &project);
+    let sea = coastline::sea(&near, &all, &tile_rect(tile));
+    // The whole coast near the tile weighs the terrain error, also just across an edge.
+    set.nearby_outlines
+        .extend(near.into_iter().map(|chain| chain.points));
+    if sea.polygons.is_empty() {
+        return;
+    }
+    let tags = Tags::from_pairs([("natural", "sea")]);
+    let feature = set.add_feature(None, FeatureClass::Water, &tags);
+    let bounds = sea
+        .polygons
+        .iter()
+        .map(Polygon::bounds)
+        .reduce(|a, b| a.union(&b));
+    if let Some(bounds) = bounds {
+        set.surfaces.push(Surface {
+            class: FeatureClass::Water,
+            feature,
+            pieces: sea.polygons,
+            outline: sea.coast,
+            bounds,
+        });
+    }
 }
 
 /// A tile's square in global tile units.

@@ -17,6 +17,8 @@ pub struct OsmIndex {
     data: OsmData,
     zoom: u8,
     cells: HashMap<(u32, u32), CellContent>,
+    /// Indices of the `natural=coastline` ways.
+    coastlines: Vec<u32>,
 }
 
 #[derive(Debug, Default)]
@@ -32,6 +34,9 @@ pub struct Selection<'a> {
     pub nodes: Vec<&'a Node>,
     pub ways: Vec<&'a Way>,
     pub relations: Vec<&'a Relation>,
+    /// Every `natural=coastline` way of the data, near or not: which side of the coast a tile
+    /// lies on is decided by the nearest one, wherever it is.
+    pub coastlines: Vec<&'a Way>,
 }
 
 impl OsmIndex {
@@ -67,7 +72,15 @@ impl OsmIndex {
                 register(bounds, &mut |c| c.relations.push(i as u32));
             }
         }
-        OsmIndex { data, zoom, cells }
+        let coastlines = (0..data.ways.len() as u32)
+            .filter(|&i| data.ways[i as usize].tags.get("natural") == Some("coastline"))
+            .collect();
+        OsmIndex {
+            data,
+            zoom,
+            cells,
+            coastlines,
+        }
     }
 
     pub fn data(&self) -> &OsmData {
@@ -111,6 +124,11 @@ impl OsmIndex {
             relations: relations
                 .into_iter()
                 .map(|i| &self.data.relations[i as usize])
+                .collect(),
+            coastlines: self
+                .coastlines
+                .iter()
+                .map(|&i| &self.data.ways[i as usize])
                 .collect(),
         }
     }

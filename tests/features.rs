@@ -1,0 +1,76 @@
+//! OSM features on the real Monaco extract, as the served tiles show them: the sea from the
+//! coastline.
+
+mod common;
+
+use common::{corners, decode, DecodedTile, GroundLocator, TestServer};
+
+async fn tile(server: &TestServer, x: u32, y: u32) -> DecodedTile {
+    let response = reqwest::get(server.url(&format!("/tiles/14/{x}/{y}.glb")))
+        .await
+        .expect("request reaches the server");
+    assert_eq!(response.status(), 200, "{x}/{y}");
+    decode(&response.bytes().await.expect("body"))
+}
+
+/// Plan area of a node's triangles as a fraction of the tile.
+fn area_fraction(tile: &DecodedTile, node: &str) -> f64 {
+    let size = tile.tile_size();
+    corners(tile.primitives(node))
+        .iter()
+        .map(|[a, b, c]| {
+            ((b[0] - a[0]) * (c[2] - a[2]) - (c[0] - a[0]) * (b[2] - a[2])).abs() / 2.0
+        })
+        .sum::<f64>()
+        / (size * size)
+}
+
+/// True when the point at fractions `(fx, fz)` of the tile (east, south) is in a water triangle.
+fn is_water(tile: &DecodedTile, fx: f64, fz: f64) -> bool {
+    let size = tile.tile_size();
+    let water = GroundLocator::new(corners(tile.primitives("water")), size);
+    !water.heights_at(fx * size, fz * size, 1e-9).is_empty()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_sea_lies_beyond_the_coastline() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+
+    // Larvotto: the coast runs from the west edge to the north-east; the sea is south-east.
+    let larvotto = tile(&server, 8530, 5973).await;
+    let sea = area_fraction(&larvotto, "water");
+    assert!(
+        (0.25..0.75).contains(&sea),
+        "water covers {sea} of 8530/5973"
+    );
+    assert!(is_water(&larvotto, 0.9, 0.9));
+    assert!(!is_water(&larvotto, 0.1, 0.1));
+    let sea_rows: Vec<_> = larvotto
+        .features
+        .iter()
+        .filter(|f| f.tags.get("natural").and_then(|v| v.as_str()) == Some("sea"))
+        .collect();
+    assert_eq!(sea_rows.len(), 1, "one sea feature");
+    assert_eq!(sea_rows[0].class, "water");
+
+    // Open sea: no coastline crosses the tile; the nearest one has it on its water side.
+    let open_sea = tile(&server, 8531, 5974).await;
+    let sea = area_fraction(&open_sea, "water");
+    assert!((sea - 1.0).abs() < 1e-6, "water covers {sea} of 8531/5974");
+
+    // Inland above La Turbie: no sea at all.
+    let inland = tile(&server, 8528, 5973).await;
+    assert_eq!(area_fraction(&inland, "water"), 0.0);
+
+    // Monaco-Ville, Fontvieille and the port: the sea reaches the south-east corner, and the
+    // ground of the tile still adds up to the whole square.
+    let monaco = tile(&server, 8529, 5974).await;
+    assert!(is_water(&monaco, 0.95, 0.95));
+    let ground: f64 = ["terrain", "road", "railway", "water"]
+        .iter()
+        .map(|n| area_fraction(&monaco, n))
+        .sum();
+    assert!(ground < 1.0 + 1e-6, "ground covers {ground} of 8529/5974");
+    server.stop().await;
+}
