@@ -31,6 +31,12 @@ impl Polygon {
     pub fn bounds(&self) -> Rect {
         Rect::around(&self.outer)
     }
+
+    /// The area inside the outer ring and outside the holes.
+    pub fn area(&self) -> f64 {
+        let ring_area = |ring: &Ring| signed_area2(ring).abs() / 2.0;
+        ring_area(&self.outer) - self.holes.iter().map(ring_area).sum::<f64>()
+    }
 }
 
 /// An axis-aligned rectangle.

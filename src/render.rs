@@ -204,14 +204,14 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
     let mut vertex_slots: rustc_hash::FxHashMap<(Part, u32, u32), u32> = Default::default();
     let mut slivers = 0;
     for triangle in &ground.triangles {
-        let (class, feature) = match triangle.surface {
+        let (class, cover, feature) = match triangle.surface {
             Some(index) => {
                 let surface = &feature_set.surfaces[index as usize];
-                (surface.class, surface.feature)
+                (surface.class, surface.cover, surface.feature)
             }
-            None => (FeatureClass::Terrain, 0),
+            None => (FeatureClass::Terrain, None, 0),
         };
-        let Some(part) = Part::of_ground_class(class) else {
+        let Some(part) = Part::of_ground(class, cover) else {
             continue;
         };
         // Counter-clockwise in (x, z) faces down in a Y-up frame: reverse to face up.

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{corners, decode, DecodedTile, GroundLocator, TestServer};
+use common::{corners, decode, DecodedTile, GroundLocator, TestServer, GROUND_NODES};
 
 async fn tile(server: &TestServer, x: u32, y: u32) -> DecodedTile {
     let response = reqwest::get(server.url(&format!("/tiles/14/{x}/{y}.glb")))
@@ -67,10 +67,44 @@ async fn the_sea_lies_beyond_the_coastline() {
     // ground of the tile still adds up to the whole square.
     let monaco = tile(&server, 8529, 5974).await;
     assert!(is_water(&monaco, 0.95, 0.95));
-    let ground: f64 = ["terrain", "road", "railway", "water"]
-        .iter()
-        .map(|n| area_fraction(&monaco, n))
-        .sum();
+    let ground: f64 = GROUND_NODES.iter().map(|n| area_fraction(&monaco, n)).sum();
     assert!(ground < 1.0 + 1e-6, "ground covers {ground} of 8529/5974");
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn land_cover_is_drawn_with_its_own_materials() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    // Above La Turbie: woods, the village and its pitches.
+    let turbie = tile(&server, 8528, 5973).await;
+    let materials: Vec<&str> = turbie
+        .primitives("landcover")
+        .iter()
+        .map(|p| p.material.as_str())
+        .collect();
+    for expected in ["forest", "residential", "pitch"] {
+        assert!(materials.contains(&expected), "{materials:?}");
+    }
+    let cover = area_fraction(&turbie, "landcover");
+    assert!((0.2..0.95).contains(&cover), "land cover covers {cover}");
+    let rows: Vec<_> = turbie
+        .features
+        .iter()
+        .filter(|f| f.class == "landcover")
+        .collect();
+    assert!(!rows.is_empty());
+    for row in rows {
+        assert_eq!(row.osm_type, "way", "{row:?}");
+        assert!(
+            ["landuse", "natural", "leisure", "amenity"]
+                .iter()
+                .any(|k| row.tags.contains_key(*k)),
+            "{row:?}"
+        );
+    }
+    // Roads, water and land cover share one ground: nothing is counted twice.
+    let ground: f64 = GROUND_NODES.iter().map(|n| area_fraction(&turbie, n)).sum();
+    assert!(ground < 1.0 + 1e-6, "ground covers {ground}");
     server.stop().await;
 }

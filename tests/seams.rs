@@ -7,7 +7,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{decode, repo, DecodedTile};
+use common::{decode, repo, DecodedTile, GROUND_NODES};
 
 /// The ten Monaco tiles inside both the extract and N43E007, and the Ulm tile across the
 /// N48E009/N48E010 seam with its neighbours.
@@ -50,7 +50,7 @@ fn render(tile: (u32, u32), srtm: &Path, out: &Path) -> Vec<u8> {
 fn edge(tile: &DecodedTile, side: &str) -> BTreeSet<(u32, u32, [u32; 3])> {
     let size = tile.tile_size() as f32;
     let mut vertices = BTreeSet::new();
-    for node in ["terrain", "road", "railway", "water"] {
+    for node in GROUND_NODES {
         for primitive in tile.primitives(node) {
             for (p, normal) in primitive.positions.iter().zip(&primitive.normals) {
                 let (on_side, along) = match side {

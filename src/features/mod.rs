@@ -9,6 +9,7 @@
 
 pub mod buildings;
 pub mod coastline;
+pub mod landcover;
 pub mod railways;
 pub mod roads;
 pub mod water;
@@ -25,15 +26,17 @@ pub enum FeatureClass {
     Road,
     Railway,
     Water,
+    LandCover,
     Building,
 }
 
 impl FeatureClass {
-    pub const ALL: [FeatureClass; 5] = [
+    pub const ALL: [FeatureClass; 6] = [
         FeatureClass::Terrain,
         FeatureClass::Road,
         FeatureClass::Railway,
         FeatureClass::Water,
+        FeatureClass::LandCover,
         FeatureClass::Building,
     ];
 
@@ -43,19 +46,22 @@ impl FeatureClass {
             FeatureClass::Road => "road",
             FeatureClass::Railway => "railway",
             FeatureClass::Water => "water",
+            FeatureClass::LandCover => "landcover",
             FeatureClass::Building => "building",
         }
     }
 
     /// Which surface wins where two overlap: lower is stronger. Buildings cut the ground, roads
-    /// lie on water (bridges until elevation lifts them), water on the default ground.
+    /// lie on water (bridges until elevation lifts them), water on land cover, land cover on the
+    /// default ground.
     pub fn ground_priority(self) -> u8 {
         match self {
             FeatureClass::Building => 0,
             FeatureClass::Road => 1,
             FeatureClass::Railway => 2,
             FeatureClass::Water => 3,
-            FeatureClass::Terrain => 4,
+            FeatureClass::LandCover => 4,
+            FeatureClass::Terrain => 5,
         }
     }
 }
@@ -85,6 +91,8 @@ pub struct Surface {
     /// Polylines along the area's border, stitched into the triangulation as constraint edges.
     pub outline: Vec<Vec<Point>>,
     pub bounds: Rect,
+    /// The ground material of a land-cover surface.
+    pub cover: Option<landcover::Cover>,
 }
 
 impl Surface {
@@ -113,6 +121,7 @@ impl Surface {
             pieces,
             outline,
             bounds,
+            cover: None,
         })
     }
 }
@@ -278,12 +287,18 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     for area in &areas {
         roads::add_area(&mut set, area, &projection);
         water::add_area(&mut set, area, &projection);
+        landcover::add_area(&mut set, area, &projection);
         buildings::add_area(&mut set, area, &projection, settings);
     }
     set.nearby_outlines = set
         .surfaces
         .iter()
-        .filter(|s| s.class != FeatureClass::Building)
+        .filter(|s| {
+            matches!(
+                s.class,
+                FeatureClass::Road | FeatureClass::Railway | FeatureClass::Water
+            )
+        })
         .flat_map(|s| s.outline.iter().cloned())
         .collect();
     add_sea(&mut set, selection, tile, &projection);
@@ -326,6 +341,7 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, tile: TileId, projec
             pieces: sea.polygons,
             outline: sea.coast,
             bounds,
+            cover: None,
         });
     }
 }
@@ -418,5 +434,6 @@ fn widened_surface(
         pieces,
         outline,
         bounds,
+        cover: None,
     })
 }

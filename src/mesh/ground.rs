@@ -20,7 +20,7 @@ use spade::{Point2, Triangulation};
 
 use super::tin::{refine, Cdt, HeightGrid, RefineLimits};
 use crate::features::{FeatureClass, Surface};
-use crate::geometry::{clip_segment, distance_to_segment, Point, Rect};
+use crate::geometry::{clip_segment, distance_to_segment, Point, Polygon, Rect};
 use crate::terrain::TerrainModel;
 use crate::tile::{mercator_scale, v_to_lat, TileFrame};
 
@@ -288,6 +288,14 @@ pub fn triangulate(
 
     // 5. Classification.
     let buckets = SurfaceBuckets::new(rect, BUCKETS_PER_SIDE, surfaces);
+    // Among land covers the smaller area is the detail and wins (a pitch in a park).
+    let detail: Vec<f64> = surfaces
+        .iter()
+        .map(|s| match s.class {
+            FeatureClass::LandCover => s.pieces.iter().map(Polygon::area).sum(),
+            _ => 0.0,
+        })
+        .collect();
     let vertices: Vec<Point> = tin.positions.iter().map(|p| [p.x, p.y]).collect();
     let elevations = tin.heights;
     let mut triangles = Vec::with_capacity(tin.triangles.len());
@@ -300,10 +308,16 @@ pub fn triangulate(
             let (u, v) = frame.local_to_uv(x, z);
             [u, v]
         };
-        let surface = buckets.containing(centroid, surfaces).min_by_key(|&i| {
-            (
-                surfaces[i as usize].class.ground_priority(),
-                surfaces[i as usize].feature,
+        let surface = buckets.containing(centroid, surfaces).min_by(|&a, &b| {
+            let key = |i: u32| {
+                let surface = &surfaces[i as usize];
+                (surface.class.ground_priority(), detail[i as usize])
+            };
+            let (ka, kb) = (key(a), key(b));
+            ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1)).then(
+                surfaces[a as usize]
+                    .feature
+                    .cmp(&surfaces[b as usize].feature),
             )
         });
         if surface.is_some_and(|i| surfaces[i as usize].class == FeatureClass::Building) {
@@ -523,7 +537,6 @@ fn edge_vertices(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::Polygon;
     use crate::source::srtm::{CellId, SrtmTile};
     use crate::terrain::{Interpolation, Mosaic};
     use crate::tile::TileId;
@@ -542,6 +555,7 @@ mod tests {
             }],
             outline: vec![closed],
             bounds: Rect { min, max },
+            cover: None,
         }
     }
 
@@ -708,6 +722,7 @@ mod tests {
                         bounds: Rect::around(&ring),
                         pieces: vec![Polygon { outer: ring, holes: vec![] }],
                         outline: vec![closed],
+                        cover: None,
                     }
                 })
                 .collect();

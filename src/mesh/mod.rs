@@ -5,57 +5,56 @@ pub mod buildings;
 pub mod ground;
 pub mod tin;
 
-/// The parts of a tile's mesh, one glTF primitive each.
+use crate::features::landcover::Cover;
+use crate::features::FeatureClass;
+
+/// The parts of a tile's mesh, one glTF primitive (and material) each.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Part {
     Terrain,
     Road,
     Railway,
     Water,
+    LandCover(Cover),
     BuildingWalls,
     BuildingRoofs,
 }
 
 impl Part {
-    pub const ALL: [Part; 6] = [
-        Part::Terrain,
-        Part::Road,
-        Part::Railway,
-        Part::Water,
-        Part::BuildingWalls,
-        Part::BuildingRoofs,
-    ];
-
     /// The feature class (and glTF node) the part belongs to.
-    pub fn class(self) -> crate::features::FeatureClass {
-        use crate::features::FeatureClass;
+    pub fn class(self) -> FeatureClass {
         match self {
             Part::Terrain => FeatureClass::Terrain,
             Part::Road => FeatureClass::Road,
             Part::Railway => FeatureClass::Railway,
             Part::Water => FeatureClass::Water,
+            Part::LandCover(_) => FeatureClass::LandCover,
             Part::BuildingWalls | Part::BuildingRoofs => FeatureClass::Building,
         }
     }
 
+    /// The name of the part's material.
     pub fn name(self) -> &'static str {
         match self {
             Part::Terrain => "terrain",
             Part::Road => "road",
             Part::Railway => "railway",
             Part::Water => "water",
+            Part::LandCover(cover) => cover.as_str(),
             Part::BuildingWalls => "building_walls",
             Part::BuildingRoofs => "building_roofs",
         }
     }
 
-    pub fn of_ground_class(class: crate::features::FeatureClass) -> Option<Part> {
-        use crate::features::FeatureClass;
+    /// The part of a ground surface of `class` (with its land cover, if any); `None` for the
+    /// ground under buildings, which the 3D tile leaves out.
+    pub fn of_ground(class: FeatureClass, cover: Option<Cover>) -> Option<Part> {
         match class {
             FeatureClass::Terrain => Some(Part::Terrain),
             FeatureClass::Road => Some(Part::Road),
             FeatureClass::Railway => Some(Part::Railway),
             FeatureClass::Water => Some(Part::Water),
+            FeatureClass::LandCover => Some(cover.map_or(Part::Terrain, Part::LandCover)),
             FeatureClass::Building => None,
         }
     }

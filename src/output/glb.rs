@@ -102,6 +102,7 @@ fn material_of(part: Part) -> ([f32; 4], f32) {
         Part::Road => ([0.32, 0.32, 0.34, 1.0], 0.9),
         Part::Railway => ([0.45, 0.40, 0.35, 1.0], 0.95),
         Part::Water => ([0.16, 0.36, 0.62, 1.0], 0.15),
+        Part::LandCover(cover) => cover.material(),
         Part::BuildingWalls => ([0.86, 0.80, 0.70, 1.0], 0.85),
         Part::BuildingRoofs => ([0.62, 0.36, 0.30, 1.0], 0.8),
     }

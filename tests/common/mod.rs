@@ -12,6 +12,9 @@ use terrastitch::config::Config;
 use terrastitch::server::{self, AppState};
 use terrastitch::source::Sources;
 
+/// The glTF nodes of the ground (every class but buildings).
+pub const GROUND_NODES: [&str; 5] = ["terrain", "road", "railway", "water", "landcover"];
+
 pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
