@@ -200,7 +200,7 @@ fn render(args: RenderArgs) -> Result<()> {
         );
         let s = &rendered.stats;
         eprintln!(
-            "triangles {} vertices {} primitives {} glb {} bytes; ground: {} triangles, {} samples inserted, {} edge vertices, {} slivers dropped; features {:?}",
+            "triangles {} vertices {} primitives {} glb {} bytes; ground: {} triangles, {} samples inserted, {} edge vertices, {} slivers dropped; {} trees; features {:?}",
             s.triangles,
             s.vertices,
             s.primitives,
@@ -209,6 +209,7 @@ fn render(args: RenderArgs) -> Result<()> {
             s.ground_vertices_inserted,
             s.edge_vertices,
             s.slivers_dropped,
+            s.trees,
             s.features_by_class
         );
     }

@@ -75,6 +75,8 @@ pub struct RenderStats {
     /// Triangles of the ground (terrain, roads, railways, water; not under buildings).
     pub ground_triangles: usize,
     pub edge_vertices: usize,
+    /// Trees planted (instances).
+    pub trees: usize,
 }
 
 #[derive(Debug, Clone)]
@@ -254,6 +256,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
     }
     parts.insert(Part::BuildingWalls, walls);
     parts.insert(Part::BuildingRoofs, roofs);
+    let trees = mesh::vegetation::plant(&feature_set.trees, feature_set, ground, &vertex_y, frame);
     timings.elevation = started.elapsed();
 
     let started = Instant::now();
@@ -263,7 +266,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         size_m: frame.size_m,
         generator: format!("terrastitch {}", env!("CARGO_PKG_VERSION")),
     };
-    let bytes = glb::write(&description, &parts, &feature_set.features);
+    let bytes = glb::write(&description, &parts, &trees, &feature_set.features);
     timings.glb = started.elapsed();
 
     let stats = RenderStats {
@@ -279,6 +282,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         ground_vertices_inserted: ground.inserted,
         ground_triangles: ground.triangles.len() - ground.removed,
         edge_vertices: ground.edge_vertices,
+        trees: trees.values().map(|t| t.len()).sum(),
     };
     RenderedTile {
         glb: bytes,

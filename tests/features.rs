@@ -108,3 +108,73 @@ async fn land_cover_is_drawn_with_its_own_materials() {
     assert!(ground < 1.0 + 1e-6, "ground covers {ground}");
     server.stop().await;
 }
+
+/// The JSON chunk of a glb.
+fn gltf_json(bytes: &[u8]) -> serde_json::Value {
+    let length = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    serde_json::from_slice(&bytes[20..20 + length]).expect("JSON chunk")
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn forests_are_planted_with_instanced_trees() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    let bytes = reqwest::get(server.url("/tiles/14/8528/5973.glb"))
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    let root = gltf_json(&bytes);
+    let used: Vec<&str> = root["extensionsUsed"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|v| v.as_str())
+        .collect();
+    assert!(used.contains(&"EXT_mesh_gpu_instancing"), "{used:?}");
+    let decoded = decode(&bytes);
+    let size = decoded.tile_size();
+    let tree_nodes: Vec<&serde_json::Value> = root["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|n| n["extensions"]["EXT_mesh_gpu_instancing"].is_object())
+        .collect();
+    assert!(!tree_nodes.is_empty());
+
+    // Read every instance's translation and feature id.
+    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+    let blob = gltf.blob.clone().unwrap();
+    let floats = |accessor: u64| -> Vec<f32> {
+        let accessor = gltf.document.accessors().nth(accessor as usize).unwrap();
+        let view = accessor.view().unwrap();
+        let start = view.offset() + accessor.offset();
+        let n = accessor.count() * accessor.dimensions().multiplicity();
+        blob[start..start + 4 * n]
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+            .collect()
+    };
+    let mut trees = 0;
+    for node in tree_nodes {
+        let attributes = &node["extensions"]["EXT_mesh_gpu_instancing"]["attributes"];
+        let translations = floats(attributes["TRANSLATION"].as_u64().unwrap());
+        let ids = floats(attributes["_FEATURE_ID_0"].as_u64().unwrap());
+        assert_eq!(translations.len(), 3 * ids.len());
+        for (t, id) in translations.chunks_exact(3).zip(&ids) {
+            // Inside the tile, and on the ground of a forest or a mapped tree.
+            assert!((0.0..=size as f32).contains(&t[0]) && (0.0..=size as f32).contains(&t[2]));
+            let feature = &decoded.features[*id as usize];
+            assert!(
+                feature.class == "vegetation"
+                    || feature.tags.get("landuse").and_then(|v| v.as_str()) == Some("forest")
+                    || feature.tags.get("natural").and_then(|v| v.as_str()) == Some("wood"),
+                "{feature:?}"
+            );
+        }
+        trees += ids.len();
+    }
+    assert!((500..=6000).contains(&trees), "{trees} trees");
+    server.stop().await;
+}

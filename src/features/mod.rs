@@ -12,6 +12,7 @@ pub mod coastline;
 pub mod landcover;
 pub mod railways;
 pub mod roads;
+pub mod vegetation;
 pub mod water;
 
 use crate::geometry::{Point, Polygon, Rect};
@@ -28,16 +29,18 @@ pub enum FeatureClass {
     Water,
     LandCover,
     Building,
+    Vegetation,
 }
 
 impl FeatureClass {
-    pub const ALL: [FeatureClass; 6] = [
+    pub const ALL: [FeatureClass; 7] = [
         FeatureClass::Terrain,
         FeatureClass::Road,
         FeatureClass::Railway,
         FeatureClass::Water,
         FeatureClass::LandCover,
         FeatureClass::Building,
+        FeatureClass::Vegetation,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -47,6 +50,7 @@ impl FeatureClass {
             FeatureClass::Railway => "railway",
             FeatureClass::Water => "water",
             FeatureClass::LandCover => "landcover",
+            FeatureClass::Vegetation => "vegetation",
             FeatureClass::Building => "building",
         }
     }
@@ -62,6 +66,8 @@ impl FeatureClass {
             FeatureClass::Water => 3,
             FeatureClass::LandCover => 4,
             FeatureClass::Terrain => 5,
+            // Trees are not ground.
+            FeatureClass::Vegetation => 6,
         }
     }
 }
@@ -143,6 +149,8 @@ pub struct FeatureSet {
     pub features: Vec<FeatureInfo>,
     pub surfaces: Vec<Surface>,
     pub buildings: Vec<BuildingShape>,
+    /// Trees to plant where the ground allows.
+    pub trees: Vec<vegetation::Tree>,
     /// Outlines of the roads, railways and water near the tile, also those just outside it:
     /// they weigh the terrain error on both sides of a shared edge alike.
     pub nearby_outlines: Vec<Vec<Point>>,
@@ -216,6 +224,7 @@ pub struct FeatureSettings {
     pub level_height_m: f64,
     /// Height of a building with no height tags, metres (seed 001 §4.2).
     pub default_building_height_m: f64,
+    pub vegetation: vegetation::VegetationSettings,
 }
 
 impl Default for FeatureSettings {
@@ -224,6 +233,7 @@ impl Default for FeatureSettings {
             lane_width_m: 3.5,
             level_height_m: 3.0,
             default_building_height_m: 6.0,
+            vegetation: vegetation::VegetationSettings::default(),
         }
     }
 }
@@ -242,6 +252,10 @@ impl Projection {
             tiles_per_axis,
             tile_size_m: crate::tile::EARTH_CIRCUMFERENCE_M / tiles_per_axis,
         }
+    }
+
+    pub fn tiles_per_axis(&self) -> f64 {
+        self.tiles_per_axis
     }
 
     pub fn point(&self, p: LonLat) -> Point {
@@ -303,6 +317,13 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         .collect();
     add_sea(&mut set, selection, tile, &projection);
     set.retain_touching(&tile_rect(tile));
+    vegetation::collect(
+        &mut set,
+        selection,
+        &projection,
+        &tile_rect(tile),
+        &settings.vegetation,
+    );
     set
 }
 

@@ -4,8 +4,10 @@
 pub mod buildings;
 pub mod ground;
 pub mod tin;
+pub mod vegetation;
 
 use crate::features::landcover::Cover;
+use crate::features::vegetation::TreeKind;
 use crate::features::FeatureClass;
 
 /// The parts of a tile's mesh, one glTF primitive (and material) each.
@@ -18,6 +20,9 @@ pub enum Part {
     LandCover(Cover),
     BuildingWalls,
     BuildingRoofs,
+    TreeTrunk,
+    /// A crown of a kind of tree in one of [`crate::features::vegetation::SHADES`] shades.
+    TreeCrown(TreeKind, u8),
 }
 
 impl Part {
@@ -30,6 +35,7 @@ impl Part {
             Part::Water => FeatureClass::Water,
             Part::LandCover(_) => FeatureClass::LandCover,
             Part::BuildingWalls | Part::BuildingRoofs => FeatureClass::Building,
+            Part::TreeTrunk | Part::TreeCrown(..) => FeatureClass::Vegetation,
         }
     }
 
@@ -43,6 +49,13 @@ impl Part {
             Part::LandCover(cover) => cover.as_str(),
             Part::BuildingWalls => "building_walls",
             Part::BuildingRoofs => "building_roofs",
+            Part::TreeTrunk => "tree_trunk",
+            Part::TreeCrown(TreeKind::Broadleaved, 0) => "broadleaved_crown_0",
+            Part::TreeCrown(TreeKind::Broadleaved, 1) => "broadleaved_crown_1",
+            Part::TreeCrown(TreeKind::Broadleaved, _) => "broadleaved_crown_2",
+            Part::TreeCrown(TreeKind::Needleleaved, 0) => "needleleaved_crown_0",
+            Part::TreeCrown(TreeKind::Needleleaved, 1) => "needleleaved_crown_1",
+            Part::TreeCrown(TreeKind::Needleleaved, _) => "needleleaved_crown_2",
         }
     }
 
@@ -55,7 +68,7 @@ impl Part {
             FeatureClass::Railway => Some(Part::Railway),
             FeatureClass::Water => Some(Part::Water),
             FeatureClass::LandCover => Some(cover.map_or(Part::Terrain, Part::LandCover)),
-            FeatureClass::Building => None,
+            FeatureClass::Building | FeatureClass::Vegetation => None,
         }
     }
 }

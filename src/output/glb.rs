@@ -15,7 +15,9 @@ use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
 use serde_json::{json as value, Value};
 
+use crate::features::vegetation::TreeKind;
 use crate::features::{FeatureClass, FeatureInfo};
+use crate::mesh::vegetation::{self, Instances};
 use crate::mesh::{MeshBuffers, Part};
 use crate::tile::{LonLatBounds, TileId};
 
@@ -105,6 +107,15 @@ fn material_of(part: Part) -> ([f32; 4], f32) {
         Part::LandCover(cover) => cover.material(),
         Part::BuildingWalls => ([0.86, 0.80, 0.70, 1.0], 0.85),
         Part::BuildingRoofs => ([0.62, 0.36, 0.30, 1.0], 0.8),
+        Part::TreeTrunk => ([0.22, 0.15, 0.09, 1.0], 0.95),
+        Part::TreeCrown(kind, shade) => {
+            let shade = f32::from(shade.min(2));
+            let rgb = match kind {
+                TreeKind::Broadleaved => [0.12 + 0.04 * shade, 0.30 + 0.05 * shade, 0.08],
+                TreeKind::Needleleaved => [0.06 + 0.02 * shade, 0.20 + 0.04 * shade, 0.10],
+            };
+            ([rgb[0], rgb[1], rgb[2], 1.0], 0.9)
+        }
     }
 }
 
@@ -112,6 +123,7 @@ fn material_of(part: Part) -> ([f32; 4], f32) {
 pub fn write(
     description: &TileDescription,
     parts: &BTreeMap<Part, MeshBuffers>,
+    trees: &BTreeMap<Part, Instances>,
     features: &[FeatureInfo],
 ) -> Vec<u8> {
     let mut builder = BinaryBuilder {
@@ -143,6 +155,23 @@ pub fn write(
             ..Default::default()
         }));
     }
+    let mut instanced = false;
+    for (&part, instances) in trees {
+        let Part::TreeCrown(kind, _) = part else {
+            continue;
+        };
+        if instances.is_empty() {
+            continue;
+        }
+        instanced = true;
+        nodes.push(write_instanced(
+            &mut builder,
+            kind,
+            part,
+            instances,
+            features.len(),
+        ));
+    }
     let scene = builder.root.push(json::Scene {
         extensions: None,
         extras: Default::default(),
@@ -161,6 +190,12 @@ pub fn write(
         "EXT_mesh_features".to_string(),
         "EXT_structural_metadata".to_string(),
     ];
+    if instanced {
+        builder.root.extensions_used.extend([
+            "EXT_mesh_gpu_instancing".to_string(),
+            "EXT_instance_features".to_string(),
+        ]);
+    }
 
     while builder.bytes.len() % 4 != 0 {
         builder.bytes.push(0);
@@ -176,6 +211,79 @@ pub fn write(
 
     let json_bytes = serde_json::to_vec(&builder.root).expect("glTF JSON serializes");
     container(&json_bytes, &builder.bytes)
+}
+
+/// A node drawing one tree model at every instance: `EXT_mesh_gpu_instancing` with translation,
+/// rotation and scale per instance, and the instance's feature id (`EXT_instance_features`).
+fn write_instanced(
+    builder: &mut BinaryBuilder,
+    kind: TreeKind,
+    crown_part: Part,
+    instances: &Instances,
+    feature_count: usize,
+) -> json::Index<json::Node> {
+    let (trunk, crown) = vegetation::model(kind);
+    let primitives = vec![
+        write_primitive(builder, Part::TreeTrunk, &trunk),
+        write_primitive(builder, crown_part, &crown),
+    ];
+    let mesh = builder.root.push(json::Mesh {
+        extensions: None,
+        extras: Default::default(),
+        name: Some(crown_part.name().to_string()),
+        primitives,
+        weights: None,
+    });
+    let count = instances.len();
+    let array = Some(json::buffer::Target::ArrayBuffer);
+    let mut vector = |values: Vec<f32>, type_: json::accessor::Type| {
+        let view = builder.view(&floats_to_bytes(values.into_iter()), 4, array);
+        // Instance attributes are not vertex attributes: no target on their views.
+        builder.root.buffer_views[view.value()].target = None;
+        builder.accessor(view, count, json::accessor::ComponentType::F32, type_, None)
+    };
+    let translation = vector(
+        instances.translations.iter().flatten().copied().collect(),
+        json::accessor::Type::Vec3,
+    );
+    let rotation = vector(
+        instances.rotations.iter().flatten().copied().collect(),
+        json::accessor::Type::Vec4,
+    );
+    let scale = vector(
+        instances.scales.iter().flatten().copied().collect(),
+        json::accessor::Type::Vec3,
+    );
+    let ids = vector(
+        instances.feature_ids.iter().map(|&id| id as f32).collect(),
+        json::accessor::Type::Scalar,
+    );
+    let mut others = serde_json::Map::new();
+    others.insert(
+        "EXT_mesh_gpu_instancing".to_string(),
+        value!({ "attributes": {
+            "TRANSLATION": translation.value(),
+            "ROTATION": rotation.value(),
+            "SCALE": scale.value(),
+            "_FEATURE_ID_0": ids.value(),
+        }}),
+    );
+    let distinct: BTreeSet<u32> = instances.feature_ids.iter().copied().collect();
+    others.insert(
+        "EXT_instance_features".to_string(),
+        value!({ "featureIds": [{
+            "featureCount": distinct.len(),
+            "attribute": 0,
+            "propertyTable": 0,
+        }]}),
+    );
+    debug_assert!(distinct.iter().all(|&id| (id as usize) < feature_count));
+    builder.root.push(json::Node {
+        mesh: Some(mesh),
+        name: Some(crown_part.name().to_string()),
+        extensions: Some(json::extensions::scene::Node { others }),
+        ..Default::default()
+    })
 }
 
 fn write_primitive(

@@ -3,7 +3,7 @@
 //! locator over the ground triangles.
 #![allow(dead_code)]
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -133,11 +133,21 @@ pub struct Feature {
 pub struct DecodedTile {
     /// Primitives by node name.
     pub nodes: BTreeMap<String, Vec<Primitive>>,
+    /// Names of the nodes drawn as instances (`EXT_mesh_gpu_instancing`): their positions are
+    /// in model space, not in the tile.
+    pub instanced: BTreeSet<String>,
     pub features: Vec<Feature>,
     pub asset_extras: serde_json::Value,
 }
 
 impl DecodedTile {
+    /// The nodes whose vertices are placed in the tile (all but the instanced ones).
+    pub fn placed_nodes(&self) -> impl Iterator<Item = (&String, &Vec<Primitive>)> {
+        self.nodes
+            .iter()
+            .filter(|(name, _)| !self.instanced.contains(*name))
+    }
+
     pub fn primitives(&self, node: &str) -> &[Primitive] {
         self.nodes.get(node).map(Vec::as_slice).unwrap_or(&[])
     }
@@ -158,8 +168,12 @@ pub fn decode(bytes: &[u8]) -> DecodedTile {
         &blob[view.offset()..view.offset() + view.length()]
     };
     let mut nodes = BTreeMap::new();
+    let mut instanced = BTreeSet::new();
     for node in gltf.document.nodes() {
         let name = node.name().unwrap_or_default().to_string();
+        if node.extension_value("EXT_mesh_gpu_instancing").is_some() {
+            instanced.insert(name.clone());
+        }
         let Some(mesh) = node.mesh() else { continue };
         let mut primitives = Vec::new();
         for primitive in mesh.primitives() {
@@ -233,6 +247,7 @@ pub fn decode(bytes: &[u8]) -> DecodedTile {
         .collect();
     DecodedTile {
         nodes,
+        instanced,
         features,
         asset_extras: root["asset"]["extras"].clone(),
     }
