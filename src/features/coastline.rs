@@ -487,4 +487,43 @@ mod tests {
         assert!(joined[1].closed);
         assert_eq!(joined[1].points.len(), 4);
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
+
+        /// Random coastlines (crossing each other, touching the border, ending inside the tile,
+        /// closed or not): the sea never panics, stays inside the tile, and its rings are real.
+        #[test]
+        fn any_coastlines_give_sea_inside_the_tile(
+            chains in proptest::collection::vec(
+                (proptest::collection::vec((-0.5f64..1.5, -0.5f64..1.5), 2..9), proptest::bool::ANY),
+                0..5),
+            snap in proptest::bool::ANY,
+        ) {
+            let q = |v: f64| if snap { (v * 4.0).round() / 4.0 } else { v };
+            let chains: Vec<Chain> = chains
+                .into_iter()
+                .map(|(points, closed)| {
+                    let mut points: Vec<Point> = points.into_iter().map(|(u, v)| [q(u), q(v)]).collect();
+                    if closed {
+                        points.push(points[0]);
+                    }
+                    Chain { points, closed }
+                })
+                .collect();
+            let all = chains.clone();
+            let sea = sea(&chains, &|| all.clone(), &unit());
+            for polygon in &sea.polygons {
+                proptest::prop_assert!(polygon.outer.len() >= 3);
+                for p in polygon.outer.iter().chain(polygon.holes.iter().flatten()) {
+                    proptest::prop_assert!(unit().contains(*p), "{:?} outside the tile", p);
+                }
+            }
+            // One coast that is a simple line across the tile splits it in two, whichever way.
+            let across = open(&[[-0.5, q(0.3)], [1.5, q(0.7)]]);
+            let one = sea_of(&across);
+            let other = sea_of(&open(&[[1.5, q(0.7)], [-0.5, q(0.3)]]));
+            proptest::prop_assert!((area(&one) + area(&other) - 1.0).abs() < 1e-9);
+        }
+    }
 }

@@ -246,4 +246,42 @@ mod tests {
         });
         assert!(polygons.is_empty());
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
+
+        /// Member ways made of random node sequences over a few shared nodes (rings that close,
+        /// rings that do not, ways repeated, nodes repeated, wrong roles, missing members):
+        /// assembly never panics and every polygon it gives is made of real rings.
+        #[test]
+        fn any_members_assemble_into_valid_polygons(
+            positions in proptest::collection::vec((0.0f64..1.0, 0.0f64..1.0), 12),
+            ways in proptest::collection::vec(proptest::collection::vec(0usize..12, 2..7), 1..8),
+            roles in proptest::collection::vec(0usize..4, 8),
+        ) {
+            let node = |i: usize| (i as i64 + 1, positions[i].0, positions[i].1);
+            let ways: Vec<Way> = ways
+                .iter()
+                .enumerate()
+                .map(|(k, nodes)| {
+                    let nodes: Vec<(i64, f64, f64)> = nodes.iter().map(|&i| node(i)).collect();
+                    way(100 + k as i64, &nodes)
+                })
+                .collect();
+            let role_names = ["outer", "inner", "", "label"];
+            let members: Vec<(i64, &str)> = (0..ways.len() + 1)
+                .map(|k| (100 + k as i64, role_names[roles[k % roles.len()]]))
+                .collect();
+            let polygons = assemble(&relation(&members), |id| ways.iter().find(|w| w.id == id));
+            for polygon in &polygons {
+                proptest::prop_assert!(polygon.outer.len() >= 3, "{:?}", polygon);
+                for hole in &polygon.holes {
+                    proptest::prop_assert!(hole.len() >= 3, "{:?}", polygon);
+                }
+                for p in polygon.outer.iter().chain(polygon.holes.iter().flatten()) {
+                    proptest::prop_assert!(p.lon.is_finite() && p.lat.is_finite());
+                }
+            }
+        }
+    }
 }
