@@ -206,14 +206,15 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
     let mut vertex_slots: rustc_hash::FxHashMap<(Part, u32, u32), u32> = Default::default();
     let mut slivers = 0;
     for triangle in &ground.triangles {
-        let (class, cover, feature) = match triangle.surface {
+        let part = match triangle.surface {
             Some(index) => {
                 let surface = &feature_set.surfaces[index as usize];
-                (surface.class, surface.cover, surface.feature)
+                Part::of_ground(surface.class, surface.cover, surface.paving)
+                    .map(|part| (part, surface.feature))
             }
-            None => (FeatureClass::Terrain, None, 0),
+            None => Some((Part::Terrain, 0)),
         };
-        let Some(part) = Part::of_ground(class, cover) else {
+        let Some((part, feature)) = part else {
             continue;
         };
         // Counter-clockwise in (x, z) faces down in a Y-up frame: reverse to face up.

@@ -69,6 +69,15 @@ async fn the_sea_lies_beyond_the_coastline() {
     assert!(is_water(&monaco, 0.95, 0.95));
     let ground: f64 = GROUND_NODES.iter().map(|n| area_fraction(&monaco, n)).sum();
     assert!(ground < 1.0 + 1e-6, "ground covers {ground} of 8529/5974");
+    // Roads are drawn in the material their `surface` tag (or their class) says.
+    let pavings: Vec<&str> = monaco
+        .primitives("road")
+        .iter()
+        .map(|p| p.material.as_str())
+        .collect();
+    for expected in ["road_asphalt", "road_unpaved"] {
+        assert!(pavings.contains(&expected), "{pavings:?}");
+    }
     server.stop().await;
 }
 

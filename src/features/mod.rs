@@ -99,6 +99,8 @@ pub struct Surface {
     pub bounds: Rect,
     /// The ground material of a land-cover surface.
     pub cover: Option<landcover::Cover>,
+    /// The pavement of a road surface.
+    pub paving: Option<roads::Paving>,
 }
 
 impl Surface {
@@ -128,6 +130,7 @@ impl Surface {
             outline,
             bounds,
             cover: None,
+            paving: None,
         })
     }
 }
@@ -363,6 +366,7 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, tile: TileId, projec
             outline: sea.coast,
             bounds,
             cover: None,
+            paving: None,
         });
     }
 }
@@ -456,5 +460,6 @@ fn widened_surface(
         outline,
         bounds,
         cover: None,
+        paving: None,
     })
 }

@@ -30,6 +30,55 @@ pub fn default_width_m(highway: &str) -> Option<f64> {
     Some(width)
 }
 
+/// What a road's surface is made of, from its `surface` tag (asphalt when untagged).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Paving {
+    Asphalt,
+    Concrete,
+    Stones,
+    Unpaved,
+}
+
+impl Paving {
+    pub fn from_tags(tags: &Tags) -> Paving {
+        match tags.get("surface") {
+            Some("concrete" | "concrete:plates" | "concrete:lanes") => Paving::Concrete,
+            Some(
+                "paving_stones" | "sett" | "cobblestone" | "unhewn_cobblestone" | "bricks"
+                | "stone" | "marble",
+            ) => Paving::Stones,
+            Some(
+                "unpaved" | "gravel" | "fine_gravel" | "compacted" | "dirt" | "earth" | "ground"
+                | "grass" | "mud" | "sand" | "pebblestone" | "rock" | "woodchips",
+            ) => Paving::Unpaved,
+            // Tracks and paths are unpaved unless tagged otherwise.
+            None if matches!(tags.get("highway"), Some("track" | "path" | "bridleway")) => {
+                Paving::Unpaved
+            }
+            _ => Paving::Asphalt,
+        }
+    }
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Paving::Asphalt => "road_asphalt",
+            Paving::Concrete => "road_concrete",
+            Paving::Stones => "road_stones",
+            Paving::Unpaved => "road_unpaved",
+        }
+    }
+
+    /// Linear base colour and roughness.
+    pub fn material(self) -> ([f32; 4], f32) {
+        match self {
+            Paving::Asphalt => ([0.32, 0.32, 0.34, 1.0], 0.9),
+            Paving::Concrete => ([0.55, 0.55, 0.53, 1.0], 0.9),
+            Paving::Stones => ([0.50, 0.44, 0.38, 1.0], 0.9),
+            Paving::Unpaved => ([0.55, 0.46, 0.33, 1.0], 0.95),
+        }
+    }
+}
+
 /// Widths outside this range (metres) are taken as tagging mistakes.
 const PLAUSIBLE_WIDTH_M: std::ops::RangeInclusive<f64> = 0.5..=80.0;
 
@@ -78,7 +127,10 @@ pub(super) fn add_way(
     };
     let feature = set.add_feature(Some(element), FeatureClass::Road, &way.tags);
     match widened_surface(FeatureClass::Road, feature, &line, half_width) {
-        Some(surface) => set.surfaces.push(surface),
+        Some(mut surface) => {
+            surface.paving = Some(Paving::from_tags(&way.tags));
+            set.surfaces.push(surface);
+        }
         None => {
             set.features.pop();
         }
@@ -99,7 +151,10 @@ pub(super) fn add_area(set: &mut FeatureSet, area: &Area<'_>, projection: &Proje
         .collect();
     let feature = set.add_feature(Some(area.element), FeatureClass::Road, area.tags);
     match Surface::from_polygons(FeatureClass::Road, feature, pieces) {
-        Some(surface) => set.surfaces.push(surface),
+        Some(mut surface) => {
+            surface.paving = Some(Paving::from_tags(area.tags));
+            set.surfaces.push(surface);
+        }
         None => {
             set.features.pop();
         }
@@ -140,5 +195,24 @@ mod tests {
             Some(5.0)
         );
         assert_eq!(width_m(&tags(&[("highway", "bus_stop")]), &settings), None);
+    }
+
+    #[test]
+    fn the_surface_tag_chooses_the_paving() {
+        let paving = |pairs: &[(&str, &str)]| Paving::from_tags(&Tags::from_pairs(pairs.to_vec()));
+        assert_eq!(paving(&[("highway", "residential")]), Paving::Asphalt);
+        assert_eq!(paving(&[("highway", "track")]), Paving::Unpaved);
+        assert_eq!(
+            paving(&[("highway", "track"), ("surface", "asphalt")]),
+            Paving::Asphalt
+        );
+        assert_eq!(
+            paving(&[("highway", "pedestrian"), ("surface", "sett")]),
+            Paving::Stones
+        );
+        assert_eq!(
+            paving(&[("highway", "service"), ("surface", "concrete")]),
+            Paving::Concrete
+        );
     }
 }

@@ -556,6 +556,7 @@ mod tests {
             outline: vec![closed],
             bounds: Rect { min, max },
             cover: None,
+            paving: None,
         }
     }
 
@@ -723,6 +724,7 @@ mod tests {
                         pieces: vec![Polygon { outer: ring, holes: vec![] }],
                         outline: vec![closed],
                         cover: None,
+            paving: None,
                     }
                 })
                 .collect();

@@ -7,6 +7,7 @@ pub mod tin;
 pub mod vegetation;
 
 use crate::features::landcover::Cover;
+use crate::features::roads::Paving;
 use crate::features::vegetation::TreeKind;
 use crate::features::FeatureClass;
 
@@ -14,7 +15,7 @@ use crate::features::FeatureClass;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Part {
     Terrain,
-    Road,
+    Road(Paving),
     Railway,
     Water,
     LandCover(Cover),
@@ -30,7 +31,7 @@ impl Part {
     pub fn class(self) -> FeatureClass {
         match self {
             Part::Terrain => FeatureClass::Terrain,
-            Part::Road => FeatureClass::Road,
+            Part::Road(_) => FeatureClass::Road,
             Part::Railway => FeatureClass::Railway,
             Part::Water => FeatureClass::Water,
             Part::LandCover(_) => FeatureClass::LandCover,
@@ -43,7 +44,7 @@ impl Part {
     pub fn name(self) -> &'static str {
         match self {
             Part::Terrain => "terrain",
-            Part::Road => "road",
+            Part::Road(paving) => paving.as_str(),
             Part::Railway => "railway",
             Part::Water => "water",
             Part::LandCover(cover) => cover.as_str(),
@@ -59,12 +60,16 @@ impl Part {
         }
     }
 
-    /// The part of a ground surface of `class` (with its land cover, if any); `None` for the
-    /// ground under buildings, which the 3D tile leaves out.
-    pub fn of_ground(class: FeatureClass, cover: Option<Cover>) -> Option<Part> {
+    /// The part of a ground surface of `class` (with its land cover or paving, if any); `None`
+    /// for the ground under buildings, which the 3D tile leaves out.
+    pub fn of_ground(
+        class: FeatureClass,
+        cover: Option<Cover>,
+        paving: Option<Paving>,
+    ) -> Option<Part> {
         match class {
             FeatureClass::Terrain => Some(Part::Terrain),
-            FeatureClass::Road => Some(Part::Road),
+            FeatureClass::Road => Some(Part::Road(paving.unwrap_or(Paving::Asphalt))),
             FeatureClass::Railway => Some(Part::Railway),
             FeatureClass::Water => Some(Part::Water),
             FeatureClass::LandCover => Some(cover.map_or(Part::Terrain, Part::LandCover)),

@@ -101,7 +101,7 @@ fn floats_to_bytes(values: impl Iterator<Item = f32>) -> Vec<u8> {
 fn material_of(part: Part) -> ([f32; 4], f32) {
     match part {
         Part::Terrain => ([0.42, 0.52, 0.30, 1.0], 0.95),
-        Part::Road => ([0.32, 0.32, 0.34, 1.0], 0.9),
+        Part::Road(paving) => paving.material(),
         Part::Railway => ([0.45, 0.40, 0.35, 1.0], 0.95),
         Part::Water => ([0.16, 0.36, 0.62, 1.0], 0.15),
         Part::LandCover(cover) => cover.material(),
