@@ -257,6 +257,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
     }
     parts.insert(Part::BuildingWalls, walls);
     parts.insert(Part::BuildingRoofs, roofs);
+    parts.extend(mesh::barriers::build(&feature_set.barriers, frame, terrain));
     let trees = mesh::vegetation::plant(&feature_set.trees, feature_set, ground, &vertex_y, frame);
     timings.elevation = started.elapsed();
 

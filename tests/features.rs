@@ -187,3 +187,49 @@ async fn forests_are_planted_with_instanced_trees() {
     assert!((500..=6000).contains(&trees), "{trees} trees");
     server.stop().await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn barriers_stand_on_the_ground() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    let monaco = tile(&server, 8529, 5974).await;
+    let size = monaco.tile_size();
+    let barriers = monaco.primitives("barrier");
+    assert!(!barriers.is_empty(), "no barrier drawn");
+    let ground: Vec<_> = GROUND_NODES
+        .iter()
+        .flat_map(|n| corners(monaco.primitives(n)))
+        .collect();
+    let locator = GroundLocator::new(ground, size);
+    let (mut below, mut above) = (0, 0);
+    for primitive in barriers {
+        assert!(
+            ["wall", "fence", "hedge", "retaining_wall", "city_wall"]
+                .contains(&primitive.material.as_str()),
+            "{}",
+            primitive.material
+        );
+        for (p, &id) in primitive.positions.iter().zip(&primitive.feature_ids) {
+            let feature = &monaco.features[id as usize];
+            assert_eq!(feature.class, "barrier");
+            let heights = locator.heights_at(f64::from(p[0]), f64::from(p[2]), 1e-6);
+            let Some(&ground) = heights.first() else {
+                continue; // under a building: the ground is cut out there
+            };
+            let y = f64::from(p[1]);
+            // Feet a little below the ground, tops at most a city wall's height above it (in
+            // local units, 1/cos(latitude) ≈ 1.38 per metre here).
+            assert!(
+                y > ground - 3.0 && y < ground + 12.0,
+                "{y} over ground {ground}"
+            );
+            if y < ground {
+                below += 1;
+            } else {
+                above += 1;
+            }
+        }
+    }
+    assert!(below > 0 && above > 0, "{below} feet, {above} tops");
+    server.stop().await;
+}

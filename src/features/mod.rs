@@ -7,6 +7,7 @@
 //! * [`BuildingShape`]s: footprints with heights, extruded by the mesh stage;
 //! * the feature table: one row per feature, tracing every vertex back to its OSM element.
 
+pub mod barriers;
 pub mod buildings;
 pub mod coastline;
 pub mod landcover;
@@ -30,10 +31,11 @@ pub enum FeatureClass {
     LandCover,
     Building,
     Vegetation,
+    Barrier,
 }
 
 impl FeatureClass {
-    pub const ALL: [FeatureClass; 7] = [
+    pub const ALL: [FeatureClass; 8] = [
         FeatureClass::Terrain,
         FeatureClass::Road,
         FeatureClass::Railway,
@@ -41,6 +43,7 @@ impl FeatureClass {
         FeatureClass::LandCover,
         FeatureClass::Building,
         FeatureClass::Vegetation,
+        FeatureClass::Barrier,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -51,6 +54,7 @@ impl FeatureClass {
             FeatureClass::Water => "water",
             FeatureClass::LandCover => "landcover",
             FeatureClass::Vegetation => "vegetation",
+            FeatureClass::Barrier => "barrier",
             FeatureClass::Building => "building",
         }
     }
@@ -66,8 +70,8 @@ impl FeatureClass {
             FeatureClass::Water => 3,
             FeatureClass::LandCover => 4,
             FeatureClass::Terrain => 5,
-            // Trees are not ground.
-            FeatureClass::Vegetation => 6,
+            // Trees and barriers are not ground.
+            FeatureClass::Vegetation | FeatureClass::Barrier => 6,
         }
     }
 }
@@ -154,6 +158,10 @@ pub struct FeatureSet {
     pub buildings: Vec<BuildingShape>,
     /// Trees to plant where the ground allows.
     pub trees: Vec<vegetation::Tree>,
+    /// Walls, fences and hedges to stand on the ground.
+    pub barriers: Vec<barriers::Barrier>,
+    /// Lines where the ground steps (cliffs, retaining walls), for the elevation stage.
+    pub steps: Vec<barriers::GroundStep>,
     /// Outlines of the roads, railways and water near the tile, also those just outside it:
     /// they weigh the terrain error on both sides of a shared edge alike.
     pub nearby_outlines: Vec<Vec<Point>>,
@@ -178,12 +186,17 @@ impl FeatureSet {
         self.features.iter().filter(|f| f.class == class).count()
     }
 
-    /// Drops the surfaces and buildings whose bounds miss `rect`, and the features left without
-    /// geometry; the default ground (feature 0) stays. Feature ids are renumbered in order.
+    /// Drops the surfaces, buildings, barriers and steps whose bounds miss `rect`, and the
+    /// features left without geometry; the default ground (feature 0) stays. Feature ids are
+    /// renumbered in order.
     pub fn retain_touching(&mut self, rect: &Rect) {
         self.surfaces.retain(|s| s.bounds.intersects(rect));
         self.buildings
             .retain(|b| b.footprint.bounds().intersects(rect));
+        self.barriers
+            .retain(|b| Rect::around(&b.line).intersects(rect));
+        self.steps
+            .retain(|s| Rect::around(&s.line).intersects(rect));
         let mut used = vec![false; self.features.len()];
         used[0] = true;
         for feature in self
@@ -191,6 +204,8 @@ impl FeatureSet {
             .iter()
             .map(|s| s.feature)
             .chain(self.buildings.iter().map(|b| b.feature))
+            .chain(self.barriers.iter().map(|b| b.feature))
+            .chain(self.steps.iter().map(|s| s.feature))
         {
             used[feature as usize] = true;
         }
@@ -213,6 +228,12 @@ impl FeatureSet {
         }
         for building in &mut self.buildings {
             building.feature = renumbered[building.feature as usize];
+        }
+        for barrier in &mut self.barriers {
+            barrier.feature = renumbered[barrier.feature as usize];
+        }
+        for step in &mut self.steps {
+            step.feature = renumbered[step.feature as usize];
         }
     }
 }
@@ -300,6 +321,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         roads::add_way(&mut set, way, &projection, settings);
         railways::add_way(&mut set, way, &projection);
         water::add_waterway(&mut set, way, &projection);
+        barriers::add_way(&mut set, way, &projection);
     }
     for area in &areas {
         roads::add_area(&mut set, area, &projection);

@@ -1,11 +1,13 @@
 //! From features and terrain to triangles: the ground triangulation with the features stitched
 //! into it ([`ground`]), extruded buildings ([`buildings`]), and the vertex buffers they fill.
 
+pub mod barriers;
 pub mod buildings;
 pub mod ground;
 pub mod tin;
 pub mod vegetation;
 
+use crate::features::barriers::BarrierKind;
 use crate::features::landcover::Cover;
 use crate::features::roads::Paving;
 use crate::features::vegetation::TreeKind;
@@ -21,6 +23,7 @@ pub enum Part {
     LandCover(Cover),
     BuildingWalls,
     BuildingRoofs,
+    Barrier(BarrierKind),
     TreeTrunk,
     /// A crown of a kind of tree in one of [`crate::features::vegetation::SHADES`] shades.
     TreeCrown(TreeKind, u8),
@@ -37,6 +40,7 @@ impl Part {
             Part::LandCover(_) => FeatureClass::LandCover,
             Part::BuildingWalls | Part::BuildingRoofs => FeatureClass::Building,
             Part::TreeTrunk | Part::TreeCrown(..) => FeatureClass::Vegetation,
+            Part::Barrier(_) => FeatureClass::Barrier,
         }
     }
 
@@ -51,6 +55,7 @@ impl Part {
             Part::BuildingWalls => "building_walls",
             Part::BuildingRoofs => "building_roofs",
             Part::TreeTrunk => "tree_trunk",
+            Part::Barrier(kind) => kind.as_str(),
             Part::TreeCrown(TreeKind::Broadleaved, 0) => "broadleaved_crown_0",
             Part::TreeCrown(TreeKind::Broadleaved, 1) => "broadleaved_crown_1",
             Part::TreeCrown(TreeKind::Broadleaved, _) => "broadleaved_crown_2",
@@ -73,7 +78,7 @@ impl Part {
             FeatureClass::Railway => Some(Part::Railway),
             FeatureClass::Water => Some(Part::Water),
             FeatureClass::LandCover => Some(cover.map_or(Part::Terrain, Part::LandCover)),
-            FeatureClass::Building | FeatureClass::Vegetation => None,
+            FeatureClass::Building | FeatureClass::Vegetation | FeatureClass::Barrier => None,
         }
     }
 }

@@ -108,6 +108,7 @@ fn material_of(part: Part) -> ([f32; 4], f32) {
         Part::BuildingWalls => ([0.86, 0.80, 0.70, 1.0], 0.85),
         Part::BuildingRoofs => ([0.62, 0.36, 0.30, 1.0], 0.8),
         Part::TreeTrunk => ([0.22, 0.15, 0.09, 1.0], 0.95),
+        Part::Barrier(kind) => kind.material(),
         Part::TreeCrown(kind, shade) => {
             let shade = f32::from(shade.min(2));
             let rgb = match kind {

@@ -1,0 +1,164 @@
+//! Barriers and edges: walls, fences, hedges, retaining walls and city walls, drawn as thin
+//! walls standing on the ground along their ways; cliffs and retaining walls are also recorded as
+//! places where the ground changes height abruptly (thesis §2.3.5), for the elevation stage.
+
+use super::{FeatureClass, FeatureSet, Projection};
+use crate::geometry::Point;
+use crate::osm::units::parse_length_m;
+use crate::osm::{ElementRef, ElementType, Tags, Way};
+
+/// A kind of barrier, with its usual height and thickness.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum BarrierKind {
+    Wall,
+    Fence,
+    Hedge,
+    RetainingWall,
+    CityWall,
+}
+
+impl BarrierKind {
+    pub fn from_tags(tags: &Tags) -> Option<BarrierKind> {
+        if tags.get("historic") == Some("city_walls") {
+            return Some(BarrierKind::CityWall);
+        }
+        Some(match tags.get("barrier")? {
+            "wall" => BarrierKind::Wall,
+            "fence" | "guard_rail" | "railing" | "handrail" => BarrierKind::Fence,
+            "hedge" => BarrierKind::Hedge,
+            "retaining_wall" => BarrierKind::RetainingWall,
+            "city_wall" => BarrierKind::CityWall,
+            _ => return None,
+        })
+    }
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            BarrierKind::Wall => "wall",
+            BarrierKind::Fence => "fence",
+            BarrierKind::Hedge => "hedge",
+            BarrierKind::RetainingWall => "retaining_wall",
+            BarrierKind::CityWall => "city_wall",
+        }
+    }
+
+    /// Height and thickness in metres when untagged.
+    pub fn size_m(self) -> (f64, f64) {
+        match self {
+            BarrierKind::Wall => (1.8, 0.3),
+            BarrierKind::Fence => (1.2, 0.06),
+            BarrierKind::Hedge => (1.5, 0.8),
+            BarrierKind::RetainingWall => (1.5, 0.4),
+            BarrierKind::CityWall => (6.0, 1.5),
+        }
+    }
+
+    /// Linear base colour and roughness.
+    pub fn material(self) -> ([f32; 4], f32) {
+        match self {
+            BarrierKind::Wall => ([0.55, 0.52, 0.47, 1.0], 0.9),
+            BarrierKind::Fence => ([0.35, 0.27, 0.18, 1.0], 0.8),
+            BarrierKind::Hedge => ([0.12, 0.28, 0.10, 1.0], 0.95),
+            BarrierKind::RetainingWall => ([0.60, 0.59, 0.56, 1.0], 0.9),
+            BarrierKind::CityWall => ([0.66, 0.58, 0.45, 1.0], 0.9),
+        }
+    }
+}
+
+/// A barrier to stand on the ground.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Barrier {
+    pub kind: BarrierKind,
+    /// The way in global tile units.
+    pub line: Vec<Point>,
+    pub height_m: f64,
+    pub thickness_m: f64,
+    pub feature: u32,
+}
+
+/// Why the ground changes height abruptly along a line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EdgeKind {
+    /// `natural=cliff`: the land is higher on the left of the way.
+    Cliff,
+    /// `barrier=retaining_wall`: the land is higher on the left of the way.
+    RetainingWall,
+}
+
+/// A line where the ground steps, for the elevation stage.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GroundStep {
+    pub kind: EdgeKind,
+    pub line: Vec<Point>,
+    pub feature: u32,
+}
+
+pub(super) fn add_way(set: &mut FeatureSet, way: &Way, projection: &Projection) {
+    let element = ElementRef {
+        element_type: ElementType::Way,
+        id: way.id,
+    };
+    let line = projection.points(&way.positions);
+    if way.tags.get("natural") == Some("cliff") {
+        let feature = set.add_feature(Some(element), FeatureClass::Barrier, &way.tags);
+        set.steps.push(GroundStep {
+            kind: EdgeKind::Cliff,
+            line,
+            feature,
+        });
+        return;
+    }
+    let Some(kind) = BarrierKind::from_tags(&way.tags) else {
+        return;
+    };
+    if way.tags.get("location") == Some("underground") || way.tags.is_set("tunnel") {
+        return;
+    }
+    let (default_height, default_thickness) = kind.size_m();
+    let height_m = way
+        .tags
+        .get("height")
+        .and_then(parse_length_m)
+        .filter(|h| (0.2..=30.0).contains(h))
+        .unwrap_or(default_height);
+    let thickness_m = way
+        .tags
+        .get("width")
+        .and_then(parse_length_m)
+        .filter(|w| (0.02..=10.0).contains(w))
+        .unwrap_or(default_thickness);
+    let feature = set.add_feature(Some(element), FeatureClass::Barrier, &way.tags);
+    if kind == BarrierKind::RetainingWall {
+        set.steps.push(GroundStep {
+            kind: EdgeKind::RetainingWall,
+            line: line.clone(),
+            feature,
+        });
+    }
+    set.barriers.push(Barrier {
+        kind,
+        line,
+        height_m,
+        thickness_m,
+        feature,
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tags_choose_the_barrier() {
+        let kind =
+            |pairs: &[(&str, &str)]| BarrierKind::from_tags(&Tags::from_pairs(pairs.to_vec()));
+        assert_eq!(kind(&[("barrier", "fence")]), Some(BarrierKind::Fence));
+        assert_eq!(kind(&[("barrier", "hedge")]), Some(BarrierKind::Hedge));
+        assert_eq!(
+            kind(&[("historic", "city_walls"), ("barrier", "wall")]),
+            Some(BarrierKind::CityWall)
+        );
+        assert_eq!(kind(&[("barrier", "gate")]), None);
+        assert_eq!(kind(&[("highway", "residential")]), None);
+    }
+}
