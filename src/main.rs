@@ -200,7 +200,7 @@ fn render(args: RenderArgs) -> Result<()> {
         );
         let s = &rendered.stats;
         eprintln!(
-            "triangles {} vertices {} primitives {} glb {} bytes; ground: {} triangles, {} samples inserted, {} edge vertices, {} slivers dropped; {} trees; features {:?}",
+            "triangles {} vertices {} primitives {} glb {} bytes; ground: {} triangles, {} samples inserted, {} edge vertices, {} slivers dropped; {} trees, {} objects; features {:?}",
             s.triangles,
             s.vertices,
             s.primitives,
@@ -210,6 +210,7 @@ fn render(args: RenderArgs) -> Result<()> {
             s.edge_vertices,
             s.slivers_dropped,
             s.trees,
+            s.objects,
             s.features_by_class
         );
     }

@@ -77,6 +77,8 @@ pub struct RenderStats {
     pub edge_vertices: usize,
     /// Trees planted (instances).
     pub trees: usize,
+    /// Street-level objects placed (instances).
+    pub objects: usize,
 }
 
 #[derive(Debug, Clone)]
@@ -258,7 +260,14 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
     parts.insert(Part::BuildingWalls, walls);
     parts.insert(Part::BuildingRoofs, roofs);
     parts.extend(mesh::barriers::build(&feature_set.barriers, frame, terrain));
-    let trees = mesh::vegetation::plant(&feature_set.trees, feature_set, ground, &vertex_y, frame);
+    let instanced = mesh::instances::place(
+        &feature_set.trees,
+        &feature_set.objects,
+        feature_set,
+        ground,
+        &vertex_y,
+        frame,
+    );
     timings.elevation = started.elapsed();
 
     let started = Instant::now();
@@ -268,7 +277,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         size_m: frame.size_m,
         generator: format!("terrastitch {}", env!("CARGO_PKG_VERSION")),
     };
-    let bytes = glb::write(&description, &parts, &trees, &feature_set.features);
+    let bytes = glb::write(&description, &parts, &instanced, &feature_set.features);
     timings.glb = started.elapsed();
 
     let stats = RenderStats {
@@ -284,7 +293,16 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         ground_vertices_inserted: ground.inserted,
         ground_triangles: ground.triangles.len() - ground.removed,
         edge_vertices: ground.edge_vertices,
-        trees: trees.values().map(|t| t.len()).sum(),
+        trees: instanced
+            .iter()
+            .filter(|(model, _)| matches!(model, mesh::models::Model::Tree(..)))
+            .map(|(_, t)| t.len())
+            .sum(),
+        objects: instanced
+            .iter()
+            .filter(|(model, _)| matches!(model, mesh::models::Model::Object(_)))
+            .map(|(_, t)| t.len())
+            .sum(),
     };
     RenderedTile {
         glb: bytes,

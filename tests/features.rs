@@ -149,6 +149,7 @@ async fn forests_are_planted_with_instanced_trees() {
         .unwrap()
         .iter()
         .filter(|n| n["extensions"]["EXT_mesh_gpu_instancing"].is_object())
+        .filter(|n| n["name"].as_str().unwrap_or("").contains("leaved_crown"))
         .collect();
     assert!(!tree_nodes.is_empty());
 
@@ -185,6 +186,51 @@ async fn forests_are_planted_with_instanced_trees() {
         trees += ids.len();
     }
     assert!((500..=6000).contains(&trees), "{trees} trees");
+
+    // Street lamps, benches and the like: instanced models of their own, features of class
+    // `object` traced to their nodes.
+    let bytes = reqwest::get(server.url("/tiles/14/8529/5973.glb"))
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    let root = gltf_json(&bytes);
+    let decoded = decode(&bytes);
+    let objects: Vec<&serde_json::Value> = root["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|n| {
+            [
+                "street_lamp",
+                "bench",
+                "bollard",
+                "power_pole",
+                "power_tower",
+                "wind_turbine",
+            ]
+            .contains(&n["name"].as_str().unwrap_or(""))
+        })
+        .collect();
+    assert!(!objects.is_empty(), "no street-level objects");
+    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+    let blob = gltf.blob.clone().unwrap();
+    for node in objects {
+        let accessor = node["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]["_FEATURE_ID_0"]
+            .as_u64()
+            .unwrap();
+        let accessor = gltf.document.accessors().nth(accessor as usize).unwrap();
+        let start = accessor.view().unwrap().offset() + accessor.offset();
+        for k in 0..accessor.count() {
+            let id = f32::from_le_bytes(blob[start + 4 * k..start + 4 * k + 4].try_into().unwrap());
+            let feature = &decoded.features[id as usize];
+            assert_eq!(
+                (feature.class.as_str(), feature.osm_type.as_str()),
+                ("object", "node")
+            );
+        }
+    }
     server.stop().await;
 }
 

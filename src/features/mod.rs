@@ -11,6 +11,7 @@ pub mod barriers;
 pub mod buildings;
 pub mod coastline;
 pub mod landcover;
+pub mod objects;
 pub mod railways;
 pub mod roads;
 pub mod vegetation;
@@ -32,10 +33,11 @@ pub enum FeatureClass {
     Building,
     Vegetation,
     Barrier,
+    Object,
 }
 
 impl FeatureClass {
-    pub const ALL: [FeatureClass; 8] = [
+    pub const ALL: [FeatureClass; 9] = [
         FeatureClass::Terrain,
         FeatureClass::Road,
         FeatureClass::Railway,
@@ -44,6 +46,7 @@ impl FeatureClass {
         FeatureClass::Building,
         FeatureClass::Vegetation,
         FeatureClass::Barrier,
+        FeatureClass::Object,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -55,6 +58,7 @@ impl FeatureClass {
             FeatureClass::LandCover => "landcover",
             FeatureClass::Vegetation => "vegetation",
             FeatureClass::Barrier => "barrier",
+            FeatureClass::Object => "object",
             FeatureClass::Building => "building",
         }
     }
@@ -70,8 +74,8 @@ impl FeatureClass {
             FeatureClass::Water => 3,
             FeatureClass::LandCover => 4,
             FeatureClass::Terrain => 5,
-            // Trees and barriers are not ground.
-            FeatureClass::Vegetation | FeatureClass::Barrier => 6,
+            // Trees, barriers and objects are not ground.
+            FeatureClass::Vegetation | FeatureClass::Barrier | FeatureClass::Object => 6,
         }
     }
 }
@@ -158,6 +162,8 @@ pub struct FeatureSet {
     pub buildings: Vec<BuildingShape>,
     /// Trees to plant where the ground allows.
     pub trees: Vec<vegetation::Tree>,
+    /// Street lamps, benches, power poles… to stand on the ground.
+    pub objects: Vec<objects::PointObject>,
     /// Walls, fences and hedges to stand on the ground.
     pub barriers: Vec<barriers::Barrier>,
     /// Lines where the ground steps (cliffs, retaining walls), for the elevation stage.
@@ -342,6 +348,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         .collect();
     add_sea(&mut set, selection, tile, &projection);
     set.retain_touching(&tile_rect(tile));
+    objects::collect(&mut set, selection, &projection, &tile_rect(tile));
     vegetation::collect(
         &mut set,
         selection,

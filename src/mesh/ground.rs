@@ -343,6 +343,10 @@ pub fn triangulate(
 /// remaining ones (each loss costs a rebuild of the triangulation).
 const MAX_DROPPED_CONSTRAINTS: usize = 32;
 
+/// Most points one outline segment may be split at where it crosses others (a road across a
+/// dense tile crosses a few hundred outlines at most).
+const MAX_SPLITS_PER_SEGMENT: usize = 4096;
+
 /// Inserts the outline segments into a copy of `seed` as constraint edges and returns it with
 /// the number of segments left out.
 ///
@@ -381,7 +385,17 @@ fn insert_constraints(
                     continue;
                 };
                 if from != to {
-                    cdt.add_constraint_and_split(from, to, |p| p);
+                    // Rounded split points can make spade find new crossings without end; a
+                    // segment that needs more splits than any real outline is given up.
+                    let splits = std::cell::Cell::new(0usize);
+                    cdt.add_constraint_and_split(from, to, |p| {
+                        splits.set(splits.get() + 1);
+                        assert!(
+                            splits.get() <= MAX_SPLITS_PER_SEGMENT,
+                            "splitting a constraint does not end"
+                        );
+                        p
+                    });
                 }
             }
         }));

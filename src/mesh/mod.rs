@@ -4,11 +4,13 @@
 pub mod barriers;
 pub mod buildings;
 pub mod ground;
+pub mod instances;
+pub mod models;
 pub mod tin;
-pub mod vegetation;
 
 use crate::features::barriers::BarrierKind;
 use crate::features::landcover::Cover;
+use crate::features::objects::ObjectKind;
 use crate::features::roads::Paving;
 use crate::features::vegetation::TreeKind;
 use crate::features::FeatureClass;
@@ -24,6 +26,7 @@ pub enum Part {
     BuildingWalls,
     BuildingRoofs,
     Barrier(BarrierKind),
+    Object(ObjectKind),
     TreeTrunk,
     /// A crown of a kind of tree in one of [`crate::features::vegetation::SHADES`] shades.
     TreeCrown(TreeKind, u8),
@@ -41,6 +44,7 @@ impl Part {
             Part::BuildingWalls | Part::BuildingRoofs => FeatureClass::Building,
             Part::TreeTrunk | Part::TreeCrown(..) => FeatureClass::Vegetation,
             Part::Barrier(_) => FeatureClass::Barrier,
+            Part::Object(_) => FeatureClass::Object,
         }
     }
 
@@ -56,6 +60,7 @@ impl Part {
             Part::BuildingRoofs => "building_roofs",
             Part::TreeTrunk => "tree_trunk",
             Part::Barrier(kind) => kind.as_str(),
+            Part::Object(kind) => kind.as_str(),
             Part::TreeCrown(TreeKind::Broadleaved, 0) => "broadleaved_crown_0",
             Part::TreeCrown(TreeKind::Broadleaved, 1) => "broadleaved_crown_1",
             Part::TreeCrown(TreeKind::Broadleaved, _) => "broadleaved_crown_2",
@@ -78,7 +83,10 @@ impl Part {
             FeatureClass::Railway => Some(Part::Railway),
             FeatureClass::Water => Some(Part::Water),
             FeatureClass::LandCover => Some(cover.map_or(Part::Terrain, Part::LandCover)),
-            FeatureClass::Building | FeatureClass::Vegetation | FeatureClass::Barrier => None,
+            FeatureClass::Building
+            | FeatureClass::Vegetation
+            | FeatureClass::Barrier
+            | FeatureClass::Object => None,
         }
     }
 }

@@ -17,7 +17,8 @@ use serde_json::{json as value, Value};
 
 use crate::features::vegetation::TreeKind;
 use crate::features::{FeatureClass, FeatureInfo};
-use crate::mesh::vegetation::{self, Instances};
+use crate::mesh::instances::Instances;
+use crate::mesh::models::Model;
 use crate::mesh::{MeshBuffers, Part};
 use crate::tile::{LonLatBounds, TileId};
 
@@ -109,6 +110,7 @@ fn material_of(part: Part) -> ([f32; 4], f32) {
         Part::BuildingRoofs => ([0.62, 0.36, 0.30, 1.0], 0.8),
         Part::TreeTrunk => ([0.22, 0.15, 0.09, 1.0], 0.95),
         Part::Barrier(kind) => kind.material(),
+        Part::Object(kind) => kind.material(),
         Part::TreeCrown(kind, shade) => {
             let shade = f32::from(shade.min(2));
             let rgb = match kind {
@@ -124,7 +126,7 @@ fn material_of(part: Part) -> ([f32; 4], f32) {
 pub fn write(
     description: &TileDescription,
     parts: &BTreeMap<Part, MeshBuffers>,
-    trees: &BTreeMap<Part, Instances>,
+    instanced: &BTreeMap<Model, Instances>,
     features: &[FeatureInfo],
 ) -> Vec<u8> {
     let mut builder = BinaryBuilder {
@@ -156,22 +158,15 @@ pub fn write(
             ..Default::default()
         }));
     }
-    let mut instanced = false;
-    for (&part, instances) in trees {
-        let Part::TreeCrown(kind, _) = part else {
-            continue;
-        };
-        if instances.is_empty() {
-            continue;
+    for (&model, instances) in instanced {
+        if !instances.is_empty() {
+            nodes.push(write_instanced(
+                &mut builder,
+                model,
+                instances,
+                features.len(),
+            ));
         }
-        instanced = true;
-        nodes.push(write_instanced(
-            &mut builder,
-            kind,
-            part,
-            instances,
-            features.len(),
-        ));
     }
     let scene = builder.root.push(json::Scene {
         extensions: None,
@@ -191,7 +186,7 @@ pub fn write(
         "EXT_mesh_features".to_string(),
         "EXT_structural_metadata".to_string(),
     ];
-    if instanced {
+    if instanced.values().any(|i| !i.is_empty()) {
         builder.root.extensions_used.extend([
             "EXT_mesh_gpu_instancing".to_string(),
             "EXT_instance_features".to_string(),
@@ -214,24 +209,23 @@ pub fn write(
     container(&json_bytes, &builder.bytes)
 }
 
-/// A node drawing one tree model at every instance: `EXT_mesh_gpu_instancing` with translation,
+/// A node drawing one model at every instance: `EXT_mesh_gpu_instancing` with translation,
 /// rotation and scale per instance, and the instance's feature id (`EXT_instance_features`).
 fn write_instanced(
     builder: &mut BinaryBuilder,
-    kind: TreeKind,
-    crown_part: Part,
+    model: Model,
     instances: &Instances,
     feature_count: usize,
 ) -> json::Index<json::Node> {
-    let (trunk, crown) = vegetation::model(kind);
-    let primitives = vec![
-        write_primitive(builder, Part::TreeTrunk, &trunk),
-        write_primitive(builder, crown_part, &crown),
-    ];
+    let primitives = model
+        .parts()
+        .iter()
+        .map(|(part, buffers)| write_primitive(builder, *part, buffers))
+        .collect();
     let mesh = builder.root.push(json::Mesh {
         extensions: None,
         extras: Default::default(),
-        name: Some(crown_part.name().to_string()),
+        name: Some(model.name().to_string()),
         primitives,
         weights: None,
     });
@@ -281,7 +275,7 @@ fn write_instanced(
     debug_assert!(distinct.iter().all(|&id| (id as usize) < feature_count));
     builder.root.push(json::Node {
         mesh: Some(mesh),
-        name: Some(crown_part.name().to_string()),
+        name: Some(model.name().to_string()),
         extensions: Some(json::extensions::scene::Node { others }),
         ..Default::default()
     })

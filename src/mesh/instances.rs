@@ -1,0 +1,183 @@
+//! Instances of the models on the ground: trees and street-level objects, each standing where
+//! the ground triangulation says it may — a forest tree only on its forest's own ground (not on a
+//! road or a path through it), anything else anywhere but under a building or in water. A foot is
+//! placed on the ground mesh itself, and sunk a little so it never floats.
+
+use std::collections::BTreeMap;
+
+use super::ground::Ground;
+use super::models::Model;
+use crate::features::objects::PointObject;
+use crate::features::vegetation::{Tree, TreeKind};
+use crate::features::{FeatureClass, FeatureSet};
+use crate::geometry::Point;
+use crate::tile::TileFrame;
+
+/// The instances of one model.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Instances {
+    pub translations: Vec<[f32; 3]>,
+    /// Unit quaternions `(x, y, z, w)`.
+    pub rotations: Vec<[f32; 4]>,
+    pub scales: Vec<[f32; 3]>,
+    pub feature_ids: Vec<u32>,
+}
+
+impl Instances {
+    pub fn len(&self) -> usize {
+        self.translations.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.translations.is_empty()
+    }
+}
+
+/// Depth a foot reaches below the ground, metres.
+const SINK_M: f64 = 0.3;
+
+/// One thing to stand on the ground.
+struct Placement {
+    at: Point,
+    model: Model,
+    /// Scale of the model in true metres (x, y, z).
+    scale_m: [f64; 3],
+    rotation: f64,
+    feature: u32,
+    /// The surface that must be the ground at the foot (a forest tree's own forest).
+    on: Option<u32>,
+}
+
+/// Ground triangles in buckets, to find the triangle under a point.
+struct Locator<'a> {
+    ground: &'a Ground,
+    cells: usize,
+    size: f64,
+    buckets: Vec<Vec<u32>>,
+}
+
+impl<'a> Locator<'a> {
+    fn new(ground: &'a Ground, size: f64) -> Locator<'a> {
+        let cells = 64;
+        let mut buckets = vec![Vec::new(); cells * cells];
+        let cell = |v: f64| ((v / size * cells as f64).floor().max(0.0) as usize).min(cells - 1);
+        for (index, triangle) in ground.triangles.iter().enumerate() {
+            let corners = triangle.vertices.map(|v| ground.vertices[v as usize]);
+            let (x0, x1) = min_max(corners.map(|p| p[0]));
+            let (z0, z1) = min_max(corners.map(|p| p[1]));
+            for row in cell(z0)..=cell(z1) {
+                for column in cell(x0)..=cell(x1) {
+                    buckets[row * cells + column].push(index as u32);
+                }
+            }
+        }
+        Locator {
+            ground,
+            cells,
+            size,
+            buckets,
+        }
+    }
+
+    /// The triangle holding `(x, z)` and the barycentric weights of its corners.
+    fn locate(&self, x: f64, z: f64) -> Option<(usize, [f64; 3])> {
+        let cell = |v: f64| {
+            ((v / self.size * self.cells as f64).floor().max(0.0) as usize).min(self.cells - 1)
+        };
+        self.buckets[cell(z) * self.cells + cell(x)]
+            .iter()
+            .find_map(|&index| {
+                let t = &self.ground.triangles[index as usize];
+                let [a, b, c] = t.vertices.map(|v| self.ground.vertices[v as usize]);
+                let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+                if det == 0.0 {
+                    return None;
+                }
+                let l1 = ((x - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (z - a[1])) / det;
+                let l2 = ((b[0] - a[0]) * (z - a[1]) - (x - a[0]) * (b[1] - a[1])) / det;
+                let l0 = 1.0 - l1 - l2;
+                (l0 >= 0.0 && l1 >= 0.0 && l2 >= 0.0).then_some((index as usize, [l0, l1, l2]))
+            })
+    }
+}
+
+fn min_max(values: [f64; 3]) -> (f64, f64) {
+    (
+        values.iter().copied().fold(f64::INFINITY, f64::min),
+        values.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    )
+}
+
+/// Places the trees and objects of a tile on its ground: the instances of each model.
+pub fn place(
+    trees: &[Tree],
+    objects: &[PointObject],
+    feature_set: &FeatureSet,
+    ground: &Ground,
+    vertex_y: &[f64],
+    frame: &TileFrame,
+) -> BTreeMap<Model, Instances> {
+    let placements = trees
+        .iter()
+        .map(|tree| {
+            let width = match tree.kind {
+                TreeKind::Broadleaved => 1.0,
+                TreeKind::Needleleaved => 0.9,
+            } * tree.height_m;
+            Placement {
+                at: tree.at,
+                model: Model::Tree(tree.kind, tree.shade),
+                scale_m: [width, tree.height_m, width],
+                rotation: tree.rotation,
+                feature: tree.feature,
+                on: tree.forest,
+            }
+        })
+        .chain(objects.iter().map(|object| Placement {
+            at: object.at,
+            model: Model::Object(object.kind),
+            scale_m: [1.0; 3],
+            rotation: object.rotation,
+            feature: object.feature,
+            on: None,
+        }));
+    let locator = Locator::new(ground, frame.size_m);
+    let mut models: BTreeMap<Model, Instances> = BTreeMap::new();
+    for placement in placements {
+        let (x, z) = frame.uv_to_local(placement.at[0], placement.at[1]);
+        let Some((index, weights)) = locator.locate(x, z) else {
+            continue;
+        };
+        let triangle = &ground.triangles[index];
+        let surface = triangle.surface;
+        let allowed = match placement.on {
+            Some(required) => surface == Some(required),
+            None => surface.is_none_or(|s| {
+                !matches!(
+                    feature_set.surfaces[s as usize].class,
+                    FeatureClass::Building | FeatureClass::Water
+                )
+            }),
+        };
+        if !allowed {
+            continue;
+        }
+        let y: f64 = (0..3)
+            .map(|k| weights[k] * vertex_y[triangle.vertices[k] as usize])
+            .sum();
+        let scale = frame.scale_at(z);
+        let half = placement.rotation / 2.0;
+        let instances = models.entry(placement.model).or_default();
+        instances
+            .translations
+            .push([x as f32, (y - SINK_M * scale) as f32, z as f32]);
+        instances
+            .rotations
+            .push([0.0, half.sin() as f32, 0.0, half.cos() as f32]);
+        instances
+            .scales
+            .push(placement.scale_m.map(|m| (m * scale) as f32));
+        instances.feature_ids.push(placement.feature);
+    }
+    models
+}
