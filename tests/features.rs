@@ -124,6 +124,17 @@ fn gltf_json(bytes: &[u8]) -> serde_json::Value {
     serde_json::from_slice(&bytes[20..20 + length]).expect("JSON chunk")
 }
 
+/// The float components of an accessor (tightly packed, as the writer lays them out).
+fn accessor_floats(gltf: &gltf::Gltf, blob: &[u8], accessor: u64) -> Vec<f32> {
+    let accessor = gltf.document.accessors().nth(accessor as usize).unwrap();
+    let start = accessor.view().unwrap().offset() + accessor.offset();
+    let n = accessor.count() * accessor.dimensions().multiplicity();
+    blob[start..start + 4 * n]
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+        .collect()
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn forests_are_planted_with_instanced_trees() {
     let dir = tempfile::tempdir().unwrap();
@@ -156,16 +167,7 @@ async fn forests_are_planted_with_instanced_trees() {
     // Read every instance's translation and feature id.
     let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
     let blob = gltf.blob.clone().unwrap();
-    let floats = |accessor: u64| -> Vec<f32> {
-        let accessor = gltf.document.accessors().nth(accessor as usize).unwrap();
-        let view = accessor.view().unwrap();
-        let start = view.offset() + accessor.offset();
-        let n = accessor.count() * accessor.dimensions().multiplicity();
-        blob[start..start + 4 * n]
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
-            .collect()
-    };
+    let floats = |accessor: u64| accessor_floats(&gltf, &blob, accessor);
     let mut trees = 0;
     for node in tree_nodes {
         let attributes = &node["extensions"]["EXT_mesh_gpu_instancing"]["attributes"];
@@ -220,10 +222,7 @@ async fn forests_are_planted_with_instanced_trees() {
         let accessor = node["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]["_FEATURE_ID_0"]
             .as_u64()
             .unwrap();
-        let accessor = gltf.document.accessors().nth(accessor as usize).unwrap();
-        let start = accessor.view().unwrap().offset() + accessor.offset();
-        for k in 0..accessor.count() {
-            let id = f32::from_le_bytes(blob[start + 4 * k..start + 4 * k + 4].try_into().unwrap());
+        for id in accessor_floats(&gltf, &blob, accessor) {
             let feature = &decoded.features[id as usize];
             assert_eq!(
                 (feature.class.as_str(), feature.osm_type.as_str()),

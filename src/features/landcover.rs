@@ -5,7 +5,7 @@
 //! covers overlap, the smaller area wins: a pitch inside a park, a park inside a residential
 //! area, each keeps its own material.
 
-use super::{Area, FeatureClass, FeatureSet, Projection, Surface};
+use super::{Area, FeatureClass, FeatureSet, Projection};
 use crate::osm::Tags;
 
 /// What covers the ground of an area.
@@ -163,20 +163,8 @@ pub(super) fn add_area(set: &mut FeatureSet, area: &Area<'_>, projection: &Proje
     {
         return;
     }
-    let pieces: Vec<_> = area
-        .polygons
-        .iter()
-        .filter_map(|p| projection.polygon(p))
-        .collect();
-    let feature = set.add_feature(Some(area.element), FeatureClass::LandCover, area.tags);
-    match Surface::from_polygons(FeatureClass::LandCover, feature, pieces) {
-        Some(mut surface) => {
-            surface.cover = Some(cover);
-            set.surfaces.push(surface);
-        }
-        None => {
-            set.features.pop();
-        }
+    if let Some(surface) = set.add_area_surface(area, FeatureClass::LandCover, projection) {
+        surface.cover = Some(cover);
     }
 }
 

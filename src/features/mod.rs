@@ -188,6 +188,32 @@ impl FeatureSet {
         (self.features.len() - 1) as u32
     }
 
+    /// Adds an area as a ground surface of `class`, with its row in the feature table; `None`
+    /// (and no row) when none of its polygons survives projection.
+    fn add_area_surface(
+        &mut self,
+        area: &Area<'_>,
+        class: FeatureClass,
+        projection: &Projection,
+    ) -> Option<&mut Surface> {
+        let pieces: Vec<_> = area
+            .polygons
+            .iter()
+            .filter_map(|p| projection.polygon(p))
+            .collect();
+        let feature = self.add_feature(Some(area.element), class, area.tags);
+        match Surface::from_polygons(class, feature, pieces) {
+            Some(surface) => {
+                self.surfaces.push(surface);
+                self.surfaces.last_mut()
+            }
+            None => {
+                self.features.pop();
+                None
+            }
+        }
+    }
+
     pub fn count(&self, class: FeatureClass) -> usize {
         self.features.iter().filter(|f| f.class == class).count()
     }

@@ -4,9 +4,7 @@
 //! default is 5 m for an ordinary road (seed 001 §4.4); the other defaults scale from it with the
 //! usual lane counts of each class. Ways in tunnels are under the ground and not drawn on it.
 
-use super::{
-    widened_surface, Area, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface,
-};
+use super::{widened_surface, Area, FeatureClass, FeatureSet, FeatureSettings, Projection};
 use crate::osm::units::{parse_count, parse_length_m};
 use crate::osm::{ElementRef, ElementType, Tags, Way};
 
@@ -144,20 +142,8 @@ pub(super) fn add_area(set: &mut FeatureSet, area: &Area<'_>, projection: &Proje
     if !is_square || area.tags.is_set("tunnel") {
         return;
     }
-    let pieces: Vec<_> = area
-        .polygons
-        .iter()
-        .filter_map(|p| projection.polygon(p))
-        .collect();
-    let feature = set.add_feature(Some(area.element), FeatureClass::Road, area.tags);
-    match Surface::from_polygons(FeatureClass::Road, feature, pieces) {
-        Some(mut surface) => {
-            surface.paving = Some(Paving::from_tags(area.tags));
-            set.surfaces.push(surface);
-        }
-        None => {
-            set.features.pop();
-        }
+    if let Some(surface) = set.add_area_surface(area, FeatureClass::Road, projection) {
+        surface.paving = Some(Paving::from_tags(area.tags));
     }
 }
 

@@ -1,7 +1,7 @@
 //! Water: areas (`natural=water`, `waterway=riverbank`, `landuse=reservoir|basin`) and
 //! waterways as surfaces of their width (thesis §2.3.3).
 
-use super::{widened_surface, Area, FeatureClass, FeatureSet, Projection, Surface};
+use super::{widened_surface, Area, FeatureClass, FeatureSet, Projection};
 use crate::osm::units::parse_length_m;
 use crate::osm::{ElementRef, ElementType, Tags, Way};
 
@@ -29,18 +29,7 @@ pub(super) fn add_area(set: &mut FeatureSet, area: &Area<'_>, projection: &Proje
     if !is_water_area(area.tags) || area.tags.is_set("tunnel") {
         return;
     }
-    let pieces: Vec<_> = area
-        .polygons
-        .iter()
-        .filter_map(|p| projection.polygon(p))
-        .collect();
-    let feature = set.add_feature(Some(area.element), FeatureClass::Water, area.tags);
-    match Surface::from_polygons(FeatureClass::Water, feature, pieces) {
-        Some(surface) => set.surfaces.push(surface),
-        None => {
-            set.features.pop();
-        }
-    }
+    set.add_area_surface(area, FeatureClass::Water, projection);
 }
 
 pub(super) fn add_waterway(set: &mut FeatureSet, way: &Way, projection: &Projection) {

@@ -466,8 +466,14 @@ fn split_at_crossings(segments: &[(Point2<f64>, Point2<f64>)], size: f64) -> Vec
                 (sj.1.x - sj.0.x, sj.1.y - sj.0.y),
             );
             let denominator = di.0 * dj.1 - di.1 * dj.0;
-            let t = ((sj.0.x - si.0.x) * dj.1 - (sj.0.y - si.0.y) * dj.0) / denominator;
-            let p = Point2::new(si.0.x + t * di.0, si.0.y + t * di.1);
+            // Nearly parallel segments make the division ill-conditioned: the point is kept on
+            // the segment and in the tile whatever the rounding.
+            let t = (((sj.0.x - si.0.x) * dj.1 - (sj.0.y - si.0.y) * dj.0) / denominator)
+                .clamp(0.0, 1.0);
+            let p = Point2::new(
+                (si.0.x + t * di.0).clamp(0.0, size),
+                (si.0.y + t * di.1).clamp(0.0, size),
+            );
             if p.x.is_finite() && p.y.is_finite() {
                 splits[i as usize].push((along(si, p), p));
                 splits[j as usize].push((along(sj, p), p));
