@@ -278,3 +278,56 @@ async fn barriers_stand_on_the_ground() {
     assert!(below > 0 && above > 0, "{below} feet, {above} tops");
     server.stop().await;
 }
+
+/// The centre of Monaco from the tag-rich 2021 extract, rendered by the command line.
+#[test]
+fn the_tag_rich_extract_gives_every_family() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("14_8529_5974.glb");
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_terrastitch"))
+        .current_dir(common::repo())
+        .args([
+            "render",
+            "14/8529/5974",
+            "--osm",
+            "tests/data/monaco-planetiler-2021.osm.pbf",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .expect("terrastitch runs");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let report = &common::validate(&[out.as_path()])[0];
+    assert_eq!(
+        (report.errors, report.warnings),
+        (0, 0),
+        "{:?}",
+        report.messages
+    );
+    let bytes = std::fs::read(&out).unwrap();
+    let tile = decode(&bytes);
+    let count = |class: &str| tile.features.iter().filter(|f| f.class == class).count();
+    for (class, at_least) in [
+        ("building", 300),
+        ("road", 500),
+        ("water", 1),
+        ("landcover", 10),
+        ("barrier", 10),
+        ("object", 20),
+        ("vegetation", 20),
+    ] {
+        assert!(count(class) >= at_least, "{} {class} rows", count(class));
+    }
+    // The sea and the port, from coastlines the extract carries.
+    assert!(is_water(&tile, 0.95, 0.95));
+    let instanced: Vec<&String> = tile.instanced.iter().collect();
+    assert!(
+        instanced.iter().any(|n| n.contains("crown"))
+            && instanced.iter().any(|n| !n.contains("crown")),
+        "{instanced:?}"
+    );
+}
