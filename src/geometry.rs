@@ -80,6 +80,14 @@ impl Rect {
     }
 }
 
+/// The cell of `value` on a grid of `cells` cells over `min..min + size`, clamped to the grid:
+/// the bucket index of the spatial grids that find nearby segments, pieces and triangles.
+pub fn grid_cell(value: f64, min: f64, size: f64, cells: usize) -> usize {
+    ((value - min) / size * cells as f64)
+        .floor()
+        .clamp(0.0, cells as f64 - 1.0) as usize
+}
+
 /// Twice the signed area; positive when the ring turns counter-clockwise in a y-up plane
 /// (clockwise in `u`, `v`, whose `v` axis points south).
 pub fn signed_area2(ring: &[Point]) -> f64 {

@@ -20,7 +20,7 @@ use spade::{Point2, Triangulation};
 
 use super::tin::{refine, Cdt, HeightGrid, RefineLimits};
 use crate::features::{FeatureClass, Surface};
-use crate::geometry::{clip_segment, distance_to_segment, Point, Polygon, Rect};
+use crate::geometry::{clip_segment, distance_to_segment, grid_cell, Point, Polygon, Rect};
 use crate::terrain::TerrainModel;
 use crate::tile::{mercator_scale, v_to_lat, TileFrame};
 
@@ -127,9 +127,7 @@ impl SurfaceBuckets {
     /// The bucket row or column of a coordinate on `axis`.
     fn cell(&self, value: f64, axis: usize) -> usize {
         let size = self.rect.max[axis] - self.rect.min[axis];
-        (((value - self.rect.min[axis]) / size) * self.cells as f64)
-            .floor()
-            .clamp(0.0, self.cells as f64 - 1.0) as usize
+        grid_cell(value, self.rect.min[axis], size, self.cells)
     }
 
     /// The surfaces with a piece that contains `p`.
@@ -415,9 +413,7 @@ fn insert_constraints(
 /// Each segment as the points it passes through in order: its ends, and every point where it
 /// crosses or touches another segment (one shared point per crossing).
 fn split_at_crossings(segments: &[(Point2<f64>, Point2<f64>)], size: f64) -> Vec<Vec<Point2<f64>>> {
-    let cell = |v: f64| {
-        ((v / size * CROSSING_CELLS as f64).floor().max(0.0) as usize).min(CROSSING_CELLS - 1)
-    };
+    let cell = |v: f64| grid_cell(v, 0.0, size, CROSSING_CELLS);
     let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); CROSSING_CELLS * CROSSING_CELLS];
     for (k, (a, b)) in segments.iter().enumerate() {
         for row in cell(a.y.min(b.y))..=cell(a.y.max(b.y)) {

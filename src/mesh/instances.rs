@@ -10,7 +10,7 @@ use super::models::Model;
 use crate::features::objects::PointObject;
 use crate::features::vegetation::{Tree, TreeKind};
 use crate::features::{FeatureClass, FeatureSet};
-use crate::geometry::Point;
+use crate::geometry::{grid_cell, Point};
 use crate::tile::TileFrame;
 
 /// The instances of one model.
@@ -60,7 +60,7 @@ impl<'a> Locator<'a> {
     fn new(ground: &'a Ground, size: f64) -> Locator<'a> {
         let cells = 64;
         let mut buckets = vec![Vec::new(); cells * cells];
-        let cell = |v: f64| ((v / size * cells as f64).floor().max(0.0) as usize).min(cells - 1);
+        let cell = |v: f64| grid_cell(v, 0.0, size, cells);
         for (index, triangle) in ground.triangles.iter().enumerate() {
             let corners = triangle.vertices.map(|v| ground.vertices[v as usize]);
             let (x0, x1) = min_max(corners.map(|p| p[0]));
@@ -81,9 +81,7 @@ impl<'a> Locator<'a> {
 
     /// The triangle holding `(x, z)` and the barycentric weights of its corners.
     fn locate(&self, x: f64, z: f64) -> Option<(usize, [f64; 3])> {
-        let cell = |v: f64| {
-            ((v / self.size * self.cells as f64).floor().max(0.0) as usize).min(self.cells - 1)
-        };
+        let cell = |v: f64| grid_cell(v, 0.0, self.size, self.cells);
         self.buckets[cell(z) * self.cells + cell(x)]
             .iter()
             .find_map(|&index| {
