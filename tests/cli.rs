@@ -3,13 +3,7 @@
 
 mod common;
 
-use std::process::Command;
-
-fn terrastitch() -> Command {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_terrastitch"));
-    command.current_dir(common::repo());
-    command
-}
+use common::terrastitch;
 
 /// Runs `serve` with extra arguments and returns its stderr, asserting that it failed.
 fn serve_fails(dir: &std::path::Path, args: &[&std::ffi::OsStr]) -> String {

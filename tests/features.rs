@@ -283,24 +283,15 @@ async fn barriers_stand_on_the_ground() {
 #[test]
 fn the_tag_rich_extract_gives_every_family() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("14_8529_5974.glb");
-    let output = std::process::Command::new(env!("CARGO_BIN_EXE_terrastitch"))
-        .current_dir(common::repo())
-        .args([
-            "render",
-            "14/8529/5974",
-            "--osm",
-            "tests/data/monaco-planetiler-2021.osm.pbf",
-            "-o",
-        ])
-        .arg(&out)
-        .output()
-        .expect("terrastitch runs");
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
+    let bytes = common::render_in_process(
+        "14/8529/5974",
+        &[
+            "--osm".as_ref(),
+            "tests/data/monaco-planetiler-2021.osm.pbf".as_ref(),
+        ],
+        dir.path(),
     );
+    let out = dir.path().join("14_8529_5974.glb");
     let report = &common::validate(&[out.as_path()])[0];
     assert_eq!(
         (report.errors, report.warnings),
@@ -308,7 +299,6 @@ fn the_tag_rich_extract_gives_every_family() {
         "{:?}",
         report.messages
     );
-    let bytes = std::fs::read(&out).unwrap();
     let tile = decode(&bytes);
     let count = |class: &str| tile.features.iter().filter(|f| f.class == class).count();
     for (class, at_least) in [

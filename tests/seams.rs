@@ -5,9 +5,8 @@ mod common;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-use common::{decode, repo, DecodedTile, GROUND_NODES};
+use common::{decode, render_in_process, repo, DecodedTile, GROUND_NODES};
 
 /// The ten Monaco tiles inside both the extract and N43E007, and the Ulm tile across the
 /// N48E009/N48E010 seam with its neighbours.
@@ -28,21 +27,8 @@ fn ulm_tiles() -> Vec<(u32, u32)> {
 }
 
 fn render(tile: (u32, u32), srtm: &Path, out: &Path) -> Vec<u8> {
-    let file = out.join(format!("14_{}_{}.glb", tile.0, tile.1));
-    let output = Command::new(env!("CARGO_BIN_EXE_terrastitch"))
-        .current_dir(repo())
-        .args(["render", &format!("14/{}/{}", tile.0, tile.1), "--srtm"])
-        .arg(srtm)
-        .arg("-o")
-        .arg(&file)
-        .output()
-        .expect("terrastitch runs");
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    std::fs::read(&file).expect("tile written")
+    let tile = format!("14/{}/{}", tile.0, tile.1);
+    render_in_process(&tile, &["--srtm".as_ref(), srtm.as_os_str()], out)
 }
 
 /// Ground vertices (every ground class) on one side of a tile, as bit patterns of

@@ -12,6 +12,32 @@ use terrastitch::config::Config;
 use terrastitch::server::{self, AppState};
 use terrastitch::source::Sources;
 
+/// The `terrastitch` binary, run in the repository.
+pub fn terrastitch() -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_terrastitch"));
+    command.current_dir(repo());
+    command
+}
+
+/// Renders tile `z/x/y` with the command line, in a process of its own, with extra arguments;
+/// returns the glb it wrote into `out_dir`.
+pub fn render_in_process(tile: &str, args: &[&std::ffi::OsStr], out_dir: &Path) -> Vec<u8> {
+    let file = out_dir.join(format!("{}.glb", tile.replace('/', "_")));
+    let output = terrastitch()
+        .args(["render", tile])
+        .args(args)
+        .arg("-o")
+        .arg(&file)
+        .output()
+        .expect("terrastitch runs");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    std::fs::read(&file).expect("tile written")
+}
+
 /// The glTF nodes of the ground (every class but buildings).
 pub const GROUND_NODES: [&str; 5] = ["terrain", "road", "railway", "water", "landcover"];
 
