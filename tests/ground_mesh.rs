@@ -1,6 +1,7 @@
 //! The adaptive ground of real tiles meets its error bound: every terrain sample lies within
 //! `max_error_m` of the ground triangulation, checked by locating each sample in the final
-//! triangles (independently of the refinement's own bookkeeping).
+//! triangles (independently of the refinement's own bookkeeping); and the ground covers the tile
+//! exactly once.
 
 mod common;
 
@@ -75,6 +76,31 @@ fn every_sample_of_the_steepest_and_densest_tiles_is_within_the_bound() {
             ground.inserted > 100,
             "{tile}: only {} samples inserted",
             ground.inserted
+        );
+
+        // The ground partition: every triangle faces up (so none folds over another) and they
+        // add up to the tile, building footprints included, within 0.1 %; each belongs to one
+        // surface of a ground class, or to the default ground.
+        let mut area = 0.0;
+        for t in &ground.triangles {
+            let [a, b, c] = t.vertices.map(|i| ground.vertices[i as usize]);
+            let doubled = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+            assert!(
+                doubled > 0.0,
+                "{tile}: a triangle is folded over ({doubled})"
+            );
+            area += doubled / 2.0;
+            if let Some(s) = t.surface {
+                assert!(
+                    feature_set.surfaces[s as usize].class.ground_priority() < 6,
+                    "{tile}: a triangle of a class that is not ground"
+                );
+            }
+        }
+        let square = frame.size_m * frame.size_m;
+        assert!(
+            (area - square).abs() < 1e-3 * square,
+            "{tile}: the ground covers {area} of {square}"
         );
     }
 }
