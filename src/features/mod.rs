@@ -109,6 +109,8 @@ pub struct Surface {
     pub cover: Option<landcover::Cover>,
     /// The pavement of a road surface.
     pub paving: Option<roads::Paving>,
+    /// Lies in the road it runs along (a tram's track): drawn over roads.
+    pub embedded: bool,
 }
 
 impl Surface {
@@ -139,6 +141,7 @@ impl Surface {
             bounds,
             cover: None,
             paving: None,
+            embedded: false,
         })
     }
 }
@@ -422,6 +425,7 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, tile: TileId, projec
             bounds,
             cover: None,
             paving: None,
+            embedded: false,
         });
     }
 }
@@ -516,5 +520,6 @@ fn widened_surface(
         bounds,
         cover: None,
         paving: None,
+        embedded: false,
     })
 }

@@ -8,6 +8,8 @@ use crate::osm::{ElementRef, ElementType, Way};
 const STANDARD_GAUGE_M: f64 = 1.435;
 /// Ballast bed beyond the rails on each side, metres (a typical ballast shoulder).
 const BALLAST_M: f64 = 0.8;
+/// Paving beside the rails of a track embedded in a road, on each side, metres.
+const EMBEDDED_MARGIN_M: f64 = 0.3;
 
 fn drawn(railway: &str) -> bool {
     matches!(
@@ -24,15 +26,32 @@ fn drawn(railway: &str) -> bool {
     )
 }
 
-/// Width of the track bed in metres.
-pub fn width_m(gauge: Option<&str>) -> f64 {
+/// True for a track laid in a road's surface: trams unless tagged `embedded=no`, and any track
+/// tagged `embedded=yes`.
+pub fn is_embedded(tags: &crate::osm::Tags) -> bool {
+    match tags.get("embedded") {
+        Some("yes") => true,
+        Some("no") => false,
+        _ => tags.get("railway") == Some("tram"),
+    }
+}
+
+/// Width of the track bed in metres: the gauge with ballast, or with a narrow margin for a track
+/// embedded in a road.
+pub fn width_m(gauge: Option<&str>, embedded: bool) -> f64 {
     let gauge_m = gauge
         .and_then(|g| g.split(';').next())
         .and_then(|g| g.trim().parse::<f64>().ok())
         .map(|mm| mm / 1000.0)
         .filter(|m| (0.3..=3.0).contains(m))
         .unwrap_or(STANDARD_GAUGE_M);
-    gauge_m + 2.0 * BALLAST_M
+    gauge_m
+        + 2.0
+            * if embedded {
+                EMBEDDED_MARGIN_M
+            } else {
+                BALLAST_M
+            }
 }
 
 pub(super) fn add_way(set: &mut FeatureSet, way: &Way, projection: &Projection) {
@@ -47,7 +66,7 @@ pub(super) fn add_way(set: &mut FeatureSet, way: &Way, projection: &Projection) 
         .get("width")
         .and_then(parse_length_m)
         .filter(|w| (0.5..=30.0).contains(w))
-        .unwrap_or_else(|| width_m(way.tags.get("gauge")));
+        .unwrap_or_else(|| width_m(way.tags.get("gauge"), is_embedded(&way.tags)));
     let line = projection.points(&way.positions);
     let half_width = projection.metres(width / 2.0, way.positions[0].lat);
     let element = ElementRef {
@@ -56,7 +75,10 @@ pub(super) fn add_way(set: &mut FeatureSet, way: &Way, projection: &Projection) 
     };
     let feature = set.add_feature(Some(element), FeatureClass::Railway, &way.tags);
     match widened_surface(FeatureClass::Railway, feature, &line, half_width) {
-        Some(surface) => set.surfaces.push(surface),
+        Some(mut surface) => {
+            surface.embedded = is_embedded(&way.tags);
+            set.surfaces.push(surface);
+        }
         None => {
             set.features.pop();
         }
@@ -69,8 +91,24 @@ mod tests {
 
     #[test]
     fn gauge_sets_the_width() {
-        assert!((width_m(None) - 3.035).abs() < 1e-12);
-        assert!((width_m(Some("1000")) - 2.6).abs() < 1e-12);
-        assert!((width_m(Some("nonsense")) - 3.035).abs() < 1e-12);
+        assert!((width_m(None, false) - 3.035).abs() < 1e-12);
+        assert!((width_m(Some("1000"), false) - 2.6).abs() < 1e-12);
+        assert!((width_m(Some("nonsense"), false) - 3.035).abs() < 1e-12);
+        assert!((width_m(None, true) - 2.035).abs() < 1e-12);
+    }
+
+    #[test]
+    fn trams_lie_in_the_road_unless_tagged_otherwise() {
+        let tags = |pairs: &[(&str, &str)]| crate::osm::Tags::from_pairs(pairs.to_vec());
+        assert!(is_embedded(&tags(&[("railway", "tram")])));
+        assert!(!is_embedded(&tags(&[
+            ("railway", "tram"),
+            ("embedded", "no")
+        ])));
+        assert!(!is_embedded(&tags(&[("railway", "rail")])));
+        assert!(is_embedded(&tags(&[
+            ("railway", "rail"),
+            ("embedded", "yes")
+        ])));
     }
 }

@@ -286,12 +286,22 @@ pub fn triangulate(
 
     // 5. Classification.
     let buckets = SurfaceBuckets::new(rect, BUCKETS_PER_SIDE, surfaces);
-    // Among land covers the smaller area is the detail and wins (a pitch in a park).
-    let detail: Vec<f64> = surfaces
+    // Where surfaces overlap, the lowest rank wins: the class's priority, where a track
+    // embedded in a road ranks as the road and before it; among land covers the smaller area
+    // (the detail: a pitch in a park); then the lower feature id.
+    let rank: Vec<(u8, bool, f64, u32)> = surfaces
         .iter()
-        .map(|s| match s.class {
-            FeatureClass::LandCover => s.pieces.iter().map(Polygon::area).sum(),
-            _ => 0.0,
+        .map(|s| {
+            let priority = if s.embedded {
+                FeatureClass::Road.ground_priority()
+            } else {
+                s.class.ground_priority()
+            };
+            let detail = match s.class {
+                FeatureClass::LandCover => s.pieces.iter().map(Polygon::area).sum(),
+                _ => 0.0,
+            };
+            (priority, !s.embedded, detail, s.feature)
         })
         .collect();
     let vertices: Vec<Point> = tin.positions.iter().map(|p| [p.x, p.y]).collect();
@@ -307,16 +317,11 @@ pub fn triangulate(
             [u, v]
         };
         let surface = buckets.containing(centroid, surfaces).min_by(|&a, &b| {
-            let key = |i: u32| {
-                let surface = &surfaces[i as usize];
-                (surface.class.ground_priority(), detail[i as usize])
-            };
-            let (ka, kb) = (key(a), key(b));
-            ka.0.cmp(&kb.0).then(ka.1.total_cmp(&kb.1)).then(
-                surfaces[a as usize]
-                    .feature
-                    .cmp(&surfaces[b as usize].feature),
-            )
+            let (ka, kb) = (rank[a as usize], rank[b as usize]);
+            (ka.0, ka.1)
+                .cmp(&(kb.0, kb.1))
+                .then(ka.2.total_cmp(&kb.2))
+                .then(ka.3.cmp(&kb.3))
         });
         if surface.is_some_and(|i| surfaces[i as usize].class == FeatureClass::Building) {
             removed += 1;
@@ -664,6 +669,7 @@ mod tests {
             bounds: Rect { min, max },
             cover: None,
             paving: None,
+            embedded: false,
         }
     }
 
@@ -752,6 +758,77 @@ mod tests {
     }
 
     #[test]
+    fn overlaps_go_to_the_stronger_surface() {
+        let (x, y) = (8529.0, 5973.0);
+        let mut tram = square_surface(
+            FeatureClass::Railway,
+            3,
+            [x + 0.45, y + 0.1],
+            [x + 0.47, y + 0.9],
+        );
+        tram.embedded = true;
+        let rail = square_surface(
+            FeatureClass::Railway,
+            4,
+            [x + 0.1, y + 0.65],
+            [x + 0.9, y + 0.67],
+        );
+        let mut park = square_surface(
+            FeatureClass::LandCover,
+            5,
+            [x + 0.6, y + 0.2],
+            [x + 0.8, y + 0.4],
+        );
+        park.cover = Some(crate::features::landcover::Cover::Park);
+        let mut pitch = square_surface(
+            FeatureClass::LandCover,
+            6,
+            [x + 0.65, y + 0.25],
+            [x + 0.7, y + 0.3],
+        );
+        pitch.cover = Some(crate::features::landcover::Cover::Pitch);
+        let surfaces = vec![
+            // A road across the tile, a tram along the tile through it, a railway crossing the
+            // tram and a pond.
+            square_surface(
+                FeatureClass::Road,
+                1,
+                [x + 0.1, y + 0.4],
+                [x + 0.9, y + 0.5],
+            ),
+            square_surface(
+                FeatureClass::Water,
+                2,
+                [x + 0.1, y + 0.6],
+                [x + 0.3, y + 0.8],
+            ),
+            tram,
+            rail,
+            park,
+            pitch,
+        ];
+        let ground = ground(&surfaces, &MeshSettings::default());
+        let s = TileId {
+            z: 14,
+            x: 8529,
+            y: 5973,
+        }
+        .size_m();
+        let of = |index: u32| area(&ground, |t| t.surface == Some(index)) / (s * s);
+        let near = |a: f64, b: f64| (a - b).abs() < 1e-6;
+        // The tram keeps its whole strip, across the road too.
+        assert!(near(of(2), 0.02 * 0.8), "tram {}", of(2));
+        // The road loses the tram's part.
+        assert!(near(of(0), 0.8 * 0.1 - 0.02 * 0.1), "road {}", of(0));
+        // The railway lies over the water and gives way to the tram it crosses.
+        assert!(near(of(3), 0.8 * 0.02 - 0.02 * 0.02), "railway {}", of(3));
+        assert!(near(of(1), 0.2 * 0.2 - 0.2 * 0.02), "water {}", of(1));
+        // The pitch inside the park keeps its own ground.
+        assert!(near(of(5), 0.05 * 0.05), "pitch {}", of(5));
+        assert!(near(of(4), 0.2 * 0.2 - 0.05 * 0.05), "park {}", of(4));
+    }
+
+    #[test]
     fn a_looser_bound_gives_fewer_triangles_and_features_attract_them() {
         let fine = ground(
             &[],
@@ -832,6 +909,7 @@ mod tests {
                         outline: vec![closed],
                         cover: None,
             paving: None,
+            embedded: false,
                     }
                 })
                 .collect();
