@@ -260,6 +260,10 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
     parts.insert(Part::BuildingWalls, walls);
     parts.insert(Part::BuildingRoofs, roofs);
     parts.extend(mesh::barriers::build(&feature_set.barriers, frame, terrain));
+    parts.insert(
+        Part::PowerLine,
+        mesh::power::build(&feature_set.power_lines, frame, terrain),
+    );
     let instanced = mesh::instances::place(
         &feature_set.trees,
         &feature_set.objects,

@@ -321,3 +321,49 @@ fn the_tag_rich_extract_gives_every_family() {
         "{instanced:?}"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn power_lines_hang_above_the_ground() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    let monaco = tile(&server, 8529, 5973).await;
+    let size = monaco.tile_size();
+    let ground: Vec<_> = GROUND_NODES
+        .iter()
+        .flat_map(|n| corners(monaco.primitives(n)))
+        .collect();
+    let locator = GroundLocator::new(ground, size);
+    let lines: Vec<_> = monaco
+        .primitives("object")
+        .iter()
+        .filter(|p| p.material == "power_line")
+        .collect();
+    assert!(!lines.is_empty(), "no power line drawn");
+    let (mut above, mut total) = (0, 0);
+    for primitive in lines {
+        for (p, &id) in primitive.positions.iter().zip(&primitive.feature_ids) {
+            let feature = &monaco.features[id as usize];
+            assert_eq!(
+                (feature.osm_type.as_str(), feature.class.as_str()),
+                ("way", "object")
+            );
+            assert!(feature.tags.contains_key("power"), "{feature:?}");
+            let Some(&ground) = locator
+                .heights_at(f64::from(p[0]), f64::from(p[2]), 1e-6)
+                .first()
+            else {
+                continue;
+            };
+            total += 1;
+            // Several metres up (local units: about 1.38 per metre at this latitude).
+            if f64::from(p[1]) > ground + 3.0 {
+                above += 1;
+            }
+        }
+    }
+    assert!(
+        above * 10 >= total * 9,
+        "{above} of {total} conductor vertices well above the ground"
+    );
+    server.stop().await;
+}

@@ -12,6 +12,7 @@ pub mod buildings;
 pub mod coastline;
 pub mod landcover;
 pub mod objects;
+pub mod power;
 pub mod railways;
 pub mod roads;
 pub mod vegetation;
@@ -167,6 +168,8 @@ pub struct FeatureSet {
     pub trees: Vec<vegetation::Tree>,
     /// Street lamps, benches, power poles… to stand on the ground.
     pub objects: Vec<objects::PointObject>,
+    /// Power lines to hang between their supports.
+    pub power_lines: Vec<power::PowerLine>,
     /// Walls, fences and hedges to stand on the ground.
     pub barriers: Vec<barriers::Barrier>,
     /// Lines where the ground steps (cliffs, retaining walls), for the elevation stage.
@@ -232,6 +235,8 @@ impl FeatureSet {
             .retain(|b| Rect::around(&b.line).intersects(rect));
         self.steps
             .retain(|s| Rect::around(&s.line).intersects(rect));
+        self.power_lines
+            .retain(|l| Rect::around(&l.line).intersects(rect));
         let mut used = vec![false; self.features.len()];
         used[0] = true;
         for feature in self
@@ -241,6 +246,7 @@ impl FeatureSet {
             .chain(self.buildings.iter().map(|b| b.feature))
             .chain(self.barriers.iter().map(|b| b.feature))
             .chain(self.steps.iter().map(|s| s.feature))
+            .chain(self.power_lines.iter().map(|l| l.feature))
         {
             used[feature as usize] = true;
         }
@@ -269,6 +275,9 @@ impl FeatureSet {
         }
         for step in &mut self.steps {
             step.feature = renumbered[step.feature as usize];
+        }
+        for line in &mut self.power_lines {
+            line.feature = renumbered[line.feature as usize];
         }
     }
 }
@@ -357,6 +366,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         railways::add_way(&mut set, way, &projection);
         water::add_waterway(&mut set, way, &projection);
         barriers::add_way(&mut set, way, &projection);
+        power::add_way(&mut set, way, selection, &projection);
     }
     for area in &areas {
         roads::add_area(&mut set, area, &projection);

@@ -6,6 +6,7 @@ pub mod buildings;
 pub mod ground;
 pub mod instances;
 pub mod models;
+pub mod power;
 pub mod tin;
 
 use crate::features::barriers::BarrierKind;
@@ -27,6 +28,7 @@ pub enum Part {
     BuildingRoofs,
     Barrier(BarrierKind),
     Object(ObjectKind),
+    PowerLine,
     TreeTrunk,
     /// A crown of a kind of tree in one of [`crate::features::vegetation::SHADES`] shades.
     TreeCrown(TreeKind, u8),
@@ -44,7 +46,7 @@ impl Part {
             Part::BuildingWalls | Part::BuildingRoofs => FeatureClass::Building,
             Part::TreeTrunk | Part::TreeCrown(..) => FeatureClass::Vegetation,
             Part::Barrier(_) => FeatureClass::Barrier,
-            Part::Object(_) => FeatureClass::Object,
+            Part::Object(_) | Part::PowerLine => FeatureClass::Object,
         }
     }
 
@@ -61,6 +63,7 @@ impl Part {
             Part::TreeTrunk => "tree_trunk",
             Part::Barrier(kind) => kind.as_str(),
             Part::Object(kind) => kind.as_str(),
+            Part::PowerLine => "power_line",
             Part::TreeCrown(TreeKind::Broadleaved, 0) => "broadleaved_crown_0",
             Part::TreeCrown(TreeKind::Broadleaved, 1) => "broadleaved_crown_1",
             Part::TreeCrown(TreeKind::Broadleaved, _) => "broadleaved_crown_2",

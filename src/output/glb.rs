@@ -111,6 +111,7 @@ fn material_of(part: Part) -> ([f32; 4], f32) {
         Part::TreeTrunk => ([0.22, 0.15, 0.09, 1.0], 0.95),
         Part::Barrier(kind) => kind.material(),
         Part::Object(kind) => kind.material(),
+        Part::PowerLine => ([0.12, 0.12, 0.13, 1.0], 0.5),
         Part::TreeCrown(kind, shade) => {
             let shade = f32::from(shade.min(2));
             let rgb = match kind {
