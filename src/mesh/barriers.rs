@@ -4,7 +4,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{MeshBuffers, Part};
+use super::{LocalSpan, MeshBuffers, Part};
 use crate::features::barriers::Barrier;
 use crate::features::tile_rect;
 use crate::geometry::clip_segment;
@@ -28,17 +28,14 @@ pub fn build(
             let Some((a, b)) = clip_segment(pair[0], pair[1], &rect) else {
                 continue;
             };
-            let ((ax, az), (bx, bz)) =
-                (frame.uv_to_local(a[0], a[1]), frame.uv_to_local(b[0], b[1]));
-            let (dx, dz) = (bx - ax, bz - az);
-            let length = (dx * dx + dz * dz).sqrt();
-            if length < 1e-6 {
+            let Some(span) = LocalSpan::new(frame, a, b) else {
                 continue;
-            }
+            };
+            let ((ax, az), (bx, bz), (dx, dz)) = (span.a, span.b, span.direction);
             // Local metres are Mercator metres: scale the true sizes at this latitude.
-            let scale = frame.scale_at((az + bz) / 2.0);
+            let scale = span.scale;
             let half = barrier.thickness_m * scale / 2.0;
-            let (nx, nz) = (-dz / length * half, dx / length * half);
+            let (nx, nz) = (-dz * half, dx * half);
             let ground =
                 |u: f64, v: f64, z: f64| frame.elevation_to_y(terrain.elevation_uv([u, v]), z);
             let (ga, gb) = (ground(a[0], a[1], az), ground(b[0], b[1], bz));

@@ -94,6 +94,35 @@ impl Part {
     }
 }
 
+/// A segment of global tile units placed in a tile's local frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalSpan {
+    /// Local `(x, z)` of both ends.
+    pub a: (f64, f64),
+    pub b: (f64, f64),
+    /// Unit direction from `a` to `b` in the `x`/`z` plane.
+    pub direction: (f64, f64),
+    pub length: f64,
+    /// Local units per true metre at the span's middle (the Mercator scale factor).
+    pub scale: f64,
+}
+
+impl LocalSpan {
+    /// The span from `a` to `b` (global tile units), `None` when it has no length.
+    pub fn new(frame: &crate::tile::TileFrame, a: [f64; 2], b: [f64; 2]) -> Option<LocalSpan> {
+        let (a, b) = (frame.uv_to_local(a[0], a[1]), frame.uv_to_local(b[0], b[1]));
+        let (dx, dz) = (b.0 - a.0, b.1 - a.1);
+        let length = (dx * dx + dz * dz).sqrt();
+        (length >= 1e-6).then(|| LocalSpan {
+            a,
+            b,
+            direction: (dx / length, dz / length),
+            length,
+            scale: frame.scale_at((a.1 + b.1) / 2.0),
+        })
+    }
+}
+
 /// Indexed triangles with per-vertex normals and feature ids, in the tile's local frame.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct MeshBuffers {

@@ -1,7 +1,7 @@
 //! Power line conductors: each span between two supports sags a little (3 % of its length at
 //! mid-span) and is drawn as thin beams, clipped to the tile.
 
-use super::MeshBuffers;
+use super::{LocalSpan, MeshBuffers};
 use crate::features::power::PowerLine;
 use crate::features::tile_rect;
 use crate::geometry::clip_segment;
@@ -25,14 +25,11 @@ pub fn build(lines: &[PowerLine], frame: &TileFrame, terrain: &TerrainModel<'_>)
             if clip_segment(a, b, &rect).is_none() {
                 continue;
             }
-            let ((ax, az), (bx, bz)) =
-                (frame.uv_to_local(a[0], a[1]), frame.uv_to_local(b[0], b[1]));
-            let (dx, dz) = (bx - ax, bz - az);
-            let length = (dx * dx + dz * dz).sqrt();
-            if length < 1e-6 {
+            let Some(span) = LocalSpan::new(frame, a, b) else {
                 continue;
-            }
-            let scale = frame.scale_at((az + bz) / 2.0);
+            };
+            let ((_, az), (_, bz), (dx, dz)) = (span.a, span.b, span.direction);
+            let (length, scale) = (span.length, span.scale);
             let top = |p: [f64; 2], z: f64, height: f64| {
                 frame.elevation_to_y(terrain.elevation_uv(p), z) + height * scale
             };
@@ -41,7 +38,7 @@ pub fn build(lines: &[PowerLine], frame: &TileFrame, terrain: &TerrainModel<'_>)
                 top(b, bz, line.heights_m[k + 1]),
             );
             for &offset in &line.offsets_m {
-                let (ox, oz) = (-dz / length * offset * scale, dx / length * offset * scale);
+                let (ox, oz) = (-dz * offset * scale, dx * offset * scale);
                 let at = |t: f64| {
                     let sag = SAG * length * 4.0 * t * (1.0 - t);
                     [
