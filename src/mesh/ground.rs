@@ -654,6 +654,13 @@ mod tests {
     use crate::tile::TileId;
     use std::sync::Arc;
 
+    /// The tile the tests triangulate (its corner is at `u, v = 8529, 5973`).
+    const TEST_TILE: TileId = TileId {
+        z: 14,
+        x: 8529,
+        y: 5973,
+    };
+
     fn square_surface(class: FeatureClass, feature: u32, min: Point, max: Point) -> Surface {
         let ring = vec![min, [max[0], min[1]], max, [min[0], max[1]]];
         let mut closed = ring.clone();
@@ -705,12 +712,7 @@ mod tests {
     fn ground(surfaces: &[Surface], settings: &MeshSettings) -> Ground {
         let mosaic = hills();
         let terrain = TerrainModel::new(&mosaic, Interpolation::Bilinear, 14);
-        let frame = TileId {
-            z: 14,
-            x: 8529,
-            y: 5973,
-        }
-        .frame();
+        let frame = TEST_TILE.frame();
         let outlines: Vec<Vec<Point>> = surfaces
             .iter()
             .filter(|s| s.class != FeatureClass::Building)
@@ -738,12 +740,7 @@ mod tests {
             ),
         ];
         let ground = ground(&surfaces, &MeshSettings::default());
-        let s = TileId {
-            z: 14,
-            x: 8529,
-            y: 5973,
-        }
-        .size_m();
+        let s = TEST_TILE.size_m();
         let water = area(&ground, |t| t.surface == Some(0));
         assert!((water - 0.04 * s * s).abs() < 1e-6 * s * s, "water {water}");
         let total = area(&ground, |t| t.surface != Some(1));
@@ -808,12 +805,7 @@ mod tests {
             pitch,
         ];
         let ground = ground(&surfaces, &MeshSettings::default());
-        let s = TileId {
-            z: 14,
-            x: 8529,
-            y: 5973,
-        }
-        .size_m();
+        let s = TEST_TILE.size_m();
         let of = |index: u32| area(&ground, |t| t.surface == Some(index)) / (s * s);
         let near = |a: f64, b: f64| (a - b).abs() < 1e-6;
         // The tram keeps its whole strip, across the road too.
@@ -915,7 +907,7 @@ mod tests {
                 .collect();
             let settings = MeshSettings { sample_cells: 32, max_error_m: 5.0, ..MeshSettings::default() };
             let ground = ground(&surfaces, &settings);
-            let s = TileId { z: 14, x: 8529, y: 5973 }.size_m();
+            let s = TEST_TILE.size_m();
             let total = area(&ground, |_| true);
             proptest::prop_assert!((total - s * s).abs() < 1e-6 * s * s, "area {} of {}", total, s * s);
             proptest::prop_assert_eq!(ground.elevations.len(), ground.vertices.len());
