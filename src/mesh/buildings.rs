@@ -6,8 +6,9 @@
 //! Walls start [`WALL_SKIRT_M`] below that, so no wall ends above the ground on a slope. An
 //! untagged height is raised where needed so the roof clears the highest ground under it.
 
-use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
+use spade::{Point2, Triangulation};
 
+use super::tin::Cdt;
 use super::MeshBuffers;
 use crate::features::BuildingShape;
 use crate::geometry::{clip_ring, clip_segment, signed_area2, Point, Polygon};
@@ -137,28 +138,23 @@ pub fn extrude(
 
 /// Triangles covering a polygon with holes (a CDT of its rings, keeping the triangles inside).
 pub fn triangulate_polygon(polygon: &Polygon) -> Vec<Vec<Point>> {
-    let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> =
-        ConstrainedDelaunayTriangulation::new();
     // Work relative to the first vertex: global tile units are large numbers.
     let origin = polygon.outer[0];
+    let relative = |p: &Point| Point2::new(p[0] - origin[0], p[1] - origin[1]);
+    let mut segments = Vec::new();
     for ring in polygon.rings() {
-        let handles: Vec<_> = ring
-            .iter()
-            .filter_map(|p| {
-                cdt.insert(Point2::new(p[0] - origin[0], p[1] - origin[1]))
-                    .ok()
-            })
-            .collect();
-        if handles.len() != ring.len() {
+        if ring.iter().any(|p| !(p[0].is_finite() && p[1].is_finite())) {
             return Vec::new();
         }
-        for i in 0..handles.len() {
-            let (from, to) = (handles[i], handles[(i + 1) % handles.len()]);
-            if from != to {
-                cdt.add_constraint_and_split(from, to, |p| p);
+        for i in 0..ring.len() {
+            let (a, b) = (relative(&ring[i]), relative(&ring[(i + 1) % ring.len()]));
+            if a != b {
+                segments.push((a, b));
             }
         }
     }
+    // A ring that crosses itself or another is split where it does, never by spade.
+    let (cdt, _) = super::constraints::insert(&Cdt::new(), &segments);
     cdt.inner_faces()
         .filter_map(|face| {
             let corners = face.vertices().map(|v| {
@@ -209,5 +205,19 @@ mod tests {
             .map(|t| signed_area2(t).abs() / 2.0)
             .sum();
         assert!((area - 8.0).abs() < 1e-12, "{area}");
+    }
+
+    #[test]
+    fn a_footprint_that_crosses_itself_keeps_both_lobes() {
+        // A bow tie: the ring crosses itself at (1, 1); even-odd inside is both triangles.
+        let polygon = Polygon {
+            outer: vec![[0.0, 0.0], [2.0, 2.0], [2.0, 0.0], [0.0, 2.0]],
+            holes: vec![],
+        };
+        let area: f64 = triangulate_polygon(&polygon)
+            .iter()
+            .map(|t| signed_area2(t).abs() / 2.0)
+            .sum();
+        assert!((area - 2.0).abs() < 1e-12, "{area}");
     }
 }

@@ -9,8 +9,8 @@
 //!    the samples on it and the points where feature outlines cross it, simplified by 1D greedy
 //!    insertion to the same error bound. The corners are always vertices. Both tiles that share
 //!    a side compute exactly the same vertices, so neighbours meet without a crack.
-//! 3. Feature outlines, clipped to the tile in global tile units, go in as constraint edges
-//!    (`add_constraint_and_split`: the one spade call that accepts crossing edges).
+//! 3. Feature outlines, clipped to the tile in global tile units, go in as constraint edges,
+//!    split where they cross by [`super::constraints`] (never by spade itself).
 //! 4. Greedy insertion ([`super::tin`]) adds interior samples until every sample is within the
 //!    bound; it never inserts on the tile's edges.
 //! 5. Each triangle belongs to exactly one surface, decided at its centroid by priority
@@ -342,24 +342,9 @@ pub fn triangulate(
     })
 }
 
-/// Most outline segments one tile may lose to degenerate geometry before it gives up on the
-/// remaining ones (each loss costs a rebuild of the triangulation).
-const MAX_DROPPED_CONSTRAINTS: usize = 32;
-
-/// Cells per side of the grid that finds crossing outline segments.
-const CROSSING_CELLS: usize = 64;
-
-/// Inserts the outline segments into a copy of `seed` as constraint edges and returns it with
-/// the number of segment pieces left out.
-///
-/// The segments are split where they cross or touch each other here, with exact orientation
-/// tests, and each crossing point is shared by both segments; spade then only adds constraints
-/// that cross nothing (`try_add_constraint`). Letting spade split crossing constraints itself
-/// (`add_constraint_and_split`) can, with its rounded split points, send it round in circles
-/// without end. A piece spade still refuses (a rounded crossing point that leaves two pieces
-/// crossing by a hair) is left out, and so is a segment on which spade fails an internal
-/// assertion: the triangulation is rebuilt without it. Segments along the tile's border are left
-/// out: the edge vertices already lie on them. The outcome is deterministic.
+/// Inserts the outline segments into a copy of `seed` as constraint edges
+/// ([`super::constraints::insert`]) and returns it with the number of pieces left out. Segments
+/// along the tile's border are left out: the edge vertices already lie on them.
 fn insert_constraints(
     seed: &Cdt,
     size: f64,
@@ -375,141 +360,7 @@ fn insert_constraints(
         .map(|&(a, b)| (to_local(a), to_local(b)))
         .filter(|s| s.0 != s.1 && !on_border(s))
         .collect();
-    let pieces = split_at_crossings(&local, size);
-    let mut skipped: Vec<bool> = vec![false; pieces.len()];
-    let mut dropped_segments = 0;
-    loop {
-        let mut cdt = seed.clone();
-        let progress = std::cell::Cell::new(0usize);
-        let refused = std::cell::Cell::new(0usize);
-        let attempt = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            for (k, points) in pieces.iter().enumerate() {
-                if skipped[k] {
-                    continue;
-                }
-                progress.set(k);
-                let handles: Vec<_> = points.iter().filter_map(|&p| cdt.insert(p).ok()).collect();
-                for pair in handles.windows(2) {
-                    let (from, to) = (pair[0], pair[1]);
-                    if from != to
-                        && cdt.try_add_constraint(from, to).is_empty()
-                        && !cdt.exists_constraint(from, to)
-                    {
-                        refused.set(refused.get() + 1);
-                    }
-                }
-            }
-        }));
-        match attempt {
-            Ok(()) => return (cdt, dropped_segments + refused.get()),
-            Err(_) => {
-                let k = progress.get();
-                tracing::debug!(segment = ?local[k], "outline segment left out of the ground triangulation");
-                skipped[k] = true;
-                dropped_segments += 1;
-                if dropped_segments >= MAX_DROPPED_CONSTRAINTS {
-                    skipped.iter_mut().for_each(|s| *s = true);
-                }
-            }
-        }
-    }
-}
-
-/// Each segment as the points it passes through in order: its ends, and every point where it
-/// crosses or touches another segment (one shared point per crossing).
-fn split_at_crossings(segments: &[(Point2<f64>, Point2<f64>)], size: f64) -> Vec<Vec<Point2<f64>>> {
-    let cell = |v: f64| grid_cell(v, 0.0, size, CROSSING_CELLS);
-    let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); CROSSING_CELLS * CROSSING_CELLS];
-    for (k, (a, b)) in segments.iter().enumerate() {
-        for row in cell(a.y.min(b.y))..=cell(a.y.max(b.y)) {
-            for column in cell(a.x.min(b.x))..=cell(a.x.max(b.x)) {
-                buckets[row * CROSSING_CELLS + column].push(k as u32);
-            }
-        }
-    }
-    let mut pairs: Vec<(u32, u32)> = Vec::new();
-    for bucket in &buckets {
-        for (n, &i) in bucket.iter().enumerate() {
-            for &j in &bucket[n + 1..] {
-                pairs.push((i.min(j), i.max(j)));
-            }
-        }
-    }
-    pairs.sort_unstable();
-    pairs.dedup();
-
-    // (position along the segment, point) of every split.
-    let mut splits: Vec<Vec<(f64, Point2<f64>)>> = vec![Vec::new(); segments.len()];
-    let orient = |a: Point2<f64>, b: Point2<f64>, c: Point2<f64>| {
-        robust::orient2d(
-            robust::Coord { x: a.x, y: a.y },
-            robust::Coord { x: b.x, y: b.y },
-            robust::Coord { x: c.x, y: c.y },
-        )
-    };
-    let along = |(a, b): (Point2<f64>, Point2<f64>), p: Point2<f64>| {
-        let d = (b.x - a.x, b.y - a.y);
-        ((p.x - a.x) * d.0 + (p.y - a.y) * d.1) / (d.0 * d.0 + d.1 * d.1)
-    };
-    // True when `p` lies strictly between the ends of the segment it is collinear with.
-    let inside = |s: (Point2<f64>, Point2<f64>), p: Point2<f64>| {
-        let t = along(s, p);
-        t > 0.0 && t < 1.0
-    };
-    for (i, j) in pairs {
-        let (si, sj) = (segments[i as usize], segments[j as usize]);
-        let (o1, o2) = (orient(si.0, si.1, sj.0), orient(si.0, si.1, sj.1));
-        let (o3, o4) = (orient(sj.0, sj.1, si.0), orient(sj.0, sj.1, si.1));
-        if o1 * o2 < 0.0 && o3 * o4 < 0.0 {
-            // A proper crossing: one point, shared.
-            let (di, dj) = (
-                (si.1.x - si.0.x, si.1.y - si.0.y),
-                (sj.1.x - sj.0.x, sj.1.y - sj.0.y),
-            );
-            let denominator = di.0 * dj.1 - di.1 * dj.0;
-            // Nearly parallel segments make the division ill-conditioned: the point is kept on
-            // the segment and in the tile whatever the rounding.
-            let t = (((sj.0.x - si.0.x) * dj.1 - (sj.0.y - si.0.y) * dj.0) / denominator)
-                .clamp(0.0, 1.0);
-            let p = Point2::new(
-                (si.0.x + t * di.0).clamp(0.0, size),
-                (si.0.y + t * di.1).clamp(0.0, size),
-            );
-            if p.x.is_finite() && p.y.is_finite() {
-                splits[i as usize].push((along(si, p), p));
-                splits[j as usize].push((along(sj, p), p));
-            }
-            continue;
-        }
-        // Touching: an end of one lying on the other (also where they overlap).
-        for (end, o, on, k) in [
-            (sj.0, o1, si, i),
-            (sj.1, o2, si, i),
-            (si.0, o3, sj, j),
-            (si.1, o4, sj, j),
-        ] {
-            if o == 0.0 && inside(on, end) {
-                splits[k as usize].push((along(on, end), end));
-            }
-        }
-    }
-    segments
-        .iter()
-        .zip(splits)
-        .map(|(&(a, b), mut points)| {
-            points.sort_by(|x, y| {
-                x.0.total_cmp(&y.0)
-                    .then(x.1.x.total_cmp(&y.1.x))
-                    .then(x.1.y.total_cmp(&y.1.y))
-            });
-            let mut path = Vec::with_capacity(points.len() + 2);
-            path.push(a);
-            path.extend(points.into_iter().map(|(_, p)| p));
-            path.push(b);
-            path.dedup();
-            path
-        })
-        .collect()
+    super::constraints::insert(seed, &local)
 }
 
 /// Error weights of the samples: `1 + feature_weight · (1 − d / feature_distance)` within

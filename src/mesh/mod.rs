@@ -3,6 +3,7 @@
 
 pub mod barriers;
 pub mod buildings;
+pub mod constraints;
 pub mod ground;
 pub mod instances;
 pub mod models;
