@@ -78,6 +78,12 @@ impl Rect {
     pub fn contains(&self, p: Point) -> bool {
         (self.min[0]..=self.max[0]).contains(&p[0]) && (self.min[1]..=self.max[1]).contains(&p[1])
     }
+
+    /// Whether `p` belongs to this tile square, half-open so that a point on an edge shared by
+    /// two tiles belongs to one of them only.
+    pub fn owns(&self, p: Point) -> bool {
+        (self.min[0]..self.max[0]).contains(&p[0]) && (self.min[1]..self.max[1]).contains(&p[1])
+    }
 }
 
 /// The cell of `value` on a grid of `cells` cells over `min..min + size`, clamped to the grid:

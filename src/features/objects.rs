@@ -106,12 +106,7 @@ pub(super) fn collect(
             continue;
         };
         let at = projection.point(node.position);
-        // Half-open: a node on a shared edge belongs to one tile.
-        if !(at[0] >= rect.min[0]
-            && at[0] < rect.max[0]
-            && at[1] >= rect.min[1]
-            && at[1] < rect.max[1])
-        {
+        if !rect.owns(at) {
             continue;
         }
         let element = ElementRef {

@@ -127,12 +127,6 @@ fn tree(
     }
 }
 
-/// Whether `p` belongs to the tile `rect` (half-open, so a point on a shared edge belongs to one
-/// tile only).
-fn owns(rect: &Rect, p: Point) -> bool {
-    p[0] >= rect.min[0] && p[0] < rect.max[0] && p[1] >= rect.min[1] && p[1] < rect.max[1]
-}
-
 /// The trees of a tile: mapped trees and tree rows first, then forests, within the cap.
 pub(super) fn collect(
     set: &mut FeatureSet,
@@ -147,7 +141,7 @@ pub(super) fn collect(
             continue;
         }
         let at = projection.point(node.position);
-        if !owns(rect, at) {
+        if !rect.owns(at) {
             continue;
         }
         let height = node
@@ -193,7 +187,7 @@ pub(super) fn collect(
             }
             carried = s - length;
         }
-        let planted: Vec<Point> = planted.into_iter().filter(|&at| owns(rect, at)).collect();
+        let planted: Vec<Point> = planted.into_iter().filter(|&at| rect.owns(at)).collect();
         if planted.is_empty() {
             continue;
         }
@@ -246,7 +240,7 @@ pub(super) fn collect(
                         (i as f64 + 0.1 + 0.8 * draws.next()) * step,
                         (j as f64 + 0.1 + 0.8 * draws.next()) * step,
                     ];
-                    if owns(rect, at) && surface.contains(at) {
+                    if rect.owns(at) && surface.contains(at) {
                         forest_trees.push(tree(
                             at,
                             kinds,
