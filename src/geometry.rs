@@ -253,6 +253,97 @@ pub fn distance_to_segment(p: Point, a: Point, b: Point) -> f64 {
     ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt()
 }
 
+/// Twice the signed area of the triangle `a`, `b`, `c` (positive when it turns from the first
+/// axis towards the second).
+pub fn orient(a: Point, b: Point, c: Point) -> f64 {
+    (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+}
+
+/// True when the closed segments `a`–`b` and `c`–`d` share a point.
+pub fn segments_meet(a: Point, b: Point, c: Point, d: Point) -> bool {
+    let (o1, o2) = (orient(a, b, c), orient(a, b, d));
+    let (o3, o4) = (orient(c, d, a), orient(c, d, b));
+    let on = |p: Point, q: Point, r: Point| {
+        r[0] >= p[0].min(q[0])
+            && r[0] <= p[0].max(q[0])
+            && r[1] >= p[1].min(q[1])
+            && r[1] <= p[1].max(q[1])
+    };
+    if ((o1 > 0.0 && o2 < 0.0) || (o1 < 0.0 && o2 > 0.0))
+        && ((o3 > 0.0 && o4 < 0.0) || (o3 < 0.0 && o4 > 0.0))
+    {
+        return true;
+    }
+    (o1 == 0.0 && on(a, b, c))
+        || (o2 == 0.0 && on(a, b, d))
+        || (o3 == 0.0 && on(c, d, a))
+        || (o4 == 0.0 && on(c, d, b))
+}
+
+/// True when two edges of a ring that are not neighbours share a point: the ring crosses or
+/// touches itself. Edges are swept in order of their least `u`, so long rings stay cheap.
+pub fn ring_self_intersects(ring: &[Point]) -> bool {
+    let n = ring.len();
+    if n < 4 {
+        return false;
+    }
+    let edge = |i: usize| (ring[i], ring[(i + 1) % n]);
+    let mut order: Vec<usize> = (0..n).collect();
+    let min_u = |i: usize| {
+        let (a, b) = edge(i);
+        a[0].min(b[0])
+    };
+    order.sort_by(|&i, &j| min_u(i).total_cmp(&min_u(j)));
+    for (k, &i) in order.iter().enumerate() {
+        let (a, b) = edge(i);
+        let max_u = a[0].max(b[0]);
+        for &j in &order[k + 1..] {
+            if min_u(j) > max_u {
+                break;
+            }
+            let adjacent = (i + 1) % n == j || (j + 1) % n == i;
+            if adjacent {
+                continue;
+            }
+            let (c, d) = edge(j);
+            if segments_meet(a, b, c, d) {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// The convex hull of some points, counter-clockwise in a y-up plane, without collinear points
+/// (Andrew's monotone chain).
+pub fn convex_hull(points: &[Point]) -> Ring {
+    let mut sorted = points.to_vec();
+    sorted.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+    sorted.dedup();
+    if sorted.len() < 3 {
+        return sorted;
+    }
+    let mut hull: Ring = Vec::with_capacity(sorted.len() + 1);
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &Point>> = if pass == 0 {
+            Box::new(sorted.iter())
+        } else {
+            Box::new(sorted.iter().rev())
+        };
+        for &p in iter {
+            while hull.len() >= start + 2
+                && orient(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+            {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
+}
+
 /// Longest a mitre may grow, as a multiple of the half width, before the join is cut short.
 const MITRE_LIMIT: f64 = 2.0;
 

@@ -14,6 +14,7 @@ pub mod landcover;
 pub mod objects;
 pub mod power;
 pub mod railways;
+pub mod road_network;
 pub mod roads;
 pub mod vegetation;
 pub mod water;
@@ -119,17 +120,13 @@ impl Surface {
         self.bounds.contains(p) && self.pieces.iter().any(|piece| piece.contains(p))
     }
 
-    /// A surface covering the union of polygons, outlined by their rings.
-    fn from_polygons(class: FeatureClass, feature: u32, pieces: Vec<Polygon>) -> Option<Surface> {
-        let outline: Vec<Vec<Point>> = pieces
-            .iter()
-            .flat_map(|p| p.rings())
-            .map(|ring| {
-                let mut closed = ring.clone();
-                closed.push(ring[0]);
-                closed
-            })
-            .collect();
+    /// A surface covering the union of `pieces`, with the given outline.
+    fn from_parts(
+        class: FeatureClass,
+        feature: u32,
+        pieces: Vec<Polygon>,
+        outline: Vec<Vec<Point>>,
+    ) -> Option<Surface> {
         let bounds = pieces
             .iter()
             .map(Polygon::bounds)
@@ -144,6 +141,20 @@ impl Surface {
             paving: None,
             embedded: false,
         })
+    }
+
+    /// A surface covering the union of polygons, outlined by their rings.
+    fn from_polygons(class: FeatureClass, feature: u32, pieces: Vec<Polygon>) -> Option<Surface> {
+        let outline: Vec<Vec<Point>> = pieces
+            .iter()
+            .flat_map(|p| p.rings())
+            .map(|ring| {
+                let mut closed = ring.clone();
+                closed.push(ring[0]);
+                closed
+            })
+            .collect();
+        Surface::from_parts(class, feature, pieces, outline)
     }
 }
 
@@ -361,8 +372,14 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     let mut set = FeatureSet::default();
     set.add_feature(None, FeatureClass::Terrain, &Tags::default());
     let areas = areas_of(selection);
+    roads::add_ways(
+        &mut set,
+        &selection.ways,
+        &selection.nodes,
+        &projection,
+        settings,
+    );
     for way in &selection.ways {
-        roads::add_way(&mut set, way, &projection, settings);
         railways::add_way(&mut set, way, &projection);
         water::add_waterway(&mut set, way, &projection);
         barriers::add_way(&mut set, way, &projection);
@@ -421,22 +438,10 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, tile: TileId, projec
     }
     let tags = Tags::from_pairs([("natural", "sea")]);
     let feature = set.add_feature(None, FeatureClass::Water, &tags);
-    let bounds = sea
-        .polygons
-        .iter()
-        .map(Polygon::bounds)
-        .reduce(|a, b| a.union(&b));
-    if let Some(bounds) = bounds {
-        set.surfaces.push(Surface {
-            class: FeatureClass::Water,
-            feature,
-            pieces: sea.polygons,
-            outline: sea.coast,
-            bounds,
-            cover: None,
-            paving: None,
-            embedded: false,
-        });
+    if let Some(surface) =
+        Surface::from_parts(FeatureClass::Water, feature, sea.polygons, sea.coast)
+    {
+        set.surfaces.push(surface);
     }
 }
 
@@ -521,15 +526,5 @@ fn widened_surface(
         vec![left[0], right[0]],
         vec![left[last], right[last]],
     ];
-    let bounds = Rect::around(&left).union(&Rect::around(&right));
-    Some(Surface {
-        class,
-        feature,
-        pieces,
-        outline,
-        bounds,
-        cover: None,
-        paving: None,
-        embedded: false,
-    })
+    Surface::from_parts(class, feature, pieces, outline)
 }

@@ -3,10 +3,15 @@
 //! Width: the `width` tag, else `lanes` × the lane width, else a default per class. The paper's
 //! default is 5 m for an ordinary road (seed 001 §4.4); the other defaults scale from it with the
 //! usual lane counts of each class. Ways in tunnels are under the ground and not drawn on it.
+//! How the ways join into a network is [`super::road_network`]'s part.
 
-use super::{widened_surface, Area, FeatureClass, FeatureSet, FeatureSettings, Projection};
+use std::collections::HashMap;
+
+use super::road_network::{self, RoadLine};
+use super::{Area, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface};
+use crate::geometry::Polygon;
 use crate::osm::units::{parse_count, parse_length_m};
-use crate::osm::{ElementRef, ElementType, Tags, Way};
+use crate::osm::{ElementRef, ElementType, Node, Tags, Way};
 
 /// Width when nothing is tagged, by `highway` value; `None` for values that are not drawn as
 /// carriageways (bus stops, proposed roads, indoor corridors…).
@@ -105,40 +110,96 @@ pub fn is_off_ground(tags: &Tags) -> bool {
         || tags.get("area") == Some("yes")
 }
 
-pub(super) fn add_way(
+/// Adds the roads among `ways` as one network: a surface per way, split and cut back where
+/// ways meet, and a surface per junction (traced to its OSM node).
+pub(super) fn add_ways(
     set: &mut FeatureSet,
-    way: &Way,
+    ways: &[&Way],
+    nodes: &[&Node],
     projection: &Projection,
     settings: &FeatureSettings,
 ) {
-    if is_off_ground(&way.tags) {
-        return;
+    let mut lines = Vec::new();
+    let mut roads: Vec<(u32, Paving, f64)> = Vec::new();
+    for way in ways {
+        if is_off_ground(&way.tags) {
+            continue;
+        }
+        let Some(width) = width_m(&way.tags, settings) else {
+            continue;
+        };
+        let mut line = RoadLine {
+            nodes: Vec::with_capacity(way.nodes.len()),
+            points: Vec::with_capacity(way.nodes.len()),
+            half_width: projection.metres(width / 2.0, way.positions[0].lat),
+            metre: projection.metres(1.0, way.positions[0].lat),
+        };
+        for (&node, &position) in way.nodes.iter().zip(&way.positions) {
+            let point = projection.point(position);
+            if line.points.last() != Some(&point) {
+                line.nodes.push(node);
+                line.points.push(point);
+            }
+        }
+        if line.points.len() < 2 {
+            tracing::debug!(way = way.id, "road of a single point; skipped");
+            continue;
+        }
+        let element = ElementRef {
+            element_type: ElementType::Way,
+            id: way.id,
+        };
+        let feature = set.add_feature(Some(element), FeatureClass::Road, &way.tags);
+        roads.push((feature, Paving::from_tags(&way.tags), width));
+        lines.push(line);
     }
-    let Some(width) = width_m(&way.tags, settings) else {
-        return;
-    };
-    let line = projection.points(&way.positions);
-    let half_width = projection.metres(width / 2.0, way.positions[0].lat);
-    let element = ElementRef {
-        element_type: ElementType::Way,
-        id: way.id,
-    };
-    let feature = set.add_feature(Some(element), FeatureClass::Road, &way.tags);
-    match widened_surface(FeatureClass::Road, feature, &line, half_width) {
-        Some(mut surface) => {
-            surface.paving = Some(Paving::from_tags(&way.tags));
+    let network = road_network::build(&lines);
+    for ((feature, paving, _), road) in roads.iter().zip(network.roads) {
+        if let Some(mut surface) =
+            Surface::from_parts(FeatureClass::Road, *feature, road.pieces, road.outline)
+        {
+            surface.paving = Some(*paving);
             set.surfaces.push(surface);
         }
-        None => {
-            set.features.pop();
+    }
+    let node_tags: HashMap<i64, &Tags> = nodes.iter().map(|n| (n.id, &n.tags)).collect();
+    let no_tags = Tags::default();
+    for junction in network.junctions {
+        let element = ElementRef {
+            element_type: ElementType::Node,
+            id: junction.node,
+        };
+        let tags = node_tags.get(&junction.node).copied().unwrap_or(&no_tags);
+        let feature = set.add_feature(Some(element), FeatureClass::Road, tags);
+        // The junction is paved like the widest road that meets there.
+        let paving = junction
+            .roads
+            .iter()
+            .map(|&r| roads[r])
+            .max_by(|a, b| a.2.total_cmp(&b.2))
+            .map(|r| r.1);
+        let polygon = Polygon {
+            outer: junction.ring,
+            holes: Vec::new(),
+        };
+        if let Some(mut surface) =
+            Surface::from_polygons(FeatureClass::Road, feature, vec![polygon])
+        {
+            surface.paving = paving;
+            set.surfaces.push(surface);
         }
     }
 }
 
 /// Squares and plazas: `highway=* + area=yes` and `area:highway=*`.
 pub(super) fn add_area(set: &mut FeatureSet, area: &Area<'_>, projection: &Projection) {
+    // `highway=rest_area` or `services` with `area=yes` are facilities, not paved squares.
     let is_square = area.tags.get("area:highway").is_some()
-        || (area.tags.get("highway").is_some() && area.tags.get("area") == Some("yes"));
+        || (area
+            .tags
+            .get("highway")
+            .is_some_and(|h| default_width_m(h).is_some())
+            && area.tags.get("area") == Some("yes"));
     if !is_square || area.tags.is_set("tunnel") {
         return;
     }

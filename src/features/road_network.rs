@@ -1,0 +1,887 @@
+//! The road network on the ground: ways split where they meet, bends smoothed, and junctions
+//! drawn as polygons of their own (thesis §2.3.2 and figure 4.1).
+//!
+//! Ways meet where they share a node. At such a junction every arm is cut back until the side
+//! edges of neighbouring arms have met (the inner corners), and the junction polygon fills the
+//! space between the cut ends: its sides are the arms' end caps and the road edges up to the
+//! corners, so road surfaces neither overlap nor leave gaps. Where arms meet at so sharp an angle
+//! that the corner lies far out, the cut is limited and the arms' surfaces overlap a little,
+//! resolved by the ground priority. Bends between junctions become curves
+//! (seed 001 §4.4 uses quadratic Bézier curves; circular arcs, as roads are designed, turn evenly) whose radius grows with the road's width, so a road has no sawtooth edges.
+//!
+//! Everything is decided from the ways alone, in global tile units, so two tiles that see the
+//! same junction draw it the same.
+
+use std::collections::HashMap;
+
+use crate::geometry::{self, Point, Polygon, Ring};
+
+/// One road way on the ground, as the network sees it.
+#[derive(Debug, Clone)]
+pub struct RoadLine {
+    /// The way's node ids, one per point.
+    pub nodes: Vec<i64>,
+    pub points: Vec<Point>,
+    /// Half the road's width, tile units.
+    pub half_width: f64,
+    /// One metre in tile units where the road is.
+    pub metre: f64,
+}
+
+/// Farthest an arm is cut back from its junction node, metres: junctions of arms that meet at a
+/// very sharp angle stop here and let the arms overlap.
+const MAX_CUT_BACK_M: f64 = 25.0;
+/// Radius of a bend as a multiple of the road's half width.
+const BEND_RADIUS_PER_HALF_WIDTH: f64 = 3.0;
+
+/// The surface of one road: its pieces between junctions, widened.
+#[derive(Debug, Clone, Default)]
+pub struct RoadSurface {
+    pub pieces: Vec<Polygon>,
+    pub outline: Vec<Vec<Point>>,
+}
+
+/// A junction's polygon and the roads that meet there (indices into the network's lines).
+#[derive(Debug, Clone)]
+pub struct Junction {
+    pub node: i64,
+    pub ring: Ring,
+    pub roads: Vec<usize>,
+}
+
+/// The network drawn: one surface per input line (possibly empty) and the junction polygons.
+#[derive(Debug, Clone, Default)]
+pub struct Network {
+    pub roads: Vec<RoadSurface>,
+    pub junctions: Vec<Junction>,
+}
+
+/// Where a piece of a road leaves a junction: the road, the index of the junction's point in
+/// it, and whether the piece runs towards higher indices.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+struct ArmKey {
+    road: usize,
+    index: usize,
+    forward: bool,
+}
+
+/// The end of a widened piece at a junction.
+#[derive(Debug, Clone, Copy)]
+struct Cap {
+    /// Unit direction away from the junction.
+    direction: Point,
+    /// The cap's corner on the side a quarter turn counter-clockwise of `direction` (in the
+    /// plane's own orientation) and the one clockwise of it.
+    plus: Point,
+    minus: Point,
+    /// The corners the arm would have at the junction node itself, were it not cut back.
+    base_plus: Point,
+    base_minus: Point,
+}
+
+/// A stretch of one road between two break points (junctions or the road's ends).
+struct Piece {
+    road: usize,
+    points: Vec<Point>,
+    start: Option<ArmKey>,
+    end: Option<ArmKey>,
+}
+
+/// Draws the network of `lines`.
+pub fn build(lines: &[RoadLine]) -> Network {
+    let arms_at = arms_by_node(lines);
+    let junction_at = |node: i64| arms_at.get(&node).is_some_and(|arms| is_junction(arms));
+
+    // 1. Split at junctions and smooth the bends in between.
+    let mut pieces: Vec<Piece> = Vec::new();
+    for (road, line) in lines.iter().enumerate() {
+        let n = line.points.len();
+        let mut start = 0;
+        for i in 1..n {
+            if i + 1 < n && !junction_at(line.nodes[i]) {
+                continue;
+            }
+            let radius = line.half_width * BEND_RADIUS_PER_HALF_WIDTH;
+            pieces.push(Piece {
+                road,
+                points: smooth(&line.points[start..=i], radius),
+                start: junction_at(line.nodes[start]).then_some(ArmKey {
+                    road,
+                    index: start,
+                    forward: true,
+                }),
+                end: junction_at(line.nodes[i]).then_some(ArmKey {
+                    road,
+                    index: i,
+                    forward: false,
+                }),
+            });
+            start = i;
+        }
+    }
+
+    // 2. How far each arm is cut back: to the inner corners with its neighbours, no farther
+    //    than the limit, and leaving most of the piece.
+    let mut cut: HashMap<ArmKey, f64> = HashMap::new();
+    for arms in arms_at.values().filter(|arms| is_junction(arms)) {
+        let centre = lines[arms[0].road].points[arms[0].index];
+        let rays: Vec<(Point, f64)> = arms
+            .iter()
+            .map(|a| {
+                (
+                    arm_direction(&lines[a.road].points, a),
+                    lines[a.road].half_width,
+                )
+            })
+            .collect();
+        for (arm, distance) in arms.iter().zip(cut_backs(centre, &rays)) {
+            cut.insert(*arm, distance.min(MAX_CUT_BACK_M * lines[arm.road].metre));
+        }
+    }
+    for piece in &pieces {
+        let length = polyline_length(&piece.points);
+        let share = if piece.start.is_some() && piece.end.is_some() {
+            0.45
+        } else {
+            0.9
+        };
+        for key in [piece.start, piece.end].into_iter().flatten() {
+            if let Some(d) = cut.get_mut(&key) {
+                *d = d.min(share * length);
+            }
+        }
+    }
+
+    // 3. Trim and widen the pieces, keeping their caps at junctions.
+    let mut network = Network {
+        roads: vec![RoadSurface::default(); lines.len()],
+        junctions: Vec::new(),
+    };
+    let mut caps: HashMap<ArmKey, Cap> = HashMap::new();
+    for piece in &pieces {
+        let cut_of = |key: Option<ArmKey>| key.and_then(|k| cut.get(&k)).copied().unwrap_or(0.0);
+        let Some(trimmed) = trim(&piece.points, cut_of(piece.start), cut_of(piece.end)) else {
+            continue;
+        };
+        let half_width = lines[piece.road].half_width;
+        let Some((left, right)) = geometry::offset_polyline(&trimmed, half_width) else {
+            continue;
+        };
+        let last = left.len() - 1;
+        let base = |at: Point, towards: Point| {
+            let side = turn(unit(at, towards));
+            (
+                [at[0] + side[0] * half_width, at[1] + side[1] * half_width],
+                [at[0] - side[0] * half_width, at[1] - side[1] * half_width],
+            )
+        };
+        if let Some(key) = piece.start {
+            let (base_plus, base_minus) = base(piece.points[0], piece.points[1]);
+            caps.insert(
+                key,
+                Cap {
+                    direction: unit(trimmed[0], trimmed[1]),
+                    plus: right[0],
+                    minus: left[0],
+                    base_plus,
+                    base_minus,
+                },
+            );
+        }
+        if let Some(key) = piece.end {
+            let (n, m) = (trimmed.len(), piece.points.len());
+            let (base_plus, base_minus) = base(piece.points[m - 1], piece.points[m - 2]);
+            caps.insert(
+                key,
+                Cap {
+                    direction: unit(trimmed[n - 1], trimmed[n - 2]),
+                    plus: left[last],
+                    minus: right[last],
+                    base_plus,
+                    base_minus,
+                },
+            );
+        }
+        let surface = &mut network.roads[piece.road];
+        surface.pieces.extend((0..last).map(|i| Polygon {
+            outer: vec![left[i], left[i + 1], right[i + 1], right[i]],
+            holes: Vec::new(),
+        }));
+        surface.outline.push(left.clone());
+        surface.outline.push(right.clone());
+        surface.outline.push(vec![left[0], right[0]]);
+        surface.outline.push(vec![left[last], right[last]]);
+    }
+
+    // 4. The junction polygons from the caps around each junction node.
+    let mut nodes: Vec<(&i64, &Vec<ArmKey>)> = arms_at
+        .iter()
+        .filter(|(_, arms)| is_junction(arms))
+        .collect();
+    nodes.sort_by_key(|(node, _)| **node);
+    for (&node, arms) in nodes {
+        let around: Vec<Cap> = arms.iter().filter_map(|a| caps.get(a)).copied().collect();
+        let centre = lines[arms[0].road].points[arms[0].index];
+        if let Some(ring) = junction_ring(centre, &around) {
+            let mut roads: Vec<usize> = arms.iter().map(|a| a.road).collect();
+            roads.dedup();
+            network.junctions.push(Junction { node, ring, roads });
+        }
+    }
+    network
+}
+
+/// The arms at every node, in road order.
+fn arms_by_node(lines: &[RoadLine]) -> HashMap<i64, Vec<ArmKey>> {
+    let mut arms: HashMap<i64, Vec<ArmKey>> = HashMap::new();
+    for (road, line) in lines.iter().enumerate() {
+        let n = line.points.len();
+        for (index, &node) in line.nodes.iter().enumerate() {
+            let entry = arms.entry(node).or_default();
+            if index > 0 {
+                entry.push(ArmKey {
+                    road,
+                    index,
+                    forward: false,
+                });
+            }
+            if index + 1 < n {
+                entry.push(ArmKey {
+                    road,
+                    index,
+                    forward: true,
+                });
+            }
+        }
+    }
+    arms
+}
+
+/// A node is a junction when more than two arms meet there, or two that are not the two sides
+/// of one road's inner vertex (two roads end to end, or a closed road's start).
+fn is_junction(arms: &[ArmKey]) -> bool {
+    match arms {
+        [a, b] => !(a.road == b.road && a.index == b.index),
+        arms => arms.len() > 2,
+    }
+}
+
+fn arm_direction(points: &[Point], arm: &ArmKey) -> Point {
+    let next = if arm.forward {
+        arm.index + 1
+    } else {
+        arm.index - 1
+    };
+    unit(points[arm.index], points[next])
+}
+
+fn unit(from: Point, to: Point) -> Point {
+    let d = [to[0] - from[0], to[1] - from[1]];
+    let len = d[0].hypot(d[1]);
+    if len > 0.0 {
+        [d[0] / len, d[1] / len]
+    } else {
+        [1.0, 0.0]
+    }
+}
+
+/// A quarter turn from the first axis towards the second.
+fn turn(d: Point) -> Point {
+    [-d[1], d[0]]
+}
+
+fn angle(d: Point) -> f64 {
+    d[1].atan2(d[0])
+}
+
+/// Where the lines `p + s·d` and `q + t·e` meet, as `(s, t)`; `None` when parallel.
+fn meet(p: Point, d: Point, q: Point, e: Point) -> Option<(f64, f64)> {
+    let det = d[0] * -e[1] + e[0] * d[1];
+    if det.abs() < 1e-12 {
+        return None;
+    }
+    let r = [q[0] - p[0], q[1] - p[1]];
+    let s = (r[0] * -e[1] + e[0] * r[1]) / det;
+    let t = (d[0] * r[1] - d[1] * r[0]) / det;
+    Some((s, t))
+}
+
+/// Arms this far apart (radians) or more are nearly straight on.
+const STRAIGHT_ON: f64 = 5.0 * std::f64::consts::PI / 6.0;
+/// Farthest an arm is cut back, in half widths of the junction's widest arm.
+const MAX_CUT_BACK_HALF_WIDTHS: f64 = 4.0;
+
+/// How far each ray (a unit direction and a half width from `centre`) must be cut back so that
+/// its end cap reaches the inner corners it forms with its neighbours in angular order. Every
+/// arm is cut back at least a quarter of the widest half width, so a junction has an area, and
+/// at most [`MAX_CUT_BACK_HALF_WIDTHS`].
+fn cut_backs(centre: Point, rays: &[(Point, f64)]) -> Vec<f64> {
+    let widest = rays.iter().map(|r| r.1).fold(0.0, f64::max);
+    let mut cut = vec![widest * 0.25; rays.len()];
+    let mut order: Vec<usize> = (0..rays.len()).collect();
+    order.sort_by(|&a, &b| angle(rays[a].0).total_cmp(&angle(rays[b].0)));
+    for k in 0..order.len() {
+        let (i, j) = (order[k], order[(k + 1) % order.len()]);
+        if i == j {
+            continue;
+        }
+        let (di, hi) = rays[i];
+        let (dj, hj) = rays[j];
+        let mut between = angle(dj) - angle(di);
+        if between <= 0.0 {
+            between += std::f64::consts::TAU;
+        }
+        if between >= std::f64::consts::PI - 1e-3 {
+            continue;
+        }
+        // Ray i's edge on the side of ray j, and ray j's edge on the side of ray i.
+        let (ni, nj) = (turn(di), turn(dj));
+        let pi = [centre[0] + ni[0] * hi, centre[1] + ni[1] * hi];
+        let pj = [centre[0] - nj[0] * hj, centre[1] - nj[1] * hj];
+        if let Some((s, t)) = meet(pi, di, pj, dj) {
+            if between > STRAIGHT_ON && s.max(t) > 2.0 * widest {
+                // Nearly straight on, the edges of arms of different widths meet far out: the
+                // road just changes width there.
+                continue;
+            }
+            cut[i] = cut[i].max(s);
+            cut[j] = cut[j].max(t);
+        }
+    }
+    for c in &mut cut {
+        *c = c.min(widest * MAX_CUT_BACK_HALF_WIDTHS);
+    }
+    cut
+}
+
+/// The junction polygon around the caps of the arms meeting at `centre`: the union of the parts
+/// cut off the arms (each from the node to its cap) and, on the outer side of a bend, the mitre
+/// between two arms' edges when it is not too far out, less what the arms beyond their caps
+/// cover. Every part touches the node, so the region is star-shaped around it and
+/// [`star_union`] traces it. Falls back to the convex hull of the parts, which overlaps the arms
+/// but leaves no gap, should that fail.
+fn junction_ring(centre: Point, caps: &[Cap]) -> Option<Ring> {
+    if caps.len() < 2 {
+        return None;
+    }
+    let mut caps = caps.to_vec();
+    caps.sort_by(|a, b| angle(a.direction).total_cmp(&angle(b.direction)));
+    let mut parts: Vec<Vec<Point>> = caps
+        .iter()
+        .map(|c| vec![c.base_minus, c.base_plus, c.plus, c.minus])
+        .collect();
+    for k in 0..caps.len() {
+        let (a, b) = (caps[k], caps[(k + 1) % caps.len()]);
+        let mut between = angle(b.direction) - angle(a.direction);
+        if between <= 0.0 {
+            between += std::f64::consts::TAU;
+        }
+        if between > std::f64::consts::PI {
+            if let Some(mitre) = edge_corner(&a, &b, between) {
+                parts.push(vec![centre, a.base_plus, mitre, b.base_minus]);
+            }
+        }
+    }
+    // The arms beyond their caps, as long straight strips: the junction stops where it meets
+    // them.
+    let beyond: Vec<Vec<Point>> = caps
+        .iter()
+        .map(|c| {
+            let reach = 1e3 * distance(c.plus, c.minus).max(distance(c.plus, centre));
+            let far = |p: Point| [p[0] + c.direction[0] * reach, p[1] + c.direction[1] * reach];
+            vec![c.minus, c.plus, far(c.plus), far(c.minus)]
+        })
+        .collect();
+    if let Some(ring) = star_union(centre, &parts, &beyond) {
+        if ring.len() >= 3 && !geometry::ring_self_intersects(&ring) {
+            return Some(ring);
+        }
+    }
+    let corners: Vec<Point> = parts.iter().flatten().copied().collect();
+    let hull = geometry::convex_hull(&corners);
+    (hull.len() >= 3).then_some(hull)
+}
+
+/// The outline of the union of convex `parts` that touch `centre`, cut short along a direction
+/// from the centre where it would end inside one of the convex `obstacles` (which do not contain
+/// the centre): there it stops where the obstacles holding its end begin. Seen from the centre, the boundary in any direction is the farthest
+/// part edge or the nearest obstacle edge; which edge that is changes only at vertices and where
+/// two edges cross, so tracing it between those directions gives the outline.
+fn star_union(centre: Point, parts: &[Vec<Point>], obstacles: &[Vec<Point>]) -> Option<Ring> {
+    let local = |p: &Point| [p[0] - centre[0], p[1] - centre[1]];
+    let edges_of = |polygons: &[Vec<Point>], first: usize| -> Vec<(Point, Point, usize)> {
+        polygons
+            .iter()
+            .enumerate()
+            .flat_map(|(k, polygon)| {
+                (0..polygon.len()).map(move |i| {
+                    (
+                        local(&polygon[i]),
+                        local(&polygon[(i + 1) % polygon.len()]),
+                        first + k,
+                    )
+                })
+            })
+            .collect()
+    };
+    let edges = edges_of(parts, 0);
+    let walls = edges_of(obstacles, parts.len());
+    let everything: Vec<(Point, Point, usize)> = edges.iter().chain(&walls).copied().collect();
+    // The input vertices as given, in the order of the edges that start at them.
+    let originals: Vec<Point> = parts.iter().chain(obstacles).flatten().copied().collect();
+    let scale = edges
+        .iter()
+        .map(|(a, _, _)| a[0].hypot(a[1]))
+        .fold(0.0, f64::max);
+    if scale == 0.0 {
+        return None;
+    }
+    let tiny = scale * 1e-9;
+    let snap = scale * 1e-6;
+    let mut angles: Vec<f64> = everything
+        .iter()
+        .filter(|(a, _, _)| a[0].hypot(a[1]) > tiny)
+        .map(|(a, _, _)| angle(*a))
+        .collect();
+    for (i, &(a, b, k)) in everything.iter().enumerate() {
+        for &(c, d, l) in &everything[i + 1..] {
+            if k == l {
+                continue;
+            }
+            let (ab, cd) = ([b[0] - a[0], b[1] - a[1]], [d[0] - c[0], d[1] - c[1]]);
+            if let Some((s, t)) = meet(a, ab, c, cd) {
+                if (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t) {
+                    let x = [a[0] + ab[0] * s, a[1] + ab[1] * s];
+                    if x[0].hypot(x[1]) > tiny {
+                        angles.push(angle(x));
+                    }
+                }
+            }
+        }
+    }
+    angles.sort_by(f64::total_cmp);
+    angles.dedup_by(|b, a| *b - *a < 1e-12);
+    if angles.len() < 2 {
+        return None;
+    }
+    // The edge that bounds the region along a direction, and how far it is.
+    let hits = |direction: Point, edges: &[(Point, Point, usize)]| {
+        edges
+            .iter()
+            .filter_map(move |&(a, b, k)| {
+                let ab = [b[0] - a[0], b[1] - a[1]];
+                let (t, s) = meet([0.0, 0.0], direction, a, ab)?;
+                ((0.0..=1.0).contains(&s) && t > 0.0).then_some((t, a, ab, k))
+            })
+            .collect::<Vec<_>>()
+    };
+    let farthest = |direction: Point| {
+        let (mut reach, mut a, mut ab, _) = hits(direction, &edges)
+            .into_iter()
+            .max_by(|x, y| x.0.total_cmp(&y.0))?;
+        // Where an obstacle holds the far end, the region stops where that obstacle begins
+        // along the direction (and so on while that point lies in another): the stretch cut off
+        // is covered by obstacles. Where the far end lies behind an obstacle but outside all,
+        // the region keeps its reach and overlaps the obstacle rather than leave a gap.
+        let wall_hits = hits(direction, &walls);
+        let mut spans: Vec<(f64, f64, Point, Point)> = Vec::new();
+        for k in parts.len()..parts.len() + obstacles.len() {
+            let mine = wall_hits.iter().filter(|h| h.3 == k);
+            let first = mine.clone().min_by(|x, y| x.0.total_cmp(&y.0));
+            let last = mine.max_by(|x, y| x.0.total_cmp(&y.0));
+            if let (Some(first), Some(last)) = (first, last) {
+                spans.push((first.0, last.0, first.1, first.2));
+            }
+        }
+        while let Some(span) = spans
+            .iter()
+            .find(|span| span.0 < reach * (1.0 - 1e-9) && reach * (1.0 - 1e-7) < span.1)
+        {
+            (reach, a, ab) = (span.0, span.2, span.3);
+        }
+        Some((reach, a, ab))
+    };
+    let mut ring: Ring = Vec::with_capacity(angles.len() * 2);
+    for k in 0..angles.len() {
+        let from = angles[k];
+        let to = if k + 1 < angles.len() {
+            angles[k + 1]
+        } else {
+            angles[0] + std::f64::consts::TAU
+        };
+        let ray = |theta: f64| [theta.cos(), theta.sin()];
+        let Some((reach, a, ab)) = farthest(ray((from + to) / 2.0)) else {
+            ring.push(centre);
+            continue;
+        };
+        // Where the farthest edge's line crosses the two bounding directions.
+        for theta in [from, to] {
+            let point = match meet([0.0, 0.0], ray(theta), a, ab) {
+                Some((t, _)) if t > 0.0 && t < reach * 1e3 => [t * theta.cos(), t * theta.sin()],
+                _ => {
+                    let mid = ray((from + to) / 2.0);
+                    [mid[0] * reach, mid[1] * reach]
+                }
+            };
+            // A point that is one of the input vertices (a cap corner) takes its exact bits, so
+            // the junction and the arm share the edge.
+            let exact = everything
+                .iter()
+                .position(|e| distance(e.0, point) <= snap)
+                .map(|i| originals[i]);
+            ring.push(exact.unwrap_or([centre[0] + point[0], centre[1] + point[1]]));
+        }
+    }
+    let mut out: Ring = Vec::with_capacity(ring.len());
+    for p in ring {
+        let repeated = out
+            .last()
+            .is_some_and(|q: &Point| (q[0] - p[0]).abs() <= tiny && (q[1] - p[1]).abs() <= tiny);
+        if !repeated {
+            out.push(p);
+        }
+    }
+    while out.len() > 1 && {
+        let (f, l) = (out[0], out[out.len() - 1]);
+        (f[0] - l[0]).abs() <= tiny && (f[1] - l[1]).abs() <= tiny
+    } {
+        out.pop();
+    }
+    // Points in the middle of a straight stretch are dropped.
+    let mut i = 0;
+    while out.len() > 3 && i < out.len() {
+        let n = out.len();
+        let (a, b, c) = (out[(i + n - 1) % n], out[i], out[(i + 1) % n]);
+        if geometry::orient(a, b, c).abs() <= tiny * distance(a, c) {
+            out.remove(i);
+        } else {
+            i += 1;
+        }
+    }
+    (out.len() >= 3).then_some(out)
+}
+
+/// Longest the mitre on the outer side of a bend may reach beyond the cap corners, in half
+/// widths of the wider arm.
+const MITRE_LIMIT: f64 = 2.0;
+
+fn distance(a: Point, b: Point) -> f64 {
+    (b[0] - a[0]).hypot(b[1] - a[1])
+}
+
+/// Where the edge of arm `a` on the side of `b` meets the edge of `b` on the side of `a`, when
+/// that point lies inward of both caps (and, on the outer side of a bend, not too far out).
+fn edge_corner(a: &Cap, b: &Cap, between: f64) -> Option<Point> {
+    let (s, t) = meet(a.plus, a.direction, b.minus, b.direction)?;
+    let tolerance = 1e-9;
+    let corner = [
+        a.plus[0] + a.direction[0] * s,
+        a.plus[1] + a.direction[1] * s,
+    ];
+    let reach = MITRE_LIMIT * distance(a.plus, a.minus).max(distance(b.plus, b.minus)) / 2.0;
+    let near = between < std::f64::consts::PI
+        || (distance(corner, a.plus) <= reach && distance(corner, b.minus) <= reach);
+    (s < -tolerance && t < -tolerance && near).then_some(corner)
+}
+
+fn polyline_length(points: &[Point]) -> f64 {
+    points
+        .windows(2)
+        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+        .sum()
+}
+
+/// The polyline without its first `start` and last `end` units of length; `None` when nothing
+/// is left.
+pub fn trim(points: &[Point], start: f64, end: f64) -> Option<Vec<Point>> {
+    let length = polyline_length(points);
+    if start + end >= length || points.len() < 2 {
+        return None;
+    }
+    let mut out = Vec::with_capacity(points.len());
+    let (from, to) = (start, length - end);
+    let mut walked = 0.0;
+    for w in points.windows(2) {
+        let segment = (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]);
+        let (a, b) = (walked, walked + segment);
+        let at = |d: f64| {
+            let t = if segment > 0.0 {
+                (d - a) / segment
+            } else {
+                0.0
+            };
+            [
+                w[0][0] + (w[1][0] - w[0][0]) * t,
+                w[0][1] + (w[1][1] - w[0][1]) * t,
+            ]
+        };
+        if out.is_empty() && from <= b {
+            out.push(if from <= a { w[0] } else { at(from) });
+        }
+        if !out.is_empty() {
+            if to <= b {
+                out.push(if to >= b { w[1] } else { at(to) });
+                break;
+            }
+            out.push(w[1]);
+        }
+        walked = b;
+    }
+    let out = geometry::dedup_ring(&out);
+    (out.len() >= 2).then_some(out)
+}
+
+/// Smallest turn (radians) worth rounding.
+const MIN_BEND: f64 = 0.3;
+/// Largest angle (radians) one segment of an arc turns through.
+const BEND_STEP: f64 = 0.35;
+
+/// Rounds every inner vertex of a polyline into a circular arc that touches both segments, of
+/// `radius` unless that would reach past half of either segment (then tighter), so neighbouring
+/// bends never overlap. The ends of the polyline stay.
+pub fn smooth(points: &[Point], radius: f64) -> Vec<Point> {
+    let n = points.len();
+    if n < 3 || radius <= 0.0 {
+        return points.to_vec();
+    }
+    let mut out: Vec<Point> = Vec::with_capacity(n * 3);
+    out.push(points[0]);
+    for i in 1..n - 1 {
+        let (p, v, q) = (points[i - 1], points[i], points[i + 1]);
+        let (din, dout) = (unit(p, v), unit(v, q));
+        let cos = (din[0] * dout[0] + din[1] * dout[1]).clamp(-1.0, 1.0);
+        let bend = cos.acos();
+        let len_in = (v[0] - p[0]).hypot(v[1] - p[1]);
+        let len_out = (q[0] - v[0]).hypot(q[1] - v[1]);
+        if bend < MIN_BEND || len_in == 0.0 || len_out == 0.0 {
+            out.push(v);
+            continue;
+        }
+        let cut = (radius * (bend / 2.0).tan())
+            .min(len_in / 2.0)
+            .min(len_out / 2.0);
+        let a = [v[0] - din[0] * cut, v[1] - din[1] * cut];
+        let b = [v[0] + dout[0] * cut, v[1] + dout[1] * cut];
+        // The arc's centre lies a radius to the inside of the bend from where it touches.
+        let side = if din[0] * dout[1] - din[1] * dout[0] > 0.0 {
+            1.0
+        } else {
+            -1.0
+        };
+        let r = cut / (bend / 2.0).tan();
+        let normal = turn(din);
+        let centre = [a[0] + normal[0] * side * r, a[1] + normal[1] * side * r];
+        let start = [a[0] - centre[0], a[1] - centre[1]];
+        let steps = ((bend / BEND_STEP).ceil() as usize).max(1);
+        out.push(a);
+        for k in 1..steps {
+            let phi = side * bend * k as f64 / steps as f64;
+            let (sin, cos) = phi.sin_cos();
+            out.push([
+                centre[0] + start[0] * cos - start[1] * sin,
+                centre[1] + start[0] * sin + start[1] * cos,
+            ]);
+        }
+        out.push(b);
+    }
+    out.push(points[n - 1]);
+    let mut deduped: Vec<Point> = Vec::with_capacity(out.len());
+    for p in out {
+        let near = deduped
+            .last()
+            .is_some_and(|l: &Point| (l[0] - p[0]).abs() < 1e-12 && (l[1] - p[1]).abs() < 1e-12);
+        if !near {
+            deduped.push(p);
+        }
+    }
+    if deduped.len() < 2 {
+        return points.to_vec();
+    }
+    deduped
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Roads from a shared centre node 0 out to their own far nodes, at the given angles
+    /// (radians), half widths and lengths.
+    fn star(arms: &[(f64, f64)], length: f64) -> Vec<RoadLine> {
+        arms.iter()
+            .enumerate()
+            .map(|(i, &(angle, half_width))| RoadLine {
+                nodes: vec![0, i as i64 + 1],
+                points: vec![[0.0, 0.0], [angle.cos() * length, angle.sin() * length]],
+                half_width,
+                metre: 1.0,
+            })
+            .collect()
+    }
+
+    /// Whether `p` lies on the untrimmed strip of a straight star arm.
+    fn on_strip(p: Point, angle: f64, half_width: f64, length: f64) -> bool {
+        let (c, s) = (angle.cos(), angle.sin());
+        let along = p[0] * c + p[1] * s;
+        let across = -p[0] * s + p[1] * c;
+        (0.0..=length).contains(&along) && across.abs() <= half_width
+    }
+
+    /// How many road pieces and junctions cover each sample point of the strips within `reach`
+    /// of the centre: (points covered by none, points covered twice or more, points sampled).
+    fn coverage(arms: &[(f64, f64)], reach: f64) -> (usize, usize, usize) {
+        let length = 100.0;
+        let network = build(&star(arms, length));
+        let (mut gaps, mut overlaps, mut sampled) = (0, 0, 0);
+        let steps = 160;
+        for i in 0..steps {
+            for j in 0..steps {
+                // An irrational offset keeps samples off the polygons' edges.
+                let p = [
+                    -reach + 2.0 * reach * (i as f64 + 0.5137) / steps as f64,
+                    -reach + 2.0 * reach * (j as f64 + 0.4711) / steps as f64,
+                ];
+                if !arms.iter().any(|&(a, h)| on_strip(p, a, h, length)) {
+                    continue;
+                }
+                sampled += 1;
+                let pieces = network
+                    .roads
+                    .iter()
+                    .flat_map(|r| &r.pieces)
+                    .filter(|piece| piece.contains(p))
+                    .count();
+                let junctions = network
+                    .junctions
+                    .iter()
+                    .filter(|j| geometry::ring_contains(&j.ring, p))
+                    .count();
+                match pieces + junctions {
+                    0 => gaps += 1,
+                    1 => {}
+                    _ => overlaps += 1,
+                }
+            }
+        }
+        (gaps, overlaps, sampled)
+    }
+
+    #[test]
+    fn a_crossing_a_t_and_a_fork_are_covered_exactly_once() {
+        use std::f64::consts::PI;
+        let crossing = [
+            (0.0, 5.0),
+            (PI / 2.0, 3.0),
+            (PI, 5.0),
+            (3.0 * PI / 2.0, 3.0),
+        ];
+        let t = [(0.0, 5.0), (PI, 5.0), (-PI / 2.0, 2.0)];
+        let fork = [(0.0, 4.0), (2.0, 3.0), (-2.2, 3.5)];
+        for arms in [&crossing[..], &t[..], &fork[..]] {
+            let (gaps, overlaps, sampled) = coverage(arms, 30.0);
+            assert!(sampled > 1000);
+            assert_eq!((gaps, overlaps), (0, 0), "{arms:?}");
+        }
+    }
+
+    #[test]
+    fn each_junction_gets_one_polygon_tracing_its_node() {
+        let network = build(&star(&[(0.0, 5.0), (1.5, 5.0), (3.5, 5.0)], 100.0));
+        assert_eq!(network.junctions.len(), 1);
+        assert_eq!(network.junctions[0].node, 0);
+        assert_eq!(network.junctions[0].roads, vec![0, 1, 2]);
+        // A lone road has no junction and keeps its full length.
+        let lone = build(&star(&[(0.0, 5.0)], 100.0));
+        assert!(lone.junctions.is_empty());
+        let area: f64 = lone.roads[0].pieces.iter().map(Polygon::area).sum();
+        assert!((area - 1000.0).abs() < 1e-6, "{area}");
+    }
+
+    #[test]
+    fn two_roads_end_to_end_at_a_bend_leave_no_wedge() {
+        let lines = vec![
+            RoadLine {
+                nodes: vec![1, 0],
+                points: vec![[-100.0, 0.0], [0.0, 0.0]],
+                half_width: 4.0,
+                metre: 1.0,
+            },
+            RoadLine {
+                nodes: vec![0, 2],
+                points: vec![[0.0, 0.0], [70.0, 70.0]],
+                half_width: 4.0,
+                metre: 1.0,
+            },
+        ];
+        let network = build(&lines);
+        assert_eq!(network.junctions.len(), 1);
+        // Just outside the bend, on the outer side: covered by one of the two roads' strips.
+        let outer = [0.5, -3.5];
+        let covered = network
+            .roads
+            .iter()
+            .flat_map(|r| &r.pieces)
+            .filter(|p| p.contains(outer))
+            .count()
+            + usize::from(geometry::ring_contains(&network.junctions[0].ring, outer));
+        assert_eq!(covered, 1);
+    }
+
+    #[test]
+    fn bends_become_curves_that_keep_the_ends() {
+        let line = [[0.0, 0.0], [50.0, 0.0], [50.0, 50.0]];
+        let smoothed = smooth(&line, 10.0);
+        assert_eq!(smoothed.first(), Some(&line[0]));
+        assert_eq!(smoothed.last(), Some(&line[2]));
+        assert!(smoothed.len() > 5);
+        // No turn between consecutive segments is sharper than one curve step.
+        for w in smoothed.windows(3) {
+            let (a, b) = (unit(w[0], w[1]), unit(w[1], w[2]));
+            let turn = (a[0] * b[0] + a[1] * b[1]).clamp(-1.0, 1.0).acos();
+            assert!(turn <= BEND_STEP + 1e-9, "{turn}");
+        }
+        // The curve starts where a circle of radius 10 touches the first segment.
+        assert!(smoothed.contains(&[40.0, 0.0]));
+        // A straight line stays as it is.
+        assert_eq!(smooth(&[[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], 10.0).len(), 3);
+    }
+
+    #[test]
+    fn trimming_removes_length_from_both_ends() {
+        let line = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]];
+        let trimmed = trim(&line, 2.0, 3.0).expect("some length is left");
+        assert_eq!(trimmed, vec![[2.0, 0.0], [10.0, 0.0], [10.0, 7.0]]);
+        assert_eq!(trim(&line, 12.0, 9.0), None);
+    }
+
+    proptest! {
+        #[test]
+        fn any_star_junction_is_a_simple_polygon_and_leaves_no_gap(
+            arms in prop::collection::vec((-3.2f64..3.2, 0.5f64..8.0), 2..7),
+        ) {
+            let network = build(&star(&arms, 100.0));
+            for junction in &network.junctions {
+                prop_assert!(junction.ring.len() >= 3);
+                prop_assert!(
+                    !geometry::ring_self_intersects(&junction.ring)
+                        || geometry::convex_hull(&junction.ring).len() == junction.ring.len()
+                );
+            }
+            let (gaps, overlaps, sampled) = coverage(&arms, 20.0);
+            prop_assert_eq!(gaps, 0);
+            // Arms well apart meet without overlapping.
+            let mut angles: Vec<f64> = arms
+                .iter()
+                .map(|a| a.0.rem_euclid(std::f64::consts::TAU))
+                .collect();
+            angles.sort_by(f64::total_cmp);
+            let apart = angles
+                .iter()
+                .zip(angles.iter().cycle().skip(1))
+                .all(|(a, b)| (b - a).rem_euclid(std::f64::consts::TAU) >= std::f64::consts::FRAC_PI_2);
+            if apart && angles.len() > 1 {
+                prop_assert!(overlaps * 1000 <= sampled, "{} of {}", overlaps, sampled);
+            }
+        }
+    }
+}

@@ -1,0 +1,80 @@
+//! The road network of a real tile: ways cut back where they meet and joined by junction
+//! polygons, so road surfaces do not overlap.
+
+mod common;
+
+use common::{sample_osm, sample_srtm};
+use terrastitch::features::{self, FeatureClass, FeatureSet, Surface};
+use terrastitch::osm::ElementType;
+use terrastitch::source::Sources;
+use terrastitch::TileId;
+
+fn feature_set(x: u32, y: u32) -> FeatureSet {
+    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let tile = TileId { z: 14, x, y };
+    features::collect(&sources.selection(tile), tile, &Default::default())
+}
+
+/// Of the sample points on a grid over the tile that lie on a road surface, how many lie on
+/// two or more, and how many on one.
+fn road_coverage(set: &FeatureSet, x: u32, y: u32, steps: usize) -> (usize, usize) {
+    let roads: Vec<&Surface> = set
+        .surfaces
+        .iter()
+        .filter(|s| s.class == FeatureClass::Road && !s.embedded)
+        .collect();
+    // Surfaces by grid row, to keep the lookups short.
+    let rows = 64;
+    let mut by_row: Vec<Vec<&Surface>> = vec![Vec::new(); rows];
+    for surface in &roads {
+        let from = ((surface.bounds.min[1] - f64::from(y)) * rows as f64)
+            .floor()
+            .max(0.0) as usize;
+        let to = ((surface.bounds.max[1] - f64::from(y)) * rows as f64)
+            .floor()
+            .max(0.0) as usize;
+        for row in by_row.iter_mut().take(to.min(rows - 1) + 1).skip(from) {
+            row.push(surface);
+        }
+    }
+    let (mut twice, mut once) = (0, 0);
+    for j in 0..steps {
+        let v = f64::from(y) + (j as f64 + 0.37) / steps as f64;
+        let row = &by_row[((v - f64::from(y)) * rows as f64) as usize];
+        for i in 0..steps {
+            let u = f64::from(x) + (i as f64 + 0.61) / steps as f64;
+            match row.iter().filter(|s| s.contains([u, v])).count() {
+                0 => {}
+                1 => once += 1,
+                _ => twice += 1,
+            }
+        }
+    }
+    (twice, once)
+}
+
+#[test]
+fn road_surfaces_of_a_dense_tile_barely_overlap() {
+    let (x, y) = (8529, 5973);
+    let set = feature_set(x, y);
+    let junctions = set
+        .surfaces
+        .iter()
+        .filter(|s| {
+            s.class == FeatureClass::Road
+                && set.features[s.feature as usize]
+                    .element
+                    .is_some_and(|e| e.element_type == ElementType::Node)
+        })
+        .count();
+    assert!(junctions > 100, "{junctions} junction polygons");
+    // A sample every 2.4 m.
+    let (twice, once) = road_coverage(&set, x, y, 1000);
+    assert!(once > 20_000, "{once} samples on roads");
+    let overlap = twice as f64 / (twice + once) as f64;
+    assert!(
+        overlap < 0.005,
+        "{twice} of {} road samples on two surfaces",
+        twice + once
+    );
+}
