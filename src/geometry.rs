@@ -314,6 +314,21 @@ pub fn ring_self_intersects(ring: &[Point]) -> bool {
     false
 }
 
+/// True when all points lie on one line (a ring of them encloses nothing).
+pub fn is_collinear(points: &[Point]) -> bool {
+    let Some(&first) = points.first() else {
+        return true;
+    };
+    let far = points.iter().copied().max_by(|a, b| {
+        let d = |p: &Point| (p[0] - first[0]).powi(2) + (p[1] - first[1]).powi(2);
+        d(a).total_cmp(&d(b))
+    });
+    match far {
+        Some(far) => points.iter().all(|&p| orient(first, far, p) == 0.0),
+        None => true,
+    }
+}
+
 /// The convex hull of some points, counter-clockwise in a y-up plane, without collinear points
 /// (Andrew's monotone chain).
 pub fn convex_hull(points: &[Point]) -> Ring {

@@ -353,7 +353,7 @@ impl Projection {
 
     pub fn polygon(&self, area: &AreaPolygon) -> Option<Polygon> {
         let outer = crate::geometry::dedup_ring(&self.points(&area.outer));
-        if outer.len() < 3 || crate::geometry::signed_area2(&outer) == 0.0 {
+        if outer.len() < 3 || crate::geometry::is_collinear(&outer) {
             return None;
         }
         let holes = area
@@ -465,18 +465,22 @@ pub struct Area<'a> {
 fn areas_of<'a>(selection: &Selection<'a>) -> Vec<Area<'a>> {
     let mut areas = Vec::new();
     for way in &selection.ways {
-        if way.tags.get("area") == Some("no") {
+        if !crate::osm::areas::is_area(&way.tags) {
             continue;
         }
         if let Some(polygon) = crate::osm::multipolygon::way_area(way) {
-            areas.push(Area {
-                element: ElementRef {
-                    element_type: ElementType::Way,
-                    id: way.id,
-                },
-                tags: &way.tags,
-                polygons: vec![polygon],
-            });
+            let element = ElementRef {
+                element_type: ElementType::Way,
+                id: way.id,
+            };
+            let polygons = crate::osm::multipolygon::checked(element, vec![polygon]);
+            if !polygons.is_empty() {
+                areas.push(Area {
+                    element,
+                    tags: &way.tags,
+                    polygons,
+                });
+            }
         }
     }
     let way_of = |id: i64| {
@@ -490,13 +494,17 @@ fn areas_of<'a>(selection: &Selection<'a>) -> Vec<Area<'a>> {
         if !matches!(relation.tags.get("type"), Some("multipolygon")) {
             continue;
         }
-        let polygons = crate::osm::multipolygon::assemble(relation, way_of);
+        let element = ElementRef {
+            element_type: ElementType::Relation,
+            id: relation.id,
+        };
+        let polygons = crate::osm::multipolygon::checked(
+            element,
+            crate::osm::multipolygon::assemble(relation, way_of),
+        );
         if !polygons.is_empty() {
             areas.push(Area {
-                element: ElementRef {
-                    element_type: ElementType::Relation,
-                    id: relation.id,
-                },
+                element,
                 tags: &relation.tags,
                 polygons,
             });

@@ -2,6 +2,7 @@
 //! coordinates resolved, relations with their members, and an index that answers "everything
 //! near this tile" (thesis §2.1).
 
+pub mod areas;
 pub mod index;
 pub mod multipolygon;
 pub mod units;

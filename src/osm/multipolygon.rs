@@ -8,7 +8,7 @@
 
 use tracing::debug;
 
-use super::{ElementType, LonLat, Relation, Way};
+use super::{ElementRef, ElementType, LonLat, Relation, Way};
 
 /// A ring as node ids and positions, closed (the last node repeats the first).
 #[derive(Debug, Clone)]
@@ -33,6 +33,50 @@ pub fn way_area(way: &Way) -> Option<AreaPolygon> {
         outer: way.positions[..way.positions.len() - 1].to_vec(),
         holes: Vec::new(),
     })
+}
+
+/// Checks the rings of an area's polygons, logging each repair with the OSM element: duplicate
+/// consecutive nodes are dropped; a ring left with fewer than three points or no area is dropped
+/// (with its holes, if it is an outer ring); a ring that crosses or touches itself is kept and
+/// filled by the even-odd rule, as the ground stage fills every polygon.
+pub fn checked(element: ElementRef, polygons: Vec<AreaPolygon>) -> Vec<AreaPolygon> {
+    let clean = |ring: &[LonLat]| -> Option<Vec<LonLat>> {
+        let mut out: Vec<LonLat> = Vec::with_capacity(ring.len());
+        for &p in ring {
+            if out.last() != Some(&p) {
+                out.push(p);
+            }
+        }
+        while out.len() > 1 && out.first() == out.last() {
+            out.pop();
+        }
+        let points: Vec<[f64; 2]> = out.iter().map(|q| [q.lon, q.lat]).collect();
+        if points.len() < 3 || crate::geometry::is_collinear(&points) {
+            debug!(
+                osm_type = element.element_type.as_str(),
+                osm_id = element.id,
+                "ring without area; dropped"
+            );
+            return None;
+        }
+        if crate::geometry::ring_self_intersects(&points) {
+            debug!(
+                osm_type = element.element_type.as_str(),
+                osm_id = element.id,
+                "ring crosses itself; filled by the even-odd rule"
+            );
+        }
+        Some(out)
+    };
+    polygons
+        .into_iter()
+        .filter_map(|polygon| {
+            Some(AreaPolygon {
+                outer: clean(&polygon.outer)?,
+                holes: polygon.holes.iter().filter_map(|h| clean(h)).collect(),
+            })
+        })
+        .collect()
 }
 
 /// Assembles a multipolygon relation from its member ways (looked up with `way_of`).
@@ -211,6 +255,45 @@ mod tests {
                 })
                 .collect(),
         }
+    }
+
+    #[test]
+    fn checking_drops_rings_without_area_and_keeps_crossing_ones() {
+        let at = |lon: f64, lat: f64| LonLat { lon, lat };
+        let element = ElementRef {
+            element_type: ElementType::Way,
+            id: 7,
+        };
+        let bow_tie = vec![
+            at(0.0, 0.0),
+            at(1.0, 1.0),
+            at(1.0, 1.0),
+            at(1.0, 0.0),
+            at(0.0, 1.0),
+        ];
+        let flat = vec![at(0.0, 0.0), at(1.0, 0.0), at(2.0, 0.0)];
+        let square = vec![at(0.0, 0.0), at(2.0, 0.0), at(2.0, 2.0), at(0.0, 2.0)];
+        let checked = checked(
+            element,
+            vec![
+                AreaPolygon {
+                    outer: bow_tie,
+                    holes: Vec::new(),
+                },
+                AreaPolygon {
+                    outer: flat.clone(),
+                    holes: Vec::new(),
+                },
+                AreaPolygon {
+                    outer: square,
+                    holes: vec![flat],
+                },
+            ],
+        );
+        assert_eq!(checked.len(), 2);
+        // The repeated node is gone; the crossing ring stays.
+        assert_eq!(checked[0].outer.len(), 4);
+        assert!(checked[1].holes.is_empty());
     }
 
     #[test]

@@ -494,7 +494,7 @@ fn write_property_table(builder: &mut BinaryBuilder, features: &[FeatureInfo]) -
                     "properties": {
                         "osm_type": {"type": "STRING", "description": "node, way, relation, or none for the default ground"},
                         "osm_id": {"type": "SCALAR", "componentType": "INT64", "description": "OSM element id (0 for the default ground)"},
-                        "class": {"type": "STRING", "description": "terrain, road, railway, water or building"},
+                        "class": {"type": "STRING", "description": "terrain, road, railway, water, landcover, building, vegetation, barrier or object"},
                         "name": {"type": "STRING", "description": "the name tag, empty if none"},
                         "tags": {"type": "STRING", "description": "all OSM tags as a JSON object"}
                     }
