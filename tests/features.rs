@@ -67,6 +67,8 @@ async fn the_sea_lies_beyond_the_coastline() {
     // ground of the tile still adds up to the whole square.
     let monaco = tile(&server, 8529, 5974).await;
     assert!(is_water(&monaco, 0.95, 0.95));
+    // Port Hercule's basin, between its pontoons, is sea behind the harbour walls.
+    assert!(is_water(&monaco, 0.867, 0.233), "Port Hercule");
     let ground: f64 = GROUND_NODES.iter().map(|n| area_fraction(&monaco, n)).sum();
     assert!(ground < 1.0 + 1e-6, "ground covers {ground} of 8529/5974");
     // Roads are drawn in the material their `surface` tag (or their class) says.

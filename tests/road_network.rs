@@ -4,7 +4,7 @@
 mod common;
 
 use common::{sample_osm, sample_srtm};
-use terrastitch::features::{self, FeatureClass, FeatureSet, Surface};
+use terrastitch::features::{self, roads, FeatureClass, FeatureSet, Surface};
 use terrastitch::osm::ElementType;
 use terrastitch::source::Sources;
 use terrastitch::TileId;
@@ -76,5 +76,89 @@ fn road_surfaces_of_a_dense_tile_barely_overlap() {
         overlap < 0.005,
         "{twice} of {} road samples on two surfaces",
         twice + once
+    );
+}
+
+#[test]
+fn a_named_road_is_as_wide_as_its_tags_say() {
+    let (x, y) = (8529, 5974);
+    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let tile = TileId { z: 14, x, y };
+    let selection = sources.selection(tile);
+    let set = features::collect(&selection, tile, &Default::default());
+    let projection = features::Projection::new(14);
+    let settings = features::FeatureSettings::default();
+    // The named road with the longest straight stretch inside the tile: the middle of that
+    // stretch is far from any junction or bend.
+    let rect = features::tile_rect(tile);
+    struct Stretch<'a> {
+        length: f64,
+        surface: &'a Surface,
+        middle: [f64; 2],
+        across: [f64; 2],
+        expected: f64,
+    }
+    let mut best: Option<Stretch> = None;
+    for surface in set
+        .surfaces
+        .iter()
+        .filter(|s| s.class == FeatureClass::Road)
+    {
+        let info = &set.features[surface.feature as usize];
+        let Some(element) = info.element.filter(|e| e.element_type == ElementType::Way) else {
+            continue;
+        };
+        if info.name().is_none() {
+            continue;
+        }
+        let Some(way) = selection.ways.iter().find(|w| w.id == element.id) else {
+            continue;
+        };
+        for pair in way.positions.windows(2) {
+            let (a, b) = (projection.point(pair[0]), projection.point(pair[1]));
+            let length = (b[0] - a[0]).hypot(b[1] - a[1]);
+            let middle = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
+            if rect.contains(middle) && best.as_ref().is_none_or(|best| length > best.length) {
+                best = Some(Stretch {
+                    length,
+                    surface,
+                    middle,
+                    across: [-(b[1] - a[1]) / length, (b[0] - a[0]) / length],
+                    expected: roads::width_m(&way.tags, &settings).expect("a drawn road"),
+                });
+            }
+        }
+    }
+    let Stretch {
+        length,
+        surface,
+        middle,
+        across,
+        expected,
+    } = best.expect("a named road in the tile");
+    let metre = projection.metres(1.0, 43.73);
+    assert!(
+        length > 40.0 * metre,
+        "the longest stretch is {} m",
+        length / metre
+    );
+    // Walk out from the centre line in 2 cm steps until the surface ends, on both sides.
+    let half = |sign: f64| {
+        let mut t = 0.0;
+        while surface.contains([
+            middle[0] + sign * across[0] * (t + 0.02) * metre,
+            middle[1] + sign * across[1] * (t + 0.02) * metre,
+        ]) {
+            t += 0.02;
+        }
+        t
+    };
+    let width = half(1.0) + half(-1.0);
+    assert!(
+        (width - expected).abs() < 0.1,
+        "{} is {width} m wide, its tags say {expected} m",
+        set.features[surface.feature as usize]
+            .name()
+            .unwrap_or_default()
     );
 }

@@ -403,6 +403,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         .flat_map(|s| s.outline.iter().cloned())
         .collect();
     add_sea(&mut set, selection, tile, &projection);
+    water::drop_waterways_in_water_areas(&mut set);
     set.retain_touching(&tile_rect(tile));
     objects::collect(&mut set, selection, &projection, &tile_rect(tile));
     vegetation::collect(

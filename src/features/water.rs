@@ -1,7 +1,9 @@
 //! Water: areas (`natural=water`, `waterway=riverbank`, `landuse=reservoir|basin`) and
-//! waterways as surfaces of their width (thesis §2.3.3).
+//! waterways as surfaces of their width (thesis §2.3.3). Where a waterway runs inside a water
+//! area (a river with its riverbank mapped, a stream into the sea), the area alone is drawn.
 
-use super::{widened_surface, Area, FeatureClass, FeatureSet, Projection};
+use super::{widened_surface, Area, FeatureClass, FeatureSet, Projection, Surface};
+use crate::geometry::{Point, Polygon};
 use crate::osm::units::parse_length_m;
 use crate::osm::{ElementRef, ElementType, Tags, Way};
 
@@ -57,5 +59,125 @@ pub(super) fn add_waterway(set: &mut FeatureSet, way: &Way, projection: &Project
         None => {
             set.features.pop();
         }
+    }
+}
+
+/// True for the surface of a waterway drawn at its width (rather than a water area).
+fn is_waterway(set: &FeatureSet, surface: &Surface) -> bool {
+    surface.class == FeatureClass::Water
+        && set.features[surface.feature as usize]
+            .tags
+            .get("waterway")
+            .is_some_and(|w| default_width_m(w).is_some())
+}
+
+/// Removes the stretches of waterways that lie inside water areas, so the water is drawn once
+/// and its ground is not cut by the waterway's edges; a waterway wholly inside loses its surface.
+pub(super) fn drop_waterways_in_water_areas(set: &mut FeatureSet) {
+    let areas: Vec<usize> = (0..set.surfaces.len())
+        .filter(|&i| {
+            set.surfaces[i].class == FeatureClass::Water && !is_waterway(set, &set.surfaces[i])
+        })
+        .collect();
+    if areas.is_empty() {
+        return;
+    }
+    let in_water = |p: Point, surfaces: &[Surface]| areas.iter().any(|&i| surfaces[i].contains(p));
+    let mut kept: Vec<Surface> = Vec::with_capacity(set.surfaces.len());
+    for (index, surface) in set.surfaces.iter().enumerate() {
+        if areas.contains(&index) || !is_waterway(set, surface) {
+            kept.push(surface.clone());
+            continue;
+        }
+        if !areas
+            .iter()
+            .any(|&i| set.surfaces[i].bounds.intersects(&surface.bounds))
+        {
+            kept.push(surface.clone());
+            continue;
+        }
+        // The quads run along the waterway: [left i, left i+1, right i+1, right i].
+        let outside: Vec<bool> = surface
+            .pieces
+            .iter()
+            .map(|quad| !quad.outer.iter().all(|&p| in_water(p, &set.surfaces)))
+            .collect();
+        if outside.iter().all(|&o| o) {
+            kept.push(surface.clone());
+            continue;
+        }
+        let mut pieces: Vec<Polygon> = Vec::new();
+        let mut outline: Vec<Vec<Point>> = Vec::new();
+        let mut run: Vec<&Polygon> = Vec::new();
+        let close = |run: &mut Vec<&Polygon>, outline: &mut Vec<Vec<Point>>| {
+            if let (Some(first), Some(last)) = (run.first(), run.last()) {
+                let mut left = vec![first.outer[0]];
+                let mut right = vec![first.outer[3]];
+                left.extend(run.iter().map(|q| q.outer[1]));
+                right.extend(run.iter().map(|q| q.outer[2]));
+                outline.push(left);
+                outline.push(right);
+                outline.push(vec![first.outer[0], first.outer[3]]);
+                outline.push(vec![last.outer[1], last.outer[2]]);
+            }
+            run.clear();
+        };
+        for (quad, &keep) in surface.pieces.iter().zip(&outside) {
+            if keep {
+                run.push(quad);
+                pieces.push(quad.clone());
+            } else {
+                close(&mut run, &mut outline);
+            }
+        }
+        close(&mut run, &mut outline);
+        if let Some(trimmed) =
+            Surface::from_parts(FeatureClass::Water, surface.feature, pieces, outline)
+        {
+            kept.push(trimmed);
+        }
+    }
+    set.surfaces = kept;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::osm::Tags;
+
+    #[test]
+    fn a_river_inside_its_riverbank_is_drawn_once() {
+        let mut set = FeatureSet::default();
+        set.add_feature(None, FeatureClass::Terrain, &Tags::default());
+        let bank = set.add_feature(
+            None,
+            FeatureClass::Water,
+            &Tags::from_pairs([("waterway", "riverbank")]),
+        );
+        let river = set.add_feature(
+            None,
+            FeatureClass::Water,
+            &Tags::from_pairs([("waterway", "river")]),
+        );
+        let square = Polygon {
+            outer: vec![[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]],
+            holes: Vec::new(),
+        };
+        set.surfaces.push(
+            Surface::from_polygons(FeatureClass::Water, bank, vec![square]).expect("a surface"),
+        );
+        // A river from inside the bank area out past its east side, in three stretches.
+        let line = [[2.0, 5.0], [6.0, 5.0], [9.0, 5.0], [14.0, 5.0]];
+        set.surfaces
+            .push(widened_surface(FeatureClass::Water, river, &line, 0.5).expect("a surface"));
+        drop_waterways_in_water_areas(&mut set);
+        assert_eq!(set.surfaces.len(), 2);
+        let trimmed = &set.surfaces[1];
+        // Only the stretch that leaves the area is left, with its own outline.
+        assert_eq!(trimmed.pieces.len(), 1);
+        assert_eq!(trimmed.pieces[0].outer[0], [9.0, 4.5]);
+        assert_eq!(trimmed.outline.len(), 4);
+        assert!(!trimmed.contains([4.0, 5.0]));
+        assert!(trimmed.contains([12.0, 5.0]));
     }
 }

@@ -13,9 +13,16 @@ use crate::terrain::Mosaic;
 use crate::tile::TileId;
 use srtm::{CellId, SrtmDirectory, SrtmError};
 
-/// How far around a tile elements are fetched, in degrees (about 110 m): wide enough for the
-/// widest road polygon and for buildings that straddle the edge.
-pub const QUERY_MARGIN_DEG: f64 = 0.001;
+/// How far around a tile elements are fetched, in degrees (220 m north–south, 160 m east–west at
+/// Monaco's latitude): wide enough for the widest road polygon, for buildings that straddle the
+/// edge, and for every way through a junction whose polygon or cut-back arms can reach the tile
+/// (a junction reaches at most 25 m plus a half width along its arms, and how far an arm is cut
+/// depends on whether the next node along it, up to 55 m on, is a junction too).
+pub const QUERY_MARGIN_DEG: f64 = 0.002;
+
+/// How far around a tile SRTM files are opened, in degrees (about 110 m): the terrain methods
+/// reach a few samples beyond the tile.
+const MOSAIC_MARGIN_DEG: f64 = 0.001;
 
 #[derive(Debug, thiserror::Error)]
 pub enum SourceError {
@@ -104,7 +111,7 @@ impl Sources {
 
     /// The SRTM files around a tile (its own cells and any its margin reaches).
     pub fn mosaic(&self, tile: TileId) -> Result<Mosaic, SrtmError> {
-        let b = tile.bounds().expanded(QUERY_MARGIN_DEG);
+        let b = tile.bounds().expanded(MOSAIC_MARGIN_DEG);
         let mut tiles: Vec<Arc<srtm::SrtmTile>> = Vec::new();
         for lat in b.south.floor() as i32..=b.north.floor() as i32 {
             for lon in b.west.floor() as i32..=b.east.floor() as i32 {
