@@ -384,10 +384,16 @@ fn junction_ring(centre: Point, caps: &[Cap]) -> Option<Ring> {
     }
     // The arms beyond their caps, as long straight strips: the junction stops where it meets
     // them.
+    // No part reaches farther from the node than this, so the strips need reach no farther.
+    let reach = 2.0
+        * parts
+            .iter()
+            .flatten()
+            .map(|&p| distance(p, centre))
+            .fold(0.0, f64::max);
     let beyond: Vec<Vec<Point>> = caps
         .iter()
         .map(|c| {
-            let reach = 1e3 * distance(c.plus, c.minus).max(distance(c.plus, centre));
             let far = |p: Point| [p[0] + c.direction[0] * reach, p[1] + c.direction[1] * reach];
             vec![c.minus, c.plus, far(c.plus), far(c.minus)]
         })
