@@ -8,6 +8,7 @@ pub mod ground;
 pub mod instances;
 pub mod models;
 pub mod power;
+pub mod skeleton;
 pub mod tin;
 
 use crate::features::barriers::BarrierKind;
