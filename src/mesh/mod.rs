@@ -8,6 +8,7 @@ pub mod ground;
 pub mod instances;
 pub mod models;
 pub mod power;
+pub mod roofs;
 pub mod skeleton;
 pub mod tin;
 
