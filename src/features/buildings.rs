@@ -32,6 +32,86 @@ fn default_height_m(building: &str, settings: &FeatureSettings) -> f64 {
     }
 }
 
+/// A roof the mesh stage can build.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RoofShape {
+    Flat,
+    /// Every side slopes up to the ridges (the straight skeleton raised).
+    Hipped,
+    /// Slopes on the long sides, vertical gables at the ends of each wing.
+    Gabled,
+}
+
+/// The roof a building's tags ask for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RoofSpec {
+    pub shape: RoofShape,
+    /// Height of the ridge above the eaves, metres, when tagged.
+    pub height_m: Option<f64>,
+    /// Rise per unit of run when no height is tagged.
+    pub pitch: f64,
+}
+
+/// Pitch of a roof with neither a height nor an angle tagged: 30°.
+const DEFAULT_PITCH_DEG: f64 = 30.0;
+
+/// The roof from `roof:shape`, `roof:height`, `roof:levels` and `roof:angle`. A shape not built
+/// yet is drawn flat, with a debug log.
+pub fn roof_spec(tags: &Tags, settings: &FeatureSettings) -> RoofSpec {
+    let shape = match tags.get("roof:shape") {
+        // Untagged, small houses and sheds have gabled roofs far more often than flat ones.
+        None if matches!(
+            tags.get("building"),
+            Some(
+                "house"
+                    | "detached"
+                    | "semidetached_house"
+                    | "farm"
+                    | "bungalow"
+                    | "cabin"
+                    | "hut"
+                    | "shed"
+                    | "barn"
+                    | "farm_auxiliary"
+                    | "chapel"
+                    | "church"
+            )
+        ) =>
+        {
+            RoofShape::Gabled
+        }
+        None | Some("flat") => RoofShape::Flat,
+        Some("hipped" | "pyramidal" | "half-hipped" | "side_hipped" | "mansard") => {
+            RoofShape::Hipped
+        }
+        Some("gabled" | "saltbox" | "gambrel") => RoofShape::Gabled,
+        Some(other) => {
+            debug!(roof_shape = other, "roof shape drawn flat");
+            RoofShape::Flat
+        }
+    };
+    let height_m = tags
+        .get("roof:height")
+        .and_then(parse_length_m)
+        .filter(|h| *h > 0.0 && *h <= 100.0)
+        .or_else(|| {
+            tags.get("roof:levels")
+                .and_then(parse_count)
+                .filter(|l| *l > 0.0 && *l <= 20.0)
+                .map(|l| l * settings.level_height_m)
+        });
+    let angle = tags
+        .get("roof:angle")
+        .and_then(|a| a.trim().parse::<f64>().ok())
+        .filter(|a| *a > 0.0 && *a < 80.0)
+        .unwrap_or(DEFAULT_PITCH_DEG);
+    RoofSpec {
+        shape,
+        height_m,
+        pitch: angle.to_radians().tan(),
+    }
+}
+
 /// The building's height in metres and whether it was tagged.
 pub fn height_m(tags: &Tags, settings: &FeatureSettings) -> (f64, bool) {
     if let Some(raw) = tags.get("height") {
@@ -76,6 +156,7 @@ pub(super) fn add_area(
         return;
     }
     let (height, tagged) = height_m(area.tags, settings);
+    let roof = roof_spec(area.tags, settings);
     let feature = set.add_feature(Some(area.element), FeatureClass::Building, area.tags);
     for footprint in &footprints {
         set.buildings.push(BuildingShape {
@@ -83,6 +164,7 @@ pub(super) fn add_area(
             footprint: footprint.clone(),
             height_m: height,
             height_tagged: tagged,
+            roof,
         });
     }
     if let Some(surface) = Surface::from_polygons(FeatureClass::Building, feature, footprints) {
@@ -111,6 +193,29 @@ mod tests {
         );
         assert_eq!(height_m(&tags(&[("building", "yes")]), &s), (6.0, false));
         assert_eq!(height_m(&tags(&[("building", "garage")]), &s), (3.0, false));
+    }
+
+    #[test]
+    fn roof_tags_choose_the_shape_and_its_height() {
+        let s = FeatureSettings::default();
+        let roof = roof_spec(
+            &tags(&[("roof:shape", "gabled"), ("roof:height", "4 m")]),
+            &s,
+        );
+        assert_eq!((roof.shape, roof.height_m), (RoofShape::Gabled, Some(4.0)));
+        let roof = roof_spec(&tags(&[("roof:shape", "hipped"), ("roof:levels", "1")]), &s);
+        assert_eq!((roof.shape, roof.height_m), (RoofShape::Hipped, Some(3.0)));
+        let roof = roof_spec(&tags(&[("roof:shape", "gabled"), ("roof:angle", "45")]), &s);
+        assert!((roof.pitch - 1.0).abs() < 1e-12 && roof.height_m.is_none());
+        assert_eq!(roof_spec(&tags(&[]), &s).shape, RoofShape::Flat);
+        assert_eq!(
+            roof_spec(&tags(&[("building", "house")]), &s).shape,
+            RoofShape::Gabled
+        );
+        assert_eq!(
+            roof_spec(&tags(&[("roof:shape", "something")]), &s).shape,
+            RoofShape::Flat
+        );
     }
 
     #[test]

@@ -167,6 +167,7 @@ pub struct BuildingShape {
     pub height_m: f64,
     /// True when the height came from tags rather than a default.
     pub height_tagged: bool,
+    pub roof: buildings::RoofSpec,
 }
 
 /// Everything the features of one tile contribute.

@@ -1,4 +1,5 @@
-//! Extruded buildings: walls from below the lowest ground under the footprint up to a flat roof.
+//! Extruded buildings: walls from below the lowest ground under the footprint up to the eaves,
+//! and the roof: flat, or hipped and gabled roofs on the straight skeleton ([`super::roofs`]).
 //!
 //! The base follows thesis §4.1 in its simplest form: the lowest terrain point under the whole
 //! footprint (vertices, points along the walls, raster samples inside), computed in global
@@ -8,10 +9,12 @@
 
 use spade::{Point2, Triangulation};
 
+use super::roofs::{skeleton_roof, RoofMesh, SkeletonRoof};
 use super::tin::Cdt;
 use super::MeshBuffers;
+use crate::features::buildings::RoofShape;
 use crate::features::BuildingShape;
-use crate::geometry::{clip_ring, clip_segment, signed_area2, Point, Polygon};
+use crate::geometry::{clip_ring, clip_segment, signed_area2, Point, Polygon, Ring};
 use crate::terrain::TerrainModel;
 use crate::tile::TileFrame;
 
@@ -21,6 +24,13 @@ pub const WALL_SKIRT_M: f64 = 0.5;
 
 /// Least height of a roof above the highest ground under a building whose height is a default.
 const MIN_CLEARANCE_M: f64 = 2.5;
+
+/// Footprints with more vertices than this get a flat roof: the skeleton's cost grows with the
+/// cube of the count.
+const MAX_ROOF_VERTICES: usize = 400;
+
+/// The largest share of a building's height its roof may take.
+const MAX_ROOF_SHARE: f64 = 0.6;
 
 /// Points along each wall at which the ground is sampled, per SRTM sample spacing.
 const WALL_SAMPLES_PER_CELL: f64 = 4.0;
@@ -81,8 +91,23 @@ pub fn extrude(
     let bottom = low - WALL_SKIRT_M;
     let local = |p: Point| frame.uv_to_local(p[0], p[1]);
 
+    // A pitched roof takes its height from the top; the walls stop at its eaves, on the rings
+    // the roof stands on, so the two meet edge for edge.
+    let pitched = pitched_roof(building, frame.size_m);
+    let (eaves, wall_rings): (f64, Vec<Ring>) = match &pitched {
+        Some(roof) => (
+            top - roof.mesh.height,
+            roof.mesh
+                .rings
+                .iter()
+                .map(|r| r.iter().map(|&p| roof.to_uv(p)).collect())
+                .collect(),
+        ),
+        None => (top, footprint.rings().cloned().collect()),
+    };
+
     // Walls: every footprint edge, clipped to the tile, facing away from the building.
-    for (ring_index, ring) in footprint.rings().enumerate() {
+    for (ring_index, ring) in wall_rings.iter().enumerate() {
         // In the (u, v) plane taken as (x, y), the inside of a counter-clockwise outer ring lies
         // left of its edges; for a hole the building lies left of a clockwise ring.
         let area = signed_area2(ring);
@@ -107,18 +132,69 @@ pub fn extrude(
             };
             let (ya0, ya1) = (
                 frame.elevation_to_y(bottom, az),
-                frame.elevation_to_y(top, az),
+                frame.elevation_to_y(eaves, az),
             );
             let (yb0, yb1) = (
                 frame.elevation_to_y(bottom, bz),
-                frame.elevation_to_y(top, bz),
+                frame.elevation_to_y(eaves, bz),
             );
             let corners = [[ax, ya0, az], [bx, yb0, bz], [bx, yb1, bz], [ax, ya1, az]];
             walls.push_flat_polygon(&corners, facing, building.feature);
         }
     }
 
-    // Roof: the footprint triangulated, each triangle clipped to the tile.
+    if let Some(roof) = &pitched {
+        // Each roof triangle clipped to the tile, heights carried along its plane.
+        let place = |triangle: &[[f64; 3]; 3]| -> Vec<[f64; 3]> {
+            let plan = triangle.map(|c| roof.to_uv([c[0], c[1]]));
+            clip_ring(&plan, &rect)
+                .iter()
+                .map(|&p| {
+                    let h = interpolate(&plan, triangle.map(|c| c[2]), p);
+                    let (x, z) = local(p);
+                    [x, frame.elevation_to_y(eaves + h, z), z]
+                })
+                .collect()
+        };
+        for triangle in &roof.mesh.slopes {
+            roofs.push_flat_polygon(&place(triangle), [0.0, 1.0, 0.0], building.feature);
+        }
+        for triangle in &roof.mesh.gables {
+            let corners = place_gable(triangle, &|p| roof.to_uv(p), &rect)
+                .into_iter()
+                .map(|(p, h)| {
+                    let (x, z) = local(p);
+                    [x, frame.elevation_to_y(eaves + h, z), z]
+                })
+                .collect::<Vec<_>>();
+            if corners.len() < 3 {
+                continue;
+            }
+            // Outwards: away from the footprint, seen from the middle of the gable's foot.
+            let normal = super::triangle_normal([corners[0], corners[1], corners[2]]);
+            let facing = [normal[0], 0.0, normal[2]];
+            let foot = triangle.map(|c| roof.to_uv([c[0], c[1]]));
+            let middle = [
+                (foot[0][0] + foot[1][0] + foot[2][0]) / 3.0,
+                (foot[0][1] + foot[1][1] + foot[2][1]) / 3.0,
+            ];
+            let step = 0.05 / frame.size_m;
+            let length = facing[0].hypot(facing[2]).max(1e-12);
+            let probe = [
+                middle[0] + facing[0] / length * step,
+                middle[1] + facing[2] / length * step,
+            ];
+            let facing = if footprint.contains(probe) {
+                facing.map(|c| -c)
+            } else {
+                facing
+            };
+            walls.push_flat_polygon(&corners, facing, building.feature);
+        }
+        return;
+    }
+
+    // Flat roof: the footprint triangulated, each triangle clipped to the tile.
     let mut roof: Vec<[[f64; 3]; 3]> = Vec::new();
     for triangle in triangulate_polygon(footprint) {
         let clipped = clip_ring(&triangle, &rect);
@@ -134,6 +210,126 @@ pub fn extrude(
         }
     }
     roofs.push_flat_triangles(&roof, [0.0, 1.0, 0.0], building.feature);
+}
+
+/// A roof built on the skeleton, in metres around the footprint's first vertex.
+struct PitchedRoof {
+    mesh: RoofMesh,
+    origin: Point,
+    size_m: f64,
+}
+
+impl PitchedRoof {
+    fn to_uv(&self, p: Point) -> Point {
+        [
+            self.origin[0] + p[0] / self.size_m,
+            self.origin[1] + p[1] / self.size_m,
+        ]
+    }
+}
+
+/// The building's hipped or gabled roof, `None` for a flat one or when the skeleton cannot be
+/// built (logged; the roof is then flat). The footprint is measured in metres from its first
+/// vertex, the same in every tile that shows the building.
+fn pitched_roof(building: &BuildingShape, size_m: f64) -> Option<PitchedRoof> {
+    let shape = match building.roof.shape {
+        RoofShape::Flat => return None,
+        RoofShape::Hipped => SkeletonRoof::Hipped,
+        RoofShape::Gabled => SkeletonRoof::Gabled,
+    };
+    let footprint = &building.footprint;
+    if footprint.rings().map(Vec::len).sum::<usize>() > MAX_ROOF_VERTICES {
+        tracing::debug!(
+            feature = building.feature,
+            "footprint too detailed for a pitched roof"
+        );
+        return None;
+    }
+    let origin = footprint.outer[0];
+    let rings: Vec<Vec<Point>> = footprint
+        .rings()
+        .map(|r| {
+            r.iter()
+                .map(|p| [(p[0] - origin[0]) * size_m, (p[1] - origin[1]) * size_m])
+                .collect()
+        })
+        .collect();
+    let most = building.height_m * MAX_ROOF_SHARE;
+    let height = building.roof.height_m.map(|h| h.min(most));
+    let built = skeleton_roof(&rings, shape, height, building.roof.pitch).and_then(|mesh| {
+        if mesh.height > most {
+            skeleton_roof(&rings, shape, Some(most), building.roof.pitch)
+        } else {
+            Ok(mesh)
+        }
+    });
+    match built {
+        Ok(mesh) => Some(PitchedRoof {
+            mesh,
+            origin,
+            size_m,
+        }),
+        Err(error) => {
+            tracing::debug!(feature = building.feature, %error, "roof drawn flat");
+            None
+        }
+    }
+}
+
+/// The part of a vertical gable triangle inside the tile, as plan points with heights: its foot
+/// (the two corners at the eaves) clipped to the tile, and its top edge above the clipped foot.
+fn place_gable(
+    triangle: &[[f64; 3]; 3],
+    to_uv: &dyn Fn(Point) -> Point,
+    rect: &crate::geometry::Rect,
+) -> Vec<(Point, f64)> {
+    // The foot: the two corners lowest down; the apex: the other.
+    let mut order = [0, 1, 2];
+    order.sort_by(|&i, &j| triangle[i][2].total_cmp(&triangle[j][2]));
+    let (a, b, apex) = (triangle[order[0]], triangle[order[1]], triangle[order[2]]);
+    let (pa, pb) = (to_uv([a[0], a[1]]), to_uv([b[0], b[1]]));
+    let Some((from, to)) = clip_segment(pa, pb, rect) else {
+        return Vec::new();
+    };
+    let d = [pb[0] - pa[0], pb[1] - pa[1]];
+    let length2 = d[0] * d[0] + d[1] * d[1];
+    if length2 == 0.0 {
+        return Vec::new();
+    }
+    let along = |p: Point| ((p[0] - pa[0]) * d[0] + (p[1] - pa[1]) * d[1]) / length2;
+    let top = along(to_uv([apex[0], apex[1]])).clamp(0.0, 1.0);
+    let height = |t: f64| {
+        if t <= top && top > 0.0 {
+            apex[2] * t / top
+        } else if t > top && top < 1.0 {
+            apex[2] * (1.0 - t) / (1.0 - top)
+        } else {
+            apex[2]
+        }
+    };
+    let (t0, t1) = (along(from), along(to));
+    let mut out = vec![(from, 0.0), (to, 0.0), (to, height(t1))];
+    if (t0.min(t1)..=t0.max(t1)).contains(&top) {
+        out.push(([pa[0] + d[0] * top, pa[1] + d[1] * top], apex[2]));
+    }
+    out.push((from, height(t0)));
+    out.dedup_by(|x, y| x == y);
+    while out.len() > 1 && out.first() == out.last() {
+        out.pop();
+    }
+    out
+}
+
+/// The value at `p` of the plane through three points with values `h`.
+fn interpolate(triangle: &[Point; 3], h: [f64; 3], p: Point) -> f64 {
+    let [a, b, c] = *triangle;
+    let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+    if det == 0.0 {
+        return h[0].max(h[1]).max(h[2]);
+    }
+    let s = ((p[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (p[1] - a[1])) / det;
+    let t = ((b[0] - a[0]) * (p[1] - a[1]) - (p[0] - a[0]) * (b[1] - a[1])) / det;
+    h[0] + s * (h[1] - h[0]) + t * (h[2] - h[0])
 }
 
 /// Triangles covering a polygon with holes (a CDT of its rings, keeping the triangles inside).
