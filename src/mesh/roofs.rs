@@ -292,24 +292,8 @@ mod tests {
         ) {
             let shape = if gabled { SkeletonRoof::Gabled } else { SkeletonRoof::Hipped };
             // A rectilinear house of wings side by side, and a random star-shaped one.
-            let mut wings = vec![[0.0, 0.0]];
-            let width: f64 = columns.iter().map(|c| f64::from(c.0)).sum();
-            wings.push([width, 0.0]);
-            let mut x = width;
-            for &(w, h) in columns.iter().rev() {
-                wings.push([x, f64::from(h)]);
-                x -= f64::from(w);
-                wings.push([x, f64::from(h)]);
-            }
-            let n = radii.len();
-            let star: Vec<Point> = radii
-                .iter()
-                .enumerate()
-                .map(|(i, &r)| {
-                    let a = std::f64::consts::TAU * i as f64 / n as f64;
-                    [r * a.cos(), r * a.sin()]
-                })
-                .collect();
+            let wings = crate::mesh::skeleton::tests::skyline(&columns);
+            let star = crate::mesh::skeleton::tests::star(&radii);
             for ring in [wings, star] {
                 let rings = vec![ring];
                 let mesh = skeleton_roof(&rings, shape, Some(3.0), 0.0).expect("a roof");

@@ -976,7 +976,7 @@ fn face(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use proptest::prelude::*;
 
@@ -1072,7 +1072,7 @@ mod tests {
     }
 
     /// A random simple polygon: points at random radii around a centre, in angle order.
-    fn star(radii: &[f64]) -> Vec<Point> {
+    pub(crate) fn star(radii: &[f64]) -> Vec<Point> {
         let n = radii.len();
         radii
             .iter()
@@ -1086,7 +1086,7 @@ mod tests {
 
     /// A rectilinear polygon: columns of the given widths and heights standing on one line, so
     /// many edges are parallel and many events happen at once.
-    fn skyline(columns: &[(u8, u8)]) -> Vec<Point> {
+    pub(crate) fn skyline(columns: &[(u8, u8)]) -> Vec<Point> {
         let mut ring = vec![[0.0, 0.0]];
         let width: f64 = columns.iter().map(|c| f64::from(c.0)).sum();
         ring.push([width, 0.0]);
