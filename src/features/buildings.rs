@@ -40,6 +40,12 @@ pub enum RoofShape {
     Hipped,
     /// Slopes on the long sides, vertical gables at the ends of each wing.
     Gabled,
+    /// Straight faces from every side to a point over the middle (also `cone`).
+    Pyramidal,
+    /// A quarter circle in section, up to a point over the middle.
+    Dome,
+    /// Bulging out past the walls, then drawn in to a point.
+    Onion,
 }
 
 /// The roof a building's tags ask for.
@@ -81,9 +87,10 @@ pub fn roof_spec(tags: &Tags, settings: &FeatureSettings) -> RoofSpec {
             RoofShape::Gabled
         }
         None | Some("flat") => RoofShape::Flat,
-        Some("hipped" | "pyramidal" | "half-hipped" | "side_hipped" | "mansard") => {
-            RoofShape::Hipped
-        }
+        Some("hipped" | "half-hipped" | "side_hipped" | "mansard") => RoofShape::Hipped,
+        Some("pyramidal" | "cone") => RoofShape::Pyramidal,
+        Some("dome") => RoofShape::Dome,
+        Some("onion") => RoofShape::Onion,
         Some("gabled" | "saltbox" | "gambrel") => RoofShape::Gabled,
         Some(other) => {
             debug!(roof_shape = other, "roof shape drawn flat");
@@ -208,6 +215,10 @@ mod tests {
         let roof = roof_spec(&tags(&[("roof:shape", "gabled"), ("roof:angle", "45")]), &s);
         assert!((roof.pitch - 1.0).abs() < 1e-12 && roof.height_m.is_none());
         assert_eq!(roof_spec(&tags(&[]), &s).shape, RoofShape::Flat);
+        assert_eq!(
+            roof_spec(&tags(&[("roof:shape", "cone")]), &s).shape,
+            RoofShape::Pyramidal
+        );
         assert_eq!(
             roof_spec(&tags(&[("building", "house")]), &s).shape,
             RoofShape::Gabled

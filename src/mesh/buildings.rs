@@ -9,7 +9,7 @@
 
 use spade::{Point2, Triangulation};
 
-use super::roofs::{skeleton_roof, RoofMesh, SkeletonRoof};
+use super::roofs::{centred_roof, skeleton_roof, spread, CentredRoof, RoofMesh, SkeletonRoof};
 use super::tin::Cdt;
 use super::MeshBuffers;
 use crate::features::buildings::RoofShape;
@@ -228,14 +228,22 @@ impl PitchedRoof {
     }
 }
 
-/// The building's hipped or gabled roof, `None` for a flat one or when the skeleton cannot be
-/// built (logged; the roof is then flat). The footprint is measured in metres from its first
-/// vertex, the same in every tile that shows the building.
+/// The building's pitched roof, `None` for a flat one or when the skeleton cannot be built
+/// (logged; the roof is then flat). Pyramids, domes and onions rise over the centroid of a
+/// footprint without courtyards that is star-shaped around it; other footprints get a hipped
+/// roof instead. The footprint is measured in metres from its first vertex, the same in every
+/// tile that shows the building.
 fn pitched_roof(building: &BuildingShape, size_m: f64) -> Option<PitchedRoof> {
-    let shape = match building.roof.shape {
+    let centred = match building.roof.shape {
         RoofShape::Flat => return None,
-        RoofShape::Hipped => SkeletonRoof::Hipped,
+        RoofShape::Pyramidal => Some(CentredRoof::Pyramid),
+        RoofShape::Dome => Some(CentredRoof::Dome),
+        RoofShape::Onion => Some(CentredRoof::Onion),
+        RoofShape::Hipped | RoofShape::Gabled => None,
+    };
+    let shape = match building.roof.shape {
         RoofShape::Gabled => SkeletonRoof::Gabled,
+        _ => SkeletonRoof::Hipped,
     };
     let footprint = &building.footprint;
     if footprint.rings().map(Vec::len).sum::<usize>() > MAX_ROOF_VERTICES {
@@ -256,6 +264,23 @@ fn pitched_roof(building: &BuildingShape, size_m: f64) -> Option<PitchedRoof> {
         .collect();
     let most = building.height_m * MAX_ROOF_SHARE;
     let height = building.roof.height_m.map(|h| h.min(most));
+    if let (Some(centred), [outer]) = (centred, rings.as_slice()) {
+        if let Some((inner, radius)) = spread(outer) {
+            let untagged = match centred {
+                CentredRoof::Pyramid => building.roof.pitch * inner,
+                CentredRoof::Dome => radius,
+                CentredRoof::Onion => 1.5 * radius,
+            };
+            let height = height.unwrap_or(untagged).min(most);
+            if let Some(mesh) = centred_roof(outer, centred, height) {
+                return Some(PitchedRoof {
+                    mesh,
+                    origin,
+                    size_m,
+                });
+            }
+        }
+    }
     let built = skeleton_roof(&rings, shape, height, building.roof.pitch).and_then(|mesh| {
         if mesh.height > most {
             skeleton_roof(&rings, shape, Some(most), building.roof.pitch)

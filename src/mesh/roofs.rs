@@ -76,6 +76,135 @@ pub fn skeleton_roof(
     Ok(mesh)
 }
 
+/// A roof that rises from the footprint to one point over its centroid, along a profile.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CentredRoof {
+    /// Straight faces to the apex (`pyramidal`, and `cone` on a round footprint).
+    Pyramid,
+    /// A quarter circle in section.
+    Dome,
+    /// Bulging out past the walls, then drawn in to a point.
+    Onion,
+}
+
+impl CentredRoof {
+    /// The profile as (scale of the footprint about its centroid, share of the height), from
+    /// the eaves to the apex.
+    fn profile(self) -> Vec<(f64, f64)> {
+        match self {
+            CentredRoof::Pyramid => vec![(1.0, 0.0), (0.0, 1.0)],
+            CentredRoof::Dome => (0..=DOME_STEPS)
+                .map(|k| {
+                    if k == DOME_STEPS {
+                        return (0.0, 1.0);
+                    }
+                    let angle = std::f64::consts::FRAC_PI_2 * k as f64 / DOME_STEPS as f64;
+                    (angle.cos(), angle.sin())
+                })
+                .collect(),
+            CentredRoof::Onion => vec![
+                (1.0, 0.0),
+                (1.12, 0.12),
+                (1.18, 0.28),
+                (1.08, 0.45),
+                (0.8, 0.6),
+                (0.45, 0.74),
+                (0.2, 0.86),
+                (0.06, 0.95),
+                (0.0, 1.0),
+            ],
+        }
+    }
+}
+
+/// Rings of a dome between its eaves and its top.
+const DOME_STEPS: usize = 6;
+
+/// A roof rising to a point over the centroid of a footprint without holes, `None` when the
+/// footprint is not star-shaped around its centroid (the caller then builds a hipped roof).
+/// `height` is the apex above the eaves; untagged, the caller derives it from [`spread`].
+pub fn centred_roof(ring: &[Point], shape: CentredRoof, height: f64) -> Option<RoofMesh> {
+    let (centre, ring) = star_centre(ring)?;
+    let profile = shape.profile();
+    let level = |(scale, rise): (f64, f64)| -> Vec<[f64; 3]> {
+        ring.iter()
+            .map(|p| {
+                [
+                    centre[0] + (p[0] - centre[0]) * scale,
+                    centre[1] + (p[1] - centre[1]) * scale,
+                    rise * height,
+                ]
+            })
+            .collect()
+    };
+    let mut slopes = Vec::new();
+    let n = ring.len();
+    let mut below: Vec<[f64; 3]> = ring.iter().map(|p| [p[0], p[1], 0.0]).collect();
+    for &step in &profile[1..] {
+        let above = level(step);
+        for i in 0..n {
+            let j = (i + 1) % n;
+            if step.0 == 0.0 {
+                slopes.push([below[i], below[j], above[i]]);
+            } else {
+                slopes.push([below[i], below[j], above[j]]);
+                slopes.push([below[i], above[j], above[i]]);
+            }
+        }
+        below = above;
+    }
+    Some(RoofMesh {
+        slopes,
+        gables: Vec::new(),
+        height,
+        rings: vec![ring],
+    })
+}
+
+/// How far a footprint reaches from its centroid: the least distance to its sides and the mean
+/// distance to its corners, `None` if it is not star-shaped around the centroid.
+pub fn spread(ring: &[Point]) -> Option<(f64, f64)> {
+    let (centre, ring) = star_centre(ring)?;
+    let n = ring.len();
+    let inner = (0..n)
+        .map(|i| crate::geometry::distance_to_segment(centre, ring[i], ring[(i + 1) % n]))
+        .fold(f64::INFINITY, f64::min);
+    let outer = ring
+        .iter()
+        .map(|p| (p[0] - centre[0]).hypot(p[1] - centre[1]))
+        .sum::<f64>()
+        / n as f64;
+    Some((inner, outer))
+}
+
+/// The area centroid of a ring and the ring turned counter-clockwise, when every side faces the
+/// centroid (star-shaped around it).
+fn star_centre(ring: &[Point]) -> Option<(Point, Vec<Point>)> {
+    let mut ring = crate::geometry::dedup_ring(ring);
+    let area2 = signed_area2(&ring);
+    if ring.len() < 3 || area2 == 0.0 {
+        return None;
+    }
+    if area2 < 0.0 {
+        ring.reverse();
+    }
+    let n = ring.len();
+    let (mut cx, mut cy, mut a) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        let (p, q) = (ring[i], ring[(i + 1) % n]);
+        let w = p[0] * q[1] - q[0] * p[1];
+        cx += (p[0] + q[0]) * w;
+        cy += (p[1] + q[1]) * w;
+        a += w;
+    }
+    let centre = [cx / (3.0 * a), cy / (3.0 * a)];
+    let facing = (0..n).all(|i| {
+        let (p, q) = (ring[i], ring[(i + 1) % n]);
+        (q[0] - p[0]) * (centre[1] - p[1]) - (q[1] - p[1]) * (centre[0] - p[0]) > 0.0
+    });
+    facing.then_some((centre, ring))
+}
+
 /// Moves the apex of each triangular face to the middle of its edge, where that apex belongs to
 /// no other triangular face (a square's single apex stays: it is hipped).
 fn gable(skeleton: &Skeleton, plan: &mut [Point], gables: &mut [bool]) {
@@ -303,6 +432,52 @@ mod tests {
                 proptest::prop_assert!(is_closed_over_the_walls(&mesh, &mesh.rings));
             }
         }
+    }
+
+    #[test]
+    fn centred_roofs_close_over_their_walls_and_reach_their_height() {
+        let octagon: Vec<Point> = (0..8)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / 8.0;
+                [5.0 * a.cos(), 5.0 * a.sin()]
+            })
+            .collect();
+        for shape in [CentredRoof::Pyramid, CentredRoof::Dome, CentredRoof::Onion] {
+            let mesh = centred_roof(&octagon, shape, 4.0).expect("a roof");
+            assert!(is_closed_over_the_walls(&mesh, &mesh.rings), "{shape:?}");
+            let top = mesh
+                .slopes
+                .iter()
+                .flatten()
+                .map(|c| c[2])
+                .fold(0.0, f64::max);
+            assert!((top - 4.0).abs() < 1e-12, "{shape:?} {top}");
+        }
+        // An onion bulges out past its walls; a dome stays within them.
+        let reach = |shape| {
+            centred_roof(&octagon, shape, 4.0)
+                .expect("a roof")
+                .slopes
+                .iter()
+                .flatten()
+                .map(|c| c[0].hypot(c[1]))
+                .fold(0.0, f64::max)
+        };
+        assert!(reach(CentredRoof::Onion) > 5.5);
+        assert!(reach(CentredRoof::Dome) <= 5.0 + 1e-9);
+        // An L is not star-shaped around its centroid: no centred roof.
+        let l = [
+            [0.0, 0.0],
+            [10.0, 0.0],
+            [10.0, 1.0],
+            [1.0, 1.0],
+            [1.0, 10.0],
+            [0.0, 10.0],
+        ];
+        assert!(centred_roof(&l, CentredRoof::Pyramid, 3.0).is_none());
+        let (inner, outer) = spread(&octagon).expect("star-shaped");
+        assert!((inner - 5.0 * (std::f64::consts::PI / 8.0).cos()).abs() < 1e-9);
+        assert!((outer - 5.0).abs() < 1e-9);
     }
 
     #[test]
