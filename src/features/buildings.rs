@@ -1,8 +1,11 @@
 //! Buildings: footprints (ways and multipolygons with courtyards) with a height.
 //!
 //! Height: `height`, else `building:levels` (+ `roof:levels`) × the level height, else a default
-//! by building type; `min_height` is not yet honoured. Nonsense values (negative, not numbers,
-//! absurdly tall) are ignored with a debug log.
+//! by building type; the bottom at `min_height`, else `building:min_level` × the level height.
+//! Nonsense values (negative, not numbers, absurdly tall) are ignored with a debug log.
+//!
+//! `building:part` areas replace the outline they lie in where they cover it (Simple 3D
+//! Buildings): an outline covered by its parts is not drawn, only cut out of the ground.
 
 use tracing::debug;
 
@@ -19,6 +22,79 @@ pub fn is_building(tags: &Tags) -> bool {
     tags.is_set("building")
         && tags.get("location") != Some("underground")
         && tags.get("building") != Some("construction")
+}
+
+pub fn is_building_part(tags: &Tags) -> bool {
+    tags.is_set("building:part") && tags.get("location") != Some("underground")
+}
+
+/// The bottom of a building or part above the ground, metres: `min_height`, else
+/// `building:min_level` × the level height, else 0.
+pub fn min_height_m(tags: &Tags, settings: &FeatureSettings) -> f64 {
+    if let Some(raw) = tags.get("min_height") {
+        match parse_length_m(raw) {
+            Some(h) if (0.0..MAX_HEIGHT_M).contains(&h) => return h,
+            _ => debug!(min_height = raw, "implausible min_height ignored"),
+        }
+    }
+    tags.get("building:min_level")
+        .and_then(parse_count)
+        .filter(|l| (0.0..=MAX_LEVELS).contains(l))
+        .map_or(0.0, |l| l * settings.level_height_m)
+}
+
+/// Share of an outline's area its parts must cover for the parts alone to be drawn.
+const PARTS_COVER: f64 = 0.9;
+
+/// Hides the outlines that their `building:part`s cover, and stands every part on the base of
+/// the outline it lies in.
+pub(super) fn replace_outlines_by_parts(set: &mut FeatureSet) {
+    let is_part = |b: &BuildingShape| {
+        set.features[b.feature as usize]
+            .tags
+            .is_set("building:part")
+    };
+    let parts: Vec<usize> = (0..set.buildings.len())
+        .filter(|&i| is_part(&set.buildings[i]))
+        .collect();
+    if parts.is_empty() {
+        return;
+    }
+    let outlines: Vec<usize> = (0..set.buildings.len())
+        .filter(|&i| !is_part(&set.buildings[i]))
+        .collect();
+    let mut covered = vec![0.0; set.buildings.len()];
+    for &p in &parts {
+        let footprint = &set.buildings[p].footprint;
+        let probe = interior_point(footprint);
+        let owner = outlines.iter().copied().find(|&o| {
+            let outline = &set.buildings[o].footprint;
+            outline.bounds().contains(probe) && outline.contains(probe)
+        });
+        if let Some(o) = owner {
+            covered[o] += footprint.area();
+            set.buildings[p].base = Some(set.buildings[o].footprint.clone());
+        }
+    }
+    for o in outlines {
+        let area = set.buildings[o].footprint.area();
+        if area > 0.0 && covered[o] >= PARTS_COVER * area {
+            set.buildings[o].drawn = false;
+        }
+    }
+}
+
+/// A point inside a polygon: the centroid of the first of its triangles.
+fn interior_point(polygon: &crate::geometry::Polygon) -> crate::geometry::Point {
+    crate::mesh::buildings::triangulate_polygon(polygon)
+        .first()
+        .map(|t| {
+            [
+                (t[0][0] + t[1][0] + t[2][0]) / 3.0,
+                (t[0][1] + t[1][1] + t[2][1]) / 3.0,
+            ]
+        })
+        .unwrap_or(polygon.outer[0])
 }
 
 /// Height when nothing is tagged, by `building` value, in metres.
@@ -150,7 +226,8 @@ pub(super) fn add_area(
     projection: &Projection,
     settings: &FeatureSettings,
 ) {
-    if !is_building(area.tags) {
+    let part = is_building_part(area.tags);
+    if !is_building(area.tags) && !part {
         return;
     }
     let footprints: Vec<_> = area
@@ -164,6 +241,7 @@ pub(super) fn add_area(
     }
     let (height, tagged) = height_m(area.tags, settings);
     let roof = roof_spec(area.tags, settings);
+    let min_height = min_height_m(area.tags, settings).min(height);
     let feature = set.add_feature(Some(area.element), FeatureClass::Building, area.tags);
     for footprint in &footprints {
         set.buildings.push(BuildingShape {
@@ -172,7 +250,14 @@ pub(super) fn add_area(
             height_m: height,
             height_tagged: tagged,
             roof,
+            min_height_m: min_height,
+            drawn: true,
+            base: None,
         });
+    }
+    if part {
+        // Parts stand in their outline, which cuts the ground.
+        return;
     }
     if let Some(surface) = Surface::from_polygons(FeatureClass::Building, feature, footprints) {
         set.surfaces.push(surface);
@@ -227,6 +312,56 @@ mod tests {
             roof_spec(&tags(&[("roof:shape", "something")]), &s).shape,
             RoofShape::Flat
         );
+    }
+
+    #[test]
+    fn min_height_from_tags_or_levels() {
+        let s = FeatureSettings::default();
+        assert_eq!(min_height_m(&tags(&[("min_height", "4 m")]), &s), 4.0);
+        assert_eq!(min_height_m(&tags(&[("building:min_level", "2")]), &s), 6.0);
+        assert_eq!(min_height_m(&tags(&[("min_height", "-3")]), &s), 0.0);
+        assert_eq!(min_height_m(&tags(&[]), &s), 0.0);
+    }
+
+    #[test]
+    fn parts_that_cover_their_outline_replace_it() {
+        use crate::geometry::Polygon;
+        let square = |x0: f64, x1: f64| Polygon {
+            outer: vec![[x0, 0.0], [x1, 0.0], [x1, 1.0], [x0, 1.0]],
+            holes: Vec::new(),
+        };
+        let mut set = FeatureSet::default();
+        let s = FeatureSettings::default();
+        let add = |set: &mut FeatureSet, pairs: &[(&str, &str)], footprint: Polygon| {
+            let t = tags(pairs);
+            let feature = set.add_feature(None, FeatureClass::Building, &t);
+            set.buildings.push(BuildingShape {
+                feature,
+                footprint,
+                height_m: 10.0,
+                height_tagged: true,
+                roof: roof_spec(&t, &s),
+                min_height_m: min_height_m(&t, &s),
+                drawn: true,
+                base: None,
+            });
+        };
+        add(&mut set, &[("building", "yes")], square(0.0, 2.0));
+        add(&mut set, &[("building:part", "yes")], square(0.0, 1.0));
+        add(
+            &mut set,
+            &[("building:part", "yes"), ("min_height", "3")],
+            square(1.0, 2.0),
+        );
+        // A second building that only one small part covers stays drawn.
+        add(&mut set, &[("building", "yes")], square(5.0, 9.0));
+        add(&mut set, &[("building:part", "yes")], square(5.0, 6.0));
+        replace_outlines_by_parts(&mut set);
+        let drawn: Vec<bool> = set.buildings.iter().map(|b| b.drawn).collect();
+        assert_eq!(drawn, vec![false, true, true, true, true]);
+        assert_eq!(set.buildings[1].base, Some(square(0.0, 2.0)));
+        assert_eq!(set.buildings[4].base, Some(square(5.0, 9.0)));
+        assert_eq!(set.buildings[2].min_height_m, 3.0);
     }
 
     #[test]

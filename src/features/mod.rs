@@ -168,6 +168,15 @@ pub struct BuildingShape {
     /// True when the height came from tags rather than a default.
     pub height_tagged: bool,
     pub roof: buildings::RoofSpec,
+    /// Height of the bottom above the lowest ground, metres: above zero, the part floats (an
+    /// overhang, a bridge between towers).
+    pub min_height_m: f64,
+    /// False for an outline whose `building:part`s replace it: it still cuts the ground, the
+    /// parts are drawn instead.
+    pub drawn: bool,
+    /// The outline whose lowest ground a part stands on, so the parts of one building share
+    /// their base; `None` for an outline, or a part outside any.
+    pub base: Option<Polygon>,
 }
 
 /// Everything the features of one tile contribute.
@@ -392,6 +401,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         landcover::add_area(&mut set, area, &projection);
         buildings::add_area(&mut set, area, &projection, settings);
     }
+    buildings::replace_outlines_by_parts(&mut set);
     set.nearby_outlines = set
         .surfaces
         .iter()

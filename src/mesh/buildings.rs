@@ -80,16 +80,40 @@ pub fn extrude(
 ) {
     let rect = crate::features::tile_rect(frame.tile);
     let footprint = &building.footprint;
-    if !footprint.bounds().intersects(&rect) {
+    if !building.drawn || !footprint.bounds().intersects(&rect) {
         return;
     }
-    let (low, high) = ground_range(footprint, terrain, sample_step_uv);
+    // The parts of one building share the base of their outline.
+    let base = building.base.as_ref().unwrap_or(footprint);
+    let (low, high) = ground_range(base, terrain, sample_step_uv);
     let mut top = low + building.height_m;
     if !building.height_tagged {
         top = top.max(high + MIN_CLEARANCE_M);
     }
-    let bottom = low - WALL_SKIRT_M;
+    let floating = building.min_height_m > 0.0;
+    let bottom = if floating {
+        low + building.min_height_m
+    } else {
+        low - WALL_SKIRT_M
+    };
     let local = |p: Point| frame.uv_to_local(p[0], p[1]);
+    if floating {
+        // A part that floats is closed underneath.
+        let mut floor: Vec<[[f64; 3]; 3]> = Vec::new();
+        for triangle in triangulate_polygon(footprint) {
+            let corners: Vec<[f64; 3]> = clip_ring(&triangle, &rect)
+                .iter()
+                .map(|&p| {
+                    let (x, z) = local(p);
+                    [x, frame.elevation_to_y(bottom, z), z]
+                })
+                .collect();
+            for i in 1..corners.len().saturating_sub(1) {
+                floor.push([corners[0], corners[i], corners[i + 1]]);
+            }
+        }
+        walls.push_flat_triangles(&floor, [0.0, -1.0, 0.0], building.feature);
+    }
 
     // A pitched roof takes its height from the top; the walls stop at its eaves, on the rings
     // the roof stands on, so the two meet edge for edge.
