@@ -195,6 +195,136 @@ pub fn roof_spec(tags: &Tags, settings: &FeatureSettings) -> RoofSpec {
     }
 }
 
+/// The colours of a building's walls and roof, linear RGBA.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Appearance {
+    pub walls: [u8; 4],
+    pub roof: [u8; 4],
+}
+
+/// Walls and roofs with no colour or material tagged (linear RGB).
+const DEFAULT_WALLS: [f64; 3] = [0.86, 0.80, 0.70];
+const DEFAULT_ROOF: [f64; 3] = [0.62, 0.36, 0.30];
+
+/// From `building:colour` and `roof:colour` (names or `#rrggbb`), else the colour of
+/// `building:material` and `roof:material`, else the defaults.
+pub fn appearance(tags: &Tags) -> Appearance {
+    let pick =
+        |colour_key: &str, material_key: &str, material: fn(&str) -> Option<[f64; 3]>, default| {
+            let srgb = tags
+                .get(colour_key)
+                .and_then(|c| {
+                    let parsed = parse_colour(c);
+                    if parsed.is_none() {
+                        debug!(colour = c, "unknown colour ignored");
+                    }
+                    parsed
+                })
+                .or_else(|| tags.get(material_key).and_then(material));
+            let linear = srgb.map_or(default, |c: [f64; 3]| c.map(srgb_to_linear));
+            let [r, g, b] = linear.map(|c: f64| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+            [r, g, b, 255]
+        };
+    Appearance {
+        walls: pick(
+            "building:colour",
+            "building:material",
+            wall_material,
+            DEFAULT_WALLS,
+        ),
+        roof: pick("roof:colour", "roof:material", roof_material, DEFAULT_ROOF),
+    }
+}
+
+fn srgb_to_linear(c: f64) -> f64 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// A colour as sRGB in 0..1: `#rgb`, `#rrggbb` or a common name (CSS names and the words
+/// mappers use most).
+pub fn parse_colour(value: &str) -> Option<[f64; 3]> {
+    let value = value.trim().to_ascii_lowercase();
+    if let Some(hex) = value.strip_prefix('#') {
+        let digits: Vec<u32> = hex.chars().map(|c| c.to_digit(16)).collect::<Option<_>>()?;
+        let channel = |hi: u32, lo: u32| f64::from(hi * 16 + lo) / 255.0;
+        return match digits.as_slice() {
+            [r, g, b] => Some([channel(*r, *r), channel(*g, *g), channel(*b, *b)]),
+            [r1, r2, g1, g2, b1, b2] => {
+                Some([channel(*r1, *r2), channel(*g1, *g2), channel(*b1, *b2)])
+            }
+            _ => None,
+        };
+    }
+    let rgb: [u8; 3] = match value.replace(['_', ' ', '-'], "").as_str() {
+        "white" => [255, 255, 255],
+        "black" => [0, 0, 0],
+        "grey" | "gray" => [128, 128, 128],
+        "lightgrey" | "lightgray" => [211, 211, 211],
+        "darkgrey" | "darkgray" => [169, 169, 169],
+        "silver" => [192, 192, 192],
+        "red" => [255, 0, 0],
+        "darkred" | "maroon" => [128, 0, 0],
+        "brown" => [165, 42, 42],
+        "sienna" => [160, 82, 45],
+        "beige" => [245, 245, 220],
+        "tan" => [210, 180, 140],
+        "cream" | "ivory" => [255, 253, 208],
+        "wheat" => [245, 222, 179],
+        "yellow" => [255, 255, 0],
+        "lightyellow" => [255, 255, 224],
+        "orange" => [255, 165, 0],
+        "salmon" => [250, 128, 114],
+        "pink" => [255, 192, 203],
+        "green" => [0, 128, 0],
+        "darkgreen" => [0, 100, 0],
+        "lightgreen" => [144, 238, 144],
+        "olive" => [128, 128, 0],
+        "blue" => [0, 0, 255],
+        "lightblue" => [173, 216, 230],
+        "navy" => [0, 0, 128],
+        "teal" => [0, 128, 128],
+        "terracotta" => [226, 114, 91],
+        _ => return None,
+    };
+    Some(rgb.map(|c| f64::from(c) / 255.0))
+}
+
+/// The usual colour of a wall material (sRGB).
+fn wall_material(material: &str) -> Option<[f64; 3]> {
+    Some(match material {
+        "brick" => [0.62, 0.33, 0.24],
+        "stone" | "sandstone" | "limestone" => [0.74, 0.70, 0.62],
+        "concrete" | "cement_block" => [0.74, 0.74, 0.72],
+        "plaster" | "render" => [0.93, 0.90, 0.84],
+        "glass" | "mirror" => [0.55, 0.66, 0.74],
+        "wood" | "timber_framing" => [0.55, 0.40, 0.26],
+        "metal" | "steel" => [0.62, 0.64, 0.67],
+        _ => return None,
+    })
+}
+
+/// The usual colour of a roof material (sRGB).
+fn roof_material(material: &str) -> Option<[f64; 3]> {
+    Some(match material {
+        "roof_tiles" | "tile" | "tiles" => [0.70, 0.36, 0.25],
+        "slate" => [0.33, 0.35, 0.38],
+        "metal" | "tin" | "steel" => [0.60, 0.62, 0.65],
+        "copper" => [0.38, 0.62, 0.52],
+        "concrete" => [0.70, 0.70, 0.68],
+        "glass" => [0.55, 0.66, 0.74],
+        "grass" | "plants" => [0.36, 0.52, 0.26],
+        "tar_paper" | "asphalt" | "bitumen" => [0.27, 0.27, 0.28],
+        "gravel" => [0.62, 0.60, 0.56],
+        "thatch" => [0.62, 0.52, 0.32],
+        "wood" => [0.50, 0.38, 0.26],
+        _ => return None,
+    })
+}
+
 /// The building's height in metres and whether it was tagged.
 pub fn height_m(tags: &Tags, settings: &FeatureSettings) -> (f64, bool) {
     if let Some(raw) = tags.get("height") {
@@ -253,6 +383,7 @@ pub(super) fn add_area(
             min_height_m: min_height,
             drawn: true,
             base: None,
+            appearance: appearance(area.tags),
         });
     }
     if part {
@@ -315,6 +446,27 @@ mod tests {
     }
 
     #[test]
+    fn colours_and_materials_choose_the_paint() {
+        assert_eq!(parse_colour("#ff8000"), Some([1.0, 128.0 / 255.0, 0.0]));
+        assert_eq!(parse_colour("#FFF"), Some([1.0, 1.0, 1.0]));
+        assert_eq!(parse_colour("Light Grey"), parse_colour("lightgray"));
+        assert_eq!(parse_colour("#12345"), None);
+        assert_eq!(parse_colour("sparkly"), None);
+        let white = appearance(&tags(&[("building:colour", "white")]));
+        assert_eq!(white.walls, [255, 255, 255, 255]);
+        // Mid grey in sRGB is darker in linear light.
+        let grey = appearance(&tags(&[("roof:colour", "#808080")]));
+        assert_eq!(grey.roof, [55, 55, 55, 255]);
+        let brick = appearance(&tags(&[("building:material", "brick")]));
+        assert_ne!(brick.walls, appearance(&tags(&[])).walls);
+        let painted_brick = appearance(&tags(&[
+            ("building:material", "brick"),
+            ("building:colour", "white"),
+        ]));
+        assert_eq!(painted_brick.walls, [255, 255, 255, 255]);
+    }
+
+    #[test]
     fn min_height_from_tags_or_levels() {
         let s = FeatureSettings::default();
         assert_eq!(min_height_m(&tags(&[("min_height", "4 m")]), &s), 4.0);
@@ -344,6 +496,7 @@ mod tests {
                 min_height_m: min_height_m(&t, &s),
                 drawn: true,
                 base: None,
+                appearance: appearance(&t),
             });
         };
         add(&mut set, &[("building", "yes")], square(0.0, 2.0));

@@ -177,6 +177,7 @@ pub struct BuildingShape {
     /// The outline whose lowest ground a part stands on, so the parts of one building share
     /// their base; `None` for an outline, or a part outside any.
     pub base: Option<Polygon>,
+    pub appearance: buildings::Appearance,
 }
 
 /// Everything the features of one tile contribute.

@@ -97,6 +97,8 @@ pub fn extrude(
         low - WALL_SKIRT_M
     };
     let local = |p: Point| frame.uv_to_local(p[0], p[1]);
+    walls.paint(building.appearance.walls);
+    roofs.paint(building.appearance.roof);
     if floating {
         // A part that floats is closed underneath.
         let mut floor: Vec<[[f64; 3]; 3]> = Vec::new();

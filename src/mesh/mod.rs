@@ -133,6 +133,10 @@ pub struct MeshBuffers {
     pub normals: Vec<[f32; 3]>,
     pub feature_ids: Vec<u32>,
     pub indices: Vec<u32>,
+    /// Linear RGBA per vertex, when [`MeshBuffers::paint`] has been called: the material's
+    /// base colour is then white and each feature carries its own colour.
+    pub colours: Vec<[u8; 4]>,
+    paint: Option<[u8; 4]>,
 }
 
 impl MeshBuffers {
@@ -144,7 +148,19 @@ impl MeshBuffers {
         self.indices.len() / 3
     }
 
+    /// The colour of the vertices pushed from now on (linear RGBA). Once painted, every
+    /// vertex of these buffers has a colour.
+    pub fn paint(&mut self, colour: [u8; 4]) {
+        if self.paint.is_none() {
+            self.colours = vec![[255; 4]; self.positions.len()];
+        }
+        self.paint = Some(colour);
+    }
+
     pub fn push_vertex(&mut self, position: [f64; 3], normal: [f64; 3], feature: u32) -> u32 {
+        if let Some(colour) = self.paint {
+            self.colours.push(colour);
+        }
         self.positions.push(position.map(|c| c as f32));
         self.normals.push(normal.map(|c| c as f32));
         self.feature_ids.push(feature);

@@ -2,7 +2,8 @@
 //!
 //! One node per feature class, named after it, each with one mesh whose primitives are the
 //! class's [`Part`]s. Every primitive carries `POSITION`, `NORMAL` and `_FEATURE_ID_0`
-//! (`EXT_mesh_features`); the feature ids index one property table (`EXT_structural_metadata`)
+//! (`EXT_mesh_features`), and painted ones (buildings) `COLOR_0` under a white material; the
+//! feature ids index one property table (`EXT_structural_metadata`)
 //! of class `osm_feature` with the OSM type, id, class, name and all tags (as a JSON object) of
 //! each feature. The frame is described in `asset.extras.terrastitch`.
 //!
@@ -377,7 +378,26 @@ fn write_primitive(
         )
     };
 
-    let (colour, roughness) = material_of(part);
+    let (mut colour, roughness) = material_of(part);
+    let painted = !buffers.colours.is_empty() && buffers.colours.len() == count;
+    let colours = painted.then(|| {
+        let bytes: Vec<u8> = buffers.colours.iter().flatten().copied().collect();
+        let view = builder.view(&bytes, 4, array);
+        builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(4));
+        let accessor = builder.accessor(
+            view,
+            count,
+            json::accessor::ComponentType::U8,
+            json::accessor::Type::Vec4,
+            None,
+        );
+        builder.root.accessors[accessor.value()].normalized = true;
+        accessor
+    });
+    if painted {
+        // The vertices carry the colour.
+        colour = [1.0, 1.0, 1.0, 1.0];
+    }
     let material = builder.root.push(json::Material {
         name: Some(part.name().to_string()),
         pbr_metallic_roughness: json::material::PbrMetallicRoughness {
@@ -393,6 +413,9 @@ fn write_primitive(
     let mut attributes = BTreeMap::new();
     attributes.insert(Valid(json::mesh::Semantic::Positions), positions);
     attributes.insert(Valid(json::mesh::Semantic::Normals), normals);
+    if let Some(colours) = colours {
+        attributes.insert(Valid(json::mesh::Semantic::Colors(0)), colours);
+    }
     attributes.insert(
         Valid(json::mesh::Semantic::Extras("FEATURE_ID_0".to_string())),
         feature_ids,
