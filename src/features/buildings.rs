@@ -116,6 +116,10 @@ pub enum RoofShape {
     Hipped,
     /// Slopes on the long sides, vertical gables at the ends of each wing.
     Gabled,
+    /// Hipped, with steep lower slopes and shallow upper ones.
+    Mansard,
+    /// Gabled, with steep lower slopes and shallow upper ones.
+    Gambrel,
     /// Straight faces from every side to a point over the middle (also `cone`).
     Pyramidal,
     /// A quarter circle in section, up to a point over the middle.
@@ -163,11 +167,13 @@ pub fn roof_spec(tags: &Tags, settings: &FeatureSettings) -> RoofSpec {
             RoofShape::Gabled
         }
         None | Some("flat") => RoofShape::Flat,
-        Some("hipped" | "half-hipped" | "side_hipped" | "mansard") => RoofShape::Hipped,
+        Some("hipped" | "half-hipped" | "side_hipped") => RoofShape::Hipped,
+        Some("mansard") => RoofShape::Mansard,
+        Some("gambrel") => RoofShape::Gambrel,
         Some("pyramidal" | "cone") => RoofShape::Pyramidal,
         Some("dome") => RoofShape::Dome,
         Some("onion") => RoofShape::Onion,
-        Some("gabled" | "saltbox" | "gambrel") => RoofShape::Gabled,
+        Some("gabled" | "saltbox") => RoofShape::Gabled,
         Some(other) => {
             debug!(roof_shape = other, "roof shape drawn flat");
             RoofShape::Flat
@@ -434,6 +440,10 @@ mod tests {
         assert_eq!(
             roof_spec(&tags(&[("roof:shape", "cone")]), &s).shape,
             RoofShape::Pyramidal
+        );
+        assert_eq!(
+            roof_spec(&tags(&[("roof:shape", "mansard")]), &s).shape,
+            RoofShape::Mansard
         );
         assert_eq!(
             roof_spec(&tags(&[("building", "house")]), &s).shape,

@@ -9,7 +9,9 @@
 
 use spade::{Point2, Triangulation};
 
-use super::roofs::{centred_roof, skeleton_roof, spread, CentredRoof, RoofMesh, SkeletonRoof};
+use super::roofs::{
+    bend, centred_roof, skeleton_roof, spread, CentredRoof, RoofMesh, SkeletonRoof,
+};
 use super::tin::Cdt;
 use super::MeshBuffers;
 use crate::features::buildings::RoofShape;
@@ -265,10 +267,10 @@ fn pitched_roof(building: &BuildingShape, size_m: f64) -> Option<PitchedRoof> {
         RoofShape::Pyramidal => Some(CentredRoof::Pyramid),
         RoofShape::Dome => Some(CentredRoof::Dome),
         RoofShape::Onion => Some(CentredRoof::Onion),
-        RoofShape::Hipped | RoofShape::Gabled => None,
+        RoofShape::Hipped | RoofShape::Gabled | RoofShape::Mansard | RoofShape::Gambrel => None,
     };
     let shape = match building.roof.shape {
-        RoofShape::Gabled => SkeletonRoof::Gabled,
+        RoofShape::Gabled | RoofShape::Gambrel => SkeletonRoof::Gabled,
         _ => SkeletonRoof::Hipped,
     };
     let footprint = &building.footprint;
@@ -314,12 +316,18 @@ fn pitched_roof(building: &BuildingShape, size_m: f64) -> Option<PitchedRoof> {
             Ok(mesh)
         }
     });
+    let bent = matches!(building.roof.shape, RoofShape::Mansard | RoofShape::Gambrel);
     match built {
-        Ok(mesh) => Some(PitchedRoof {
-            mesh,
-            origin,
-            size_m,
-        }),
+        Ok(mut mesh) => {
+            if bent {
+                bend(&mut mesh);
+            }
+            Some(PitchedRoof {
+                mesh,
+                origin,
+                size_m,
+            })
+        }
         Err(error) => {
             tracing::debug!(feature = building.feature, %error, "roof drawn flat");
             None

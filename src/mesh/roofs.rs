@@ -205,6 +205,69 @@ fn star_centre(ring: &[Point]) -> Option<(Point, Vec<Point>)> {
     facing.then_some((centre, ring))
 }
 
+/// Share of a mansard or gambrel roof's run taken by its steep lower slopes (paper 003
+/// §5.1.2–5.1.3: a shrunken copy of the footprint where the slope changes).
+const KNEE_RUN: f64 = 0.3;
+/// Share of its height the steep lower slopes rise.
+const KNEE_RISE: f64 = 0.7;
+
+/// Bends a hipped or gabled roof into a mansard or gambrel: every face is cut where the
+/// shrinking footprint has run [`KNEE_RUN`] of the way to the ridge, the steep part below rising
+/// [`KNEE_RISE`] of the height and the rest above. Neighbouring faces are cut at the same points
+/// (computed from the shared edge's ends in a fixed order), so the roof stays closed.
+pub fn bend(mesh: &mut RoofMesh) {
+    let height = mesh.height;
+    if height <= 0.0 {
+        return;
+    }
+    let knee = KNEE_RUN * height;
+    let lift = |z: f64| {
+        if z <= knee {
+            z / knee * KNEE_RISE * height
+        } else {
+            KNEE_RISE * height + (z - knee) / (height - knee) * (1.0 - KNEE_RISE) * height
+        }
+    };
+    let cut = |a: [f64; 3], b: [f64; 3]| {
+        // The same edge gives the same point whichever triangle asks.
+        let (p, q) = if a.map(f64::to_bits) <= b.map(f64::to_bits) {
+            (a, b)
+        } else {
+            (b, a)
+        };
+        let t = (knee - p[2]) / (q[2] - p[2]);
+        [p[0] + (q[0] - p[0]) * t, p[1] + (q[1] - p[1]) * t, knee]
+    };
+    let split = |triangles: &[[[f64; 3]; 3]]| -> Vec<[[f64; 3]; 3]> {
+        let mut out = Vec::with_capacity(triangles.len() * 2);
+        for t in triangles {
+            let mut polygons: [Vec<[f64; 3]>; 2] = [Vec::new(), Vec::new()];
+            for i in 0..3 {
+                let (a, b) = (t[i], t[(i + 1) % 3]);
+                polygons[usize::from(a[2] > knee)].push(a);
+                if (a[2] > knee) != (b[2] > knee) {
+                    let x = cut(a, b);
+                    polygons[0].push(x);
+                    polygons[1].push(x);
+                }
+            }
+            for polygon in polygons.iter().filter(|p| p.len() >= 3) {
+                for i in 1..polygon.len() - 1 {
+                    out.push([polygon[0], polygon[i], polygon[i + 1]]);
+                }
+            }
+        }
+        for t in &mut out {
+            for c in t.iter_mut() {
+                c[2] = lift(c[2]);
+            }
+        }
+        out
+    };
+    mesh.slopes = split(&mesh.slopes);
+    mesh.gables = split(&mesh.gables);
+}
+
 /// Moves the apex of each triangular face to the middle of its edge, where that apex belongs to
 /// no other triangular face (a square's single apex stays: it is hipped).
 fn gable(skeleton: &Skeleton, plan: &mut [Point], gables: &mut [bool]) {
@@ -478,6 +541,38 @@ mod tests {
         let (inner, outer) = spread(&octagon).expect("star-shaped");
         assert!((inner - 5.0 * (std::f64::consts::PI / 8.0).cos()).abs() < 1e-9);
         assert!((outer - 5.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn mansard_and_gambrel_roofs_bend_and_stay_closed() {
+        let rings = vec![vec![[0.0, 0.0], [12.0, 0.0], [12.0, 8.0], [0.0, 8.0]]];
+        for shape in [SkeletonRoof::Hipped, SkeletonRoof::Gabled] {
+            let mut mesh = skeleton_roof(&rings, shape, Some(4.0), 0.0).expect("a roof");
+            bend(&mut mesh);
+            assert!(is_closed_over_the_walls(&mesh, &mesh.rings), "{shape:?}");
+            let (roof, footprint) = plan_areas(&mesh, &rings);
+            assert!((roof - footprint).abs() < 1e-9);
+            // The knee: 30 % of the way in (1.2 m from the long sides), 70 % up (2.8 m).
+            let knee: Vec<[f64; 3]> = mesh
+                .slopes
+                .iter()
+                .flatten()
+                .copied()
+                .filter(|c| (c[2] - 2.8).abs() < 1e-9)
+                .collect();
+            assert!(!knee.is_empty(), "{shape:?}");
+            assert!(knee.iter().all(|c| (c[1] - 1.2).abs() < 1e-9
+                || (c[1] - 6.8).abs() < 1e-9
+                || c[0] < 1.3
+                || c[0] > 10.7));
+            let top = mesh
+                .slopes
+                .iter()
+                .flatten()
+                .map(|c| c[2])
+                .fold(0.0, f64::max);
+            assert!((top - 4.0).abs() < 1e-9);
+        }
     }
 
     #[test]
