@@ -103,19 +103,7 @@ pub fn extrude(
     roofs.paint(building.appearance.roof);
     if floating {
         // A part that floats is closed underneath.
-        let mut floor: Vec<[[f64; 3]; 3]> = Vec::new();
-        for triangle in triangulate_polygon(footprint) {
-            let corners: Vec<[f64; 3]> = clip_ring(&triangle, &rect)
-                .iter()
-                .map(|&p| {
-                    let (x, z) = local(p);
-                    [x, frame.elevation_to_y(bottom, z), z]
-                })
-                .collect();
-            for i in 1..corners.len().saturating_sub(1) {
-                floor.push([corners[0], corners[i], corners[i + 1]]);
-            }
-        }
+        let floor = flat_cap(footprint, frame, bottom);
         walls.push_flat_triangles(&floor, [0.0, -1.0, 0.0], building.feature);
     }
 
@@ -222,22 +210,28 @@ pub fn extrude(
         return;
     }
 
-    // Flat roof: the footprint triangulated, each triangle clipped to the tile.
-    let mut roof: Vec<[[f64; 3]; 3]> = Vec::new();
+    let roof = flat_cap(footprint, frame, top);
+    roofs.push_flat_triangles(&roof, [0.0, 1.0, 0.0], building.feature);
+}
+
+/// The footprint triangulated at one elevation, each triangle clipped to the tile: a flat roof
+/// or the underside of a floating part.
+fn flat_cap(footprint: &Polygon, frame: &TileFrame, elevation: f64) -> Vec<[[f64; 3]; 3]> {
+    let rect = crate::features::tile_rect(frame.tile);
+    let mut cap = Vec::new();
     for triangle in triangulate_polygon(footprint) {
-        let clipped = clip_ring(&triangle, &rect);
-        let corners: Vec<[f64; 3]> = clipped
+        let corners: Vec<[f64; 3]> = clip_ring(&triangle, &rect)
             .iter()
             .map(|&p| {
-                let (x, z) = local(p);
-                [x, frame.elevation_to_y(top, z), z]
+                let (x, z) = frame.uv_to_local(p[0], p[1]);
+                [x, frame.elevation_to_y(elevation, z), z]
             })
             .collect();
         for i in 1..corners.len().saturating_sub(1) {
-            roof.push([corners[0], corners[i], corners[i + 1]]);
+            cap.push([corners[0], corners[i], corners[i + 1]]);
         }
     }
-    roofs.push_flat_triangles(&roof, [0.0, 1.0, 0.0], building.feature);
+    cap
 }
 
 /// A roof built on the skeleton, in metres around the footprint's first vertex.
