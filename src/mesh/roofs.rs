@@ -369,6 +369,16 @@ fn ear_clip(points: &[Point]) -> Option<Vec<[usize; 3]>> {
 mod tests {
     use super::*;
 
+    /// The corners of the roof's slopes at one height above the eaves.
+    fn corners_at(mesh: &RoofMesh, height: f64) -> Vec<[f64; 3]> {
+        mesh.slopes
+            .iter()
+            .flatten()
+            .copied()
+            .filter(|c| (c[2] - height).abs() < 1e-9)
+            .collect()
+    }
+
     /// Twice the area of the roof's slopes seen from above, and the footprint's.
     fn plan_areas(mesh: &RoofMesh, rings: &[Vec<Point>]) -> (f64, f64) {
         let roof: f64 = mesh
@@ -419,13 +429,7 @@ mod tests {
         let mesh = skeleton_roof(&rings, SkeletonRoof::Gabled, Some(4.0), 0.0).expect("a roof");
         assert_eq!(mesh.gables.len(), 2);
         // The ridge: the corners at full height, at the two ends of the long axis.
-        let mut ridge: Vec<[f64; 3]> = mesh
-            .slopes
-            .iter()
-            .flatten()
-            .copied()
-            .filter(|c| (c[2] - 4.0).abs() < 1e-9)
-            .collect();
+        let mut ridge: Vec<[f64; 3]> = corners_at(&mesh, 4.0);
         ridge.sort_by(|a, b| a[0].total_cmp(&b[0]));
         ridge.dedup();
         assert_eq!(ridge, vec![[0.0, 3.0, 4.0], [10.0, 3.0, 4.0]]);
@@ -456,13 +460,7 @@ mod tests {
         let mesh = skeleton_roof(&rings, SkeletonRoof::Gabled, Some(3.0), 0.0).expect("a roof");
         // Both wing ends are gables; the ridges run along the wings at x = 3 and y = 3.
         assert_eq!(mesh.gables.len(), 2);
-        let top: Vec<[f64; 3]> = mesh
-            .slopes
-            .iter()
-            .flatten()
-            .copied()
-            .filter(|c| (c[2] - 3.0).abs() < 1e-9)
-            .collect();
+        let top: Vec<[f64; 3]> = corners_at(&mesh, 3.0);
         assert!(top
             .iter()
             .any(|c| c[0] == 12.0 && (c[1] - 3.0).abs() < 1e-9));
@@ -553,13 +551,7 @@ mod tests {
             let (roof, footprint) = plan_areas(&mesh, &rings);
             assert!((roof - footprint).abs() < 1e-9);
             // The knee: 30 % of the way in (1.2 m from the long sides), 70 % up (2.8 m).
-            let knee: Vec<[f64; 3]> = mesh
-                .slopes
-                .iter()
-                .flatten()
-                .copied()
-                .filter(|c| (c[2] - 2.8).abs() < 1e-9)
-                .collect();
+            let knee: Vec<[f64; 3]> = corners_at(&mesh, 2.8);
             assert!(!knee.is_empty(), "{shape:?}");
             assert!(knee.iter().all(|c| (c[1] - 1.2).abs() < 1e-9
                 || (c[1] - 6.8).abs() < 1e-9
