@@ -203,10 +203,17 @@ fn snap_to_corner(p: Point, rect: &Rect) -> Point {
 /// Sutherland–Hodgman clipping of a convex or concave polygon to a rectangle (the result may
 /// have edges along the rectangle's sides; good enough for roof caps, not for shared edges).
 pub fn clip_ring(ring: &[Point], rect: &Rect) -> Ring {
-    let mut output: Ring = ring.to_vec();
+    dedup_ring(&clip_to_rect(ring, rect))
+}
+
+/// Sutherland–Hodgman clipping of a polygon whose first two coordinates are the plan: further
+/// coordinates (a height, say) are interpolated along with them, so a vertical wall or a sloped
+/// roof is cut where it leaves the rectangle. Points repeated in a row are dropped.
+pub fn clip_to_rect<const N: usize>(polygon: &[[f64; N]], rect: &Rect) -> Vec<[f64; N]> {
+    let mut output: Vec<[f64; N]> = polygon.to_vec();
     for axis in 0..2 {
         for (bound, keep_greater) in [(rect.min[axis], true), (rect.max[axis], false)] {
-            let inside = |p: &Point| {
+            let inside = |p: &[f64; N]| {
                 if keep_greater {
                     p[axis] >= bound
                 } else {
@@ -220,9 +227,11 @@ pub fn clip_ring(ring: &[Point], rect: &Rect) -> Ring {
                 let previous = input[(i + n - 1) % n];
                 let crossing = || {
                     let t = (bound - previous[axis]) / (current[axis] - previous[axis]);
-                    let mut p = [0.0; 2];
+                    let mut p = [0.0; N];
+                    for (k, c) in p.iter_mut().enumerate() {
+                        *c = previous[k] + t * (current[k] - previous[k]);
+                    }
                     p[axis] = bound;
-                    p[1 - axis] = previous[1 - axis] + t * (current[1 - axis] - previous[1 - axis]);
                     p
                 };
                 match (inside(&previous), inside(&current)) {
@@ -237,7 +246,11 @@ pub fn clip_ring(ring: &[Point], rect: &Rect) -> Ring {
             }
         }
     }
-    dedup_ring(&output)
+    output.dedup();
+    while output.len() > 1 && output.first() == output.last() {
+        output.pop();
+    }
+    output
 }
 
 /// Distance from `p` to the segment `a`–`b`.

@@ -247,15 +247,11 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
     let sample_step_uv = srtm_step_uv(tile);
     let mut walls = MeshBuffers::default();
     let mut roofs = MeshBuffers::default();
-    for building in &feature_set.buildings {
-        mesh::buildings::extrude(
-            building,
-            frame,
-            terrain,
-            sample_step_uv,
-            &mut walls,
-            &mut roofs,
-        );
+    let solids = mesh::buildings::solids(&feature_set.buildings, frame, terrain, sample_step_uv);
+    for (building, solid) in feature_set.buildings.iter().zip(&solids) {
+        if let Some(solid) = solid {
+            mesh::buildings::extrude(building, solid, frame, &mut walls, &mut roofs);
+        }
     }
     parts.insert(Part::BuildingWalls, walls);
     parts.insert(Part::BuildingRoofs, roofs);
@@ -440,8 +436,9 @@ fn faces_up_in_f32(corners: [[f64; 2]; 3]) -> bool {
     cross_y > 0.0
 }
 
-/// The east–west spacing of 3-arc-second samples in global tile units at this zoom.
-fn srtm_step_uv(tile: TileId) -> f64 {
+/// The east–west spacing of 3-arc-second samples in global tile units at this zoom: buildings
+/// sample the ground under them this finely.
+pub fn srtm_step_uv(tile: TileId) -> f64 {
     let degrees = 3.0 / 3600.0;
     degrees / 360.0 * tile.tiles_per_axis()
 }

@@ -3,12 +3,16 @@
 
 mod common;
 
+use std::collections::HashMap;
 use std::path::PathBuf;
 
 use common::{decode, repo, sample_osm, sample_srtm};
-use terrastitch::features;
+use terrastitch::features::{self, buildings::RoofShape};
+use terrastitch::mesh::buildings::{self, Solid};
 use terrastitch::mesh::skeleton::skeleton;
+use terrastitch::render::srtm_step_uv;
 use terrastitch::source::Sources;
+use terrastitch::terrain::{Interpolation, TerrainModel};
 use terrastitch::TileId;
 
 /// The footprints of a tile's buildings in metres (the projection is conformal, so shapes keep
@@ -121,4 +125,102 @@ fn an_untagged_church_gets_a_gabled_roof() {
         "gables reach {gable_top}, the ridge {ridge}"
     );
     assert!(ridge > eaves + 1.0, "ridge {ridge}, eaves {eaves}");
+}
+
+/// Every directed edge of the shell's faces runs the other way in exactly one other face, and
+/// the faces enclose a positive volume: closed, wound outwards. `None` when it holds, else what
+/// is wrong.
+fn shell_defect(solid: &Solid) -> Option<String> {
+    type Key = [u64; 3];
+    let key = |c: [f64; 3]| c.map(|x| (x + 0.0).to_bits());
+    let mut edges: HashMap<(Key, Key), u32> = HashMap::new();
+    let mut volume = 0.0;
+    for face in solid.faces() {
+        for i in 0..face.len() {
+            let (a, b) = (face[i], face[(i + 1) % face.len()]);
+            *edges.entry((key(a), key(b))).or_default() += 1;
+        }
+        for i in 1..face.len().saturating_sub(1) {
+            let (a, b, c) = (face[0], face[i], face[i + 1]);
+            volume += a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        }
+    }
+    let open = edges
+        .iter()
+        .filter(|((a, b), &n)| n != 1 || edges.get(&(*b, *a)) != Some(&1))
+        .count();
+    if open > 0 {
+        return Some(format!("{open} unmatched edges of {}", edges.len()));
+    }
+    (volume <= 0.0).then(|| format!("volume {volume}"))
+}
+
+/// Every building of 14/8529/5973 in the tag-rich extract (roof shapes, parts, heights) is a
+/// closed shell, and its tagged height and floating parts' `min_height` are met within 1 cm:
+/// with the roofs as tagged, and with every footprint given each roof shape in turn.
+#[test]
+fn every_building_of_a_tag_rich_tile_is_a_closed_shell_at_its_tagged_height() {
+    let tag_rich = repo().join("tests/data/monaco-planetiler-2021.osm.pbf");
+    let sources = Sources::open(&[tag_rich], &sample_srtm(), 14).expect("sample data");
+    let tile = TileId {
+        z: 14,
+        x: 8529,
+        y: 5973,
+    };
+    let tagged = features::collect(&sources.selection(tile), tile, &Default::default());
+    let mosaic = sources.mosaic(tile).expect("SRTM");
+    let terrain = TerrainModel::new(&mosaic, Interpolation::default(), tile.z);
+    let mut failures = Vec::new();
+    for forced in std::iter::once(None).chain(RoofShape::ALL.map(Some)) {
+        let mut set = tagged.clone();
+        if let Some(shape) = forced {
+            for building in &mut set.buildings {
+                building.roof.shape = shape;
+            }
+        }
+        let solids = buildings::solids(&set.buildings, &tile.frame(), &terrain, srtm_step_uv(tile));
+        let (mut checked, mut pitched) = (0, 0);
+        for (building, solid) in set.buildings.iter().zip(&solids) {
+            let Some(solid) = solid else { continue };
+            checked += 1;
+            pitched += usize::from(!solid.flat_roof);
+            let row = &set.features[building.feature as usize];
+            let heights = || solid.faces().flatten().map(|c| c[2]);
+            let top = heights().fold(f64::NEG_INFINITY, f64::max);
+            let bottom = heights().fold(f64::INFINITY, f64::min);
+            let what = format!("{:?} as {forced:?}", row.element);
+            if let Some(defect) = shell_defect(solid) {
+                failures.push(format!("{what}: {defect}"));
+            }
+            if building.height_tagged && (top - solid.ground - building.height_m).abs() > 0.01 {
+                failures.push(format!(
+                    "{what}: top {:.3} m above the ground, tagged {:.3} m",
+                    top - solid.ground,
+                    building.height_m
+                ));
+            }
+            if solid.floating && (bottom - solid.ground - building.min_height_m).abs() > 0.01 {
+                failures.push(format!("{what}: floats at {bottom}"));
+            }
+        }
+        assert!(checked > 100, "{checked} buildings");
+        if forced.is_some_and(|s| s != RoofShape::Flat) {
+            assert_eq!(pitched, checked, "{forced:?}");
+        }
+    }
+    let mut by_shape: std::collections::BTreeMap<&str, usize> = Default::default();
+    for failure in &failures {
+        let shape = failure
+            .split(" as ")
+            .nth(1)
+            .and_then(|r| r.split(':').next());
+        *by_shape.entry(shape.unwrap_or("?")).or_default() += 1;
+    }
+    assert!(
+        failures.is_empty(),
+        "{} failures ({by_shape:?}): {:?}",
+        failures.len(),
+        &failures[..failures.len().min(12)]
+    );
 }

@@ -73,7 +73,7 @@ pub(super) fn replace_outlines_by_parts(set: &mut FeatureSet) {
         });
         if let Some(o) = owner {
             covered[o] += footprint.area();
-            set.buildings[p].base = Some(set.buildings[o].footprint.clone());
+            set.buildings[p].base = Some(o);
         }
     }
     for o in outlines {
@@ -86,7 +86,7 @@ pub(super) fn replace_outlines_by_parts(set: &mut FeatureSet) {
 
 /// A point inside a polygon: the centroid of the first of its triangles.
 fn interior_point(polygon: &crate::geometry::Polygon) -> crate::geometry::Point {
-    crate::mesh::buildings::triangulate_polygon(polygon)
+    crate::mesh::constraints::triangulate_polygon(polygon)
         .first()
         .map(|t| {
             [
@@ -108,24 +108,93 @@ fn default_height_m(building: &str, settings: &FeatureSettings) -> f64 {
     }
 }
 
-/// A roof the mesh stage can build.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// A roof the mesh stage can build (Simple 3D Buildings' `roof:shape` values).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum RoofShape {
     Flat,
-    /// Every side slopes up to the ridges (the straight skeleton raised).
-    Hipped,
+    /// One plane sloping down towards `roof:direction`.
+    Skillion,
     /// Slopes on the long sides, vertical gables at the ends of each wing.
     Gabled,
-    /// Hipped, with steep lower slopes and shallow upper ones.
-    Mansard,
-    /// Gabled, with steep lower slopes and shallow upper ones.
-    Gambrel,
+    /// Every side slopes up to the ridges (the straight skeleton raised).
+    Hipped,
+    /// Gabled ends cut off by a small hip at the top.
+    HalfHipped,
+    /// Gabled, with one end hipped (the one `roof:direction` names).
+    SideHipped,
+    /// Gabled, with one end half-hipped.
+    SideHalfHipped,
+    /// Hipped ends with a small gable at the top (dutch hip).
+    HippedAndGabled,
     /// Straight faces from every side to a point over the middle (also `cone`).
     Pyramidal,
     /// A quarter circle in section, up to a point over the middle.
     Dome,
     /// Bulging out past the walls, then drawn in to a point.
     Onion,
+    /// A barrel vault: a half ellipse across the footprint.
+    Round,
+    /// Gabled, with steep lower slopes and shallow upper ones.
+    Gambrel,
+    /// Hipped, with steep lower slopes and shallow upper ones.
+    Mansard,
+    /// Gabled with the ridge off the middle: a long slope towards `roof:direction`.
+    Saltbox,
+    /// Teeth across the footprint: long slopes and steep glazed faces.
+    Sawtooth,
+    /// Two slopes falling to a valley in the middle.
+    Butterfly,
+}
+
+impl RoofShape {
+    /// The shape a `roof:shape` value names, `None` for a value we do not know.
+    pub fn from_tag(value: &str) -> Option<RoofShape> {
+        Some(match value {
+            "flat" => RoofShape::Flat,
+            "skillion" | "lean_to" => RoofShape::Skillion,
+            "gabled" => RoofShape::Gabled,
+            "hipped" => RoofShape::Hipped,
+            "half-hipped" | "half_hipped" => RoofShape::HalfHipped,
+            "side_hipped" => RoofShape::SideHipped,
+            "side_half-hipped" => RoofShape::SideHalfHipped,
+            "hipped-and-gabled" | "dutch" => RoofShape::HippedAndGabled,
+            "pyramidal" | "cone" => RoofShape::Pyramidal,
+            "dome" => RoofShape::Dome,
+            "onion" => RoofShape::Onion,
+            "round" => RoofShape::Round,
+            "gambrel" => RoofShape::Gambrel,
+            "mansard" => RoofShape::Mansard,
+            "saltbox" | "gabled_height_moved" => RoofShape::Saltbox,
+            "sawtooth" => RoofShape::Sawtooth,
+            "butterfly" => RoofShape::Butterfly,
+            "crosspitched" => {
+                debug!("crosspitched roof drawn hipped");
+                RoofShape::Hipped
+            }
+            _ => return None,
+        })
+    }
+
+    /// Every shape.
+    pub const ALL: [RoofShape; 17] = [
+        RoofShape::Flat,
+        RoofShape::Skillion,
+        RoofShape::Gabled,
+        RoofShape::Hipped,
+        RoofShape::HalfHipped,
+        RoofShape::SideHipped,
+        RoofShape::SideHalfHipped,
+        RoofShape::HippedAndGabled,
+        RoofShape::Pyramidal,
+        RoofShape::Dome,
+        RoofShape::Onion,
+        RoofShape::Round,
+        RoofShape::Gambrel,
+        RoofShape::Mansard,
+        RoofShape::Saltbox,
+        RoofShape::Sawtooth,
+        RoofShape::Butterfly,
+    ];
 }
 
 /// The roof a building's tags ask for.
@@ -136,13 +205,18 @@ pub struct RoofSpec {
     pub height_m: Option<f64>,
     /// Rise per unit of run when no height is tagged.
     pub pitch: f64,
+    /// `roof:direction`: the compass direction (degrees from north, clockwise) the main face of
+    /// the roof looks towards.
+    pub direction_deg: Option<f64>,
+    /// `roof:orientation=across`: the ridge runs across the longer side, not along it.
+    pub across: bool,
 }
 
 /// Pitch of a roof with neither a height nor an angle tagged: 30°.
 const DEFAULT_PITCH_DEG: f64 = 30.0;
 
-/// The roof from `roof:shape`, `roof:height`, `roof:levels` and `roof:angle`. A shape not built
-/// yet is drawn flat, with a debug log.
+/// The roof from `roof:shape`, `roof:height`, `roof:levels`, `roof:angle`, `roof:direction`
+/// and `roof:orientation`. An unknown shape is drawn flat, with a debug log.
 pub fn roof_spec(tags: &Tags, settings: &FeatureSettings) -> RoofSpec {
     let shape = match tags.get("roof:shape") {
         // Untagged, small houses and sheds have gabled roofs far more often than flat ones.
@@ -166,18 +240,11 @@ pub fn roof_spec(tags: &Tags, settings: &FeatureSettings) -> RoofSpec {
         {
             RoofShape::Gabled
         }
-        None | Some("flat") => RoofShape::Flat,
-        Some("hipped" | "half-hipped" | "side_hipped") => RoofShape::Hipped,
-        Some("mansard") => RoofShape::Mansard,
-        Some("gambrel") => RoofShape::Gambrel,
-        Some("pyramidal" | "cone") => RoofShape::Pyramidal,
-        Some("dome") => RoofShape::Dome,
-        Some("onion") => RoofShape::Onion,
-        Some("gabled" | "saltbox") => RoofShape::Gabled,
-        Some(other) => {
-            debug!(roof_shape = other, "roof shape drawn flat");
+        None => RoofShape::Flat,
+        Some(value) => RoofShape::from_tag(value).unwrap_or_else(|| {
+            debug!(roof_shape = value, "unknown roof shape drawn flat");
             RoofShape::Flat
-        }
+        }),
     };
     let height_m = tags
         .get("roof:height")
@@ -194,11 +261,37 @@ pub fn roof_spec(tags: &Tags, settings: &FeatureSettings) -> RoofSpec {
         .and_then(|a| a.trim().parse::<f64>().ok())
         .filter(|a| *a > 0.0 && *a < 80.0)
         .unwrap_or(DEFAULT_PITCH_DEG);
+    let direction_deg = tags.get("roof:direction").and_then(|raw| {
+        let parsed = parse_direction(raw);
+        if parsed.is_none() {
+            debug!(roof_direction = raw, "unknown roof:direction ignored");
+        }
+        parsed
+    });
     RoofSpec {
         shape,
         height_m,
         pitch: angle.to_radians().tan(),
+        direction_deg,
+        across: tags.get("roof:orientation") == Some("across"),
     }
+}
+
+/// A compass direction in degrees: a number, or a point of the compass (`N`, `NNE`, … `NW`).
+pub fn parse_direction(raw: &str) -> Option<f64> {
+    let raw = raw.trim();
+    if let Ok(degrees) = raw.parse::<f64>() {
+        return degrees.is_finite().then(|| degrees.rem_euclid(360.0));
+    }
+    const POINTS: [&str; 16] = [
+        "N", "NNE", "NE", "ENE", "E", "ESE", "SE", "SSE", "S", "SSW", "SW", "WSW", "W", "WNW",
+        "NW", "NNW",
+    ];
+    let upper = raw.to_ascii_uppercase();
+    POINTS
+        .iter()
+        .position(|p| *p == upper)
+        .map(|i| i as f64 * 22.5)
 }
 
 /// The colours of a building's walls and roof, linear RGBA.
@@ -522,8 +615,8 @@ mod tests {
         replace_outlines_by_parts(&mut set);
         let drawn: Vec<bool> = set.buildings.iter().map(|b| b.drawn).collect();
         assert_eq!(drawn, vec![false, true, true, true, true]);
-        assert_eq!(set.buildings[1].base, Some(square(0.0, 2.0)));
-        assert_eq!(set.buildings[4].base, Some(square(5.0, 9.0)));
+        assert_eq!(set.buildings[1].base, Some(0));
+        assert_eq!(set.buildings[4].base, Some(3));
         assert_eq!(set.buildings[2].min_height_m, 3.0);
     }
 

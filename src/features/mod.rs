@@ -174,9 +174,10 @@ pub struct BuildingShape {
     /// False for an outline whose `building:part`s replace it: it still cuts the ground, the
     /// parts are drawn instead.
     pub drawn: bool,
-    /// The outline whose lowest ground a part stands on, so the parts of one building share
-    /// their base; `None` for an outline, or a part outside any.
-    pub base: Option<Polygon>,
+    /// The outline whose lowest ground a part stands on (its index in the same set's
+    /// buildings), so the parts of one building share their base; `None` for an outline, or a
+    /// part outside any.
+    pub base: Option<usize>,
     pub appearance: buildings::Appearance,
 }
 

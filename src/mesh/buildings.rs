@@ -7,16 +7,15 @@
 //! Walls start [`WALL_SKIRT_M`] below that, so no wall ends above the ground on a slope. An
 //! untagged height is raised where needed so the roof clears the highest ground under it.
 
-use spade::{Point2, Triangulation};
-
+use super::constraints::triangulate_polygon;
 use super::roofs::{
-    bend, centred_roof, skeleton_roof, spread, CentredRoof, RoofMesh, SkeletonRoof,
+    bend, centred_roof, long_axis, profile_roof, skeleton_roof, spread, CentredRoof, RoofEnd,
+    RoofError, RoofMesh, SkeletonRoof,
 };
-use super::tin::Cdt;
 use super::MeshBuffers;
 use crate::features::buildings::RoofShape;
 use crate::features::BuildingShape;
-use crate::geometry::{clip_ring, clip_segment, signed_area2, Point, Polygon, Ring};
+use crate::geometry::{clip_to_rect, signed_area2, Point, Polygon};
 use crate::terrain::TerrainModel;
 use crate::tile::TileFrame;
 
@@ -71,23 +70,93 @@ pub fn ground_range(
     (low, high)
 }
 
-/// Adds the walls and the roof of the part of a building inside the tile.
-pub fn extrude(
-    building: &BuildingShape,
-    frame: &TileFrame,
-    terrain: &TerrainModel<'_>,
-    sample_step_uv: f64,
-    walls: &mut MeshBuffers,
-    roofs: &mut MeshBuffers,
-) {
-    let rect = crate::features::tile_rect(frame.tile);
-    let footprint = &building.footprint;
-    if !building.drawn || !footprint.bounds().intersects(&rect) {
-        return;
+/// A building's closed shell: plan coordinates in metres around its footprint's first vertex
+/// (`x` and `y` growing with the tile coordinates `u` and `v`), the third coordinate its
+/// elevation in metres. Every face is wound counter-clockwise seen from outside in that
+/// `(x, y, elevation)` frame; together the faces close (every edge is shared by two of them,
+/// running opposite ways), as long as the footprint does not cross itself.
+#[derive(Debug, Clone, Default)]
+pub struct Solid {
+    /// The footprint's first vertex, tile units: `(0, 0)` of the plan.
+    pub origin: Point,
+    /// Metres per tile unit.
+    pub size_m: f64,
+    /// The lowest ground under the building's outline, metres: heights count from here.
+    pub ground: f64,
+    /// Vertical faces: the walls, and the gables and sides of the roof.
+    pub walls: Vec<Vec<[f64; 3]>>,
+    /// The roof's triangles.
+    pub roof: Vec<[[f64; 3]; 3]>,
+    /// True when the roof is flat (one normal for all its triangles).
+    pub flat_roof: bool,
+    /// The bottom, facing down: drawn under a part that floats, underground otherwise.
+    pub floor: Vec<[[f64; 3]; 3]>,
+    pub floating: bool,
+    /// Why the roof is simpler than the tags asked for, if it is.
+    pub fallback: Option<Fallback>,
+}
+
+impl Solid {
+    /// A plan point in tile units.
+    pub fn to_uv(&self, x: f64, y: f64) -> Point {
+        [
+            self.origin[0] + x / self.size_m,
+            self.origin[1] + y / self.size_m,
+        ]
     }
-    // The parts of one building share the base of their outline.
-    let base = building.base.as_ref().unwrap_or(footprint);
-    let (low, high) = ground_range(base, terrain, sample_step_uv);
+
+    /// Every face as a polygon: walls, roof, floor.
+    pub fn faces(&self) -> impl Iterator<Item = Vec<[f64; 3]>> + '_ {
+        self.walls
+            .iter()
+            .cloned()
+            .chain(self.roof.iter().chain(&self.floor).map(|t| t.to_vec()))
+    }
+}
+
+/// Why a building got a simpler roof than its tags ask for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Fallback {
+    /// More than [`MAX_ROOF_VERTICES`] footprint vertices: flat.
+    TooDetailed,
+    /// A pyramid, dome or onion over a footprint with courtyards or not star-shaped around its
+    /// centroid: hipped.
+    NotStarShaped,
+    /// The straight skeleton or the roof on it could not be built: flat.
+    Skeleton,
+    /// The footprint has no width across the roof's direction: flat.
+    Profile,
+}
+
+impl Fallback {
+    pub fn describe(self) -> &'static str {
+        match self {
+            Fallback::TooDetailed => "footprint too detailed: flat",
+            Fallback::NotStarShaped => "not star-shaped around its centroid: hipped",
+            Fallback::Skeleton => "no straight skeleton: flat",
+            Fallback::Profile => "no width across the roof: flat",
+        }
+    }
+}
+
+/// The shell of a building whose lowest and highest ground (under its outline) are `low` and
+/// `high`, metres.
+pub fn solid(building: &BuildingShape, size_m: f64, low: f64, high: f64) -> Solid {
+    let footprint = &building.footprint;
+    let origin = footprint.outer[0];
+    let mut rings: Vec<Vec<Point>> = footprint
+        .rings()
+        .map(|r| {
+            r.iter()
+                .map(|p| [(p[0] - origin[0]) * size_m, (p[1] - origin[1]) * size_m])
+                .collect()
+        })
+        .collect();
+    for (index, ring) in rings.iter_mut().enumerate() {
+        if (index == 0) == (signed_area2(ring) < 0.0) {
+            ring.reverse();
+        }
+    }
     let mut top = low + building.height_m;
     if !building.height_tagged {
         top = top.max(high + MIN_CLEARANCE_M);
@@ -98,325 +167,338 @@ pub fn extrude(
     } else {
         low - WALL_SKIRT_M
     };
-    let local = |p: Point| frame.uv_to_local(p[0], p[1]);
-    walls.paint(building.appearance.walls);
-    roofs.paint(building.appearance.roof);
-    if floating {
-        // A part that floats is closed underneath.
-        let floor = flat_cap(footprint, frame, bottom);
-        walls.push_flat_triangles(&floor, [0.0, -1.0, 0.0], building.feature);
-    }
-
+    let (pitched, fallback) = pitched_roof(building, &rings);
+    let mut solid = Solid {
+        origin,
+        size_m,
+        ground: low,
+        floating,
+        fallback,
+        ..Solid::default()
+    };
+    let at = |p: Point, elevation: f64| [p[0], p[1], elevation];
     // A pitched roof takes its height from the top; the walls stop at its eaves, on the rings
     // the roof stands on, so the two meet edge for edge.
-    let pitched = pitched_roof(building, frame.size_m);
-    let (eaves, wall_rings): (f64, Vec<Ring>) = match &pitched {
-        Some(roof) => (
-            top - roof.mesh.height,
-            roof.mesh
-                .rings
-                .iter()
-                .map(|r| r.iter().map(|&p| roof.to_uv(p)).collect())
-                .collect(),
-        ),
-        None => (top, footprint.rings().cloned().collect()),
+    let eaves = match &pitched {
+        Some(roof) => {
+            let eaves = top - roof.height;
+            rings.clone_from(&roof.rings);
+            let raise = |c: [f64; 3]| [c[0], c[1], eaves + c[2]];
+            solid.roof = roof.slopes.iter().map(|t| t.map(raise)).collect();
+            // A side whose top rounds onto the eaves is none.
+            for side in &roof.sides {
+                let mut face: Vec<[f64; 3]> = side.iter().copied().map(raise).collect();
+                face.dedup();
+                if face.len() >= 3 {
+                    solid.walls.push(face);
+                }
+            }
+            eaves
+        }
+        None => top,
     };
-
-    // Walls: every footprint edge, clipped to the tile, facing away from the building.
-    for (ring_index, ring) in wall_rings.iter().enumerate() {
-        // In the (u, v) plane taken as (x, y), the inside of a counter-clockwise outer ring lies
-        // left of its edges; for a hole the building lies left of a clockwise ring.
-        let area = signed_area2(ring);
-        let building_on_left = if ring_index == 0 {
-            area > 0.0
-        } else {
-            area < 0.0
-        };
+    // Walls: the building lies left of every edge (outer ring counter-clockwise, holes
+    // clockwise), so `a, b` at the bottom then `b, a` at the eaves faces outwards.
+    // Their tops pass through the points where the roof above them bends.
+    for (r, ring) in rings.iter().enumerate() {
         for i in 0..ring.len() {
             let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
-            let Some((a, b)) = clip_segment(a, b, &rect) else {
-                continue;
-            };
-            let ((ax, az), (bx, bz)) = (local(a), local(b));
-            let (dx, dz) = (bx - ax, bz - az);
-            // Left of (dx, dz), turning the same way as from u to v.
-            let left = [-dz, 0.0, dx];
-            let facing = if building_on_left {
-                left.map(|c| -c)
-            } else {
-                left
-            };
-            let (ya0, ya1) = (
-                frame.elevation_to_y(bottom, az),
-                frame.elevation_to_y(eaves, az),
-            );
-            let (yb0, yb1) = (
-                frame.elevation_to_y(bottom, bz),
-                frame.elevation_to_y(eaves, bz),
-            );
-            let corners = [[ax, ya0, az], [bx, yb0, bz], [bx, yb1, bz], [ax, ya1, az]];
-            walls.push_flat_polygon(&corners, facing, building.feature);
-        }
-    }
-
-    if let Some(roof) = &pitched {
-        // Each roof triangle clipped to the tile, heights carried along its plane.
-        let place = |triangle: &[[f64; 3]; 3]| -> Vec<[f64; 3]> {
-            let plan = triangle.map(|c| roof.to_uv([c[0], c[1]]));
-            clip_ring(&plan, &rect)
-                .iter()
-                .map(|&p| {
-                    let h = interpolate(&plan, triangle.map(|c| c[2]), p);
-                    let (x, z) = local(p);
-                    [x, frame.elevation_to_y(eaves + h, z), z]
-                })
-                .collect()
-        };
-        for triangle in &roof.mesh.slopes {
-            roofs.push_flat_polygon(&place(triangle), [0.0, 1.0, 0.0], building.feature);
-        }
-        for triangle in &roof.mesh.gables {
-            let corners = place_gable(triangle, &|p| roof.to_uv(p), &rect)
-                .into_iter()
-                .map(|(p, h)| {
-                    let (x, z) = local(p);
-                    [x, frame.elevation_to_y(eaves + h, z), z]
-                })
-                .collect::<Vec<_>>();
-            if corners.len() < 3 {
-                continue;
+            if a != b {
+                let mut wall = vec![at(a, bottom), at(b, bottom), at(b, eaves)];
+                if let Some(roof) = &pitched {
+                    wall.extend(roof.edge_points(r, i).iter().rev().map(|&p| at(p, eaves)));
+                }
+                wall.push(at(a, eaves));
+                solid.walls.push(wall);
             }
-            // Outwards: away from the footprint, seen from the middle of the gable's foot.
-            let normal = super::triangle_normal([corners[0], corners[1], corners[2]]);
-            let facing = [normal[0], 0.0, normal[2]];
-            let foot = triangle.map(|c| roof.to_uv([c[0], c[1]]));
-            let middle = [
-                (foot[0][0] + foot[1][0] + foot[2][0]) / 3.0,
-                (foot[0][1] + foot[1][1] + foot[2][1]) / 3.0,
-            ];
-            let step = 0.05 / frame.size_m;
-            let length = facing[0].hypot(facing[2]).max(1e-12);
-            let probe = [
-                middle[0] + facing[0] / length * step,
-                middle[1] + facing[2] / length * step,
-            ];
-            let facing = if footprint.contains(probe) {
-                facing.map(|c| -c)
-            } else {
-                facing
-            };
-            walls.push_flat_polygon(&corners, facing, building.feature);
         }
-        return;
     }
-
-    let roof = flat_cap(footprint, frame, top);
-    roofs.push_flat_triangles(&roof, [0.0, 1.0, 0.0], building.feature);
+    let plan = Polygon {
+        outer: rings[0].clone(),
+        holes: rings[1..].to_vec(),
+    };
+    let cap = triangulate_polygon(&plan);
+    let oriented = |t: &Vec<Point>, up: bool, elevation: f64| {
+        let [a, b, c] = [t[0], t[1], t[2]];
+        let (b, c) = if (signed_area2(&[a, b, c]) > 0.0) == up {
+            (b, c)
+        } else {
+            (c, b)
+        };
+        [at(a, elevation), at(b, elevation), at(c, elevation)]
+    };
+    solid.floor = cap.iter().map(|t| oriented(t, false, bottom)).collect();
+    if pitched.is_none() {
+        solid.flat_roof = true;
+        solid.roof = cap.iter().map(|t| oriented(t, true, top)).collect();
+    }
+    solid
 }
 
-/// The footprint triangulated at one elevation, each triangle clipped to the tile: a flat roof
-/// or the underside of a floating part.
-fn flat_cap(footprint: &Polygon, frame: &TileFrame, elevation: f64) -> Vec<[[f64; 3]; 3]> {
+/// The shells of the buildings drawn in the tile (`None` for the others), each on the ground
+/// under its outline: the parts of one building share the ground range of their outline,
+/// sampled once.
+pub fn solids(
+    buildings: &[BuildingShape],
+    frame: &TileFrame,
+    terrain: &TerrainModel<'_>,
+    sample_step_uv: f64,
+) -> Vec<Option<Solid>> {
     let rect = crate::features::tile_rect(frame.tile);
-    let mut cap = Vec::new();
-    for triangle in triangulate_polygon(footprint) {
-        let corners: Vec<[f64; 3]> = clip_ring(&triangle, &rect)
+    let mut ranges: std::collections::HashMap<usize, (f64, f64)> = Default::default();
+    buildings
+        .iter()
+        .enumerate()
+        .map(|(index, building)| {
+            if !building.drawn || !building.footprint.bounds().intersects(&rect) {
+                return None;
+            }
+            let base = building
+                .base
+                .filter(|&b| b < buildings.len())
+                .unwrap_or(index);
+            let (low, high) = *ranges.entry(base).or_insert_with(|| {
+                ground_range(&buildings[base].footprint, terrain, sample_step_uv)
+            });
+            Some(solid(building, frame.size_m, low, high))
+        })
+        .collect()
+}
+
+/// Adds the part of a building's shell inside the tile: walls, roof, and the floor of a part
+/// that floats.
+pub fn extrude(
+    building: &BuildingShape,
+    solid: &Solid,
+    frame: &TileFrame,
+    walls: &mut MeshBuffers,
+    roofs: &mut MeshBuffers,
+) {
+    let rect = crate::features::tile_rect(frame.tile);
+    walls.paint(building.appearance.walls);
+    roofs.paint(building.appearance.roof);
+    // Each face clipped to the tile in the plan, its height carried along.
+    let place = |face: &[[f64; 3]]| -> Vec<[f64; 3]> {
+        let uv: Vec<[f64; 3]> = face
             .iter()
-            .map(|&p| {
-                let (x, z) = frame.uv_to_local(p[0], p[1]);
-                [x, frame.elevation_to_y(elevation, z), z]
+            .map(|c| {
+                let [u, v] = solid.to_uv(c[0], c[1]);
+                [u, v, c[2]]
             })
             .collect();
-        for i in 1..corners.len().saturating_sub(1) {
-            cap.push([corners[0], corners[i], corners[i + 1]]);
+        clip_to_rect(&uv, &rect)
+            .into_iter()
+            .map(|[u, v, elevation]| {
+                let (x, z) = frame.uv_to_local(u, v);
+                [x, frame.elevation_to_y(elevation, z), z]
+            })
+            .collect()
+    };
+    // The plan's (x, y, elevation) is the local frame's (x, z, y).
+    let facing = |face: &[[f64; 3]]| {
+        let n = newell(face);
+        [n[0], n[2], n[1]]
+    };
+    for face in &solid.walls {
+        walls.push_flat_polygon(&place(face), facing(face), building.feature);
+    }
+    let fan = |triangles: &[[[f64; 3]; 3]]| -> Vec<[[f64; 3]; 3]> {
+        let mut out = Vec::with_capacity(triangles.len());
+        for t in triangles {
+            let corners = place(t);
+            for i in 1..corners.len().saturating_sub(1) {
+                out.push([corners[0], corners[i], corners[i + 1]]);
+            }
+        }
+        out
+    };
+    if solid.floating {
+        walls.push_flat_triangles(&fan(&solid.floor), [0.0, -1.0, 0.0], building.feature);
+    }
+    if solid.flat_roof {
+        roofs.push_flat_triangles(&fan(&solid.roof), [0.0, 1.0, 0.0], building.feature);
+    } else {
+        for triangle in &solid.roof {
+            roofs.push_flat_polygon(&place(triangle), facing(triangle), building.feature);
         }
     }
-    cap
 }
 
-/// A roof built on the skeleton, in metres around the footprint's first vertex.
-struct PitchedRoof {
-    mesh: RoofMesh,
-    origin: Point,
-    size_m: f64,
-}
-
-impl PitchedRoof {
-    fn to_uv(&self, p: Point) -> Point {
-        [
-            self.origin[0] + p[0] / self.size_m,
-            self.origin[1] + p[1] / self.size_m,
-        ]
+/// The normal of a planar polygon (Newell's method), its length twice the area.
+pub fn newell(polygon: &[[f64; 3]]) -> [f64; 3] {
+    let mut normal = [0.0; 3];
+    for i in 0..polygon.len() {
+        let (a, b) = (polygon[i], polygon[(i + 1) % polygon.len()]);
+        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
     }
+    normal
 }
 
-/// The building's pitched roof, `None` for a flat one or when the skeleton cannot be built
-/// (logged; the roof is then flat). Pyramids, domes and onions rise over the centroid of a
-/// footprint without courtyards that is star-shaped around it; other footprints get a hipped
-/// roof instead. The footprint is measured in metres from its first vertex, the same in every
-/// tile that shows the building.
-fn pitched_roof(building: &BuildingShape, size_m: f64) -> Option<PitchedRoof> {
-    let centred = match building.roof.shape {
-        RoofShape::Flat => return None,
+/// Untagged roof heights are rise per run times these shares of the footprint's width across
+/// the roof.
+const SKILLION_RUN: f64 = 1.0;
+const GABLE_RUN: f64 = 0.5;
+const SALTBOX_RIDGE: f64 = 2.0 / 3.0;
+
+/// Teeth of a sawtooth roof: one per this many metres of width.
+const SAWTOOTH_PERIOD_M: f64 = 8.0;
+/// Share of each tooth its long slope takes; the steep glazed face takes the rest.
+const SAWTOOTH_SLOPE: f64 = 0.85;
+/// Segments of a round roof's arc.
+const ROUND_STEPS: usize = 8;
+
+/// The building's pitched roof in the plan's metres, `None` for a flat one; and why it is
+/// simpler than tagged, if it is (logged at debug level). Pyramids, domes and onions rise
+/// over the centroid of a footprint without courtyards that is star-shaped around it; other
+/// footprints get a hipped roof instead.
+fn pitched_roof(
+    building: &BuildingShape,
+    rings: &[Vec<Point>],
+) -> (Option<RoofMesh>, Option<Fallback>) {
+    let spec = &building.roof;
+    if spec.shape == RoofShape::Flat {
+        return (None, None);
+    }
+    let fall_back = |fallback: Fallback, error: Option<RoofError>| {
+        tracing::debug!(
+            feature = building.feature,
+            ?error,
+            "{}",
+            fallback.describe()
+        );
+        Some(fallback)
+    };
+    if rings.iter().map(Vec::len).sum::<usize>() > MAX_ROOF_VERTICES {
+        return (None, fall_back(Fallback::TooDetailed, None));
+    }
+    let most = building.height_m * MAX_ROOF_SHARE;
+    let tagged = spec.height_m.map(|h| h.min(most));
+    let centred = match spec.shape {
         RoofShape::Pyramidal => Some(CentredRoof::Pyramid),
         RoofShape::Dome => Some(CentredRoof::Dome),
         RoofShape::Onion => Some(CentredRoof::Onion),
-        RoofShape::Hipped | RoofShape::Gabled | RoofShape::Mansard | RoofShape::Gambrel => None,
+        _ => None,
     };
-    let shape = match building.roof.shape {
-        RoofShape::Gabled | RoofShape::Gambrel => SkeletonRoof::Gabled,
-        _ => SkeletonRoof::Hipped,
-    };
-    let footprint = &building.footprint;
-    if footprint.rings().map(Vec::len).sum::<usize>() > MAX_ROOF_VERTICES {
-        tracing::debug!(
-            feature = building.feature,
-            "footprint too detailed for a pitched roof"
-        );
-        return None;
-    }
-    let origin = footprint.outer[0];
-    let rings: Vec<Vec<Point>> = footprint
-        .rings()
-        .map(|r| {
-            r.iter()
-                .map(|p| [(p[0] - origin[0]) * size_m, (p[1] - origin[1]) * size_m])
-                .collect()
-        })
-        .collect();
-    let most = building.height_m * MAX_ROOF_SHARE;
-    let height = building.roof.height_m.map(|h| h.min(most));
-    if let (Some(centred), [outer]) = (centred, rings.as_slice()) {
-        if let Some((inner, radius)) = spread(outer) {
-            let untagged = match centred {
-                CentredRoof::Pyramid => building.roof.pitch * inner,
-                CentredRoof::Dome => radius,
-                CentredRoof::Onion => 1.5 * radius,
-            };
-            let height = height.unwrap_or(untagged).min(most);
-            if let Some(mesh) = centred_roof(outer, centred, height) {
-                return Some(PitchedRoof {
-                    mesh,
-                    origin,
-                    size_m,
-                });
-            }
+    let mut fallback = None;
+    if let Some(centred) = centred {
+        let built = match rings {
+            [outer] => spread(outer).and_then(|(inner, radius)| {
+                let untagged = match centred {
+                    CentredRoof::Pyramid => spec.pitch * inner,
+                    CentredRoof::Dome => radius,
+                    CentredRoof::Onion => 1.5 * radius,
+                };
+                centred_roof(outer, centred, tagged.unwrap_or(untagged).min(most))
+            }),
+            _ => None,
+        };
+        if built.is_some() {
+            return (built, None);
         }
+        fallback = fall_back(Fallback::NotStarShaped, None);
     }
-    let built = skeleton_roof(&rings, shape, height, building.roof.pitch).and_then(|mesh| {
+    // The plan direction the roof's main face looks towards (`roof:direction`: 0° north, 90°
+    // east; the plan's y grows southwards), else across the ridge, which runs along the longer
+    // side unless `roof:orientation=across`.
+    let direction = spec.direction_deg.map(|d| {
+        let d = d.to_radians();
+        [d.sin(), -d.cos()]
+    });
+    let across = || {
+        let long = long_axis(&rings[0])?;
+        Some(if spec.across {
+            long
+        } else {
+            [-long[1], long[0]]
+        })
+    };
+    let profile: Option<(Vec<(f64, f64)>, f64)> = match spec.shape {
+        RoofShape::Skillion => Some((vec![(0.0, 0.0), (1.0, 1.0)], SKILLION_RUN)),
+        RoofShape::Saltbox => Some((
+            vec![(0.0, 0.0), (SALTBOX_RIDGE, 1.0), (1.0, 0.0)],
+            SALTBOX_RIDGE,
+        )),
+        RoofShape::Butterfly => Some((vec![(0.0, 1.0), (0.5, 0.0), (1.0, 1.0)], GABLE_RUN)),
+        RoofShape::Round => Some((
+            (0..=ROUND_STEPS)
+                .map(|i| {
+                    let angle = std::f64::consts::PI * i as f64 / ROUND_STEPS as f64;
+                    ((1.0 - angle.cos()) / 2.0, angle.sin())
+                })
+                .collect(),
+            GABLE_RUN,
+        )),
+        RoofShape::Gabled if spec.across || direction.is_some() => {
+            Some((vec![(0.0, 0.0), (0.5, 1.0), (1.0, 0.0)], GABLE_RUN))
+        }
+        _ => None,
+    };
+    let sawtooth = spec.shape == RoofShape::Sawtooth;
+    if profile.is_some() || sawtooth {
+        // Rising away from the main face: it looks down the slope.
+        let axis = direction.map(|d| [-d[0], -d[1]]).or_else(across);
+        let Some(axis) = axis else {
+            return (None, fall_back(Fallback::Profile, None));
+        };
+        let values = rings[0].iter().map(|p| p[0] * axis[0] + p[1] * axis[1]);
+        let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+            (lo.min(x), hi.max(x))
+        });
+        let width = hi - lo;
+        let (profile, run) = match profile {
+            Some((profile, run)) => (profile, run),
+            None => {
+                let teeth = (width / SAWTOOTH_PERIOD_M).round().max(1.0) as usize;
+                let mut profile = vec![(0.0, 0.0)];
+                for k in 0..teeth {
+                    let start = k as f64 / teeth as f64;
+                    profile.push((start + SAWTOOTH_SLOPE / teeth as f64, 1.0));
+                    profile.push(((k + 1) as f64 / teeth as f64, 0.0));
+                }
+                (profile, SAWTOOTH_SLOPE / teeth as f64)
+            }
+        };
+        let height = tagged.unwrap_or(spec.pitch * run * width).min(most);
+        return match profile_roof(rings, axis, &profile, height) {
+            Ok(mesh) => (Some(mesh), fallback),
+            Err(error) => (None, fall_back(Fallback::Profile, Some(error))),
+        };
+    }
+    let shape = match spec.shape {
+        RoofShape::Gabled | RoofShape::Gambrel => SkeletonRoof::GABLED,
+        RoofShape::HalfHipped => SkeletonRoof::ends(RoofEnd::HalfHip),
+        RoofShape::HippedAndGabled => SkeletonRoof::ends(RoofEnd::Gablet),
+        RoofShape::SideHipped | RoofShape::SideHalfHipped => SkeletonRoof {
+            ends: RoofEnd::Gable,
+            one_end: Some((
+                direction.unwrap_or([1.0, 0.0]),
+                if spec.shape == RoofShape::SideHipped {
+                    RoofEnd::Hip
+                } else {
+                    RoofEnd::HalfHip
+                },
+            )),
+        },
+        _ => SkeletonRoof::HIPPED,
+    };
+    let built = skeleton_roof(rings, shape, tagged, spec.pitch).and_then(|mesh| {
         if mesh.height > most {
-            skeleton_roof(&rings, shape, Some(most), building.roof.pitch)
+            skeleton_roof(rings, shape, Some(most), spec.pitch)
         } else {
             Ok(mesh)
         }
     });
-    let bent = matches!(building.roof.shape, RoofShape::Mansard | RoofShape::Gambrel);
     match built {
         Ok(mut mesh) => {
-            if bent {
+            if matches!(spec.shape, RoofShape::Mansard | RoofShape::Gambrel) {
                 bend(&mut mesh);
             }
-            Some(PitchedRoof {
-                mesh,
-                origin,
-                size_m,
-            })
+            (Some(mesh), fallback)
         }
-        Err(error) => {
-            tracing::debug!(feature = building.feature, %error, "roof drawn flat");
-            None
-        }
+        Err(error) => (None, fall_back(Fallback::Skeleton, Some(error))),
     }
-}
-
-/// The part of a vertical gable triangle inside the tile, as plan points with heights: its foot
-/// (the two corners at the eaves) clipped to the tile, and its top edge above the clipped foot.
-fn place_gable(
-    triangle: &[[f64; 3]; 3],
-    to_uv: &dyn Fn(Point) -> Point,
-    rect: &crate::geometry::Rect,
-) -> Vec<(Point, f64)> {
-    // The foot: the two corners lowest down; the apex: the other.
-    let mut order = [0, 1, 2];
-    order.sort_by(|&i, &j| triangle[i][2].total_cmp(&triangle[j][2]));
-    let (a, b, apex) = (triangle[order[0]], triangle[order[1]], triangle[order[2]]);
-    let (pa, pb) = (to_uv([a[0], a[1]]), to_uv([b[0], b[1]]));
-    let Some((from, to)) = clip_segment(pa, pb, rect) else {
-        return Vec::new();
-    };
-    let d = [pb[0] - pa[0], pb[1] - pa[1]];
-    let length2 = d[0] * d[0] + d[1] * d[1];
-    if length2 == 0.0 {
-        return Vec::new();
-    }
-    let along = |p: Point| ((p[0] - pa[0]) * d[0] + (p[1] - pa[1]) * d[1]) / length2;
-    let top = along(to_uv([apex[0], apex[1]])).clamp(0.0, 1.0);
-    let height = |t: f64| {
-        if t <= top && top > 0.0 {
-            apex[2] * t / top
-        } else if t > top && top < 1.0 {
-            apex[2] * (1.0 - t) / (1.0 - top)
-        } else {
-            apex[2]
-        }
-    };
-    let (t0, t1) = (along(from), along(to));
-    let mut out = vec![(from, 0.0), (to, 0.0), (to, height(t1))];
-    if (t0.min(t1)..=t0.max(t1)).contains(&top) {
-        out.push(([pa[0] + d[0] * top, pa[1] + d[1] * top], apex[2]));
-    }
-    out.push((from, height(t0)));
-    out.dedup_by(|x, y| x == y);
-    while out.len() > 1 && out.first() == out.last() {
-        out.pop();
-    }
-    out
-}
-
-/// The value at `p` of the plane through three points with values `h`.
-fn interpolate(triangle: &[Point; 3], h: [f64; 3], p: Point) -> f64 {
-    let [a, b, c] = *triangle;
-    let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
-    if det == 0.0 {
-        return h[0].max(h[1]).max(h[2]);
-    }
-    let s = ((p[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (p[1] - a[1])) / det;
-    let t = ((b[0] - a[0]) * (p[1] - a[1]) - (p[0] - a[0]) * (b[1] - a[1])) / det;
-    h[0] + s * (h[1] - h[0]) + t * (h[2] - h[0])
-}
-
-/// Triangles covering a polygon with holes (a CDT of its rings, keeping the triangles inside).
-pub fn triangulate_polygon(polygon: &Polygon) -> Vec<Vec<Point>> {
-    // Work relative to the first vertex: global tile units are large numbers.
-    let origin = polygon.outer[0];
-    let relative = |p: &Point| Point2::new(p[0] - origin[0], p[1] - origin[1]);
-    let mut segments = Vec::new();
-    for ring in polygon.rings() {
-        if ring.iter().any(|p| !(p[0].is_finite() && p[1].is_finite())) {
-            return Vec::new();
-        }
-        for i in 0..ring.len() {
-            let (a, b) = (relative(&ring[i]), relative(&ring[(i + 1) % ring.len()]));
-            if a != b {
-                segments.push((a, b));
-            }
-        }
-    }
-    // A ring that crosses itself or another is split where it does, never by spade.
-    let (cdt, _) = super::constraints::insert(&Cdt::new(), &segments);
-    cdt.inner_faces()
-        .filter_map(|face| {
-            let corners = face.vertices().map(|v| {
-                let p = v.position();
-                [p.x + origin[0], p.y + origin[1]]
-            });
-            let centroid = [
-                (corners[0][0] + corners[1][0] + corners[2][0]) / 3.0,
-                (corners[0][1] + corners[1][1] + corners[2][1]) / 3.0,
-            ];
-            polygon.contains(centroid).then(|| corners.to_vec())
-        })
-        .collect()
 }
 
 #[cfg(test)]

@@ -11,13 +11,13 @@
 use spade::{Point2, Triangulation};
 
 use super::tin::Cdt;
-use crate::geometry::grid_cell;
+use crate::geometry::{grid_cell, Point, Polygon};
 
 /// Most segments one triangulation may lose to degenerate geometry before the remaining ones
 /// are given up (each loss costs a rebuild).
 const MAX_DROPPED: usize = 32;
 
-/// Cells per side of the grid that finds crossing segments.
+/// Most cells per side of the grid that finds crossing segments.
 const CROSSING_CELLS: usize = 64;
 
 /// Inserts `segments` into a copy of `seed` as constraint edges; returns it with the number of
@@ -77,12 +77,14 @@ fn split_at_crossings(segments: &[(Point2<f64>, Point2<f64>)]) -> Vec<Vec<Point2
     let size = (max[0] - min[0])
         .max(max[1] - min[1])
         .max(f64::MIN_POSITIVE);
-    let cell = |v: f64, axis: usize| grid_cell(v, min[axis], size, CROSSING_CELLS);
-    let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); CROSSING_CELLS * CROSSING_CELLS];
+    // About one segment per cell: a building's few segments need no grid of thousands.
+    let cells = ((segments.len() as f64).sqrt().ceil() as usize).clamp(1, CROSSING_CELLS);
+    let cell = |v: f64, axis: usize| grid_cell(v, min[axis], size, cells);
+    let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); cells * cells];
     for (k, (a, b)) in segments.iter().enumerate() {
         for row in cell(a.y.min(b.y), 1)..=cell(a.y.max(b.y), 1) {
             for column in cell(a.x.min(b.x), 0)..=cell(a.x.max(b.x), 0) {
-                buckets[row * CROSSING_CELLS + column].push(k as u32);
+                buckets[row * cells + column].push(k as u32);
             }
         }
     }
@@ -172,6 +174,50 @@ fn split_at_crossings(segments: &[(Point2<f64>, Point2<f64>)]) -> Vec<Vec<Point2
             path.push(b);
             path.dedup();
             path
+        })
+        .collect()
+}
+
+/// Triangles covering a polygon with holes (a CDT of its rings, keeping the triangles inside),
+/// their corners the very points of the rings (and crossing points where rings cross).
+pub fn triangulate_polygon(polygon: &Polygon) -> Vec<Vec<Point>> {
+    // Work relative to the first vertex: global tile units are large numbers.
+    let origin = polygon.outer[0];
+    let relative = |p: &Point| Point2::new(p[0] - origin[0], p[1] - origin[1]);
+    // Corners come back as the very points given, so edges match the rings bit for bit.
+    let mut given: std::collections::HashMap<[u64; 2], Point> = Default::default();
+    for p in polygon.rings().flatten() {
+        let r = relative(p);
+        given.insert([r.x.to_bits(), r.y.to_bits()], *p);
+    }
+    let mut segments = Vec::new();
+    for ring in polygon.rings() {
+        if ring.iter().any(|p| !(p[0].is_finite() && p[1].is_finite())) {
+            return Vec::new();
+        }
+        for i in 0..ring.len() {
+            let (a, b) = (relative(&ring[i]), relative(&ring[(i + 1) % ring.len()]));
+            if a != b {
+                segments.push((a, b));
+            }
+        }
+    }
+    // A ring that crosses itself or another is split where it does, never by spade.
+    let (cdt, _) = insert(&Cdt::new(), &segments);
+    cdt.inner_faces()
+        .filter_map(|face| {
+            let corners = face.vertices().map(|v| {
+                let p = v.position();
+                given
+                    .get(&[p.x.to_bits(), p.y.to_bits()])
+                    .copied()
+                    .unwrap_or([p.x + origin[0], p.y + origin[1]])
+            });
+            let centroid = [
+                (corners[0][0] + corners[1][0] + corners[2][0]) / 3.0,
+                (corners[0][1] + corners[1][1] + corners[2][1]) / 3.0,
+            ];
+            polygon.contains(centroid).then(|| corners.to_vec())
         })
         .collect()
 }

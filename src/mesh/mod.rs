@@ -191,6 +191,12 @@ impl MeshBuffers {
             self.push_vertex(corner, normal, feature);
         }
         for i in 1..corners.len() as u32 - 1 {
+            // Corners in a row on one side (a wall's top passing through a roof's bends) would
+            // give triangles without area.
+            let [p, q, r] = [0, i, i + 1].map(|k| corners[k as usize]);
+            if normalize(triangle_normal([p, q, r])).is_none() {
+                continue;
+            }
             let (b, c) = if reversed { (i + 1, i) } else { (i, i + 1) };
             self.indices
                 .extend_from_slice(&[first, first + b, first + c]);

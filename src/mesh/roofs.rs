@@ -10,28 +10,87 @@
 //! Everything here is in the footprint's own plane, metres, with `(x, y)` the plan and the
 //! height third; the caller places it.
 
+use super::constraints::triangulate_polygon;
 use super::skeleton::{skeleton, Skeleton, SkeletonError};
-use crate::geometry::{signed_area2, Point};
+use crate::geometry::{convex_hull, dedup_ring, signed_area2, Point, Polygon};
 
-/// A roof shape that the skeleton can build.
+/// How the end of a wing is finished, where a hipped roof has a triangular hip.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum SkeletonRoof {
-    Hipped,
-    Gabled,
+pub enum RoofEnd {
+    /// Sloped like the long sides.
+    Hip,
+    /// A vertical gable up to the ridge (§5.1.1).
+    Gable,
+    /// A gable up to [`HALF_HIP_GABLE`] of the height, a small hip above it (`half-hipped`).
+    HalfHip,
+    /// A hip up to [`GABLET_HIP`] of the height, a small gable above it (`hipped-and-gabled`,
+    /// the dutch hip of §5.1.4).
+    Gablet,
 }
+
+/// A roof shape that the skeleton can build: how the ends of its wings are finished.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SkeletonRoof {
+    pub ends: RoofEnd,
+    /// One end finished otherwise: the one whose outside faces most nearly along this plan
+    /// direction (`side_hipped`: gabled, with the hip on the side `roof:direction` names).
+    pub one_end: Option<(Point, RoofEnd)>,
+}
+
+impl SkeletonRoof {
+    pub const HIPPED: SkeletonRoof = SkeletonRoof::ends(RoofEnd::Hip);
+    pub const GABLED: SkeletonRoof = SkeletonRoof::ends(RoofEnd::Gable);
+
+    pub const fn ends(ends: RoofEnd) -> SkeletonRoof {
+        SkeletonRoof {
+            ends,
+            one_end: None,
+        }
+    }
+}
+
+/// Share of a half-hipped end's height taken by its gable.
+const HALF_HIP_GABLE: f64 = 0.65;
+/// Share of a hipped-and-gabled end's height taken by its hip.
+const GABLET_HIP: f64 = 0.5;
 
 /// The triangles of a roof: `[x, y, height above the eaves]` corners.
 #[derive(Debug, Clone, Default)]
 pub struct RoofMesh {
     /// Sloped faces, wound counter-clockwise seen from above.
     pub slopes: Vec<[[f64; 3]; 3]>,
-    /// Vertical gable triangles standing on footprint edges.
-    pub gables: Vec<[[f64; 3]; 3]>,
+    /// Vertical faces standing on footprint edges above the eaves (gables, the high sides of a
+    /// skillion), convex, wound counter-clockwise seen from outside.
+    pub sides: Vec<Vec<[f64; 3]>>,
     /// The highest point above the eaves.
     pub height: f64,
-    /// The footprint the roof stands on, without repeated or collinear points: walls built on
-    /// these rings meet the roof edge for edge.
+    /// The footprint the roof stands on, outer ring counter-clockwise and holes clockwise:
+    /// walls built on these rings meet the roof and its sides edge for edge.
     pub rings: Vec<Vec<Point>>,
+    /// Points along each edge of the rings (in order from its start; by ring, then edge) where
+    /// the roof above it bends: the tops of the walls pass through them. Empty when none.
+    pub edge_points: Vec<Vec<Vec<Point>>>,
+}
+
+impl RoofMesh {
+    /// The points along edge `edge` of ring `ring` where the roof above it bends.
+    pub fn edge_points(&self, ring: usize, edge: usize) -> &[Point] {
+        self.edge_points
+            .get(ring)
+            .and_then(|r| r.get(edge))
+            .map_or(&[], Vec::as_slice)
+    }
+}
+
+/// Why a roof could not be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RoofError {
+    #[error(transparent)]
+    Skeleton(#[from] SkeletonError),
+    #[error("the footprint has no width across the roof")]
+    NoWidth,
+    #[error("face {0} could not be triangulated")]
+    OpenFace(usize),
 }
 
 /// The roof of a footprint (outer ring first, then holes) whose ridge stands `height` metres
@@ -41,39 +100,334 @@ pub fn skeleton_roof(
     shape: SkeletonRoof,
     height: Option<f64>,
     pitch: f64,
-) -> Result<RoofMesh, SkeletonError> {
+) -> Result<RoofMesh, RoofError> {
     let skeleton = skeleton(rings)?;
     skeleton.verify()?;
     let top_time = skeleton.nodes.iter().map(|n| n.time).fold(0.0, f64::max);
     if top_time <= 0.0 {
-        return Err(SkeletonError::Degenerate);
+        return Err(SkeletonError::Degenerate.into());
     }
     let scale = height.map_or(pitch, |h| h / top_time);
     let mut plan: Vec<Point> = skeleton.nodes.iter().map(|n| n.point).collect();
-    let lift: Vec<f64> = skeleton.nodes.iter().map(|n| n.time * scale).collect();
-    let mut gable_faces = vec![false; skeleton.faces.len()];
-    if shape == SkeletonRoof::Gabled {
-        gable(&skeleton, &mut plan, &mut gable_faces);
-    }
+    let mut lift: Vec<f64> = skeleton.nodes.iter().map(|n| n.time * scale).collect();
+    let mut faces: Vec<(Vec<usize>, bool)> =
+        skeleton.faces.iter().map(|f| (f.clone(), false)).collect();
+    finish_ends(&skeleton, shape, &mut plan, &mut lift, &mut faces);
     let mut mesh = RoofMesh {
         height: top_time * scale,
         rings: skeleton.rings.clone(),
         ..RoofMesh::default()
     };
     let corner = |n: usize| [plan[n][0], plan[n][1], lift[n]];
-    for (face, nodes) in skeleton.faces.iter().enumerate() {
-        if gable_faces[face] {
-            mesh.gables
-                .push([corner(nodes[0]), corner(nodes[1]), corner(nodes[2])]);
+    for (face, (nodes, vertical)) in faces.iter().enumerate() {
+        if *vertical {
+            mesh.sides.push(nodes.iter().map(|&n| corner(n)).collect());
             continue;
         }
         let points: Vec<Point> = nodes.iter().map(|&n| plan[n]).collect();
-        for [a, b, c] in ear_clip(&points).ok_or(SkeletonError::OpenFace(face))? {
+        for [a, b, c] in ear_clip(&points).ok_or(RoofError::OpenFace(face))? {
             mesh.slopes
                 .push([corner(nodes[a]), corner(nodes[b]), corner(nodes[c])]);
         }
     }
     Ok(mesh)
+}
+
+/// Finishes the end of every wing: the triangular faces whose apex no other triangle shares (a
+/// square's single apex stays: it is hipped). A gable moves the apex to the middle of its edge
+/// (§5.1.1) and the face stands up; a half hip or a gablet cuts the face where the gable meets
+/// the hip, adding that corner to the faces beside it.
+fn finish_ends(
+    skeleton: &Skeleton,
+    shape: SkeletonRoof,
+    plan: &mut Vec<Point>,
+    lift: &mut Vec<f64>,
+    faces: &mut Vec<(Vec<usize>, bool)>,
+) {
+    let triangles: Vec<usize> = (0..skeleton.faces.len())
+        .filter(|&f| skeleton.faces[f].len() == 3)
+        .collect();
+    let ends: Vec<usize> = triangles
+        .iter()
+        .copied()
+        .filter(|&f| {
+            let apex = skeleton.faces[f][2];
+            triangles
+                .iter()
+                .filter(|&&g| skeleton.faces[g][2] == apex)
+                .count()
+                == 1
+        })
+        .collect();
+    // Outside of an end: to the right of its edge.
+    let outward = |f: usize| {
+        let (a, b) = (plan[skeleton.faces[f][0]], plan[skeleton.faces[f][1]]);
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let length = d[0].hypot(d[1]).max(f64::MIN_POSITIVE);
+        [d[1] / length, -d[0] / length]
+    };
+    let special = shape.one_end.and_then(|(towards, _)| {
+        ends.iter().copied().max_by(|&f, &g| {
+            let (u, v) = (outward(f), outward(g));
+            (u[0] * towards[0] + u[1] * towards[1])
+                .total_cmp(&(v[0] * towards[0] + v[1] * towards[1]))
+        })
+    });
+    for &f in &ends {
+        let end = match shape.one_end {
+            Some((_, end)) if special == Some(f) => end,
+            _ => shape.ends,
+        };
+        let [a, b, apex] = [0, 1, 2].map(|k| skeleton.faces[f][k]);
+        let middle = lerp(plan[a], plan[b], 0.5);
+        let (top, rise) = (plan[apex], lift[apex]);
+        let add = |plan: &mut Vec<Point>, lift: &mut Vec<f64>, point: Point, height: f64| {
+            plan.push(point);
+            lift.push(height);
+            plan.len() - 1
+        };
+        match end {
+            RoofEnd::Hip => {}
+            RoofEnd::Gable => {
+                plan[apex] = middle;
+                faces[f].1 = true;
+            }
+            RoofEnd::HalfHip => {
+                let share = HALF_HIP_GABLE;
+                let a2 = add(plan, lift, lerp(plan[a], middle, share), share * rise);
+                let b2 = add(plan, lift, lerp(plan[b], middle, share), share * rise);
+                plan[apex] = lerp(middle, top, 1.0 - share);
+                faces[f] = (vec![a, b, b2, a2], true);
+                insert_between(faces, [a, apex], a2);
+                insert_between(faces, [apex, b], b2);
+                faces.push((vec![a2, b2, apex], false));
+            }
+            RoofEnd::Gablet => {
+                let share = GABLET_HIP;
+                let a2 = add(plan, lift, lerp(plan[a], top, share), share * rise);
+                let b2 = add(plan, lift, lerp(plan[b], top, share), share * rise);
+                plan[apex] = lerp(plan[a2], plan[b2], 0.5);
+                faces[f] = (vec![a, b, b2, a2], false);
+                insert_between(faces, [a, apex], a2);
+                insert_between(faces, [apex, b], b2);
+                faces.push((vec![a2, b2, apex], true));
+            }
+        }
+    }
+}
+
+fn lerp(a: Point, b: Point, t: f64) -> Point {
+    [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]
+}
+
+/// Puts `node` between the two ends of an arc in every face that runs along it.
+fn insert_between(faces: &mut [(Vec<usize>, bool)], arc: [usize; 2], node: usize) {
+    for (nodes, _) in faces.iter_mut() {
+        let n = nodes.len();
+        if let Some(i) = (0..n).find(|&i| {
+            let (x, y) = (nodes[i], nodes[(i + 1) % n]);
+            (x, y) == (arc[0], arc[1]) || (y, x) == (arc[0], arc[1])
+        }) {
+            nodes.insert(i + 1, node);
+        }
+    }
+}
+
+/// A roof whose section across the footprint follows a profile: `(share of the width, share of
+/// the height)` points from one side to the other along `across` (a unit vector in the plan).
+/// Skillion, saltbox, round, sawtooth and butterfly roofs, and gabled roofs whose ridge the tags
+/// turn. The footprint's triangles are cut along every bend of the profile so that each piece
+/// lies in one plane; vertical sides close the roof over the walls where it stands above the
+/// eaves. Every edge is cut at points computed from its two ends alone, so the triangles on
+/// both sides of it, and the side above a footprint edge, share them exactly.
+pub fn profile_roof(
+    rings: &[Vec<Point>],
+    across: Point,
+    profile: &[(f64, f64)],
+    height: f64,
+) -> Result<RoofMesh, RoofError> {
+    let mut rings: Vec<Vec<Point>> = rings.iter().map(|r| dedup_ring(r)).collect();
+    rings.retain(|r| r.len() >= 3);
+    for (index, ring) in rings.iter_mut().enumerate() {
+        if (index == 0) == (signed_area2(ring) < 0.0) {
+            ring.reverse();
+        }
+    }
+    let s = |p: Point| p[0] * across[0] + p[1] * across[1];
+    let Some(outer) = rings.first() else {
+        return Err(RoofError::NoWidth);
+    };
+    let low = outer.iter().map(|&p| s(p)).fold(f64::INFINITY, f64::min);
+    let high = outer
+        .iter()
+        .map(|&p| s(p))
+        .fold(f64::NEG_INFINITY, f64::max);
+    let width = high - low;
+    if width.is_nan() || width <= 0.0 {
+        return Err(RoofError::NoWidth);
+    }
+    let breaks: Vec<f64> = profile[1..profile.len().saturating_sub(1)]
+        .iter()
+        .map(|&(share, _)| low + share * width)
+        .collect();
+    // Heights under a micrometre are the eaves: a side that thin is none.
+    let lift = |along: f64| {
+        let h = height * profile_at(profile, (along - low) / width);
+        if h < 1e-6 {
+            0.0
+        } else {
+            h
+        }
+    };
+    // The points of edge a–b from a to b: its ends and where it crosses a bend, each with its
+    // position across the roof (a crossing's is its bend's, exactly).
+    let edge_points = |a: Point, b: Point| -> Vec<(Point, f64)> {
+        let (p, q) = if a.map(f64::to_bits) <= b.map(f64::to_bits) {
+            (a, b)
+        } else {
+            (b, a)
+        };
+        let (sp, sq) = (s(p), s(q));
+        let mut cuts: Vec<(f64, Point, f64)> = breaks
+            .iter()
+            .filter(|&&c| (sp - c) * (sq - c) < 0.0)
+            .map(|&c| {
+                let t = (c - sp) / (sq - sp);
+                (t, lerp(p, q, t), c)
+            })
+            .collect();
+        cuts.sort_by(|x, y| x.0.total_cmp(&y.0));
+        if p != a {
+            cuts.reverse();
+        }
+        let mut points = vec![(a, s(a))];
+        points.extend(cuts.into_iter().map(|(_, point, c)| (point, c)));
+        points
+    };
+    let polygon = Polygon {
+        outer: rings[0].clone(),
+        holes: rings[1..].to_vec(),
+    };
+    let mut mesh = RoofMesh {
+        height: height * profile.iter().map(|&(_, h)| h).fold(0.0, f64::max),
+        ..RoofMesh::default()
+    };
+    let corner = |(p, along): (Point, f64)| [p[0], p[1], lift(along)];
+    let strips: Vec<(f64, f64)> = std::iter::once(f64::NEG_INFINITY)
+        .chain(breaks.iter().copied())
+        .zip(breaks.iter().copied().chain(std::iter::once(f64::INFINITY)))
+        .collect();
+    for triangle in triangulate_polygon(&polygon) {
+        let [a, b, c] = [triangle[0], triangle[1], triangle[2]];
+        let [a, b, c] = if signed_area2(&[a, b, c]) >= 0.0 {
+            [a, b, c]
+        } else {
+            [a, c, b]
+        };
+        let boundary: Vec<(Point, f64)> = [(a, b), (b, c), (c, a)]
+            .iter()
+            .flat_map(|&(x, y)| edge_points(x, y))
+            .collect();
+        // The triangle within each strip between two bends is convex: its corners are the
+        // boundary points in the strip, in order.
+        for &(from, to) in &strips {
+            let piece: Vec<[f64; 3]> = boundary
+                .iter()
+                .filter(|(_, along)| (from..=to).contains(along))
+                .map(|&point| corner(point))
+                .collect();
+            for i in 1..piece.len().saturating_sub(1) {
+                mesh.slopes.push([piece[0], piece[i], piece[i + 1]]);
+            }
+        }
+    }
+    if mesh.slopes.is_empty() {
+        return Err(RoofError::NoWidth);
+    }
+    // The crossing points along each edge of the footprint; a side above each piece.
+    mesh.edge_points = rings
+        .iter()
+        .map(|ring| {
+            let n = ring.len();
+            (0..n)
+                .map(|i| {
+                    edge_points(ring[i], ring[(i + 1) % n])[1..]
+                        .iter()
+                        .map(|&(p, _)| p)
+                        .collect()
+                })
+                .collect()
+        })
+        .collect();
+    for ring in &rings {
+        let n = ring.len();
+        let points: Vec<(Point, f64)> = (0..n)
+            .flat_map(|i| edge_points(ring[i], ring[(i + 1) % n]))
+            .collect();
+        for i in 0..points.len() {
+            let (a, b) = (points[i], points[(i + 1) % points.len()]);
+            let (ha, hb) = (lift(a.1), lift(b.1));
+            let mut side = vec![[a.0[0], a.0[1], 0.0], [b.0[0], b.0[1], 0.0]];
+            if hb > 0.0 {
+                side.push([b.0[0], b.0[1], hb]);
+            }
+            if ha > 0.0 {
+                side.push([a.0[0], a.0[1], ha]);
+            }
+            if side.len() >= 3 {
+                mesh.sides.push(side);
+            }
+        }
+    }
+    mesh.rings = rings;
+    Ok(mesh)
+}
+
+/// The profile's height share at `share` of the width (linear between its points).
+fn profile_at(profile: &[(f64, f64)], share: f64) -> f64 {
+    let share = share.clamp(0.0, 1.0);
+    for pair in profile.windows(2) {
+        let ((s0, h0), (s1, h1)) = (pair[0], pair[1]);
+        if share <= s1 {
+            if s1 <= s0 {
+                return h1;
+            }
+            return h0 + (h1 - h0) * (share - s0) / (s1 - s0);
+        }
+    }
+    profile.last().map_or(0.0, |&(_, h)| h)
+}
+
+/// The direction along the longer side of the smallest rectangle around a ring (a unit
+/// vector): where the ridge of a house runs unless tagged otherwise.
+pub fn long_axis(ring: &[Point]) -> Option<Point> {
+    let hull = convex_hull(ring);
+    let n = hull.len();
+    let mut best: Option<(f64, Point)> = None;
+    for i in 0..n {
+        let (a, b) = (hull[i], hull[(i + 1) % n]);
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let length = d[0].hypot(d[1]);
+        if length == 0.0 {
+            continue;
+        }
+        let u = [d[0] / length, d[1] / length];
+        let v = [-u[1], u[0]];
+        let extent = |axis: Point| {
+            let values = hull.iter().map(|p| p[0] * axis[0] + p[1] * axis[1]);
+            let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            });
+            hi - lo
+        };
+        let (eu, ev) = (extent(u), extent(v));
+        let area = eu * ev;
+        let long = if eu >= ev { u } else { v };
+        if best.is_none_or(|(a, _)| area < a) {
+            best = Some((area, long));
+        }
+    }
+    best.map(|(_, axis)| axis)
 }
 
 /// A roof that rises from the footprint to one point over its centroid, along a profile.
@@ -155,9 +509,10 @@ pub fn centred_roof(ring: &[Point], shape: CentredRoof, height: f64) -> Option<R
     }
     Some(RoofMesh {
         slopes,
-        gables: Vec::new(),
+        sides: Vec::new(),
         height,
         rings: vec![ring],
+        edge_points: Vec::new(),
     })
 }
 
@@ -229,7 +584,7 @@ pub fn bend(mesh: &mut RoofMesh) {
         }
     };
     let cut = |a: [f64; 3], b: [f64; 3]| {
-        // The same edge gives the same point whichever triangle asks.
+        // The same edge gives the same point whichever face asks.
         let (p, q) = if a.map(f64::to_bits) <= b.map(f64::to_bits) {
             (a, b)
         } else {
@@ -238,58 +593,45 @@ pub fn bend(mesh: &mut RoofMesh) {
         let t = (knee - p[2]) / (q[2] - p[2]);
         [p[0] + (q[0] - p[0]) * t, p[1] + (q[1] - p[1]) * t, knee]
     };
-    let split = |triangles: &[[[f64; 3]; 3]]| -> Vec<[[f64; 3]; 3]> {
-        let mut out = Vec::with_capacity(triangles.len() * 2);
-        for t in triangles {
-            let mut polygons: [Vec<[f64; 3]>; 2] = [Vec::new(), Vec::new()];
-            for i in 0..3 {
-                let (a, b) = (t[i], t[(i + 1) % 3]);
-                polygons[usize::from(a[2] > knee)].push(a);
-                if (a[2] > knee) != (b[2] > knee) {
-                    let x = cut(a, b);
-                    polygons[0].push(x);
-                    polygons[1].push(x);
-                }
+    // A convex face cut at the knee: the part below and the part above (a corner at the knee
+    // belongs to both).
+    let split = |face: &[[f64; 3]]| -> [Vec<[f64; 3]>; 2] {
+        let mut parts: [Vec<[f64; 3]>; 2] = [Vec::new(), Vec::new()];
+        for i in 0..face.len() {
+            let (a, b) = (face[i], face[(i + 1) % face.len()]);
+            if a[2] <= knee {
+                parts[0].push(a);
             }
-            for polygon in polygons.iter().filter(|p| p.len() >= 3) {
-                for i in 1..polygon.len() - 1 {
-                    out.push([polygon[0], polygon[i], polygon[i + 1]]);
-                }
+            if a[2] >= knee {
+                parts[1].push(a);
+            }
+            if (a[2] < knee && b[2] > knee) || (a[2] > knee && b[2] < knee) {
+                let x = cut(a, b);
+                parts[0].push(x);
+                parts[1].push(x);
             }
         }
-        for t in &mut out {
-            for c in t.iter_mut() {
+        parts.map(|mut part| {
+            for c in &mut part {
                 c[2] = lift(c[2]);
             }
-        }
-        out
+            part
+        })
     };
-    mesh.slopes = split(&mesh.slopes);
-    mesh.gables = split(&mesh.gables);
-}
-
-/// Moves the apex of each triangular face to the middle of its edge, where that apex belongs to
-/// no other triangular face (a square's single apex stays: it is hipped).
-fn gable(skeleton: &Skeleton, plan: &mut [Point], gables: &mut [bool]) {
-    let triangles: Vec<usize> = (0..skeleton.faces.len())
-        .filter(|&f| skeleton.faces[f].len() == 3)
-        .collect();
-    for &f in &triangles {
-        let apex = skeleton.faces[f][2];
-        let shared = triangles
-            .iter()
-            .filter(|&&g| skeleton.faces[g][2] == apex)
-            .count();
-        if shared != 1 {
-            continue;
+    let mut slopes = Vec::with_capacity(mesh.slopes.len() * 2);
+    for triangle in &mesh.slopes {
+        for part in split(triangle).iter().filter(|p| p.len() >= 3) {
+            for i in 1..part.len() - 1 {
+                slopes.push([part[0], part[i], part[i + 1]]);
+            }
         }
-        let (a, b) = (
-            skeleton.nodes[skeleton.faces[f][0]].point,
-            skeleton.nodes[skeleton.faces[f][1]].point,
-        );
-        plan[apex] = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
-        gables[f] = true;
     }
+    let mut sides = Vec::with_capacity(mesh.sides.len() * 2);
+    for side in &mesh.sides {
+        sides.extend(split(side).into_iter().filter(|p| p.len() >= 3));
+    }
+    mesh.slopes = slopes;
+    mesh.sides = sides;
 }
 
 /// Triangles of a simple polygon given counter-clockwise, as index triples (ear clipping);
@@ -395,39 +737,47 @@ mod tests {
         (roof, footprint)
     }
 
-    /// Every edge of the roof's triangles, by its end points, is used by exactly two
-    /// triangles once the footprint's edges (where the walls close it) are counted too.
-    fn is_closed_over_the_walls(mesh: &RoofMesh, rings: &[Vec<Point>]) -> bool {
-        let mut edges: std::collections::HashMap<[u64; 6], i32> = Default::default();
-        let key = |a: [f64; 3], b: [f64; 3]| {
-            let (p, q) = if a.map(f64::to_bits) < b.map(f64::to_bits) {
-                (a, b)
-            } else {
-                (b, a)
-            };
-            [p[0], p[1], p[2], q[0], q[1], q[2]].map(|c| (c + 0.0).to_bits())
-        };
-        for t in mesh.slopes.iter().chain(&mesh.gables) {
-            for i in 0..3 {
-                *edges.entry(key(t[i], t[(i + 1) % 3])).or_default() += 1;
+    /// Every edge of the roof's faces runs the other way in exactly one other face once the
+    /// tops of the walls (the footprint's edges, at the eaves) are counted too: the roof closes
+    /// the walls, and every face is wound the same way round.
+    pub(crate) fn is_closed_over_the_walls(mesh: &RoofMesh, rings: &[Vec<Point>]) -> bool {
+        let mut edges: std::collections::HashMap<([u64; 3], [u64; 3]), i32> = Default::default();
+        let key = |c: [f64; 3]| c.map(|x| (x + 0.0).to_bits());
+        let faces = mesh
+            .slopes
+            .iter()
+            .map(|t| t.to_vec())
+            .chain(mesh.sides.iter().cloned());
+        for face in faces {
+            for i in 0..face.len() {
+                let (a, b) = (face[i], face[(i + 1) % face.len()]);
+                *edges.entry((key(a), key(b))).or_default() += 1;
             }
         }
-        for ring in rings {
+        for (r, ring) in rings.iter().enumerate() {
             for i in 0..ring.len() {
-                let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
-                *edges
-                    .entry(key([a[0], a[1], 0.0], [b[0], b[1], 0.0]))
-                    .or_default() += 1;
+                // The wall's top runs from the edge's end back to its start.
+                let mut top = vec![ring[(i + 1) % ring.len()]];
+                top.extend(mesh.edge_points(r, i).iter().rev());
+                top.push(ring[i]);
+                for pair in top.windows(2) {
+                    let (b, a) = (pair[0], pair[1]);
+                    *edges
+                        .entry((key([b[0], b[1], 0.0]), key([a[0], a[1], 0.0])))
+                        .or_default() += 1;
+                }
             }
         }
-        edges.values().all(|&n| n == 2)
+        edges
+            .iter()
+            .all(|((a, b), &n)| n == 1 && edges.get(&(*b, *a)) == Some(&1))
     }
 
     #[test]
     fn a_gabled_rectangle_has_one_ridge_of_its_length() {
         let rings = vec![vec![[0.0, 0.0], [10.0, 0.0], [10.0, 6.0], [0.0, 6.0]]];
-        let mesh = skeleton_roof(&rings, SkeletonRoof::Gabled, Some(4.0), 0.0).expect("a roof");
-        assert_eq!(mesh.gables.len(), 2);
+        let mesh = skeleton_roof(&rings, SkeletonRoof::GABLED, Some(4.0), 0.0).expect("a roof");
+        assert_eq!(mesh.sides.len(), 2);
         // The ridge: the corners at full height, at the two ends of the long axis.
         let mut ridge: Vec<[f64; 3]> = corners_at(&mesh, 4.0);
         ridge.sort_by(|a, b| a[0].total_cmp(&b[0]));
@@ -441,8 +791,8 @@ mod tests {
     #[test]
     fn a_hipped_rectangle_rises_at_its_pitch() {
         let rings = vec![vec![[0.0, 0.0], [10.0, 0.0], [10.0, 6.0], [0.0, 6.0]]];
-        let mesh = skeleton_roof(&rings, SkeletonRoof::Hipped, None, 0.5).expect("a roof");
-        assert!(mesh.gables.is_empty());
+        let mesh = skeleton_roof(&rings, SkeletonRoof::HIPPED, None, 0.5).expect("a roof");
+        assert!(mesh.sides.is_empty());
         assert!((mesh.height - 1.5).abs() < 1e-9);
         assert!(is_closed_over_the_walls(&mesh, &mesh.rings));
     }
@@ -457,9 +807,9 @@ mod tests {
             [6.0, 14.0],
             [0.0, 14.0],
         ]];
-        let mesh = skeleton_roof(&rings, SkeletonRoof::Gabled, Some(3.0), 0.0).expect("a roof");
+        let mesh = skeleton_roof(&rings, SkeletonRoof::GABLED, Some(3.0), 0.0).expect("a roof");
         // Both wing ends are gables; the ridges run along the wings at x = 3 and y = 3.
-        assert_eq!(mesh.gables.len(), 2);
+        assert_eq!(mesh.sides.len(), 2);
         let top: Vec<[f64; 3]> = corners_at(&mesh, 3.0);
         assert!(top
             .iter()
@@ -478,15 +828,20 @@ mod tests {
         fn roofs_on_random_houses_cover_them_and_close_over_the_walls(
             columns in proptest::collection::vec((2u8..6, 2u8..7), 1..6),
             radii in proptest::collection::vec(5.0f64..15.0, 3..12),
-            gabled in proptest::bool::ANY,
+            end in 0usize..4,
+            bent in proptest::bool::ANY,
         ) {
-            let shape = if gabled { SkeletonRoof::Gabled } else { SkeletonRoof::Hipped };
+            let ends = [RoofEnd::Hip, RoofEnd::Gable, RoofEnd::HalfHip, RoofEnd::Gablet];
+            let shape = SkeletonRoof::ends(ends[end]);
             // A rectilinear house of wings side by side, and a random star-shaped one.
             let wings = crate::mesh::skeleton::tests::skyline(&columns);
             let star = crate::mesh::skeleton::tests::star(&radii);
             for ring in [wings, star] {
                 let rings = vec![ring];
-                let mesh = skeleton_roof(&rings, shape, Some(3.0), 0.0).expect("a roof");
+                let mut mesh = skeleton_roof(&rings, shape, Some(3.0), 0.0).expect("a roof");
+                if bent {
+                    bend(&mut mesh);
+                }
                 let (roof, footprint) = plan_areas(&mesh, &rings);
                 proptest::prop_assert!((roof - footprint).abs() < 1e-6 * footprint, "{} {}", roof, footprint);
                 proptest::prop_assert!(mesh.slopes.iter().flatten().all(|c| c[2] >= -1e-9 && c[2] <= 3.0 + 1e-9));
@@ -544,7 +899,7 @@ mod tests {
     #[test]
     fn mansard_and_gambrel_roofs_bend_and_stay_closed() {
         let rings = vec![vec![[0.0, 0.0], [12.0, 0.0], [12.0, 8.0], [0.0, 8.0]]];
-        for shape in [SkeletonRoof::Hipped, SkeletonRoof::Gabled] {
+        for shape in [SkeletonRoof::HIPPED, SkeletonRoof::GABLED] {
             let mut mesh = skeleton_roof(&rings, shape, Some(4.0), 0.0).expect("a roof");
             bend(&mut mesh);
             assert!(is_closed_over_the_walls(&mesh, &mesh.rings), "{shape:?}");
@@ -573,9 +928,161 @@ mod tests {
             vec![[0.0, 0.0], [20.0, 0.0], [20.0, 16.0], [0.0, 16.0]],
             vec![[6.0, 5.0], [6.0, 11.0], [14.0, 11.0], [14.0, 5.0]],
         ];
-        let mesh = skeleton_roof(&rings, SkeletonRoof::Hipped, Some(3.0), 0.0).expect("a roof");
+        let mesh = skeleton_roof(&rings, SkeletonRoof::HIPPED, Some(3.0), 0.0).expect("a roof");
         let (roof, footprint) = plan_areas(&mesh, &rings);
         assert!((roof - footprint).abs() < 1e-9, "{roof} {footprint}");
         assert!(is_closed_over_the_walls(&mesh, &mesh.rings));
+    }
+
+    /// The corners of the roof's sides (gables) at one height above the eaves.
+    fn side_corners_at(mesh: &RoofMesh, height: f64) -> Vec<[f64; 3]> {
+        mesh.sides
+            .iter()
+            .flatten()
+            .copied()
+            .filter(|c| (c[2] - height).abs() < 1e-9)
+            .collect()
+    }
+
+    #[test]
+    fn half_hips_gablets_and_one_hipped_end_shape_the_ends_of_a_rectangle() {
+        let rings = vec![vec![[0.0, 0.0], [10.0, 0.0], [10.0, 6.0], [0.0, 6.0]]];
+        let ridge_ends = |mesh: &RoofMesh| {
+            let mut xs: Vec<f64> = corners_at(mesh, 4.0).iter().map(|c| c[0]).collect();
+            xs.sort_by(f64::total_cmp);
+            xs.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+            xs
+        };
+        let close = |a: &[f64], b: &[f64]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9)
+        };
+        // Half hip: gables up to 65 % of the height, the ridge shortened by 35 % of the hip.
+        let half = skeleton_roof(&rings, SkeletonRoof::ends(RoofEnd::HalfHip), Some(4.0), 0.0)
+            .expect("a roof");
+        assert_eq!(half.sides.len(), 2);
+        assert!(
+            close(&ridge_ends(&half), &[1.05, 8.95]),
+            "{:?}",
+            ridge_ends(&half)
+        );
+        assert_eq!(side_corners_at(&half, 2.6).len(), 4);
+        assert!(half.sides.iter().flatten().all(|c| c[2] <= 2.6 + 1e-9));
+        // Gablet: hips up to half the height, a small gable above reaching the ridge.
+        let gablet = skeleton_roof(&rings, SkeletonRoof::ends(RoofEnd::Gablet), Some(4.0), 0.0)
+            .expect("a roof");
+        assert!(
+            close(&ridge_ends(&gablet), &[1.5, 8.5]),
+            "{:?}",
+            ridge_ends(&gablet)
+        );
+        assert!(gablet.sides.iter().flatten().all(|c| c[2] >= 2.0 - 1e-9));
+        assert_eq!(side_corners_at(&gablet, 4.0).len(), 2);
+        // Side hipped towards the east: gabled at the west end only.
+        let side = SkeletonRoof {
+            ends: RoofEnd::Gable,
+            one_end: Some(([1.0, 0.0], RoofEnd::Hip)),
+        };
+        let side = skeleton_roof(&rings, side, Some(4.0), 0.0).expect("a roof");
+        assert_eq!(side.sides.len(), 1);
+        assert!(
+            close(&ridge_ends(&side), &[0.0, 7.0]),
+            "{:?}",
+            ridge_ends(&side)
+        );
+        for mesh in [&half, &gablet, &side] {
+            assert!(is_closed_over_the_walls(mesh, &mesh.rings));
+            let (roof, footprint) = plan_areas(mesh, &rings);
+            assert!((roof - footprint).abs() < 1e-9, "{roof} {footprint}");
+        }
+    }
+
+    /// Every corner and the centroid of every triangle lie on the profile: no triangle spans
+    /// a bend.
+    fn follows_profile(
+        mesh: &RoofMesh,
+        across: Point,
+        profile: &[(f64, f64)],
+        height: f64,
+    ) -> bool {
+        let s = |p: [f64; 3]| p[0] * across[0] + p[1] * across[1];
+        let (low, high) =
+            mesh.rings[0]
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                    let v = p[0] * across[0] + p[1] * across[1];
+                    (lo.min(v), hi.max(v))
+                });
+        let on = |c: [f64; 3]| {
+            (c[2] - height * profile_at(profile, (s(c) - low) / (high - low))).abs() < 1e-6
+        };
+        mesh.slopes.iter().all(|t| {
+            let centroid = [0, 1, 2].map(|k| (t[0][k] + t[1][k] + t[2][k]) / 3.0);
+            t.iter().all(|&c| on(c)) && on(centroid)
+        })
+    }
+
+    #[test]
+    fn a_skillion_slopes_as_one_plane_with_a_high_wall() {
+        let rings = vec![vec![[0.0, 0.0], [10.0, 0.0], [10.0, 6.0], [0.0, 6.0]]];
+        let profile = [(0.0, 0.0), (1.0, 1.0)];
+        let mesh = profile_roof(&rings, [0.0, 1.0], &profile, 3.0).expect("a roof");
+        assert!(follows_profile(&mesh, [0.0, 1.0], &profile, 3.0));
+        // The high side is a full quad, the two ends triangles, the low side none.
+        let mut corners: Vec<usize> = mesh.sides.iter().map(Vec::len).collect();
+        corners.sort_unstable();
+        assert_eq!(corners, vec![3, 3, 4]);
+        assert!((mesh.height - 3.0).abs() < 1e-12);
+        assert!(is_closed_over_the_walls(&mesh, &mesh.rings));
+        let (roof, footprint) = plan_areas(&mesh, &rings);
+        assert!((roof - footprint).abs() < 1e-9);
+    }
+
+    #[test]
+    fn long_axis_follows_the_longer_side() {
+        let angle: f64 = 0.4;
+        let (c, s) = (angle.cos(), angle.sin());
+        let ring: Vec<Point> = [[0.0, 0.0], [10.0, 0.0], [10.0, 4.0], [0.0, 4.0]]
+            .iter()
+            .map(|p| [p[0] * c - p[1] * s, p[0] * s + p[1] * c])
+            .collect();
+        let axis = long_axis(&ring).expect("an axis");
+        assert!((axis[0] * c + axis[1] * s).abs() > 1.0 - 1e-9, "{axis:?}");
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(500))]
+        #[test]
+        fn profile_roofs_on_random_footprints_follow_their_profile_and_close(
+            radii in proptest::collection::vec(5.0f64..15.0, 3..12),
+            hole in proptest::bool::ANY,
+            turn in 0.0f64..std::f64::consts::TAU,
+            teeth in 1usize..5,
+            shape in 0usize..3,
+        ) {
+            let mut rings = vec![crate::mesh::skeleton::tests::star(&radii)];
+            let inner = radii.iter().copied().fold(f64::INFINITY, f64::min);
+            if hole {
+                let r = inner * 0.3;
+                rings.push(vec![[-r, -r], [-r, r], [r, r], [r, -r]]);
+            }
+            let profile: Vec<(f64, f64)> = match shape {
+                0 => vec![(0.0, 0.0), (1.0, 1.0)],
+                1 => vec![(0.0, 0.0), (0.4, 1.0), (1.0, 0.0)],
+                _ => {
+                    let mut p = vec![(0.0, 0.0)];
+                    for k in 0..teeth {
+                        p.push(((k as f64 + 0.8) / teeth as f64, 1.0));
+                        p.push(((k + 1) as f64 / teeth as f64, 0.0));
+                    }
+                    p
+                }
+            };
+            let across = [turn.cos(), turn.sin()];
+            let mesh = profile_roof(&rings, across, &profile, 3.0).expect("a roof");
+            proptest::prop_assert!(follows_profile(&mesh, across, &profile, 3.0));
+            let (roof, footprint) = plan_areas(&mesh, &rings);
+            proptest::prop_assert!((roof - footprint).abs() < 1e-6 * footprint, "{} {}", roof, footprint);
+            proptest::prop_assert!(is_closed_over_the_walls(&mesh, &mesh.rings));
+        }
     }
 }
