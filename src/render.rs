@@ -9,6 +9,7 @@
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
+use crate::features::buildings::Finish;
 use crate::features::{self, FeatureClass, FeatureSet, FeatureSettings};
 use crate::mesh::ground::{self, Ground, MeshSettings};
 use crate::mesh::{self, MeshBuffers, Part};
@@ -245,16 +246,24 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
 
     let started = Instant::now();
     let sample_step_uv = srtm_step_uv(tile);
-    let mut walls = MeshBuffers::default();
-    let mut roofs = MeshBuffers::default();
+    // One primitive per finish of walls and of roofs.
+    let mut walls: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
+    let mut roofs: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
     let solids = mesh::buildings::solids(&feature_set.buildings, frame, terrain, sample_step_uv);
     for (building, solid) in feature_set.buildings.iter().zip(&solids) {
         if let Some(solid) = solid {
-            mesh::buildings::extrude(building, solid, frame, &mut walls, &mut roofs);
+            let look = &building.appearance;
+            mesh::buildings::extrude(
+                building,
+                solid,
+                frame,
+                walls.entry(look.wall_finish).or_default(),
+                roofs.entry(look.roof_finish).or_default(),
+            );
         }
     }
-    parts.insert(Part::BuildingWalls, walls);
-    parts.insert(Part::BuildingRoofs, roofs);
+    parts.extend(walls.into_iter().map(|(f, b)| (Part::BuildingWalls(f), b)));
+    parts.extend(roofs.into_iter().map(|(f, b)| (Part::BuildingRoofs(f), b)));
     parts.extend(mesh::barriers::build(&feature_set.barriers, frame, terrain));
     parts.insert(
         Part::PowerLine,

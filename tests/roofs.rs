@@ -224,3 +224,43 @@ fn every_building_of_a_tag_rich_tile_is_a_closed_shell_at_its_tagged_height() {
         &failures[..failures.len().min(12)]
     );
 }
+
+/// A `roof:material=metal` roof in 14/8530/5973 of the tag-rich extract is drawn with a
+/// metallic material of its own; every other material says explicitly that it is not metal.
+#[test]
+fn metal_roofs_get_a_metallic_material() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let bytes = common::render_in_process(
+        "14/8530/5973",
+        &[
+            "--osm".as_ref(),
+            "tests/data/monaco-planetiler-2021.osm.pbf".as_ref(),
+        ],
+        dir.path(),
+    );
+    let json_length = u32::from_le_bytes([bytes[12], bytes[13], bytes[14], bytes[15]]) as usize;
+    let root: serde_json::Value =
+        serde_json::from_slice(&bytes[20..20 + json_length]).expect("glTF JSON");
+    let materials = root["materials"].as_array().expect("materials");
+    let metallic = |name: &str| {
+        materials
+            .iter()
+            .find(|m| m["name"] == name)
+            .map(|m| m["pbrMetallicRoughness"]["metallicFactor"].as_f64())
+    };
+    assert_eq!(metallic("building_roofs_metal"), Some(Some(0.8)));
+    for material in materials {
+        let factor = material["pbrMetallicRoughness"]["metallicFactor"].as_f64();
+        if material["name"] != "building_roofs_metal" {
+            assert_eq!(factor, Some(0.0), "{}", material["name"]);
+        }
+    }
+    let tile = decode(&bytes);
+    let metal_roofs = tile
+        .primitives("building")
+        .iter()
+        .filter(|p| p.material == "building_roofs_metal")
+        .map(|p| p.indices.len() / 3)
+        .sum::<usize>();
+    assert!(metal_roofs > 0);
+}

@@ -294,11 +294,47 @@ pub fn parse_direction(raw: &str) -> Option<f64> {
         .map(|i| i as f64 * 22.5)
 }
 
-/// The colours of a building's walls and roof, linear RGBA.
+/// The colours of a building's walls and roof, linear RGBA, and how they reflect light.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Appearance {
     pub walls: [u8; 4],
     pub roof: [u8; 4],
+    pub wall_finish: Finish,
+    pub roof_finish: Finish,
+}
+
+/// How a surface reflects light: each finish is a glTF material of its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+pub enum Finish {
+    /// Masonry, plaster, tiles, wood: not metallic, rough.
+    #[default]
+    Matte,
+    /// Sheet metal, copper, zinc.
+    Metal,
+    /// Glass curtain walls and glazed roofs: smooth.
+    Glass,
+}
+
+impl Finish {
+    /// The finish of a `building:material` or `roof:material` value.
+    pub fn of_material(material: &str) -> Finish {
+        match material {
+            "glass" | "mirror" => Finish::Glass,
+            "metal" | "steel" | "tin" | "copper" | "zinc" | "aluminium" | "aluminum" => {
+                Finish::Metal
+            }
+            _ => Finish::Matte,
+        }
+    }
+
+    /// glTF's metallic factor and roughness factor.
+    pub fn metallic_roughness(self) -> (f32, f32) {
+        match self {
+            Finish::Matte => (0.0, 0.85),
+            Finish::Metal => (0.8, 0.4),
+            Finish::Glass => (0.0, 0.08),
+        }
+    }
 }
 
 /// Walls and roofs with no colour or material tagged (linear RGB).
@@ -332,6 +368,12 @@ pub fn appearance(tags: &Tags) -> Appearance {
             DEFAULT_WALLS,
         ),
         roof: pick("roof:colour", "roof:material", roof_material, DEFAULT_ROOF),
+        wall_finish: tags
+            .get("building:material")
+            .map_or(Finish::Matte, Finish::of_material),
+        roof_finish: tags
+            .get("roof:material")
+            .map_or(Finish::Matte, Finish::of_material),
     }
 }
 
@@ -401,7 +443,7 @@ fn wall_material(material: &str) -> Option<[f64; 3]> {
         "plaster" | "render" => [0.93, 0.90, 0.84],
         "glass" | "mirror" => [0.55, 0.66, 0.74],
         "wood" | "timber_framing" => [0.55, 0.40, 0.26],
-        "metal" | "steel" => [0.62, 0.64, 0.67],
+        "metal" | "steel" | "aluminium" | "aluminum" => [0.62, 0.64, 0.67],
         _ => return None,
     })
 }
@@ -411,7 +453,7 @@ fn roof_material(material: &str) -> Option<[f64; 3]> {
     Some(match material {
         "roof_tiles" | "tile" | "tiles" => [0.70, 0.36, 0.25],
         "slate" => [0.33, 0.35, 0.38],
-        "metal" | "tin" | "steel" => [0.60, 0.62, 0.65],
+        "metal" | "tin" | "steel" | "zinc" | "aluminium" | "aluminum" => [0.60, 0.62, 0.65],
         "copper" => [0.38, 0.62, 0.52],
         "concrete" => [0.70, 0.70, 0.68],
         "glass" => [0.55, 0.66, 0.74],
@@ -546,6 +588,44 @@ mod tests {
             roof_spec(&tags(&[("roof:shape", "something")]), &s).shape,
             RoofShape::Flat
         );
+        let skillion = roof_spec(
+            &tags(&[
+                ("roof:shape", "skillion"),
+                ("roof:direction", "SW"),
+                ("roof:orientation", "across"),
+            ]),
+            &s,
+        );
+        assert_eq!(skillion.shape, RoofShape::Skillion);
+        assert_eq!(skillion.direction_deg, Some(225.0));
+        assert!(skillion.across);
+        assert_eq!(parse_direction("-90"), Some(270.0));
+        assert_eq!(parse_direction("nne"), Some(22.5));
+        assert_eq!(parse_direction("uphill"), None);
+        // The documented values name every shape once.
+        let named: Vec<Option<RoofShape>> = [
+            "flat",
+            "skillion",
+            "gabled",
+            "hipped",
+            "half-hipped",
+            "side_hipped",
+            "side_half-hipped",
+            "hipped-and-gabled",
+            "pyramidal",
+            "dome",
+            "onion",
+            "round",
+            "gambrel",
+            "mansard",
+            "saltbox",
+            "sawtooth",
+            "butterfly",
+        ]
+        .iter()
+        .map(|v| RoofShape::from_tag(v))
+        .collect();
+        assert_eq!(named, RoofShape::ALL.map(Some).to_vec());
     }
 
     #[test]
@@ -567,6 +647,14 @@ mod tests {
             ("building:colour", "white"),
         ]));
         assert_eq!(painted_brick.walls, [255, 255, 255, 255]);
+        assert_eq!(painted_brick.wall_finish, Finish::Matte);
+        let copper = appearance(&tags(&[("roof:material", "copper")]));
+        assert_eq!(copper.roof_finish, Finish::Metal);
+        let glass = appearance(&tags(&[("building:material", "glass")]));
+        assert_eq!(
+            (glass.wall_finish, glass.roof_finish),
+            (Finish::Glass, Finish::Matte)
+        );
     }
 
     #[test]

@@ -13,6 +13,7 @@ pub mod skeleton;
 pub mod tin;
 
 use crate::features::barriers::BarrierKind;
+use crate::features::buildings::Finish;
 use crate::features::landcover::Cover;
 use crate::features::objects::ObjectKind;
 use crate::features::roads::Paving;
@@ -27,8 +28,8 @@ pub enum Part {
     Railway,
     Water,
     LandCover(Cover),
-    BuildingWalls,
-    BuildingRoofs,
+    BuildingWalls(Finish),
+    BuildingRoofs(Finish),
     Barrier(BarrierKind),
     Object(ObjectKind),
     PowerLine,
@@ -46,7 +47,7 @@ impl Part {
             Part::Railway => FeatureClass::Railway,
             Part::Water => FeatureClass::Water,
             Part::LandCover(_) => FeatureClass::LandCover,
-            Part::BuildingWalls | Part::BuildingRoofs => FeatureClass::Building,
+            Part::BuildingWalls(_) | Part::BuildingRoofs(_) => FeatureClass::Building,
             Part::TreeTrunk | Part::TreeCrown(..) => FeatureClass::Vegetation,
             Part::Barrier(_) => FeatureClass::Barrier,
             Part::Object(_) | Part::PowerLine => FeatureClass::Object,
@@ -61,8 +62,12 @@ impl Part {
             Part::Railway => "railway",
             Part::Water => "water",
             Part::LandCover(cover) => cover.as_str(),
-            Part::BuildingWalls => "building_walls",
-            Part::BuildingRoofs => "building_roofs",
+            Part::BuildingWalls(Finish::Matte) => "building_walls",
+            Part::BuildingWalls(Finish::Metal) => "building_walls_metal",
+            Part::BuildingWalls(Finish::Glass) => "building_walls_glass",
+            Part::BuildingRoofs(Finish::Matte) => "building_roofs",
+            Part::BuildingRoofs(Finish::Metal) => "building_roofs_metal",
+            Part::BuildingRoofs(Finish::Glass) => "building_roofs_glass",
             Part::TreeTrunk => "tree_trunk",
             Part::Barrier(kind) => kind.as_str(),
             Part::Object(kind) => kind.as_str(),

@@ -95,11 +95,20 @@ impl BinaryBuilder {
     }
 }
 
+/// The metallic factor, set on every material (glTF's default is 1): only metal and glass
+/// finishes of buildings differ from 0.
+fn metallic_of(part: Part) -> f32 {
+    match part {
+        Part::BuildingWalls(finish) | Part::BuildingRoofs(finish) => finish.metallic_roughness().0,
+        _ => 0.0,
+    }
+}
+
 fn floats_to_bytes(values: impl Iterator<Item = f32>) -> Vec<u8> {
     values.flat_map(f32::to_le_bytes).collect()
 }
 
-/// Base colour, roughness per part (metallic is 0 everywhere: nothing here is bare metal).
+/// Base colour, roughness per part.
 fn material_of(part: Part) -> ([f32; 4], f32) {
     match part {
         Part::Terrain => ([0.42, 0.52, 0.30, 1.0], 0.95),
@@ -107,8 +116,8 @@ fn material_of(part: Part) -> ([f32; 4], f32) {
         Part::Railway => ([0.45, 0.40, 0.35, 1.0], 0.95),
         Part::Water => ([0.16, 0.36, 0.62, 1.0], 0.15),
         Part::LandCover(cover) => cover.material(),
-        Part::BuildingWalls => ([0.86, 0.80, 0.70, 1.0], 0.85),
-        Part::BuildingRoofs => ([0.62, 0.36, 0.30, 1.0], 0.8),
+        Part::BuildingWalls(finish) => ([0.86, 0.80, 0.70, 1.0], finish.metallic_roughness().1),
+        Part::BuildingRoofs(finish) => ([0.62, 0.36, 0.30, 1.0], finish.metallic_roughness().1),
         Part::TreeTrunk => ([0.22, 0.15, 0.09, 1.0], 0.95),
         Part::Barrier(kind) => kind.material(),
         Part::Object(kind) => kind.material(),
@@ -402,7 +411,7 @@ fn write_primitive(
         name: Some(part.name().to_string()),
         pbr_metallic_roughness: json::material::PbrMetallicRoughness {
             base_color_factor: json::material::PbrBaseColorFactor(colour),
-            metallic_factor: json::material::StrengthFactor(0.0),
+            metallic_factor: json::material::StrengthFactor(metallic_of(part)),
             roughness_factor: json::material::StrengthFactor(roughness),
             ..Default::default()
         },
