@@ -114,6 +114,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 footprint,
                 height_m: 9.0,
                 height_tagged: true,
+                basement_m: 0.0,
                 roof: RoofSpec {
                     shape: *shape,
                     height_m: Some(4.0),

@@ -181,7 +181,7 @@ fn every_building_of_a_tag_rich_tile_is_a_closed_shell_at_its_tagged_height() {
         }
         let solids = buildings::solids(&set.buildings, &tile.frame(), &terrain, srtm_step_uv(tile));
         let (mut checked, mut pitched) = (0, 0);
-        for (building, solid) in set.buildings.iter().zip(&solids) {
+        for (index, (building, solid)) in set.buildings.iter().zip(&solids).enumerate() {
             let Some(solid) = solid else { continue };
             checked += 1;
             pitched += usize::from(!solid.flat_roof);
@@ -193,11 +193,15 @@ fn every_building_of_a_tag_rich_tile_is_a_closed_shell_at_its_tagged_height() {
             if let Some(defect) = shell_defect(solid) {
                 failures.push(format!("{what}: {defect}"));
             }
-            if building.height_tagged && (top - solid.ground - building.height_m).abs() > 0.01 {
+            // Underground levels count where the slope shows them.
+            let base = &set.buildings[building.base.unwrap_or(index)].footprint;
+            let (low, high) = buildings::ground_range(base, &terrain, srtm_step_uv(tile));
+            assert_eq!(low, solid.ground);
+            let tagged = building.height_m + building.basement_m.min(high - low);
+            if building.height_tagged && (top - solid.ground - tagged).abs() > 0.01 {
                 failures.push(format!(
-                    "{what}: top {:.3} m above the ground, tagged {:.3} m",
+                    "{what}: top {:.3} m above the ground, tagged {tagged:.3} m",
                     top - solid.ground,
-                    building.height_m
                 ));
             }
             if solid.floating && (bottom - solid.ground - building.min_height_m).abs() > 0.01 {

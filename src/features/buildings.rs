@@ -7,11 +7,13 @@
 //! `building:part` areas replace the outline they lie in where they cover it (Simple 3D
 //! Buildings): an outline covered by its parts is not drawn, only cut out of the ground.
 
+use std::collections::HashMap;
+
 use tracing::debug;
 
 use super::{Area, BuildingShape, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface};
 use crate::osm::units::{parse_count, parse_length_m};
-use crate::osm::Tags;
+use crate::osm::{ElementRef, Relation, Tags};
 
 /// Taller than any building ever built (metres); a larger value is a tagging mistake.
 const MAX_HEIGHT_M: f64 = 1000.0;
@@ -46,8 +48,47 @@ pub fn min_height_m(tags: &Tags, settings: &FeatureSettings) -> f64 {
 /// Share of an outline's area its parts must cover for the parts alone to be drawn.
 const PARTS_COVER: f64 = 0.9;
 
+/// Links the members of `type=building` relations: every `part` stands on the base of the
+/// `outline`, which is then drawn only through its parts (it still cuts the ground).
+pub(super) fn link_building_relations(set: &mut FeatureSet, relations: &[&Relation]) {
+    let mut by_element: HashMap<ElementRef, Vec<usize>> = HashMap::new();
+    for (index, building) in set.buildings.iter().enumerate() {
+        if let Some(element) = set.features[building.feature as usize].element {
+            by_element.entry(element).or_default().push(index);
+        }
+    }
+    for relation in relations {
+        if relation.tags.get("type") != Some("building") {
+            continue;
+        }
+        let members = |role: &'static str| {
+            relation
+                .members
+                .iter()
+                .filter(move |m| m.role == role)
+                .filter_map(|m| by_element.get(&m.element))
+                .flatten()
+                .copied()
+        };
+        let Some(outline) = members("outline").next() else {
+            debug!(
+                relation = relation.id,
+                "building relation without its outline here"
+            );
+            continue;
+        };
+        let parts: Vec<usize> = members("part").filter(|&p| p != outline).collect();
+        for &part in &parts {
+            set.buildings[part].base = Some(outline);
+        }
+        if !parts.is_empty() {
+            set.buildings[outline].drawn = false;
+        }
+    }
+}
+
 /// Hides the outlines that their `building:part`s cover, and stands every part on the base of
-/// the outline it lies in.
+/// the outline it lies in (parts that a `type=building` relation placed already keep theirs).
 pub(super) fn replace_outlines_by_parts(set: &mut FeatureSet) {
     let is_part = |b: &BuildingShape| {
         set.features[b.feature as usize]
@@ -55,7 +96,7 @@ pub(super) fn replace_outlines_by_parts(set: &mut FeatureSet) {
             .is_set("building:part")
     };
     let parts: Vec<usize> = (0..set.buildings.len())
-        .filter(|&i| is_part(&set.buildings[i]))
+        .filter(|&i| is_part(&set.buildings[i]) && set.buildings[i].base.is_none())
         .collect();
     if parts.is_empty() {
         return;
@@ -466,6 +507,38 @@ fn roof_material(material: &str) -> Option<[f64; 3]> {
     })
 }
 
+/// The height of the underground levels of a building whose height counts levels (no valid
+/// `height`): `building:levels:underground` × the level height, metres; 0 otherwise.
+pub fn basement_m(tags: &Tags, settings: &FeatureSettings) -> f64 {
+    let explicit = tags
+        .get("height")
+        .and_then(parse_length_m)
+        .is_some_and(|h| h > 0.0 && h <= MAX_HEIGHT_M);
+    let Some(raw) = tags.get("building:levels:underground") else {
+        return 0.0;
+    };
+    match parse_count(raw) {
+        Some(levels) if (0.0..=MAX_LEVELS).contains(&levels) => {
+            let counted = tags
+                .get("building:levels")
+                .and_then(parse_count)
+                .is_some_and(|l| l > 0.0 && l <= MAX_LEVELS);
+            if explicit || !counted {
+                0.0
+            } else {
+                levels * settings.level_height_m
+            }
+        }
+        _ => {
+            debug!(
+                levels = raw,
+                "implausible building:levels:underground ignored"
+            );
+            0.0
+        }
+    }
+}
+
 /// The building's height in metres and whether it was tagged.
 pub fn height_m(tags: &Tags, settings: &FeatureSettings) -> (f64, bool) {
     if let Some(raw) = tags.get("height") {
@@ -511,6 +584,7 @@ pub(super) fn add_area(
         return;
     }
     let (height, tagged) = height_m(area.tags, settings);
+    let basement = basement_m(area.tags, settings);
     let roof = roof_spec(area.tags, settings);
     let min_height = min_height_m(area.tags, settings).min(height);
     let feature = set.add_feature(Some(area.element), FeatureClass::Building, area.tags);
@@ -520,6 +594,7 @@ pub(super) fn add_area(
             footprint: footprint.clone(),
             height_m: height,
             height_tagged: tagged,
+            basement_m: basement,
             roof,
             min_height_m: min_height,
             drawn: true,
@@ -677,12 +752,17 @@ mod tests {
         let s = FeatureSettings::default();
         let add = |set: &mut FeatureSet, pairs: &[(&str, &str)], footprint: Polygon| {
             let t = tags(pairs);
-            let feature = set.add_feature(None, FeatureClass::Building, &t);
+            let element = ElementRef {
+                element_type: crate::osm::ElementType::Way,
+                id: set.buildings.len() as i64 + 1,
+            };
+            let feature = set.add_feature(Some(element), FeatureClass::Building, &t);
             set.buildings.push(BuildingShape {
                 feature,
                 footprint,
                 height_m: 10.0,
                 height_tagged: true,
+                basement_m: 0.0,
                 roof: roof_spec(&t, &s),
                 min_height_m: min_height_m(&t, &s),
                 drawn: true,
@@ -706,6 +786,62 @@ mod tests {
         assert_eq!(set.buildings[1].base, Some(0));
         assert_eq!(set.buildings[4].base, Some(3));
         assert_eq!(set.buildings[2].min_height_m, 3.0);
+
+        // A building relation ties a part to its outline even where the part reaches beyond it
+        // (ways 6 and 7), and takes precedence over the part's position.
+        add(&mut set, &[("building", "yes")], square(20.0, 22.0));
+        add(&mut set, &[("building:part", "yes")], square(21.0, 25.0));
+        let way = |id| crate::osm::Member {
+            element: ElementRef {
+                element_type: crate::osm::ElementType::Way,
+                id,
+            },
+            role: String::new(),
+        };
+        let relation = Relation {
+            id: 1,
+            tags: tags(&[("type", "building")]),
+            members: vec![
+                crate::osm::Member {
+                    role: "outline".into(),
+                    ..way(6)
+                },
+                crate::osm::Member {
+                    role: "part".into(),
+                    ..way(7)
+                },
+            ],
+        };
+        link_building_relations(&mut set, &[&relation]);
+        replace_outlines_by_parts(&mut set);
+        assert_eq!(set.buildings[6].base, Some(5));
+        assert!(!set.buildings[5].drawn && set.buildings[6].drawn);
+    }
+
+    #[test]
+    fn underground_levels_count_where_levels_give_the_height() {
+        let s = FeatureSettings::default();
+        let levels = [
+            ("building:levels", "5"),
+            ("building:levels:underground", "2"),
+        ];
+        assert_eq!(basement_m(&tags(&levels), &s), 6.0);
+        let with_height = [levels[0], levels[1], ("height", "20")];
+        assert_eq!(basement_m(&tags(&with_height), &s), 0.0);
+        assert_eq!(
+            basement_m(&tags(&[("building:levels:underground", "2")]), &s),
+            0.0
+        );
+        assert_eq!(
+            basement_m(
+                &tags(&[
+                    ("building:levels", "5"),
+                    ("building:levels:underground", "-1")
+                ]),
+                &s
+            ),
+            0.0
+        );
     }
 
     #[test]

@@ -167,6 +167,10 @@ pub struct BuildingShape {
     pub height_m: f64,
     /// True when the height came from tags rather than a default.
     pub height_tagged: bool,
+    /// Height of the underground levels (`building:levels:underground`) of a building whose
+    /// height counts its levels, metres: a slope shows them on its low side, so as much of
+    /// them as the ground falls under the footprint is added to the height.
+    pub basement_m: f64,
     pub roof: buildings::RoofSpec,
     /// Height of the bottom above the lowest ground, metres: above zero, the part floats (an
     /// overhang, a bridge between towers).
@@ -403,6 +407,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         landcover::add_area(&mut set, area, &projection);
         buildings::add_area(&mut set, area, &projection, settings);
     }
+    buildings::link_building_relations(&mut set, &selection.relations);
     buildings::replace_outlines_by_parts(&mut set);
     set.nearby_outlines = set
         .surfaces

@@ -157,7 +157,7 @@ pub fn solid(building: &BuildingShape, size_m: f64, low: f64, high: f64) -> Soli
             ring.reverse();
         }
     }
-    let mut top = low + building.height_m;
+    let mut top = low + building.height_m + building.basement_m.min(high - low);
     if !building.height_tagged {
         top = top.max(high + MIN_CLEARANCE_M);
     }
@@ -504,6 +504,87 @@ fn pitched_roof(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::features::buildings::{appearance, basement_m, height_m, min_height_m, roof_spec};
+    use crate::features::FeatureSettings;
+    use crate::osm::Tags;
+
+    /// A building from tags on a footprint given in metres (tiles of 1,000 m).
+    fn building(pairs: &[(&str, &str)], outer: &[Point]) -> BuildingShape {
+        let tags = Tags::from_pairs(pairs.iter().copied());
+        let settings = FeatureSettings::default();
+        let (height, tagged) = height_m(&tags, &settings);
+        BuildingShape {
+            feature: 0,
+            footprint: Polygon {
+                outer: outer
+                    .iter()
+                    .map(|p| [p[0] / 1000.0, p[1] / 1000.0])
+                    .collect(),
+                holes: Vec::new(),
+            },
+            height_m: height,
+            height_tagged: tagged,
+            basement_m: basement_m(&tags, &settings),
+            roof: roof_spec(&tags, &settings),
+            min_height_m: min_height_m(&tags, &settings),
+            drawn: true,
+            base: None,
+            appearance: appearance(&tags),
+        }
+    }
+
+    fn heights(solid: &Solid) -> (f64, f64) {
+        solid
+            .faces()
+            .flatten()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
+                (lo.min(c[2]), hi.max(c[2]))
+            })
+    }
+
+    #[test]
+    fn parts_stack_by_min_height() {
+        let square = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
+        let lower = building(&[("building:part", "yes"), ("height", "10")], &square);
+        let upper = building(
+            &[
+                ("building:part", "yes"),
+                ("min_height", "10"),
+                ("height", "25"),
+                ("roof:shape", "pyramidal"),
+                ("roof:height", "5"),
+            ],
+            &square,
+        );
+        let (low, high) = (100.0, 104.0);
+        let lower = solid(&lower, 1000.0, low, high);
+        let upper = solid(&upper, 1000.0, low, high);
+        assert_eq!(heights(&lower), (low - WALL_SKIRT_M, low + 10.0));
+        assert!(!lower.floating && upper.floating);
+        assert_eq!(heights(&upper), (low + 10.0, low + 25.0));
+        // The upper part's walls reach its eaves, its roof the top.
+        let eaves = upper
+            .walls
+            .iter()
+            .flatten()
+            .map(|c| c[2])
+            .fold(0.0, f64::max);
+        assert!((eaves - (low + 20.0)).abs() < 1e-9, "{eaves}");
+    }
+
+    #[test]
+    fn a_slope_shows_the_underground_levels_on_its_low_side() {
+        let square = [[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]];
+        let tags = [
+            ("building:levels", "4"),
+            ("building:levels:underground", "2"),
+        ];
+        let shell = solid(&building(&tags, &square), 1000.0, 50.0, 54.0);
+        // Four levels above the high side's ground: 12 m plus the 4 m the ground falls.
+        assert_eq!(heights(&shell).1, 50.0 + 12.0 + 4.0);
+        let shell = solid(&building(&tags, &square), 1000.0, 50.0, 60.0);
+        assert_eq!(heights(&shell).1, 50.0 + 12.0 + 6.0);
+    }
 
     #[test]
     fn an_l_shape_is_covered_exactly() {

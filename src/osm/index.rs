@@ -59,13 +59,25 @@ impl OsmIndex {
             register(bounds, &mut |c| c.nodes.push(i as u32));
         }
         for (i, relation) in data.relations.iter().enumerate() {
-            let member_positions: Vec<LonLat> = relation
-                .members
+            // Ways, and the ways of member relations (a building's multipolygon outline).
+            let member_ways = |members: &'_ [super::Member]| -> Vec<i64> {
+                members
+                    .iter()
+                    .filter(|m| m.element.element_type == super::ElementType::Way)
+                    .map(|m| m.element.id)
+                    .collect()
+            };
+            let mut ways = member_ways(&relation.members);
+            for member in &relation.members {
+                if member.element.element_type == super::ElementType::Relation {
+                    if let Some(inner) = data.relation(member.element.id) {
+                        ways.extend(member_ways(&inner.members));
+                    }
+                }
+            }
+            let member_positions: Vec<LonLat> = ways
                 .iter()
-                .filter_map(|m| match m.element.element_type {
-                    super::ElementType::Way => data.way(m.element.id),
-                    _ => None,
-                })
+                .filter_map(|&id| data.way(id))
                 .flat_map(|w| w.positions.iter().copied())
                 .collect();
             if let Some(bounds) = bounds_of(&member_positions) {

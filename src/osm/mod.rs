@@ -146,6 +146,13 @@ impl OsmData {
             .map(|i| &self.ways[i])
     }
 
+    pub fn relation(&self, id: i64) -> Option<&Relation> {
+        self.relations
+            .binary_search_by_key(&id, |r| r.id)
+            .ok()
+            .map(|i| &self.relations[i])
+    }
+
     /// True when some extract covers part of `bounds`.
     pub fn covers(&self, bounds: &Bounds) -> bool {
         self.coverage.iter().any(|c| c.intersects(bounds))
