@@ -44,6 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut shapes: BTreeMap<RoofShape, usize> = BTreeMap::new();
     let mut fallbacks: BTreeMap<Fallback, usize> = BTreeMap::new();
     let (mut shells, mut spent) = (0usize, Duration::ZERO);
+    let mut examples: Vec<String> = Vec::new();
     for x in x0..=x1 {
         for y in y0..=y1 {
             let tile = TileId { z: 14, x, y };
@@ -77,6 +78,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 *shapes.entry(building.roof.shape).or_default() += 1;
                 if let Some(fallback) = solid.fallback {
                     *fallbacks.entry(fallback).or_default() += 1;
+                    if examples.len() < 10 {
+                        let element = set.features[building.feature as usize].element;
+                        examples.push(format!("{element:?}: {}", fallback.describe()));
+                    }
                 }
             }
         }
@@ -104,6 +109,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     for (fallback, n) in &fallbacks {
         println!("    {n:6}  {}", fallback.describe());
+    }
+    for example in &examples {
+        println!("  e.g. {example}");
     }
     Ok(())
 }

@@ -9,8 +9,8 @@
 
 use super::constraints::triangulate_polygon;
 use super::roofs::{
-    bend, centred_roof, long_axis, profile_roof, skeleton_roof, spread, CentredRoof, RoofEnd,
-    RoofError, RoofMesh, SkeletonRoof,
+    bend, centred_roof, long_axis, profile_roof, skeleton_roof, spread, square_up, CentredRoof,
+    RoofEnd, RoofError, RoofMesh, SkeletonRoof,
 };
 use super::MeshBuffers;
 use crate::features::buildings::RoofShape;
@@ -483,12 +483,20 @@ fn pitched_roof(
         },
         _ => SkeletonRoof::HIPPED,
     };
-    let built = skeleton_roof(rings, shape, tagged, spec.pitch).and_then(|mesh| {
-        if mesh.height > most {
-            skeleton_roof(rings, shape, Some(most), spec.pitch)
-        } else {
-            Ok(mesh)
-        }
+    let build = |rings: &[Vec<Point>]| {
+        skeleton_roof(rings, shape, tagged, spec.pitch).and_then(|mesh| {
+            if mesh.height > most {
+                skeleton_roof(rings, shape, Some(most), spec.pitch)
+            } else {
+                Ok(mesh)
+            }
+        })
+    };
+    // A near-rectilinear footprint whose skeleton trips on its almost-parallel sides gets the
+    // roof of its squared outline (paper 003 §5.2), the walls following it.
+    let built = build(rings).or_else(|error| match square_up(rings) {
+        Some(squared) => build(&squared),
+        None => Err(error),
     });
     match built {
         Ok(mut mesh) => {
@@ -540,6 +548,48 @@ mod tests {
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
                 (lo.min(c[2]), hi.max(c[2]))
             })
+    }
+
+    #[test]
+    fn a_footprint_whose_skeleton_trips_gets_the_roof_of_its_squared_outline() {
+        // Way 143210134 in Monaco: nearly rectilinear, with a notch whose sides are 3° apart.
+        let outline = [
+            [0.0, 0.0],
+            [0.0, -2.773831922817812],
+            [-4.230140648659374, -2.773831922817812],
+            [-4.230140648659374, -15.101983899019935],
+            [-9.57347621282245, -15.101983899019935],
+            [-9.462156721717003, -17.10531014979389],
+            [-13.692297370376375, -17.10531014979389],
+            [-13.692297370376375, -15.101983899019935],
+            [-18.924313434535563, -15.101983899019935],
+            [-19.03563292564101, -2.773831922817812],
+            [-5.009377086397511, -2.6197301299243883],
+            [-5.009377086397511, -0.154101750625828],
+        ];
+        let hipped = building(&[("roof:shape", "hipped"), ("height", "12")], &outline);
+        let shell = solid(&hipped, 1000.0, 0.0, 0.0);
+        assert_eq!(shell.fallback, None);
+        assert!(!shell.flat_roof);
+        assert!((heights(&shell).1 - 12.0).abs() < 1e-9);
+        // The walls stand on the squared outline: each at a right angle to the first.
+        let directions: Vec<[f64; 2]> = shell
+            .walls
+            .iter()
+            .filter(|w| w[0][2] == w[1][2] && w[0][2] < 0.0)
+            .map(|w| {
+                let (dx, dy) = (w[1][0] - w[0][0], w[1][1] - w[0][1]);
+                [dx / dx.hypot(dy), dy / dx.hypot(dy)]
+            })
+            .collect();
+        assert_eq!(directions.len(), outline.len());
+        for d in &directions {
+            let cosine = d[0] * directions[0][0] + d[1] * directions[0][1];
+            assert!(
+                cosine.abs() < 1e-9 || (cosine.abs() - 1.0).abs() < 1e-9,
+                "{cosine}"
+            );
+        }
     }
 
     #[test]

@@ -383,6 +383,123 @@ pub fn profile_roof(
     Ok(mesh)
 }
 
+/// Corners within this angle of a right angle (or of a straight line) count as such when a
+/// footprint is squared (paper 003 §5.2 takes 90° ± 5°).
+const SQUARE_TOLERANCE_DEG: f64 = 5.0;
+/// Farthest a corner may move when a footprint is squared, as a share of its size.
+const SQUARE_MOVE: f64 = 0.05;
+
+/// A near-rectilinear footprint squared (paper 003 §5.2, first step): every edge within
+/// [`SQUARE_TOLERANCE_DEG`] of one of two perpendicular directions is made exactly parallel to
+/// it, at the length-weighted mean of its ends, and runs of edges along one direction become
+/// one. `None` when some edge is off both directions, when a corner would move more than
+/// [`SQUARE_MOVE`] of the footprint's size, or when the squared rings are not simple.
+pub fn square_up(rings: &[Vec<Point>]) -> Option<Vec<Vec<Point>>> {
+    // The dominant direction, modulo 90°: the length-weighted mean of four times each angle.
+    let (mut c, mut s) = (0.0, 0.0);
+    for ring in rings {
+        for i in 0..ring.len() {
+            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+            let length = dx.hypot(dy);
+            let angle = dy.atan2(dx);
+            c += length * (4.0 * angle).cos();
+            s += length * (4.0 * angle).sin();
+        }
+    }
+    let theta = s.atan2(c) / 4.0;
+    let (cos, sin) = (theta.cos(), theta.sin());
+    let turn = |p: Point, sin: f64| [p[0] * cos + p[1] * sin, -p[0] * sin + p[1] * cos];
+    let tolerance = SQUARE_TOLERANCE_DEG.to_radians().tan();
+    let (mut low, mut high) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    let mut squared = Vec::with_capacity(rings.len());
+    for ring in rings {
+        let points: Vec<Point> = dedup_ring(ring).iter().map(|&p| turn(p, sin)).collect();
+        let n = points.len();
+        if n < 4 {
+            return None;
+        }
+        // Each edge: along the first axis (true) or the second, and its length.
+        let mut kinds = Vec::with_capacity(n);
+        for i in 0..n {
+            let (a, b) = (points[i], points[(i + 1) % n]);
+            let (dx, dy) = ((b[0] - a[0]).abs(), (b[1] - a[1]).abs());
+            if dy <= tolerance * dx {
+                kinds.push(true);
+            } else if dx <= tolerance * dy {
+                kinds.push(false);
+            } else {
+                return None;
+            }
+        }
+        // Runs of edges of one kind, starting where the kind changes.
+        let start = (0..n).find(|&i| kinds[i] != kinds[(i + n - 1) % n])?;
+        let mut runs: Vec<(bool, f64)> = Vec::new();
+        let (mut sum, mut weight) = (0.0, 0.0);
+        for k in 0..n {
+            let i = (start + k) % n;
+            let (a, b) = (points[i], points[(i + 1) % n]);
+            let axis = usize::from(kinds[i]);
+            let length = (b[0] - a[0]).hypot(b[1] - a[1]);
+            sum += length * (a[axis] + b[axis]) / 2.0;
+            weight += length;
+            if kinds[(i + 1) % n] != kinds[i] {
+                runs.push((kinds[i], sum / weight.max(f64::MIN_POSITIVE)));
+                (sum, weight) = (0.0, 0.0);
+            }
+        }
+        if runs.len() < 4 || runs.len() % 2 == 1 {
+            return None;
+        }
+        // Each corner where a run along the first axis (at `y`) meets one along the second (at
+        // `x`).
+        let corners: Vec<Point> = (0..runs.len())
+            .map(|k| {
+                let (this, next) = (runs[k], runs[(k + 1) % runs.len()]);
+                if this.0 {
+                    [next.1, this.1]
+                } else {
+                    [this.1, next.1]
+                }
+            })
+            .collect();
+        for p in &points {
+            for axis in 0..2 {
+                low[axis] = low[axis].min(p[axis]);
+                high[axis] = high[axis].max(p[axis]);
+            }
+        }
+        // Every original corner lies near the squared outline.
+        let moved = points
+            .iter()
+            .map(|&p| {
+                (0..corners.len())
+                    .map(|k| {
+                        crate::geometry::distance_to_segment(
+                            p,
+                            corners[k],
+                            corners[(k + 1) % corners.len()],
+                        )
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .fold(0.0, f64::max);
+        squared.push((corners, moved));
+    }
+    let size = (high[0] - low[0]).max(high[1] - low[1]);
+    if squared.iter().any(|(_, moved)| *moved > SQUARE_MOVE * size) {
+        return None;
+    }
+    let rings: Vec<Vec<Point>> = squared
+        .into_iter()
+        .map(|(corners, _)| corners.into_iter().map(|p| turn(p, -sin)).collect())
+        .collect();
+    let simple = rings
+        .iter()
+        .all(|r| !crate::geometry::ring_self_intersects(r) && signed_area2(r) != 0.0);
+    simple.then_some(rings)
+}
+
 /// The profile's height share at `share` of the width (linear between its points).
 fn profile_at(profile: &[(f64, f64)], share: f64) -> f64 {
     let share = share.clamp(0.0, 1.0);
@@ -822,6 +939,57 @@ mod tests {
         assert!(is_closed_over_the_walls(&mesh, &mesh.rings));
     }
 
+    #[test]
+    fn t_and_u_houses_get_a_ridge_per_wing_meeting_in_valleys() {
+        let t = vec![vec![
+            [0.0, 0.0],
+            [18.0, 0.0],
+            [18.0, 6.0],
+            [12.0, 6.0],
+            [12.0, 16.0],
+            [6.0, 16.0],
+            [6.0, 6.0],
+            [0.0, 6.0],
+        ]];
+        let u = vec![vec![
+            [0.0, 0.0],
+            [18.0, 0.0],
+            [18.0, 16.0],
+            [12.0, 16.0],
+            [12.0, 6.0],
+            [6.0, 6.0],
+            [6.0, 16.0],
+            [0.0, 16.0],
+        ]];
+        // The ridge's corners: the ends of each wing and where the ridges meet.
+        for (rings, ridge, gables) in [
+            (t, vec![[0.0, 3.0], [9.0, 3.0], [9.0, 16.0], [18.0, 3.0]], 3),
+            (
+                u,
+                vec![[3.0, 3.0], [3.0, 16.0], [15.0, 3.0], [15.0, 16.0]],
+                2,
+            ),
+        ] {
+            let mesh = skeleton_roof(&rings, SkeletonRoof::GABLED, Some(3.0), 0.0).expect("a roof");
+            let mut top: Vec<Point> = corners_at(&mesh, 3.0)
+                .iter()
+                .map(|c| [c[0], c[1]])
+                .collect();
+            top.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+            top.dedup_by(|a, b| (a[0] - b[0]).hypot(a[1] - b[1]) < 1e-9);
+            let near = |a: &Point, b: &Point| (a[0] - b[0]).hypot(a[1] - b[1]) < 1e-9;
+            assert!(
+                top.len() == ridge.len() && top.iter().zip(&ridge).all(|(a, b)| near(a, b)),
+                "{top:?}"
+            );
+            assert_eq!(mesh.sides.len(), gables);
+            // Valleys: the inner corners' arcs run down from the ridges to the eaves.
+            let (roof, footprint) = plan_areas(&mesh, &rings);
+            assert!((roof - footprint).abs() < 1e-9);
+            assert!(is_closed_over_the_walls(&mesh, &mesh.rings));
+        }
+    }
+
     proptest::proptest! {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(1000))]
         #[test]
@@ -1035,6 +1203,41 @@ mod tests {
         assert!(is_closed_over_the_walls(&mesh, &mesh.rings));
         let (roof, footprint) = plan_areas(&mesh, &rings);
         assert!((roof - footprint).abs() < 1e-9);
+    }
+
+    #[test]
+    fn squaring_straightens_a_near_rectilinear_footprint() {
+        // An L drawn a little off: corners of 88° to 92°, turned by 20°.
+        let l = [
+            [0.0, 0.0],
+            [12.0, 0.2],
+            [12.1, 6.0],
+            [6.0, 5.9],
+            [6.2, 14.0],
+            [-0.1, 14.1],
+        ];
+        let (c, s) = (0.35f64.cos(), 0.35f64.sin());
+        let turned: Vec<Point> = l
+            .iter()
+            .map(|p| [p[0] * c - p[1] * s, p[0] * s + p[1] * c])
+            .collect();
+        let squared = square_up(&[turned]).expect("near-rectilinear");
+        let ring = &squared[0];
+        assert_eq!(ring.len(), 6);
+        for i in 0..6 {
+            let (a, b, d) = (ring[(i + 5) % 6], ring[i], ring[(i + 1) % 6]);
+            let (u, v) = ([b[0] - a[0], b[1] - a[1]], [d[0] - b[0], d[1] - b[1]]);
+            let cosine = (u[0] * v[0] + u[1] * v[1]) / (u[0].hypot(u[1]) * v[0].hypot(v[1]));
+            assert!(cosine.abs() < 1e-9, "corner {i}: {cosine}");
+        }
+        // A hexagon is not rectilinear.
+        let hexagon: Vec<Point> = (0..6)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / 6.0;
+                [a.cos(), a.sin()]
+            })
+            .collect();
+        assert!(square_up(&[hexagon]).is_none());
     }
 
     #[test]
