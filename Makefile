@@ -4,7 +4,7 @@
 CARGO ?= cargo
 NPM ?= npm
 
-.PHONY: run test lint bench bench-terrain clean-cache
+.PHONY: run test lint bench bench-terrain bench-roofs clean-cache
 
 run:
 	$(CARGO) run --release -- serve
@@ -40,6 +40,16 @@ bench-terrain: tests/py/.venv/.installed
 	tests/py/.venv/bin/python -m pip install --quiet --disable-pip-version-check -r tests/py/requirements-bench.txt
 	tests/py/.venv/bin/python scripts/terrain_compare.py tests/data/N48E009.hgt data/N43E007.hgt --windows win257,crop1025
 	target/release/examples/approximation_compare tests/data/N48E009.hgt
+
+# Roof figures: building shells per second over the Monaco tiles of both extracts, with the
+# roofs as tagged and with every footprint given one shape, and the roofs that fell back.
+bench-roofs:
+	$(CARGO) build --release --examples
+	for osm in data/monaco-osrm-2016.osm.pbf tests/data/monaco-planetiler-2021.osm.pbf; do \
+	  for shape in tagged hipped gabled skillion; do \
+	    target/release/examples/roof_bench $$osm data $$shape || exit 1; \
+	  done; \
+	done
 
 clean-cache:
 	rm -rf cache

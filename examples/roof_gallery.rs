@@ -1,6 +1,6 @@
-//! A glb of every roof shape on hand-made footprints (a rectangle, an L, a T, a U and a
-//! courtyard house), one row per shape, on flat ground: to look at the roofs with a glTF viewer
-//! or `render_glb.mjs`.
+//! A glb of every roof shape on hand-made footprints (a rectangle, an L, a block with a
+//! narrower wing and a bay, a T, a U and a courtyard house), one row per shape, on flat ground:
+//! to look at the roofs with a glTF viewer or `render_glb.mjs`.
 //!
 //! Usage: roof_gallery OUT.glb [SHAPE,SHAPE…]   (`roof:shape` values; all shapes by default)
 
@@ -25,6 +25,19 @@ fn footprints() -> Vec<(&'static str, Vec<Vec<Point>>)> {
         [7.0, 7.0],
         [7.0, 16.0],
         [0.0, 16.0],
+    ]];
+    // A main block with a narrower wing and a small bay on its long side.
+    let extended = vec![vec![
+        [0.0, 0.0],
+        [18.0, 0.0],
+        [18.0, 10.0],
+        [11.0, 10.0],
+        [11.0, 12.0],
+        [7.0, 12.0],
+        [7.0, 10.0],
+        [6.0, 10.0],
+        [6.0, 18.0],
+        [0.0, 18.0],
     ]];
     let t = vec![vec![
         [0.0, 0.0],
@@ -53,6 +66,7 @@ fn footprints() -> Vec<(&'static str, Vec<Vec<Point>>)> {
     vec![
         ("rectangle", rectangle),
         ("L", l),
+        ("extended", extended),
         ("T", t),
         ("U", u),
         ("courtyard", courtyard),
@@ -142,6 +156,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let bytes = glb::write(&description, &parts, &BTreeMap::new(), &features);
     std::fs::write(&out, bytes)?;
-    println!("{out}: {} shapes × 5 footprints", shapes.len());
+    println!(
+        "{out}: {} shapes × {} footprints",
+        shapes.len(),
+        footprints().len()
+    );
     Ok(())
 }
