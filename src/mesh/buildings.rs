@@ -12,7 +12,7 @@ use super::roofs::{
     bend, centred_roof, long_axis, profile_roof, skeleton_roof, spread, square_up, CentredRoof,
     RoofEnd, RoofError, RoofMesh, SkeletonRoof,
 };
-use super::MeshBuffers;
+use super::{newell, MeshBuffers};
 use crate::features::buildings::RoofShape;
 use crate::features::BuildingShape;
 use crate::geometry::{clip_to_rect, signed_area2, Point, Polygon};
@@ -91,6 +91,7 @@ pub struct Solid {
     pub flat_roof: bool,
     /// The bottom, facing down: drawn under a part that floats, underground otherwise.
     pub floor: Vec<[[f64; 3]; 3]>,
+    /// True for a part above the ground (`min_height`): its floor is drawn.
     pub floating: bool,
     /// Why the roof is simpler than the tags asked for, if it is.
     pub fallback: Option<Fallback>,
@@ -143,7 +144,13 @@ impl Fallback {
 /// `high`, metres.
 pub fn solid(building: &BuildingShape, size_m: f64, low: f64, high: f64) -> Solid {
     let footprint = &building.footprint;
-    let origin = footprint.outer[0];
+    let Some(&origin) = footprint
+        .outer
+        .first()
+        .filter(|_| footprint.outer.len() >= 3)
+    else {
+        return Solid::default();
+    };
     let mut rings: Vec<Vec<Point>> = footprint
         .rings()
         .map(|r| {
@@ -322,18 +329,6 @@ pub fn extrude(
             roofs.push_flat_polygon(&place(triangle), facing(triangle), building.feature);
         }
     }
-}
-
-/// The normal of a planar polygon (Newell's method), its length twice the area.
-pub fn newell(polygon: &[[f64; 3]]) -> [f64; 3] {
-    let mut normal = [0.0; 3];
-    for i in 0..polygon.len() {
-        let (a, b) = (polygon[i], polygon[(i + 1) % polygon.len()]);
-        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
-        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
-        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
-    }
-    normal
 }
 
 /// Untagged roof heights are rise per run times these shares of the footprint's width across

@@ -178,15 +178,7 @@ impl MeshBuffers {
         if corners.len() < 3 {
             return;
         }
-        // Newell's method: robust for any planar polygon, whatever vertex it starts at.
-        let mut normal = [0.0; 3];
-        for i in 0..corners.len() {
-            let (a, b) = (corners[i], corners[(i + 1) % corners.len()]);
-            normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
-            normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
-            normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
-        }
-        let Some(normal) = normalize(normal) else {
+        let Some(normal) = normalize(newell(corners)) else {
             return;
         };
         let reversed = dot(normal, facing) < 0.0;
@@ -235,6 +227,19 @@ impl MeshBuffers {
             }
         }
     }
+}
+
+/// The normal of a planar polygon by Newell's method (robust for any polygon, whatever vertex
+/// it starts at); its length is twice the area.
+pub fn newell(polygon: &[[f64; 3]]) -> [f64; 3] {
+    let mut normal = [0.0; 3];
+    for i in 0..polygon.len() {
+        let (a, b) = (polygon[i], polygon[(i + 1) % polygon.len()]);
+        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    normal
 }
 
 /// The cross product `(b − a) × (c − a)`.
