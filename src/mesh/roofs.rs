@@ -386,14 +386,15 @@ pub fn profile_roof(
 /// Corners within this angle of a right angle (or of a straight line) count as such when a
 /// footprint is squared (paper 003 §5.2 takes 90° ± 5°).
 const SQUARE_TOLERANCE_DEG: f64 = 5.0;
-/// Farthest a corner may move when a footprint is squared, as a share of its size.
-const SQUARE_MOVE: f64 = 0.05;
+/// Farthest a corner may move when a footprint is squared, metres: the walls follow the squared
+/// outline while the ground is cut by the drawn one, so they must stay within a hair of it.
+const SQUARE_MOVE_M: f64 = 0.15;
 
 /// A near-rectilinear footprint squared (paper 003 §5.2, first step): every edge within
 /// [`SQUARE_TOLERANCE_DEG`] of one of two perpendicular directions is made exactly parallel to
 /// it, at the length-weighted mean of its ends, and runs of edges along one direction become
 /// one. `None` when some edge is off both directions, when a corner would move more than
-/// [`SQUARE_MOVE`] of the footprint's size, or when the squared rings are not simple.
+/// [`SQUARE_MOVE_M`], or when the squared rings are not simple. Coordinates in metres.
 pub fn square_up(rings: &[Vec<Point>]) -> Option<Vec<Vec<Point>>> {
     // The dominant direction, modulo 90°: the length-weighted mean of four times each angle.
     let (mut c, mut s) = (0.0, 0.0);
@@ -411,7 +412,6 @@ pub fn square_up(rings: &[Vec<Point>]) -> Option<Vec<Vec<Point>>> {
     let (cos, sin) = (theta.cos(), theta.sin());
     let turn = |p: Point, sin: f64| [p[0] * cos + p[1] * sin, -p[0] * sin + p[1] * cos];
     let tolerance = SQUARE_TOLERANCE_DEG.to_radians().tan();
-    let (mut low, mut high) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     let mut squared = Vec::with_capacity(rings.len());
     for ring in rings {
         let points: Vec<Point> = dedup_ring(ring).iter().map(|&p| turn(p, sin)).collect();
@@ -463,12 +463,6 @@ pub fn square_up(rings: &[Vec<Point>]) -> Option<Vec<Vec<Point>>> {
                 }
             })
             .collect();
-        for p in &points {
-            for axis in 0..2 {
-                low[axis] = low[axis].min(p[axis]);
-                high[axis] = high[axis].max(p[axis]);
-            }
-        }
         // Every original corner lies near the squared outline.
         let moved = points
             .iter()
@@ -486,8 +480,7 @@ pub fn square_up(rings: &[Vec<Point>]) -> Option<Vec<Vec<Point>>> {
             .fold(0.0, f64::max);
         squared.push((corners, moved));
     }
-    let size = (high[0] - low[0]).max(high[1] - low[1]);
-    if squared.iter().any(|(_, moved)| *moved > SQUARE_MOVE * size) {
+    if squared.iter().any(|(_, moved)| *moved > SQUARE_MOVE_M) {
         return None;
     }
     let rings: Vec<Vec<Point>> = squared
@@ -1230,6 +1223,11 @@ mod tests {
             let cosine = (u[0] * v[0] + u[1] * v[1]) / (u[0].hypot(u[1]) * v[0].hypot(v[1]));
             assert!(cosine.abs() < 1e-9, "corner {i}: {cosine}");
         }
+        // Squaring this one would move a corner half a metre: the walls would leave the
+        // ground's cut.
+        let mut leaning = l.to_vec();
+        leaning[1] = [12.0, 1.0];
+        assert!(square_up(&[leaning]).is_none());
         // A hexagon is not rectilinear.
         let hexagon: Vec<Point> = (0..6)
             .map(|i| {
