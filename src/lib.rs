@@ -8,6 +8,7 @@
 
 pub mod cache;
 pub mod config;
+pub mod elevation;
 pub mod features;
 pub mod geometry;
 pub mod mesh;

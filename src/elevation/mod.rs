@@ -1,0 +1,4 @@
+//! Elevations settled by a linear program (thesis chapter 4): features declare connectors and
+//! constraints between them, and one robust LP ([`lp`]) chooses every elevation at once.
+
+pub mod lp;
