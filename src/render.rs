@@ -9,13 +9,14 @@
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
+use crate::elevation;
 use crate::features::buildings::Finish;
 use crate::features::{self, FeatureClass, FeatureSet, FeatureSettings};
 use crate::mesh::ground::{self, Ground, MeshSettings};
 use crate::mesh::{self, MeshBuffers, Part};
 use crate::osm::index::Selection;
 use crate::output::{glb, quantized_mesh};
-use crate::terrain::{Interpolation, Mosaic, TerrainModel};
+use crate::terrain::{Elevation, Interpolation, Mosaic, TerrainModel};
 use crate::tile::{TileFrame, TileId};
 
 /// Settings that change what a tile looks like (and so belong in the cache key).
@@ -139,13 +140,20 @@ fn prepare<'a>(
     timings.features = started.elapsed();
 
     let started = Instant::now();
-    let ground = ground::triangulate(
+    // Water areas lie flat at the level of their lowest shore.
+    let water = elevation::water::levels(&feature_set, &terrain, frame.size_m);
+    let settled = elevation::water::Ground {
+        terrain: &terrain,
+        water: &water,
+    };
+    let mut ground = ground::triangulate(
         &frame,
         &settings.mesh,
         &feature_set.surfaces,
         &feature_set.nearby_outlines,
-        &terrain,
+        &settled,
     )?;
+    elevation::water::flatten(&mut ground, &feature_set.surfaces, &water, frame.size_m);
     timings.triangulation = started.elapsed();
 
     // Normals from the terrain's gradient at each vertex: a function of global data, so a
@@ -154,7 +162,7 @@ fn prepare<'a>(
     let normal_step = NORMAL_STEP_M * 2f64.powi(i32::from(NORMAL_STEP_ZOOM.saturating_sub(tile.z)));
     let height_at = |x: f64, z: f64| {
         let (u, v) = frame.local_to_uv(x, z);
-        frame.elevation_to_y(terrain.elevation_uv([u, v]), z)
+        frame.elevation_to_y(settled.elevation_uv([u, v]), z)
     };
     let normals: Vec<[f64; 3]> = ground
         .vertices

@@ -402,7 +402,11 @@ mod tests {
         assert!(out.values[x[2]] - out.values[floor] >= 8.0 - 1e-6);
         // A straight deck from bank to bank: no peak at the middle, no sag either side.
         for &station in &x[1..4] {
-            assert!((out.values[station] - 10.0).abs() < 1e-4, "{:?}", out.values);
+            assert!(
+                (out.values[station] - 10.0).abs() < 1e-4,
+                "{:?}",
+                out.values
+            );
         }
     }
 

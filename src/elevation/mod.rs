@@ -2,3 +2,4 @@
 //! constraints between them, and one robust LP ([`lp`]) chooses every elevation at once.
 
 pub mod lp;
+pub mod water;

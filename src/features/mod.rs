@@ -144,7 +144,11 @@ impl Surface {
     }
 
     /// A surface covering the union of polygons, outlined by their rings.
-    fn from_polygons(class: FeatureClass, feature: u32, pieces: Vec<Polygon>) -> Option<Surface> {
+    pub(crate) fn from_polygons(
+        class: FeatureClass,
+        feature: u32,
+        pieces: Vec<Polygon>,
+    ) -> Option<Surface> {
         let outline: Vec<Vec<Point>> = pieces
             .iter()
             .flat_map(|p| p.rings())
@@ -207,7 +211,7 @@ pub struct FeatureSet {
 }
 
 impl FeatureSet {
-    fn add_feature(
+    pub(crate) fn add_feature(
         &mut self,
         element: Option<ElementRef>,
         class: FeatureClass,

@@ -21,7 +21,7 @@ use spade::{Point2, Triangulation};
 use super::tin::{refine, Cdt, HeightGrid, RefineLimits};
 use crate::features::{FeatureClass, Surface};
 use crate::geometry::{clip_segment, distance_to_segment, grid_cell, Point, Polygon, Rect};
-use crate::terrain::TerrainModel;
+use crate::terrain::Elevation;
 use crate::tile::{mercator_scale, v_to_lat, TileFrame};
 
 #[derive(Debug, thiserror::Error)]
@@ -200,7 +200,7 @@ pub fn triangulate(
     settings: &MeshSettings,
     surfaces: &[Surface],
     weighting_outlines: &[Vec<Point>],
-    terrain: &TerrainModel<'_>,
+    terrain: &dyn Elevation,
 ) -> Result<Ground, GroundError> {
     let tile = frame.tile;
     let rect = crate::features::tile_rect(tile);
@@ -428,7 +428,7 @@ fn edge_vertices(
     max_error: f64,
     segments: &[(Point, Point)],
     origin: [f64; 2],
-    terrain: &TerrainModel<'_>,
+    terrain: &dyn Elevation,
     to_local: &dyn Fn(Point) -> Point2<f64>,
 ) -> Vec<EdgeVertex> {
     let (axis, fixed) = side.fixed(n);
@@ -501,7 +501,7 @@ fn edge_vertices(
 mod tests {
     use super::*;
     use crate::source::srtm::{CellId, SrtmTile};
-    use crate::terrain::{Interpolation, Mosaic};
+    use crate::terrain::{Interpolation, Mosaic, TerrainModel};
     use crate::tile::TileId;
     use std::sync::Arc;
 

@@ -94,3 +94,15 @@ impl<'a> TerrainModel<'a> {
             .collect()
     }
 }
+
+/// An elevation in metres at any point in global tile units: the approximated terrain, or the
+/// ground once features have settled it.
+pub trait Elevation {
+    fn elevation_uv(&self, p: [f64; 2]) -> f64;
+}
+
+impl Elevation for TerrainModel<'_> {
+    fn elevation_uv(&self, p: [f64; 2]) -> f64 {
+        TerrainModel::elevation_uv(self, p)
+    }
+}
