@@ -62,7 +62,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let ranges: Vec<(f64, f64)> = set
                 .buildings
                 .iter()
-                .map(|b| buildings::ground_range(&b.footprint, &terrain, srtm_step_uv(tile)))
+                .map(|b| {
+                    buildings::ground_range(&b.footprint, &terrain, &terrain, srtm_step_uv(tile))
+                })
                 .collect();
             let started = Instant::now();
             let built: Vec<_> = set

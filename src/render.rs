@@ -119,6 +119,8 @@ pub fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
 struct Prepared<'a> {
     frame: TileFrame,
     terrain: TerrainModel<'a>,
+    /// Water surfaces and the elevations their water takes.
+    water: Vec<elevation::water::WaterLevel>,
     feature_set: FeatureSet,
     ground: Ground,
     /// Unit normal of each ground vertex in the local frame.
@@ -153,7 +155,7 @@ fn prepare<'a>(
         &feature_set.nearby_outlines,
         &settled,
     )?;
-    elevation::water::flatten(&mut ground, &feature_set.surfaces, &water, frame.size_m);
+    elevation::water::flatten(&mut ground, &feature_set.surfaces, &water, &frame);
     timings.triangulation = started.elapsed();
 
     // Normals from the terrain's gradient at each vertex: a function of global data, so a
@@ -178,6 +180,7 @@ fn prepare<'a>(
     Ok(Prepared {
         frame,
         terrain,
+        water,
         feature_set,
         ground,
         normals,
@@ -202,6 +205,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
     let Prepared {
         frame,
         terrain,
+        water,
         feature_set,
         ground,
         normals,
@@ -257,7 +261,14 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
     // One primitive per finish of walls and of roofs.
     let mut walls: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
     let mut roofs: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
-    let solids = mesh::buildings::solids(&feature_set.buildings, frame, terrain, sample_step_uv);
+    let settled = elevation::water::Ground { terrain, water };
+    let solids = mesh::buildings::solids(
+        &feature_set.buildings,
+        frame,
+        terrain,
+        &settled,
+        sample_step_uv,
+    );
     for (building, solid) in feature_set.buildings.iter().zip(&solids) {
         if let Some(solid) = solid {
             let look = &building.appearance;

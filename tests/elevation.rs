@@ -4,19 +4,35 @@ mod common;
 
 use std::collections::HashMap;
 
-use common::{decode, GROUND_NODES};
+use common::{decode, sample_osm, sample_srtm, GROUND_NODES};
+use terrastitch::elevation::water::station;
+use terrastitch::features;
+use terrastitch::source::Sources;
 use terrastitch::TileId;
 
-/// Monaco's tiles along the coast, with the sea, the harbours and ponds.
-const COASTAL_TILES: [(u32, u32); 4] = [(8529, 5973), (8530, 5973), (8529, 5974), (8530, 5974)];
+/// The ten Monaco tiles: the coast with the sea and the harbours, ponds, streams.
+const TILES: [(u32, u32); 10] = [
+    (8527, 5973),
+    (8528, 5973),
+    (8529, 5973),
+    (8530, 5973),
+    (8531, 5973),
+    (8527, 5974),
+    (8528, 5974),
+    (8529, 5974),
+    (8530, 5974),
+    (8531, 5974),
+];
 
 /// Every water area (not a waterway drawn at its width) is flat within 1 cm, and the ground
-/// that meets it at its shore is at its level: the water never stands above its banks.
+/// that meets it at its shore is at its level: the water never stands above its banks. Every
+/// waterway drawn at its width runs down (or level) along its way and is level across.
 #[test]
-fn water_areas_lie_flat_and_meet_their_shore() {
+fn water_lies_flat_and_meets_its_shore_and_waterways_run_down() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let mut areas = 0;
-    for (x, y) in COASTAL_TILES {
+    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let (mut areas, mut waterways, mut shores) = (0, 0, 0);
+    for (x, y) in TILES {
         let name = format!("14/{x}/{y}");
         let tile = decode(&common::render_in_process(&name, &[], dir.path()));
         let frame = TileId { z: 14, x, y }.frame();
@@ -67,7 +83,61 @@ fn water_areas_lie_flat_and_meet_their_shore() {
                 }
             }
         }
-        assert!(shore > 0 || levels.is_empty(), "{name}: no shore found");
+        shores += shore;
+
+        // Waterways: the elevation of each vertex against how far down the way it lies, where
+        // no other water shares the vertex (where two meet, the lower takes the shared ones).
+        let mut owners: HashMap<[u32; 2], std::collections::BTreeSet<u32>> = HashMap::new();
+        for primitive in tile.primitives("water") {
+            for (k, &p) in primitive.positions.iter().enumerate() {
+                owners
+                    .entry([p[0].to_bits(), p[2].to_bits()])
+                    .or_default()
+                    .insert(primitive.feature_ids[k]);
+            }
+        }
+        let id = TileId { z: 14, x, y };
+        let set = features::collect(&sources.selection(id), id, &Default::default());
+        for primitive in tile.primitives("water") {
+            let mut by_feature: HashMap<u32, Vec<(f64, f64)>> = HashMap::new();
+            for (k, &p) in primitive.positions.iter().enumerate() {
+                let row = &tile.features[primitive.feature_ids[k] as usize];
+                if !row.tags.contains_key("waterway")
+                    || owners[&[p[0].to_bits(), p[2].to_bits()]].len() > 1
+                {
+                    continue;
+                }
+                let line = set
+                    .surfaces
+                    .iter()
+                    .find(|s| {
+                        set.features[s.feature as usize]
+                            .element
+                            .is_some_and(|e| e.id == row.osm_id)
+                    })
+                    .map(|s| s.centreline.clone())
+                    .expect("the waterway's surface");
+                let (u, v) = frame.local_to_uv(f64::from(p[0]), f64::from(p[2]));
+                by_feature
+                    .entry(primitive.feature_ids[k])
+                    .or_default()
+                    .push((station(&line, [u, v]), elevation(p)));
+            }
+            for (feature, mut points) in by_feature {
+                waterways += 1;
+                points.sort_by(|a, b| a.0.total_cmp(&b.0));
+                for pair in points.windows(2) {
+                    assert!(
+                        pair[1].1 <= pair[0].1 + 0.01,
+                        "{name}: waterway {feature} rises from {:.3} to {:.3} m",
+                        pair[0].1,
+                        pair[1].1
+                    );
+                }
+            }
+        }
     }
     assert!(areas >= 4, "{areas} water areas");
+    assert!(shores > 100, "{shores} shore vertices");
+    assert!(waterways >= 1, "{waterways} waterways");
 }

@@ -179,7 +179,13 @@ fn every_building_of_a_tag_rich_tile_is_a_closed_shell_at_its_tagged_height() {
                 building.roof.shape = shape;
             }
         }
-        let solids = buildings::solids(&set.buildings, &tile.frame(), &terrain, srtm_step_uv(tile));
+        let solids = buildings::solids(
+            &set.buildings,
+            &tile.frame(),
+            &terrain,
+            &terrain,
+            srtm_step_uv(tile),
+        );
         let (mut checked, mut pitched) = (0, 0);
         for (index, (building, solid)) in set.buildings.iter().zip(&solids).enumerate() {
             let Some(solid) = solid else { continue };
@@ -195,7 +201,7 @@ fn every_building_of_a_tag_rich_tile_is_a_closed_shell_at_its_tagged_height() {
             }
             // Underground levels count where the slope shows them.
             let base = &set.buildings[building.base.unwrap_or(index)].footprint;
-            let (low, high) = buildings::ground_range(base, &terrain, srtm_step_uv(tile));
+            let (low, high) = buildings::ground_range(base, &terrain, &terrain, srtm_step_uv(tile));
             assert_eq!(low, solid.ground);
             let tagged = building.height_m + building.basement_m.min(high - low);
             if building.height_tagged && (top - solid.ground - tagged).abs() > 0.01 {

@@ -1,11 +1,12 @@
 //! Water surfaces lie flat, no higher than their shore (thesis §4.2; its figure 4.8 shows a lake
-//! above its banks).
+//! above its banks), and waterways never flow uphill.
 //!
 //! The level of a water area is the lowest ground along its whole outline, sampled every
 //! [`SHORE_STEP_M`] from its first vertex: a function of the whole OSM area and the terrain
 //! alone, so every tile that shows the water computes the same level, and the shore (where the
 //! outline's vertices take the level) is never below it. The sea lies at 0 m. A waterway drawn
-//! at its width is not flattened (it runs downhill).
+//! at its width follows the lowest ground met so far along its whole way (sampled as often),
+//! level across, so its water only ever runs down.
 
 use crate::features::{FeatureClass, FeatureSet, Surface};
 use crate::geometry::{distance_to_segment, Point, Polygon, Rect};
@@ -18,15 +19,112 @@ pub const SHORE_STEP_M: f64 = 5.0;
 /// 14) takes its level: vertices on the outline belong to the water as well as to the shore.
 const ON_OUTLINE: f64 = 1e-9;
 
-/// One flat water area.
+/// One water surface and the elevation its water takes.
 #[derive(Debug, Clone)]
 pub struct WaterLevel {
     pub feature: u32,
     pub pieces: Vec<Polygon>,
     pub bounds: Rect,
-    /// Metres above sea level.
-    pub level: f64,
+    pub rule: Rule,
     cells: CellIndex,
+}
+
+/// The elevation of a water surface.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Rule {
+    /// Flat, metres above sea level.
+    Level(f64),
+    /// Down a waterway: the elevation at the point of `line` nearest, from the profile.
+    Downstream {
+        line: Vec<Point>,
+        /// Distance along the line (tile units) and elevation, never increasing.
+        profile: Vec<(f64, f64)>,
+    },
+}
+
+impl Rule {
+    pub fn elevation(&self, p: Point) -> f64 {
+        match self {
+            Rule::Level(level) => *level,
+            Rule::Downstream { line, profile } => {
+                let along = station(line, p);
+                let k = profile.partition_point(|&(s, _)| s <= along);
+                match (
+                    k.checked_sub(1).and_then(|i| profile.get(i)),
+                    profile.get(k),
+                ) {
+                    (Some(&(s0, h0)), Some(&(s1, h1))) if s1 > s0 => {
+                        h0 + (h1 - h0) * (along - s0) / (s1 - s0)
+                    }
+                    (Some(&(_, h)), _) | (None, Some(&(_, h))) => h,
+                    (None, None) => 0.0,
+                }
+            }
+        }
+    }
+}
+
+/// How far along a polyline (tile units) the point `p` lies: within the band of the segment
+/// whose end bisectors enclose it (nearest such segment), the share of the way from one
+/// bisector to the other. Unlike the nearest point, this is continuous on the inside of a bend,
+/// so a surface that follows it has no step there.
+pub fn station(line: &[Point], p: Point) -> f64 {
+    let n = line.len();
+    if n < 2 {
+        return 0.0;
+    }
+    let unit = |a: Point, b: Point| {
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let length = d[0].hypot(d[1]);
+        if length > 0.0 {
+            [d[0] / length, d[1] / length]
+        } else {
+            [0.0, 0.0]
+        }
+    };
+    // The normal of the bisector at each vertex: the mean of the directions either side.
+    let normals: Vec<Point> = (0..n)
+        .map(|k| {
+            let before = if k > 0 {
+                unit(line[k - 1], line[k])
+            } else {
+                [0.0, 0.0]
+            };
+            let after = if k + 1 < n {
+                unit(line[k], line[k + 1])
+            } else {
+                [0.0, 0.0]
+            };
+            unit([0.0, 0.0], [before[0] + after[0], before[1] + after[1]])
+        })
+        .collect();
+    let dot = |a: Point, b: Point| a[0] * b[0] + a[1] * b[1];
+    let mut best: Option<(f64, f64)> = None;
+    let mut start = 0.0;
+    for i in 0..n - 1 {
+        let (a, b) = (line[i], line[i + 1]);
+        let length = (b[0] - a[0]).hypot(b[1] - a[1]);
+        let mut d0 = dot([p[0] - a[0], p[1] - a[1]], normals[i]);
+        let mut d1 = -dot([p[0] - b[0], p[1] - b[1]], normals[i + 1]);
+        // Beyond the ends, the first and last bands go on.
+        if i == 0 {
+            d0 = d0.max(0.0);
+        }
+        if i == n - 2 {
+            d1 = d1.max(0.0);
+        }
+        if d0 < 0.0 || d1 < 0.0 {
+            start += length;
+            continue;
+        }
+        let share = if d0 + d1 > 0.0 { d0 / (d0 + d1) } else { 0.0 };
+        let distance = crate::geometry::distance_to_segment(p, a, b);
+        if best.is_none_or(|(d, _)| distance < d) {
+            best = Some((distance, start + share * length));
+        }
+        start += length;
+    }
+    best.map_or(0.0, |(_, along)| along)
 }
 
 /// Cells per side of the grid that answers "is this point on the water" quickly.
@@ -110,13 +208,13 @@ impl CellIndex {
 }
 
 impl WaterLevel {
-    pub fn new(feature: u32, pieces: Vec<Polygon>, bounds: Rect, level: f64) -> WaterLevel {
+    pub fn new(feature: u32, pieces: Vec<Polygon>, bounds: Rect, rule: Rule) -> WaterLevel {
         let cells = CellIndex::new(&pieces, bounds);
         WaterLevel {
             feature,
             pieces,
             bounds,
-            level,
+            rule,
             cells,
         }
     }
@@ -143,22 +241,53 @@ pub fn levels(set: &FeatureSet, terrain: &dyn Elevation, metres_per_unit: f64) -
         .filter(|s| s.class == FeatureClass::Water)
         .filter_map(|surface| {
             let tags = &set.features[surface.feature as usize].tags;
-            if tags.is_set("waterway") {
-                return None;
-            }
-            let level = if tags.get("natural") == Some("sea") {
-                0.0
+            let rule = if tags.is_set("waterway") {
+                downstream(&surface.centreline, terrain, metres_per_unit)?
+            } else if tags.get("natural") == Some("sea") {
+                Rule::Level(0.0)
             } else {
-                shore_minimum(surface, terrain, metres_per_unit)?
+                Rule::Level(shore_minimum(surface, terrain, metres_per_unit)?)
             };
             Some(WaterLevel::new(
                 surface.feature,
                 surface.pieces.clone(),
                 surface.bounds,
-                level,
+                rule,
             ))
         })
         .collect()
+}
+
+/// The lowest ground met so far along a waterway's line, sampled every [`SHORE_STEP_M`].
+fn downstream(line: &[Point], terrain: &dyn Elevation, metres_per_unit: f64) -> Option<Rule> {
+    if line.len() < 2 {
+        return None;
+    }
+    let step = SHORE_STEP_M / metres_per_unit;
+    let mut profile: Vec<(f64, f64)> = Vec::new();
+    let mut start = 0.0;
+    let mut lowest = f64::INFINITY;
+    let mut sample = |along: f64, p: Point, profile: &mut Vec<(f64, f64)>| {
+        lowest = lowest.min(terrain.elevation_uv(p));
+        profile.push((along, lowest));
+    };
+    for pair in line.windows(2) {
+        let (a, b) = (pair[0], pair[1]);
+        let length = (b[0] - a[0]).hypot(b[1] - a[1]);
+        let steps = (length / step).ceil().max(1.0) as usize;
+        for k in 0..steps {
+            let t = k as f64 / steps as f64;
+            let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+            sample(start + t * length, p, &mut profile);
+        }
+        start += length;
+    }
+    let end = line[line.len() - 1];
+    sample(start, end, &mut profile);
+    Some(Rule::Downstream {
+        line: line.to_vec(),
+        profile,
+    })
 }
 
 /// The lowest ground along the rings of a surface's pieces.
@@ -180,29 +309,33 @@ fn shore_minimum(surface: &Surface, terrain: &dyn Elevation, metres_per_unit: f6
     lowest
 }
 
-/// Puts every vertex of a water area's triangles at its level: the outline's vertices already
-/// are, and this catches a vertex the triangulation attached to the water from just outside its
-/// outline. Vertices on the tile's edges stay as the terrain model settled them (identically in
-/// both tiles). `size_m` is the tile's size in local metres.
+/// Puts every vertex of a water surface's triangles at the water's elevation: the outline's
+/// vertices already are, and this catches a vertex the triangulation attached to the water from
+/// just outside its outline. Vertices on the tile's edges stay as the ground model settled them
+/// (identically in both tiles).
 pub fn flatten(
     ground: &mut crate::mesh::ground::Ground,
     surfaces: &[Surface],
     water: &[WaterLevel],
-    size_m: f64,
+    frame: &crate::tile::TileFrame,
 ) {
-    let level_of: std::collections::HashMap<u32, f64> =
-        water.iter().map(|w| (w.feature, w.level)).collect();
+    let size_m = frame.size_m;
+    let rule_of: std::collections::HashMap<u32, &Rule> =
+        water.iter().map(|w| (w.feature, &w.rule)).collect();
     let on_edge = |p: Point| p[0] == 0.0 || p[1] == 0.0 || p[0] == size_m || p[1] == size_m;
     let mut settled: Vec<Option<f64>> = vec![None; ground.vertices.len()];
     for triangle in &ground.triangles {
         let Some(surface) = triangle.surface.and_then(|s| surfaces.get(s as usize)) else {
             continue;
         };
-        let Some(&level) = level_of.get(&surface.feature) else {
+        let Some(rule) = rule_of.get(&surface.feature) else {
             continue;
         };
-        for &v in &triangle.vertices {
-            let slot = &mut settled[v as usize];
+        for &vertex in &triangle.vertices {
+            let [x, z] = ground.vertices[vertex as usize];
+            let (u, v) = frame.local_to_uv(x, z);
+            let level = rule.elevation([u, v]);
+            let slot = &mut settled[vertex as usize];
             *slot = Some(slot.map_or(level, |l: f64| l.min(level)));
         }
     }
@@ -228,7 +361,7 @@ impl Elevation for Ground<'_> {
             .water
             .iter()
             .filter(|w| w.covers(p))
-            .map(|w| w.level)
+            .map(|w| w.rule.elevation(p))
             .fold(None, |low: Option<f64>, l| {
                 Some(low.map_or(l, |x| x.min(l)))
             });
@@ -262,7 +395,7 @@ mod tests {
         );
         let water = levels(&set, &Slope, 1000.0);
         assert_eq!(water.len(), 1);
-        assert!((water[0].level - 10.0).abs() < 1e-9, "{}", water[0].level);
+        assert_eq!(water[0].rule, Rule::Level(10.0));
         let ground = Ground {
             terrain: &Slope,
             water: &water,
@@ -284,5 +417,44 @@ mod tests {
             ground.elevation_uv([0.095, 0.15]),
             Slope.elevation_uv([0.095, 0.15])
         );
+    }
+
+    #[test]
+    fn a_waterway_never_runs_uphill() {
+        // A stream drawn eastwards up the slope, round two right-angle bends, then back west
+        // down it.
+        let line = vec![[0.10, 0.5], [0.30, 0.5], [0.30, 0.7], [0.05, 0.7]];
+        let rule = downstream(&line, &Slope, 1000.0).expect("a profile");
+        let Rule::Downstream { profile, .. } = &rule else {
+            panic!("{rule:?}");
+        };
+        assert!(profile
+            .windows(2)
+            .all(|w| w[1].1 <= w[0].1 && w[1].0 >= w[0].0));
+        // Level at its source's height up the slope, then down with the ground.
+        assert!((rule.elevation([0.25, 0.5]) - 10.0).abs() < 1e-9);
+        let back = rule.elevation([0.06, 0.7]);
+        assert!((back - 6.0).abs() < 0.5, "{back}");
+        // Along the water, never up: on both banks, and round the bends' insides.
+        for bank in [-0.01, 0.01] {
+            let mut last = f64::INFINITY;
+            for k in 0..=100 {
+                let t = f64::from(k) / 100.0 * 0.65;
+                let p = if t < 0.2 {
+                    [0.1 + t, 0.5 + bank]
+                } else if t < 0.4 {
+                    [0.3 - bank, 0.5 + (t - 0.2)]
+                } else {
+                    [0.3 - (t - 0.4), 0.7 - bank]
+                };
+                let h = rule.elevation(p);
+                assert!(h <= last + 1e-9, "{p:?}: {h} after {last}");
+                last = h;
+            }
+        }
+        // The station runs on without a step through the inside of a bend.
+        let inside = [0.29, 0.51];
+        let (a, b) = (station(&line, [0.29, 0.509]), station(&line, inside));
+        assert!((a - b).abs() < 0.005, "{a} {b}");
     }
 }

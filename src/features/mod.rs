@@ -113,6 +113,9 @@ pub struct Surface {
     pub paving: Option<roads::Paving>,
     /// Lies in the road it runs along (a tram's track): drawn over roads.
     pub embedded: bool,
+    /// The line a surface drawn at a width follows (a waterway's, in the direction it flows),
+    /// in global tile units; empty for areas.
+    pub centreline: Vec<Point>,
 }
 
 impl Surface {
@@ -140,6 +143,7 @@ impl Surface {
             cover: None,
             paving: None,
             embedded: false,
+            centreline: Vec::new(),
         })
     }
 
@@ -452,7 +456,14 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, tile: TileId, projec
         .collect();
     let near = coastline::chains(&near_ways, &project);
     let all = || coastline::chains(&selection.coastlines, &project);
-    let sea = coastline::sea(&near, &all, &tile_rect(tile));
+    // The sea reaches a little past the tile, so that the ground either side of an edge knows
+    // it alike (its elevation is the sea's); the triangulation clips it to the tile.
+    let rect = tile_rect(tile);
+    let beyond = Rect {
+        min: [rect.min[0] - SEA_BEYOND, rect.min[1] - SEA_BEYOND],
+        max: [rect.max[0] + SEA_BEYOND, rect.max[1] + SEA_BEYOND],
+    };
+    let sea = coastline::sea(&near, &all, &beyond);
     // The whole coast near the tile weighs the terrain error, also just across an edge.
     set.nearby_outlines
         .extend(near.into_iter().map(|chain| chain.points));
@@ -467,6 +478,10 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, tile: TileId, projec
         set.surfaces.push(surface);
     }
 }
+
+/// How far past the tile the sea is computed, tile units (about 24 m at zoom 14: more than the
+/// step of the ground's normals, well within the OSM query margin).
+const SEA_BEYOND: f64 = 0.01;
 
 /// A tile's square in global tile units.
 pub fn tile_rect(tile: TileId) -> Rect {
@@ -557,5 +572,7 @@ fn widened_surface(
         vec![left[0], right[0]],
         vec![left[last], right[last]],
     ];
-    Surface::from_parts(class, feature, pieces, outline)
+    let mut surface = Surface::from_parts(class, feature, pieces, outline)?;
+    surface.centreline = line.to_vec();
+    Some(surface)
 }

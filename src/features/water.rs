@@ -131,9 +131,11 @@ pub(super) fn drop_waterways_in_water_areas(set: &mut FeatureSet) {
             }
         }
         close(&mut run, &mut outline);
-        if let Some(trimmed) =
+        if let Some(mut trimmed) =
             Surface::from_parts(FeatureClass::Water, surface.feature, pieces, outline)
         {
+            // The water still runs down the whole way.
+            trimmed.centreline.clone_from(&surface.centreline);
             kept.push(trimmed);
         }
     }

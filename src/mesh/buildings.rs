@@ -16,7 +16,7 @@ use super::{newell, MeshBuffers};
 use crate::features::buildings::RoofShape;
 use crate::features::BuildingShape;
 use crate::geometry::{clip_to_rect, signed_area2, Point, Polygon};
-use crate::terrain::TerrainModel;
+use crate::terrain::{Elevation, TerrainModel};
 use crate::tile::TileFrame;
 
 /// How far walls reach below the lowest ground point, metres: hides the difference between the
@@ -36,10 +36,12 @@ const MAX_ROOF_SHARE: f64 = 0.6;
 /// Points along each wall at which the ground is sampled, per SRTM sample spacing.
 const WALL_SAMPLES_PER_CELL: f64 = 4.0;
 
-/// The lowest and highest ground under a footprint, metres.
+/// The lowest and highest ground under a footprint, metres: the ground as settled (water at its
+/// level), along the walls and at the terrain's raster samples inside.
 pub fn ground_range(
     footprint: &Polygon,
     terrain: &TerrainModel<'_>,
+    ground: &dyn Elevation,
     sample_step_uv: f64,
 ) -> (f64, f64) {
     let mut low = f64::INFINITY;
@@ -57,14 +59,14 @@ pub fn ground_range(
                 .max(1.0) as usize;
             for s in 0..steps {
                 let t = s as f64 / steps as f64;
-                visit(terrain.elevation_uv([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]));
+                visit(ground.elevation_uv([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]));
             }
         }
     }
     let bounds = footprint.bounds();
-    for (p, h) in terrain.samples_in_uv(bounds.min, bounds.max) {
+    for p in terrain.sample_positions_uv(bounds.min, bounds.max) {
         if footprint.contains(p) {
-            visit(h);
+            visit(ground.elevation_uv(p));
         }
     }
     (low, high)
@@ -249,6 +251,7 @@ pub fn solids(
     buildings: &[BuildingShape],
     frame: &TileFrame,
     terrain: &TerrainModel<'_>,
+    ground: &dyn Elevation,
     sample_step_uv: f64,
 ) -> Vec<Option<Solid>> {
     let rect = crate::features::tile_rect(frame.tile);
@@ -265,7 +268,7 @@ pub fn solids(
                 .filter(|&b| b < buildings.len())
                 .unwrap_or(index);
             let (low, high) = *ranges.entry(base).or_insert_with(|| {
-                ground_range(&buildings[base].footprint, terrain, sample_step_uv)
+                ground_range(&buildings[base].footprint, terrain, ground, sample_step_uv)
             });
             Some(solid(building, frame.size_m, low, high))
         })

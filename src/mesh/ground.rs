@@ -528,6 +528,7 @@ mod tests {
             cover: None,
             paving: None,
             embedded: false,
+            centreline: Vec::new(),
         }
     }
 
@@ -753,6 +754,7 @@ mod tests {
                         cover: None,
             paving: None,
             embedded: false,
+            centreline: Vec::new(),
                     }
                 })
                 .collect();

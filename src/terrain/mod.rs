@@ -76,6 +76,23 @@ impl<'a> TerrainModel<'a> {
         self.elevation(lon, lat).unwrap_or(0.0)
     }
 
+    /// Where the raster's samples lie inside a box of tile units.
+    pub fn sample_positions_uv(&self, min: [f64; 2], max: [f64; 2]) -> Vec<[f64; 2]> {
+        let n = self.tiles_per_axis;
+        let west = crate::tile::u_to_lon(min[0], n);
+        let east = crate::tile::u_to_lon(max[0], n);
+        let north = crate::tile::v_to_lat(min[1], n);
+        let south = crate::tile::v_to_lat(max[1], n);
+        self.mosaic
+            .samples_in(west, south, east, north)
+            .into_iter()
+            .map(|(lon, lat, _)| {
+                let (u, v) = crate::tile::lon_lat_to_uv(lon, lat, n);
+                [u, v]
+            })
+            .collect()
+    }
+
     /// The raster samples inside a box of tile units, as `([u, v], elevation)`.
     pub fn samples_in_uv(&self, min: [f64; 2], max: [f64; 2]) -> Vec<([f64; 2], f64)> {
         let n = self.tiles_per_axis;
