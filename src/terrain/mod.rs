@@ -92,24 +92,6 @@ impl<'a> TerrainModel<'a> {
             })
             .collect()
     }
-
-    /// The raster samples inside a box of tile units, as `([u, v], elevation)`.
-    pub fn samples_in_uv(&self, min: [f64; 2], max: [f64; 2]) -> Vec<([f64; 2], f64)> {
-        let n = self.tiles_per_axis;
-        let west = crate::tile::u_to_lon(min[0], n);
-        let east = crate::tile::u_to_lon(max[0], n);
-        let north = crate::tile::v_to_lat(min[1], n);
-        let south = crate::tile::v_to_lat(max[1], n);
-        self.mosaic
-            .samples_in(west, south, east, north)
-            .into_iter()
-            .map(|(lon, lat, _)| {
-                let (u, v) = crate::tile::lon_lat_to_uv(lon, lat, n);
-                // The approximated surface at the site (least squares smooths the raw sample).
-                ([u, v], self.elevation(lon, lat).unwrap_or(0.0))
-            })
-            .collect()
-    }
 }
 
 /// An elevation in metres at any point in global tile units: the approximated terrain, or the
