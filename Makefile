@@ -4,7 +4,7 @@
 CARGO ?= cargo
 NPM ?= npm
 
-.PHONY: run test lint bench bench-terrain bench-roofs clean-cache
+.PHONY: run test lint bench bench-terrain bench-roofs bench-elevation clean-cache
 
 run:
 	$(CARGO) run --release -- serve
@@ -50,6 +50,11 @@ bench-roofs:
 	    target/release/examples/roof_bench $$osm data $$shape || exit 1; \
 	  done; \
 	done
+
+# Elevation LP figures: solve times on problems shaped like a tile's, 1k to 50k stations.
+bench-elevation:
+	$(CARGO) build --release --examples
+	target/release/examples/lp_bench
 
 clean-cache:
 	rm -rf cache

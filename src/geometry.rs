@@ -373,7 +373,7 @@ pub fn convex_hull(points: &[Point]) -> Ring {
 }
 
 /// Longest a mitre may grow, as a multiple of the half width, before the join is cut short.
-const MITRE_LIMIT: f64 = 2.0;
+pub const MITRE_LIMIT: f64 = 2.0;
 
 /// The outline of a polyline widened by `half_width` on each side: the left and right offset
 /// polylines, joined with mitres (limited to [`MITRE_LIMIT`]). Returns `None` for a polyline

@@ -6,7 +6,7 @@
 //! alone, so every tile that shows the water computes the same level, and the shore (where the
 //! outline's vertices take the level) is never below it. The sea lies at 0 m. A waterway drawn
 //! at its width follows the lowest ground met so far along its whole way (sampled as often),
-//! level across, so its water only ever runs down.
+//! level across each station, so its water only ever runs down.
 
 use crate::features::{FeatureClass, FeatureSet, Surface};
 use crate::geometry::{distance_to_segment, Point, Polygon, Rect};
@@ -34,7 +34,7 @@ pub struct WaterLevel {
 pub enum Rule {
     /// Flat, metres above sea level.
     Level(f64),
-    /// Down a waterway: the elevation at the point of `line` nearest, from the profile.
+    /// Down a waterway: the profile's elevation at the point's [`station`] along `line`.
     Downstream {
         line: Vec<Point>,
         /// Distance along the line (tile units) and elevation, never increasing.

@@ -28,7 +28,7 @@ const MIN_CLEARANCE_M: f64 = 2.5;
 
 /// Footprints with more vertices than this get a flat roof: the skeleton's cost grows with the
 /// cube of the count.
-const MAX_ROOF_VERTICES: usize = 400;
+pub const MAX_ROOF_VERTICES: usize = 400;
 
 /// The largest share of a building's height its roof may take.
 const MAX_ROOF_SHARE: f64 = 0.6;

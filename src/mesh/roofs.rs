@@ -50,9 +50,9 @@ impl SkeletonRoof {
 }
 
 /// Share of a half-hipped end's height taken by its gable.
-const HALF_HIP_GABLE: f64 = 0.65;
+pub const HALF_HIP_GABLE: f64 = 0.65;
 /// Share of a hipped-and-gabled end's height taken by its hip.
-const GABLET_HIP: f64 = 0.5;
+pub const GABLET_HIP: f64 = 0.5;
 
 /// The triangles of a roof: `[x, y, height above the eaves]` corners.
 #[derive(Debug, Clone, Default)]
@@ -385,10 +385,10 @@ pub fn profile_roof(
 
 /// Corners within this angle of a right angle (or of a straight line) count as such when a
 /// footprint is squared (paper 003 §5.2 takes 90° ± 5°).
-const SQUARE_TOLERANCE_DEG: f64 = 5.0;
+pub const SQUARE_TOLERANCE_DEG: f64 = 5.0;
 /// Farthest a corner may move when a footprint is squared, metres: the walls follow the squared
 /// outline while the ground is cut by the drawn one, so they must stay within a hair of it.
-const SQUARE_MOVE_M: f64 = 0.15;
+pub const SQUARE_MOVE_M: f64 = 0.15;
 
 /// A near-rectilinear footprint squared (paper 003 §5.2, first step): every edge within
 /// [`SQUARE_TOLERANCE_DEG`] of one of two perpendicular directions is made exactly parallel to
@@ -672,9 +672,9 @@ fn star_centre(ring: &[Point]) -> Option<(Point, Vec<Point>)> {
 
 /// Share of a mansard or gambrel roof's run taken by its steep lower slopes (paper 003
 /// §5.1.2–5.1.3: a shrunken copy of the footprint where the slope changes).
-const KNEE_RUN: f64 = 0.3;
+pub const KNEE_RUN: f64 = 0.3;
 /// Share of its height the steep lower slopes rise.
-const KNEE_RISE: f64 = 0.7;
+pub const KNEE_RISE: f64 = 0.7;
 
 /// Bends a hipped or gabled roof into a mansard or gambrel: every face is cut where the
 /// shrinking footprint has run [`KNEE_RUN`] of the way to the ridge, the steep part below rising
