@@ -50,23 +50,21 @@ fn problem(stations: usize) -> Problem {
     }
     // Every third way bridges the next one at its middle, 5 m clear; every fiftieth is also
     // asked to pass under it (a contradiction the penalties absorb).
-    for w in (0..ways.saturating_sub(1)).step_by(3) {
-        let (over, under) = (first_of_way[w] + WAY_STATIONS / 2, first_of_way[w + 1] + 7);
+    let clear = |p: &mut Problem, over: usize, under: usize| {
+        let label = p.constraints.len() as u32;
         p.constraints.push(Constraint {
             terms: vec![(over, 1.0), (under, -1.0)],
             kind: Relation::AtLeast,
             rhs: 5.0,
             penalty: Some(1000.0),
-            label: p.constraints.len() as u32,
+            label,
         });
+    };
+    for w in (0..ways.saturating_sub(1)).step_by(3) {
+        let (over, under) = (first_of_way[w] + WAY_STATIONS / 2, first_of_way[w + 1] + 7);
+        clear(&mut p, over, under);
         if w % 50 == 0 {
-            p.constraints.push(Constraint {
-                terms: vec![(under, 1.0), (over, -1.0)],
-                kind: Relation::AtLeast,
-                rhs: 5.0,
-                penalty: Some(1000.0),
-                label: p.constraints.len() as u32,
-            });
+            clear(&mut p, under, over);
         }
     }
     p

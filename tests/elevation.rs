@@ -5,7 +5,7 @@ mod common;
 use std::collections::HashMap;
 
 use common::{decode, sample_osm, sample_srtm, GROUND_NODES};
-use terrastitch::elevation::water::station;
+use terrastitch::elevation::water::Stations;
 use terrastitch::features;
 use terrastitch::source::Sources;
 use terrastitch::TileId;
@@ -115,13 +115,13 @@ fn water_lies_flat_and_meets_its_shore_and_waterways_run_down() {
                             .element
                             .is_some_and(|e| e.id == row.osm_id)
                     })
-                    .map(|s| s.centreline.clone())
+                    .map(|s| Stations::new(&s.centreline))
                     .expect("the waterway's surface");
                 let (u, v) = frame.local_to_uv(f64::from(p[0]), f64::from(p[2]));
                 by_feature
                     .entry(primitive.feature_ids[k])
                     .or_default()
-                    .push((station(&line, [u, v]), elevation(p)));
+                    .push((line.at([u, v]), elevation(p)));
             }
             for (feature, mut points) in by_feature {
                 waterways += 1;

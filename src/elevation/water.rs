@@ -34,9 +34,9 @@ pub struct WaterLevel {
 pub enum Rule {
     /// Flat, metres above sea level.
     Level(f64),
-    /// Down a waterway: the profile's elevation at the point's [`station`] along `line`.
+    /// Down a waterway: the profile's elevation at the point's station along its line.
     Downstream {
-        line: Vec<Point>,
+        stations: Stations,
         /// Distance along the line (tile units) and elevation, never increasing.
         profile: Vec<(f64, f64)>,
     },
@@ -46,8 +46,8 @@ impl Rule {
     pub fn elevation(&self, p: Point) -> f64 {
         match self {
             Rule::Level(level) => *level,
-            Rule::Downstream { line, profile } => {
-                let along = station(line, p);
+            Rule::Downstream { stations, profile } => {
+                let along = stations.at(p);
                 let k = profile.partition_point(|&(s, _)| s <= along);
                 match (
                     k.checked_sub(1).and_then(|i| profile.get(i)),
@@ -64,67 +64,81 @@ impl Rule {
     }
 }
 
-/// How far along a polyline (tile units) the point `p` lies: within the band of the segment
-/// whose end bisectors enclose it (nearest such segment), the share of the way from one
-/// bisector to the other. Unlike the nearest point, this is continuous on the inside of a bend,
-/// so a surface that follows it has no step there.
-pub fn station(line: &[Point], p: Point) -> f64 {
-    let n = line.len();
-    if n < 2 {
-        return 0.0;
-    }
-    let unit = |a: Point, b: Point| {
-        let d = [b[0] - a[0], b[1] - a[1]];
-        let length = d[0].hypot(d[1]);
-        if length > 0.0 {
-            [d[0] / length, d[1] / length]
-        } else {
-            [0.0, 0.0]
-        }
-    };
-    // The normal of the bisector at each vertex: the mean of the directions either side.
-    let normals: Vec<Point> = (0..n)
-        .map(|k| {
-            let before = if k > 0 {
-                unit(line[k - 1], line[k])
+/// Stations along a polyline: how far along it (tile units) a point lies. Within the band of
+/// the segment whose end bisectors enclose the point (the nearest such segment), the station is
+/// the share of the way from one bisector to the other. Unlike the nearest point, this is
+/// continuous on the inside of a bend, so a surface that follows it has no step there.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stations {
+    line: Vec<Point>,
+    /// The normal of the bisector at each vertex: the mean of the directions either side.
+    normals: Vec<Point>,
+    /// The station of each vertex.
+    starts: Vec<f64>,
+}
+
+impl Stations {
+    pub fn new(line: &[Point]) -> Stations {
+        let n = line.len();
+        let unit = |d: Point| {
+            let length = d[0].hypot(d[1]);
+            if length > 0.0 {
+                [d[0] / length, d[1] / length]
             } else {
                 [0.0, 0.0]
-            };
-            let after = if k + 1 < n {
-                unit(line[k], line[k + 1])
-            } else {
-                [0.0, 0.0]
-            };
-            unit([0.0, 0.0], [before[0] + after[0], before[1] + after[1]])
-        })
-        .collect();
-    let dot = |a: Point, b: Point| a[0] * b[0] + a[1] * b[1];
-    let mut best: Option<(f64, f64)> = None;
-    let mut start = 0.0;
-    for i in 0..n - 1 {
-        let (a, b) = (line[i], line[i + 1]);
-        let length = (b[0] - a[0]).hypot(b[1] - a[1]);
-        let mut d0 = dot([p[0] - a[0], p[1] - a[1]], normals[i]);
-        let mut d1 = -dot([p[0] - b[0], p[1] - b[1]], normals[i + 1]);
-        // Beyond the ends, the first and last bands go on.
-        if i == 0 {
-            d0 = d0.max(0.0);
+            }
+        };
+        let direction = |k: usize| unit([line[k + 1][0] - line[k][0], line[k + 1][1] - line[k][1]]);
+        let normals = (0..n)
+            .map(|k| {
+                let before = if k > 0 { direction(k - 1) } else { [0.0, 0.0] };
+                let after = if k + 1 < n { direction(k) } else { [0.0, 0.0] };
+                unit([before[0] + after[0], before[1] + after[1]])
+            })
+            .collect();
+        let mut starts = Vec::with_capacity(n);
+        let mut along = 0.0;
+        for k in 0..n {
+            starts.push(along);
+            if k + 1 < n {
+                along += (line[k + 1][0] - line[k][0]).hypot(line[k + 1][1] - line[k][1]);
+            }
         }
-        if i == n - 2 {
-            d1 = d1.max(0.0);
+        Stations {
+            line: line.to_vec(),
+            normals,
+            starts,
         }
-        if d0 < 0.0 || d1 < 0.0 {
-            start += length;
-            continue;
-        }
-        let share = if d0 + d1 > 0.0 { d0 / (d0 + d1) } else { 0.0 };
-        let distance = crate::geometry::distance_to_segment(p, a, b);
-        if best.is_none_or(|(d, _)| distance < d) {
-            best = Some((distance, start + share * length));
-        }
-        start += length;
     }
-    best.map_or(0.0, |(_, along)| along)
+
+    /// The station of `p`.
+    pub fn at(&self, p: Point) -> f64 {
+        let n = self.line.len();
+        let dot = |a: Point, b: Point| a[0] * b[0] + a[1] * b[1];
+        let mut best: Option<(f64, f64)> = None;
+        for i in 0..n.saturating_sub(1) {
+            let (a, b) = (self.line[i], self.line[i + 1]);
+            let mut d0 = dot([p[0] - a[0], p[1] - a[1]], self.normals[i]);
+            let mut d1 = -dot([p[0] - b[0], p[1] - b[1]], self.normals[i + 1]);
+            // Beyond the ends, the first and last bands go on.
+            if i == 0 {
+                d0 = d0.max(0.0);
+            }
+            if i + 2 == n {
+                d1 = d1.max(0.0);
+            }
+            if d0 < 0.0 || d1 < 0.0 {
+                continue;
+            }
+            let share = if d0 + d1 > 0.0 { d0 / (d0 + d1) } else { 0.0 };
+            let distance = distance_to_segment(p, a, b);
+            if best.is_none_or(|(d, _)| distance < d) {
+                let along = self.starts[i] + share * (self.starts[i + 1] - self.starts[i]);
+                best = Some((distance, along));
+            }
+        }
+        best.map_or(0.0, |(_, along)| along)
+    }
 }
 
 /// Cells per side of the grid that answers "is this point on the water" quickly.
@@ -285,7 +299,7 @@ fn downstream(line: &[Point], terrain: &dyn Elevation, metres_per_unit: f64) -> 
     let end = line[line.len() - 1];
     sample(start, end, &mut profile);
     Some(Rule::Downstream {
-        line: line.to_vec(),
+        stations: Stations::new(line),
         profile,
     })
 }
@@ -454,7 +468,8 @@ mod tests {
         }
         // The station runs on without a step through the inside of a bend.
         let inside = [0.29, 0.51];
-        let (a, b) = (station(&line, [0.29, 0.509]), station(&line, inside));
+        let stations = Stations::new(&line);
+        let (a, b) = (stations.at([0.29, 0.509]), stations.at(inside));
         assert!((a - b).abs() < 0.005, "{a} {b}");
     }
 }
