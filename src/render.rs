@@ -6,7 +6,7 @@
 //! iteration wherever order reaches the output, so the same inputs give the same bytes.
 //! Stage times are measured for reporting only; they never reach the output.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::time::{Duration, Instant};
 
 use crate::elevation;
@@ -81,6 +81,12 @@ pub struct RenderStats {
     pub trees: usize,
     /// Street-level objects placed (instances).
     pub objects: usize,
+    /// The elevation LP of the bridges and tunnels that reach the tile: variables,
+    /// constraints, components solved, and soft constraints violated.
+    pub lp_variables: usize,
+    pub lp_constraints: usize,
+    pub lp_components: usize,
+    pub lp_violations: usize,
 }
 
 #[derive(Debug, Clone)]
@@ -120,7 +126,18 @@ struct Prepared<'a> {
     frame: TileFrame,
     terrain: TerrainModel<'a>,
     /// Water surfaces and the elevations their water takes.
-    water: Vec<elevation::water::WaterLevel>,
+    water: Vec<elevation::settled::Level>,
+    /// Bridges and tunnels near the tile, settled whole.
+    structures: Vec<elevation::structures::Settled>,
+    /// The feature row of each structure way drawn here (by index into all ways).
+    structure_features: HashMap<u32, u32>,
+    /// The ground tunnels reshape: their approach cuts and the ground raised over them.
+    cuts: Vec<elevation::settled::Level>,
+    /// Every way of the data, for the structures' indices.
+    all_ways: &'a [crate::osm::Way],
+    feature_settings: FeatureSettings,
+    /// The mesh's error bound, metres.
+    surface_margin_m: f64,
     feature_set: FeatureSet,
     ground: Ground,
     /// Unit normal of each ground vertex in the local frame.
@@ -129,7 +146,7 @@ struct Prepared<'a> {
 
 fn prepare<'a>(
     tile: TileId,
-    selection: &Selection<'_>,
+    selection: &Selection<'a>,
     mosaic: &'a Mosaic,
     settings: &RenderSettings,
     timings: &mut StageTimings,
@@ -138,15 +155,33 @@ fn prepare<'a>(
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
 
     let started = Instant::now();
-    let feature_set = features::collect(selection, tile, &settings.features);
+    let mut feature_set = features::collect(selection, tile, &settings.features);
     timings.features = started.elapsed();
+
+    // Bridges and tunnels, each settled whole by the LP; tunnels cut into the ground.
+    let started = Instant::now();
+    let projection = features::Projection::new(tile.z);
+    let margin = settings.mesh.max_error_m;
+    let structures = settle_groups(tile, selection, &terrain, settings);
+    let structure_features = structure_rows(&mut feature_set, selection, tile);
+    let cuts = elevation::structures::ground_cuts(
+        &structures,
+        selection.all_ways,
+        &structure_features,
+        &mut feature_set,
+        &projection,
+        &settings.features,
+        margin,
+    );
+    timings.elevation = started.elapsed();
 
     let started = Instant::now();
     // Water areas lie flat at the level of their lowest shore.
     let water = elevation::water::levels(&feature_set, &terrain, frame.size_m);
-    let settled = elevation::water::Ground {
+    let settled = elevation::settled::Ground {
         terrain: &terrain,
         water: &water,
+        cuts: &cuts,
     };
     let mut ground = ground::triangulate(
         &frame,
@@ -155,7 +190,8 @@ fn prepare<'a>(
         &feature_set.nearby_outlines,
         &settled,
     )?;
-    elevation::water::flatten(&mut ground, &feature_set.surfaces, &water, &frame);
+    let levels: Vec<&elevation::settled::Level> = water.iter().chain(&cuts).collect();
+    elevation::settled::flatten(&mut ground, &levels, &frame);
     timings.triangulation = started.elapsed();
 
     // Normals from the terrain's gradient at each vertex: a function of global data, so a
@@ -181,10 +217,63 @@ fn prepare<'a>(
         frame,
         terrain,
         water,
+        structures,
+        structure_features,
+        cuts,
+        all_ways: selection.all_ways,
+        feature_settings: settings.features.clone(),
+        surface_margin_m: margin,
         feature_set,
         ground,
         normals,
     })
+}
+
+/// Settles every bridge and tunnel that reaches the tile, each group whole; violated soft
+/// constraints are logged at debug level.
+fn settle_groups(
+    tile: TileId,
+    selection: &Selection<'_>,
+    terrain: &dyn Elevation,
+    settings: &RenderSettings,
+) -> Vec<elevation::structures::Settled> {
+    let projection = features::Projection::new(tile.z);
+    selection
+        .structures
+        .iter()
+        .map(|group| {
+            let settled = elevation::structures::settle(
+                group,
+                selection.all_ways,
+                terrain,
+                &projection,
+                &settings.features,
+                settings.mesh.max_error_m,
+            );
+            for report in settled.violations(crate::output::debug::VIOLATION_TOLERANCE_M) {
+                tracing::debug!(
+                    %tile,
+                    way = report.way,
+                    constraint = report.kind.as_str(),
+                    bound = report.bound,
+                    violation = report.violation,
+                    "soft constraint violated"
+                );
+            }
+            settled
+        })
+        .collect()
+}
+
+/// The bridges and tunnels that reach a tile, settled as its glb settles them.
+pub fn settle_structures(
+    tile: TileId,
+    selection: &Selection<'_>,
+    mosaic: &Mosaic,
+    settings: &RenderSettings,
+) -> Vec<elevation::structures::Settled> {
+    let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
+    settle_groups(tile, selection, &terrain, settings)
 }
 
 /// Renders one tile as glb from the elements near it and the SRTM files around it.
@@ -206,6 +295,12 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         frame,
         terrain,
         water,
+        structures,
+        structure_features,
+        cuts,
+        all_ways,
+        feature_settings,
+        surface_margin_m,
         feature_set,
         ground,
         normals,
@@ -261,7 +356,11 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
     // One primitive per finish of walls and of roofs.
     let mut walls: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
     let mut roofs: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
-    let settled = elevation::water::Ground { terrain, water };
+    let settled = elevation::settled::Ground {
+        terrain,
+        water,
+        cuts,
+    };
     let solids = mesh::buildings::solids(
         &feature_set.buildings,
         frame,
@@ -283,10 +382,24 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
     }
     parts.extend(walls.into_iter().map(|(f, b)| (Part::BuildingWalls(f), b)));
     parts.extend(roofs.into_iter().map(|(f, b)| (Part::BuildingRoofs(f), b)));
-    parts.extend(mesh::barriers::build(&feature_set.barriers, frame, terrain));
+    parts.extend(mesh::barriers::build(
+        &feature_set.barriers,
+        frame,
+        &settled,
+    ));
+    let projection = features::Projection::new(tile.z);
+    let context = mesh::structures::Context {
+        ways: all_ways,
+        features: structure_features,
+        frame,
+        projection: &projection,
+        settings: feature_settings,
+        surface_margin_m: *surface_margin_m,
+    };
+    parts.extend(mesh::structures::build(structures, &context));
     parts.insert(
         Part::PowerLine,
-        mesh::power::build(&feature_set.power_lines, frame, terrain),
+        mesh::power::build(&feature_set.power_lines, frame, &settled),
     );
     let instanced = mesh::instances::place(
         &feature_set.trees,
@@ -296,7 +409,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         &vertex_y,
         frame,
     );
-    timings.elevation = started.elapsed();
+    timings.elevation += started.elapsed();
 
     let started = Instant::now();
     let description = glb::TileDescription {
@@ -330,6 +443,16 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
             .iter()
             .filter(|(model, _)| matches!(model, mesh::models::Model::Object(_)))
             .map(|(_, t)| t.len())
+            .sum(),
+        lp_variables: structures.iter().map(|s| s.variables).sum(),
+        lp_constraints: structures.iter().map(|s| s.constraints).sum(),
+        lp_components: structures.iter().map(|s| s.components).sum(),
+        lp_violations: structures
+            .iter()
+            .map(|s| {
+                s.violations(crate::output::debug::VIOLATION_TOLERANCE_M)
+                    .count()
+            })
             .sum(),
     };
     RenderedTile {
@@ -469,4 +592,63 @@ fn faces_up_in_f32(corners: [[f64; 2]; 3]) -> bool {
 pub fn srtm_step_uv(tile: TileId) -> f64 {
     let degrees = 3.0 / 3600.0;
     degrees / 360.0 * tile.tiles_per_axis()
+}
+
+/// How far beyond the tile a structure way may lie and still be drawn in it (its half width),
+/// metres.
+const STRUCTURE_REACH_M: f64 = 30.0;
+
+/// Adds a feature row for each bridge or tunnel way that reaches into the tile; returns the
+/// rows by way index.
+fn structure_rows(
+    set: &mut FeatureSet,
+    selection: &Selection<'_>,
+    tile: TileId,
+) -> HashMap<u32, u32> {
+    let projection = features::Projection::new(tile.z);
+    let rect = features::tile_rect(tile);
+    let mut rows = HashMap::new();
+    for group in &selection.structures {
+        for chain in &group.chains {
+            let class = match chain.kind {
+                crate::osm::structures::StructureKind::Bridge => FeatureClass::Bridge,
+                crate::osm::structures::StructureKind::Tunnel => FeatureClass::Tunnel,
+            };
+            for chain_way in &chain.ways {
+                let Some(way) = selection.all_ways.get(chain_way.way as usize) else {
+                    continue;
+                };
+                if rows.contains_key(&chain_way.way) || way.positions.is_empty() {
+                    continue;
+                }
+                let reach = projection.metres(STRUCTURE_REACH_M, way.positions[0].lat);
+                let points = projection.points(&way.positions);
+                let near = points.iter().fold(
+                    crate::geometry::Rect {
+                        min: [f64::INFINITY; 2],
+                        max: [f64::NEG_INFINITY; 2],
+                    },
+                    |r, p| crate::geometry::Rect {
+                        min: [r.min[0].min(p[0]), r.min[1].min(p[1])],
+                        max: [r.max[0].max(p[0]), r.max[1].max(p[1])],
+                    },
+                );
+                let meets = near.min[0] - reach <= rect.max[0]
+                    && near.max[0] + reach >= rect.min[0]
+                    && near.min[1] - reach <= rect.max[1]
+                    && near.max[1] + reach >= rect.min[1];
+                if meets {
+                    let element = crate::osm::ElementRef {
+                        element_type: crate::osm::ElementType::Way,
+                        id: way.id,
+                    };
+                    rows.insert(
+                        chain_way.way,
+                        set.add_feature(Some(element), class, &way.tags),
+                    );
+                }
+            }
+        }
+    }
+    rows
 }

@@ -5,7 +5,7 @@ mod common;
 use std::collections::HashMap;
 
 use common::{decode, sample_osm, sample_srtm, GROUND_NODES};
-use terrastitch::elevation::water::Stations;
+use terrastitch::elevation::settled::Stations;
 use terrastitch::features;
 use terrastitch::source::Sources;
 use terrastitch::TileId;

@@ -2,4 +2,6 @@
 //! constraints between them, and one robust LP ([`lp`]) chooses every elevation at once.
 
 pub mod lp;
+pub mod settled;
+pub mod structures;
 pub mod water;

@@ -16,6 +16,7 @@ pub mod power;
 pub mod railways;
 pub mod road_network;
 pub mod roads;
+pub mod structures;
 pub mod vegetation;
 pub mod water;
 
@@ -36,10 +37,14 @@ pub enum FeatureClass {
     Vegetation,
     Barrier,
     Object,
+    /// Bridges: decks with their structure and piers.
+    Bridge,
+    /// Tunnels: floors and linings under the ground, and their portals.
+    Tunnel,
 }
 
 impl FeatureClass {
-    pub const ALL: [FeatureClass; 9] = [
+    pub const ALL: [FeatureClass; 11] = [
         FeatureClass::Terrain,
         FeatureClass::Road,
         FeatureClass::Railway,
@@ -49,6 +54,8 @@ impl FeatureClass {
         FeatureClass::Vegetation,
         FeatureClass::Barrier,
         FeatureClass::Object,
+        FeatureClass::Bridge,
+        FeatureClass::Tunnel,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -62,6 +69,8 @@ impl FeatureClass {
             FeatureClass::Barrier => "barrier",
             FeatureClass::Object => "object",
             FeatureClass::Building => "building",
+            FeatureClass::Bridge => "bridge",
+            FeatureClass::Tunnel => "tunnel",
         }
     }
 
@@ -77,7 +86,11 @@ impl FeatureClass {
             FeatureClass::LandCover => 4,
             FeatureClass::Terrain => 5,
             // Trees, barriers and objects are not ground.
-            FeatureClass::Vegetation | FeatureClass::Barrier | FeatureClass::Object => 6,
+            FeatureClass::Vegetation
+            | FeatureClass::Barrier
+            | FeatureClass::Object
+            | FeatureClass::Bridge
+            | FeatureClass::Tunnel => 6,
         }
     }
 }
@@ -552,7 +565,7 @@ fn areas_of<'a>(selection: &Selection<'a>) -> Vec<Area<'a>> {
 }
 
 /// A linear feature widened into a ground surface: the quads between the offset polylines.
-fn widened_surface(
+pub(crate) fn widened_surface(
     class: FeatureClass,
     feature: u32,
     line: &[Point],

@@ -11,7 +11,7 @@ const BALLAST_M: f64 = 0.8;
 /// Paving beside the rails of a track embedded in a road, on each side, metres.
 const EMBEDDED_MARGIN_M: f64 = 0.3;
 
-fn drawn(railway: &str) -> bool {
+pub fn drawn(railway: &str) -> bool {
     matches!(
         railway,
         "rail"

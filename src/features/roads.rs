@@ -102,9 +102,11 @@ pub fn width_m(tags: &Tags, settings: &FeatureSettings) -> Option<f64> {
     Some(class_default)
 }
 
-/// True for ways drawn below or away from the ground surface.
+/// True for ways drawn below or away from the ground surface (bridges and tunnels are drawn as
+/// structures of their own).
 pub fn is_off_ground(tags: &Tags) -> bool {
     tags.is_set("tunnel")
+        || super::structures::classify(tags).is_some()
         || tags.get("indoor").is_some_and(|v| v != "no")
         || tags.get("location") == Some("underground")
         || tags.get("area") == Some("yes")

@@ -8,7 +8,7 @@ use super::{LocalSpan, MeshBuffers, Part};
 use crate::features::barriers::Barrier;
 use crate::features::tile_rect;
 use crate::geometry::clip_segment;
-use crate::terrain::TerrainModel;
+use crate::terrain::Elevation;
 use crate::tile::TileFrame;
 
 /// Depth the foot of a barrier reaches below the terrain, metres.
@@ -18,7 +18,7 @@ const SINK_M: f64 = 0.5;
 pub fn build(
     barriers: &[Barrier],
     frame: &TileFrame,
-    terrain: &TerrainModel<'_>,
+    ground: &dyn Elevation,
 ) -> BTreeMap<Part, MeshBuffers> {
     let rect = tile_rect(frame.tile);
     let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
@@ -37,7 +37,7 @@ pub fn build(
             let half = barrier.thickness_m * scale / 2.0;
             let (nx, nz) = (-dz * half, dx * half);
             let ground =
-                |u: f64, v: f64, z: f64| frame.elevation_to_y(terrain.elevation_uv([u, v]), z);
+                |u: f64, v: f64, z: f64| frame.elevation_to_y(ground.elevation_uv([u, v]), z);
             let (ga, gb) = (ground(a[0], a[1], az), ground(b[0], b[1], bz));
             let (bottom_a, bottom_b) = (ga - SINK_M * scale, gb - SINK_M * scale);
             let (top_a, top_b) = (ga + barrier.height_m * scale, gb + barrier.height_m * scale);

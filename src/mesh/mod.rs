@@ -10,6 +10,7 @@ pub mod models;
 pub mod power;
 pub mod roofs;
 pub mod skeleton;
+pub mod structures;
 pub mod tin;
 
 use crate::features::barriers::BarrierKind;
@@ -33,6 +34,16 @@ pub enum Part {
     Barrier(BarrierKind),
     Object(ObjectKind),
     PowerLine,
+    /// A bridge's deck: paved like its road, or a railway's bed.
+    BridgeDeck(Option<Paving>),
+    /// A bridge's sides, underside and piers.
+    BridgeStructure,
+    /// A tunnel's floor: paved like its road, or a railway's bed.
+    TunnelFloor(Option<Paving>),
+    /// A tunnel's walls and ceiling, seen from inside and out.
+    TunnelLining,
+    /// The dark opening of a tunnel's portal.
+    TunnelPortal,
     TreeTrunk,
     /// A crown of a kind of tree in one of [`crate::features::vegetation::SHADES`] shades.
     TreeCrown(TreeKind, u8),
@@ -51,6 +62,8 @@ impl Part {
             Part::TreeTrunk | Part::TreeCrown(..) => FeatureClass::Vegetation,
             Part::Barrier(_) => FeatureClass::Barrier,
             Part::Object(_) | Part::PowerLine => FeatureClass::Object,
+            Part::BridgeDeck(_) | Part::BridgeStructure => FeatureClass::Bridge,
+            Part::TunnelFloor(_) | Part::TunnelLining | Part::TunnelPortal => FeatureClass::Tunnel,
         }
     }
 
@@ -72,6 +85,19 @@ impl Part {
             Part::Barrier(kind) => kind.as_str(),
             Part::Object(kind) => kind.as_str(),
             Part::PowerLine => "power_line",
+            Part::BridgeDeck(None) => "bridge_deck_railway",
+            Part::BridgeDeck(Some(Paving::Asphalt)) => "bridge_deck_asphalt",
+            Part::BridgeDeck(Some(Paving::Concrete)) => "bridge_deck_concrete",
+            Part::BridgeDeck(Some(Paving::Stones)) => "bridge_deck_stones",
+            Part::BridgeDeck(Some(Paving::Unpaved)) => "bridge_deck_unpaved",
+            Part::BridgeStructure => "bridge_structure",
+            Part::TunnelFloor(None) => "tunnel_floor_railway",
+            Part::TunnelFloor(Some(Paving::Asphalt)) => "tunnel_floor_asphalt",
+            Part::TunnelFloor(Some(Paving::Concrete)) => "tunnel_floor_concrete",
+            Part::TunnelFloor(Some(Paving::Stones)) => "tunnel_floor_stones",
+            Part::TunnelFloor(Some(Paving::Unpaved)) => "tunnel_floor_unpaved",
+            Part::TunnelLining => "tunnel_lining",
+            Part::TunnelPortal => "tunnel_portal",
             Part::TreeCrown(TreeKind::Broadleaved, 0) => "broadleaved_crown_0",
             Part::TreeCrown(TreeKind::Broadleaved, 1) => "broadleaved_crown_1",
             Part::TreeCrown(TreeKind::Broadleaved, _) => "broadleaved_crown_2",
@@ -97,7 +123,9 @@ impl Part {
             FeatureClass::Building
             | FeatureClass::Vegetation
             | FeatureClass::Barrier
-            | FeatureClass::Object => None,
+            | FeatureClass::Object
+            | FeatureClass::Bridge
+            | FeatureClass::Tunnel => None,
         }
     }
 }

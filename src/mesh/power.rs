@@ -5,7 +5,7 @@ use super::{LocalSpan, MeshBuffers};
 use crate::features::power::PowerLine;
 use crate::features::tile_rect;
 use crate::geometry::clip_segment;
-use crate::terrain::TerrainModel;
+use crate::terrain::Elevation;
 use crate::tile::TileFrame;
 
 /// Pieces each span is drawn in.
@@ -16,7 +16,7 @@ const SAG: f64 = 0.03;
 const HALF_THICKNESS_M: f64 = 0.06;
 
 /// The conductors of the power lines.
-pub fn build(lines: &[PowerLine], frame: &TileFrame, terrain: &TerrainModel<'_>) -> MeshBuffers {
+pub fn build(lines: &[PowerLine], frame: &TileFrame, ground: &dyn Elevation) -> MeshBuffers {
     let rect = tile_rect(frame.tile);
     let mut buffers = MeshBuffers::default();
     for line in lines {
@@ -31,7 +31,7 @@ pub fn build(lines: &[PowerLine], frame: &TileFrame, terrain: &TerrainModel<'_>)
             let ((_, az), (_, bz), (dx, dz)) = (span.a, span.b, span.direction);
             let (length, scale) = (span.length, span.scale);
             let top = |p: [f64; 2], z: f64, height: f64| {
-                frame.elevation_to_y(terrain.elevation_uv(p), z) + height * scale
+                frame.elevation_to_y(ground.elevation_uv(p), z) + height * scale
             };
             let (ya, yb) = (
                 top(a, az, line.heights_m[k]),

@@ -8,6 +8,7 @@
 
 use std::collections::HashMap;
 
+use super::structures::{self, Classify, Group};
 use super::{Bounds, LonLat, Node, OsmData, Relation, Way};
 use crate::tile::{lon_lat_to_uv, TileId};
 
@@ -19,6 +20,10 @@ pub struct OsmIndex {
     cells: HashMap<(u32, u32), CellContent>,
     /// Indices of the `natural=coastline` ways.
     coastlines: Vec<u32>,
+    /// Bridges and tunnels, whole.
+    structures: Vec<Group>,
+    /// The cells each structure group touches.
+    structure_cells: HashMap<(u32, u32), Vec<u32>>,
 }
 
 #[derive(Debug, Default)]
@@ -37,11 +42,16 @@ pub struct Selection<'a> {
     /// Every `natural=coastline` way of the data, near or not: which side of the coast a tile
     /// lies on is decided by the nearest one, wherever it is.
     pub coastlines: Vec<&'a Way>,
+    /// The bridges and tunnels that reach near the tile, whole, with what they cross.
+    pub structures: Vec<&'a Group>,
+    /// Every way of the data, for the indices in `structures`.
+    pub all_ways: &'a [Way],
 }
 
 impl OsmIndex {
-    /// Indexes `data` on a grid of zoom-`zoom` tiles.
-    pub fn new(data: OsmData, zoom: u8) -> OsmIndex {
+    /// Indexes `data` on a grid of zoom-`zoom` tiles; `classify` tells which ways make up
+    /// bridges and tunnels.
+    pub fn new(data: OsmData, zoom: u8, classify: Classify) -> OsmIndex {
         let mut cells: HashMap<(u32, u32), CellContent> = HashMap::new();
         let n = f64::from(1u32 << zoom);
         let mut register = |bounds: Bounds, push: &mut dyn FnMut(&mut CellContent)| {
@@ -87,16 +97,30 @@ impl OsmIndex {
         let coastlines = (0..data.ways.len() as u32)
             .filter(|&i| data.ways[i as usize].tags.get("natural") == Some("coastline"))
             .collect();
+        let structures = structures::find(&data.ways, classify);
+        let mut structure_cells: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
+        for (i, group) in structures.iter().enumerate() {
+            for cell in cells_of(&group.bounds, n) {
+                structure_cells.entry(cell).or_default().push(i as u32);
+            }
+        }
         OsmIndex {
             data,
             zoom,
             cells,
             coastlines,
+            structures,
+            structure_cells,
         }
     }
 
     pub fn data(&self) -> &OsmData {
         &self.data
+    }
+
+    /// Every bridge and tunnel of the data.
+    pub fn structures(&self) -> &[Group] {
+        &self.structures
     }
 
     pub fn zoom(&self) -> u8 {
@@ -110,14 +134,18 @@ impl OsmIndex {
         let mut ways: Vec<u32> = Vec::new();
         let mut nodes: Vec<u32> = Vec::new();
         let mut relations: Vec<u32> = Vec::new();
+        let mut groups: Vec<u32> = Vec::new();
         for cell in cells_of(&area, n) {
+            if let Some(found) = self.structure_cells.get(&cell) {
+                groups.extend(found);
+            }
             if let Some(content) = self.cells.get(&cell) {
                 ways.extend(&content.ways);
                 nodes.extend(&content.nodes);
                 relations.extend(&content.relations);
             }
         }
-        for list in [&mut ways, &mut nodes, &mut relations] {
+        for list in [&mut ways, &mut nodes, &mut relations, &mut groups] {
             list.sort_unstable();
             list.dedup();
         }
@@ -142,6 +170,12 @@ impl OsmIndex {
                 .iter()
                 .map(|&i| &self.data.ways[i as usize])
                 .collect(),
+            structures: groups
+                .into_iter()
+                .map(|i| &self.structures[i as usize])
+                .filter(|g| self::meets(&g.bounds, &area))
+                .collect(),
+            all_ways: &self.data.ways,
         }
     }
 }
@@ -207,7 +241,7 @@ mod tests {
             ],
             ..OsmData::default()
         };
-        let index = OsmIndex::new(data, 14);
+        let index = OsmIndex::new(data, 14, |_| None);
         let selection = index.query(
             TileId {
                 z: 14,

@@ -5,6 +5,7 @@
 pub mod areas;
 pub mod index;
 pub mod multipolygon;
+pub mod structures;
 pub mod units;
 
 pub use index::OsmIndex;

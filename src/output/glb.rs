@@ -122,6 +122,11 @@ fn material_of(part: Part) -> ([f32; 4], f32) {
         Part::Barrier(kind) => kind.material(),
         Part::Object(kind) => kind.material(),
         Part::PowerLine => ([0.12, 0.12, 0.13, 1.0], 0.5),
+        Part::BridgeDeck(Some(paving)) | Part::TunnelFloor(Some(paving)) => paving.material(),
+        Part::BridgeDeck(None) | Part::TunnelFloor(None) => material_of(Part::Railway),
+        Part::BridgeStructure => ([0.58, 0.57, 0.55, 1.0], 0.9),
+        Part::TunnelLining => ([0.50, 0.49, 0.47, 1.0], 0.9),
+        Part::TunnelPortal => ([0.02, 0.02, 0.02, 1.0], 1.0),
         Part::TreeCrown(kind, shade) => {
             let shade = f32::from(shade.min(2));
             let rgb = match kind {
@@ -415,6 +420,9 @@ fn write_primitive(
             roughness_factor: json::material::StrengthFactor(roughness),
             ..Default::default()
         },
+        // A tunnel's lining is seen from inside (through a portal) and from outside (with the
+        // ground hidden).
+        double_sided: part == Part::TunnelLining,
         ..Default::default()
     });
 

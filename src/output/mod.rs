@@ -1,4 +1,5 @@
 //! Writers of the formats tiles are served in.
 
+pub mod debug;
 pub mod glb;
 pub mod quantized_mesh;

@@ -11,6 +11,9 @@ pub struct Metrics {
     pub hits_store: AtomicU64,
     pub tile_requests: AtomicU64,
     pub render_seconds_micros: AtomicU64,
+    /// Components of the elevation LP solved, and soft constraints they violated.
+    pub lp_components: AtomicU64,
+    pub lp_violations: AtomicU64,
 }
 
 impl Metrics {
@@ -46,6 +49,16 @@ impl Metrics {
             "terrastitch_render_seconds_total",
             "Time spent rendering.",
             format!("{:.6}", get(&self.render_seconds_micros) as f64 / 1e6),
+        );
+        counter(
+            "terrastitch_lp_components_total",
+            "Components of the elevation linear program solved.",
+            get(&self.lp_components).to_string(),
+        );
+        counter(
+            "terrastitch_lp_violations_total",
+            "Soft elevation constraints (from tags and defaults) violated in rendered tiles.",
+            get(&self.lp_violations).to_string(),
         );
         let _ = writeln!(
             out,

@@ -1,5 +1,6 @@
 //! The HTTP server: routes, shared state, and how requests reach the cache and the renderer.
 
+pub mod debug;
 pub mod error;
 pub mod layer;
 pub mod metrics;
@@ -63,6 +64,7 @@ pub fn pipeline_id(settings: &RenderSettings) -> String {
 pub fn router(state: AppState) -> Router {
     Router::new()
         .route("/tiles/{z}/{x}/{file}", get(tiles::tile))
+        .route("/debug/tiles/{z}/{x}/{file}", get(debug::structures))
         .route("/layer.json", get(layer::layer))
         .route("/health", get(health))
         .route("/metrics", get(metrics))

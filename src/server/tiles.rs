@@ -174,9 +174,16 @@ fn render_format(state: &AppState, tile: TileId, format: Format) -> Result<Vec<u
             let selection = state.sources.selection(tile);
             let rendered = crate::render::render(tile, &selection, &mosaic, &state.settings)
                 .map_err(failure)?;
+            let metrics = &state.metrics;
+            let add = |counter: &std::sync::atomic::AtomicU64, n: usize| {
+                counter.fetch_add(n as u64, std::sync::atomic::Ordering::Relaxed);
+            };
+            add(&metrics.lp_components, rendered.stats.lp_components);
+            add(&metrics.lp_violations, rendered.stats.lp_violations);
             tracing::info!(
                 %tile,
                 triangles = rendered.stats.triangles,
+                lp_violations = rendered.stats.lp_violations,
                 bytes = rendered.stats.glb_bytes,
                 ms = rendered.timings.total().as_millis() as u64,
                 "rendered glb"

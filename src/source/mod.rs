@@ -63,7 +63,7 @@ impl Sources {
         let data = osm_pbf::read_extracts(osm_paths)?;
         let srtm = SrtmDirectory::open(srtm_dir)?;
         Ok(Sources {
-            osm: OsmIndex::new(data, zoom),
+            osm: OsmIndex::new(data, zoom, crate::features::structures::classify),
             srtm,
             osm_paths: osm_paths.to_vec(),
         })

@@ -1,0 +1,1025 @@
+//! Bridges and tunnels settled by the linear program, one structure group at a time.
+//!
+//! Each chain of a group (see [`crate::osm::structures`]) becomes a row of elevation
+//! variables at its nodes and at stations at most [`BRIDGE_STATION_SPACING_M`] or
+//! [`TUNNEL_STATION_SPACING_M`] apart (a long straight span gets room to curve). The variables are the deck's top for a bridge and the
+//! floor for a tunnel. A chain end that meets no other chain meets the ground there (an
+//! abutment or a portal) and is fixed to the terrain; chains that share a node are equal
+//! there. Everything else is asked of the LP (thesis §4.2–4.3):
+//!
+//! - to stay near the straight line between its ends (a small weight: a deck does not follow
+//!   the valley it spans, the flaw the thesis and OSM2World show), and to change its slope as
+//!   little as possible (smoothness, so ramps and decks come out as smooth as the data lets
+//!   them instead of peaked, §4.3.3 figure 4.9);
+//! - soft constraints from tags and defaults: a bridge's underside above what it crosses by
+//!   the clearance, its deck above the ground; a tunnel's roof under the ground with some
+//!   cover, one tunnel under another with rock between them; no grade steeper than the class
+//!   allows; the grade `incline=*` tags.
+//!
+//! A group is solved from the whole group alone, so every tile that shows a part of a bridge
+//! gets the same elevations for it.
+
+use crate::elevation::lp::{self, Constraint, Problem, Relation, Smoothness};
+use crate::elevation::settled::{Level, Rule, Stations};
+use crate::features::structures::{self as tags, Incline};
+use crate::features::{widened_surface, FeatureClass, FeatureSet, FeatureSettings, Projection};
+use crate::geometry::Point;
+use crate::osm::structures::{Crossed, Group, StructureKind};
+use crate::osm::Way;
+use crate::terrain::Elevation;
+
+/// Greatest distance between two stations of a bridge, metres: room for a deck to curve.
+pub const BRIDGE_STATION_SPACING_M: f64 = 5.0;
+/// Greatest distance between two stations of a tunnel, metres: tunnels are long and their
+/// floors follow the terrain far less closely.
+pub const TUNNEL_STATION_SPACING_M: f64 = 10.0;
+/// Rock between a tunnel's roof and a tunnel under it, metres.
+const ROCK_BETWEEN_TUNNELS_M: f64 = 1.0;
+/// Ground over a tunnel's roof, metres, on top of the mesh's error bound.
+pub const TUNNEL_COVER_M: f64 = 0.5;
+
+/// Weight of the pull towards the line between a chain's ends, per metre of elevation and
+/// metre of chain.
+const CHORD_WEIGHT: f64 = 0.01;
+/// Weight of a change of slope (rise per run) at a station.
+const SMOOTHNESS_WEIGHT: f64 = 100.0;
+/// Penalties per metre of violation: clearances and tagged grades are worth the most, the
+/// class's steepest grade less, the ground over a tunnel (which the portals' approaches must
+/// break) and under a bridge least, per metre of chain.
+const CLEARANCE_PENALTY: f64 = 10_000.0;
+const TAGGED_INCLINE_PENALTY: f64 = 1_000.0;
+const MAX_INCLINE_PENALTY: f64 = 1_000.0;
+const GROUND_PENALTY_PER_M: f64 = 10.0;
+
+/// What a soft constraint stood for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ConstraintKind {
+    /// A bridge's underside over what it crosses.
+    Clearance,
+    /// A bridge's deck above the ground.
+    AboveGround,
+    /// A tunnel's roof under the ground.
+    Cover,
+    /// A tunnel above another.
+    TunnelOverTunnel,
+    /// The steepest grade of the way's class.
+    MaxIncline,
+    /// `incline=*`.
+    TaggedIncline,
+}
+
+impl ConstraintKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ConstraintKind::Clearance => "clearance",
+            ConstraintKind::AboveGround => "above_ground",
+            ConstraintKind::Cover => "cover",
+            ConstraintKind::TunnelOverTunnel => "tunnel_over_tunnel",
+            ConstraintKind::MaxIncline => "max_incline",
+            ConstraintKind::TaggedIncline => "tagged_incline",
+        }
+    }
+}
+
+/// One soft constraint of a settled group: what it was, on which way, where, and how far it
+/// is from holding (0 when it holds).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConstraintReport {
+    pub kind: ConstraintKind,
+    /// The OSM way the constraint belongs to.
+    pub way: i64,
+    /// Where (global tile units).
+    pub at: Point,
+    /// What was asked, as written in reports (`>= 12.30`).
+    pub bound: f64,
+    pub violation: f64,
+}
+
+/// A chain settled: its stations and their elevations.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Profile {
+    pub kind: StructureKind,
+    pub layer: i32,
+    /// Stations in global tile units.
+    pub points: Vec<Point>,
+    /// Distance of each station from the chain's start, metres.
+    pub along_m: Vec<f64>,
+    /// The deck's top (a bridge) or the floor (a tunnel), metres.
+    pub elevations: Vec<f64>,
+    /// The terrain at each station, metres.
+    pub terrain: Vec<f64>,
+    /// For each station, the index (into all ways) of the way of the segment that starts
+    /// there; the last station repeats the last segment's.
+    pub ways: Vec<u32>,
+    /// Whether the first and the last station meet the ground (an abutment or a portal).
+    pub grounded: [bool; 2],
+    /// Where the chain crosses over something (metres from its start).
+    pub crossings_m: Vec<f64>,
+}
+
+/// One point of a settled chain.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Station {
+    /// Global tile units.
+    pub point: Point,
+    pub along_m: f64,
+    pub elevation: f64,
+    pub terrain: f64,
+    /// Index (into all ways) of the way the station lies on.
+    pub way: u32,
+}
+
+impl Profile {
+    /// The stations between `from_m` and `to_m` along the chain, with the two ends
+    /// interpolated.
+    pub fn stretch(&self, from_m: f64, to_m: f64) -> Vec<Station> {
+        let n = self.points.len();
+        let at = |i: usize| Station {
+            point: self.points[i],
+            along_m: self.along_m[i],
+            elevation: self.elevations[i],
+            terrain: self.terrain[i],
+            way: self.ways[i],
+        };
+        let between = |along: f64| -> Station {
+            let k = self
+                .along_m
+                .partition_point(|&a| a <= along)
+                .clamp(1, n - 1);
+            let (a, b) = (at(k - 1), at(k));
+            let span = b.along_m - a.along_m;
+            let t = if span > 0.0 {
+                ((along - a.along_m) / span).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let lerp = |x: f64, y: f64| x + t * (y - x);
+            Station {
+                point: [lerp(a.point[0], b.point[0]), lerp(a.point[1], b.point[1])],
+                along_m: along,
+                elevation: lerp(a.elevation, b.elevation),
+                terrain: lerp(a.terrain, b.terrain),
+                way: a.way,
+            }
+        };
+        if n < 2 || to_m <= from_m {
+            return Vec::new();
+        }
+        let mut out = vec![between(from_m)];
+        out.extend(
+            (0..n)
+                .filter(|&i| self.along_m[i] > from_m && self.along_m[i] < to_m)
+                .map(at),
+        );
+        out.push(between(to_m));
+        out
+    }
+}
+
+/// A group settled, with what its LP took.
+#[derive(Debug, Clone, Default)]
+pub struct Settled {
+    pub profiles: Vec<Profile>,
+    pub variables: usize,
+    pub constraints: usize,
+    pub components: usize,
+    /// Every soft constraint with its violation (0 for those that hold).
+    pub reports: Vec<ConstraintReport>,
+    /// Components the solver failed on (they keep the line between their ends).
+    pub failed: usize,
+}
+
+impl Settled {
+    /// The soft constraints that had to give way by more than `tolerance` metres.
+    pub fn violations(&self, tolerance: f64) -> impl Iterator<Item = &ConstraintReport> {
+        self.reports.iter().filter(move |r| r.violation > tolerance)
+    }
+}
+
+/// How elevation is read along a chain: the variable at each station.
+struct Row {
+    first: usize,
+    /// Station index of each node of the chain.
+    node_station: Vec<usize>,
+}
+
+/// Settles one group. `terrain` is read in the projection's global tile units;
+/// `surface_margin_m` is how far the drawn ground may lie above the terrain (the mesh's error
+/// bound), kept as extra room under bridges and over tunnels.
+pub fn settle(
+    group: &Group,
+    ways: &[Way],
+    terrain: &dyn Elevation,
+    projection: &Projection,
+    settings: &FeatureSettings,
+    surface_margin_m: f64,
+) -> Settled {
+    let mut problem = Problem::default();
+    let mut labels: Vec<ConstraintReport> = Vec::new();
+    let mut profiles: Vec<Profile> = Vec::new();
+    let mut rows: Vec<Row> = Vec::new();
+
+    // Stations of every chain.
+    for chain in &group.chains {
+        let mut profile = Profile {
+            kind: chain.kind,
+            layer: chain.layer,
+            points: Vec::new(),
+            along_m: Vec::new(),
+            elevations: Vec::new(),
+            terrain: Vec::new(),
+            ways: Vec::new(),
+            grounded: [false; 2],
+            crossings_m: Vec::new(),
+        };
+        let mut node_station = Vec::with_capacity(chain.nodes.len());
+        let mut along = 0.0;
+        for k in 0..chain.positions.len() {
+            node_station.push(profile.points.len());
+            let a = projection.point(chain.positions[k]);
+            let way =
+                chain.ways[chain.segment_way[k.min(chain.segment_way.len() - 1)] as usize].way;
+            let Some(&next) = chain.positions.get(k + 1) else {
+                profile.points.push(a);
+                profile.along_m.push(along);
+                profile.ways.push(way);
+                break;
+            };
+            let b = projection.point(next);
+            let metre = projection.metres(1.0, (chain.positions[k].lat + next.lat) / 2.0);
+            let length_m = (b[0] - a[0]).hypot(b[1] - a[1]) / metre;
+            let spacing = match chain.kind {
+                StructureKind::Bridge => BRIDGE_STATION_SPACING_M,
+                StructureKind::Tunnel => TUNNEL_STATION_SPACING_M,
+            };
+            let pieces = (length_m / spacing).ceil().max(1.0) as usize;
+            for j in 0..pieces {
+                let t = j as f64 / pieces as f64;
+                profile
+                    .points
+                    .push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+                profile.along_m.push(along + t * length_m);
+                profile.ways.push(way);
+            }
+            along += length_m;
+        }
+        profile.terrain = profile
+            .points
+            .iter()
+            .map(|&p| terrain.elevation_uv(p))
+            .collect();
+        rows.push(Row {
+            first: problem.targets.len(),
+            node_station,
+        });
+        // Variables, with targets on the line between the ends; weights by the length each
+        // station stands for.
+        let n = profile.points.len();
+        let (h0, h1) = (profile.terrain[0], profile.terrain[n - 1]);
+        let length = profile.along_m[n - 1].max(1e-9);
+        for i in 0..n {
+            let share = profile.along_m[i] / length;
+            let before = if i > 0 {
+                profile.along_m[i] - profile.along_m[i - 1]
+            } else {
+                0.0
+            };
+            let after = if i + 1 < n {
+                profile.along_m[i + 1] - profile.along_m[i]
+            } else {
+                0.0
+            };
+            problem.variable(
+                h0 + share * (h1 - h0),
+                CHORD_WEIGHT * (before + after) / 2.0,
+            );
+        }
+        profiles.push(profile);
+    }
+
+    // Ends that meet no other chain are on the ground; shared nodes are equal.
+    let mut at_node: std::collections::HashMap<i64, usize> = std::collections::HashMap::new();
+    for (c, chain) in group.chains.iter().enumerate() {
+        for (k, &node) in chain.nodes.iter().enumerate() {
+            let variable = rows[c].first + rows[c].node_station[k];
+            match at_node.get(&node) {
+                Some(&other) => problem.constraints.push(Constraint {
+                    terms: vec![(variable, 1.0), (other, -1.0)],
+                    kind: Relation::Equal,
+                    rhs: 0.0,
+                    penalty: None,
+                    label: u32::MAX,
+                }),
+                None => {
+                    at_node.insert(node, variable);
+                }
+            }
+        }
+    }
+    for (c, chain) in group.chains.iter().enumerate() {
+        let shared = |node: i64| {
+            group
+                .chains
+                .iter()
+                .enumerate()
+                .any(|(d, other)| d != c && other.nodes.contains(&node))
+        };
+        let last = chain.nodes.len() - 1;
+        for (end, k) in [(0, 0), (1, last)] {
+            if !shared(chain.nodes[k]) {
+                let station = rows[c].node_station[k];
+                profiles[c].grounded[end] = true;
+                problem.fix(rows[c].first + station, profiles[c].terrain[station]);
+            }
+        }
+    }
+
+    let mut soft = |problem: &mut Problem,
+                    report: ConstraintReport,
+                    terms: Vec<(usize, f64)>,
+                    kind: Relation,
+                    rhs: f64,
+                    penalty: f64| {
+        problem.constraints.push(Constraint {
+            terms,
+            kind,
+            rhs,
+            penalty: Some(penalty),
+            label: labels.len() as u32,
+        });
+        labels.push(report);
+    };
+
+    // Along each chain: grades, smoothness, the ground.
+    for (c, profile) in profiles.iter().enumerate() {
+        let first = rows[c].first;
+        let n = profile.points.len();
+        for i in 0..n.saturating_sub(1) {
+            let way = &ways[profile.ways[i] as usize];
+            let run = profile.along_m[i + 1] - profile.along_m[i];
+            if run <= 0.0 {
+                continue;
+            }
+            let reversed = group.chains[c]
+                .ways
+                .iter()
+                .find(|w| w.way == profile.ways[i])
+                .is_some_and(|w| w.reversed);
+            let sign = if reversed { -1.0 } else { 1.0 };
+            let rise = vec![(first + i + 1, 1.0), (first + i, -1.0)];
+            let at = profile.points[i];
+            let tagged = tags::incline(&way.tags);
+            let mut steepest = tags::max_incline(&way.tags);
+            if let (Some(max), Some(Incline::Grade(g))) = (steepest, tagged) {
+                steepest = Some(max.max(g.abs()));
+            }
+            if let Some(max) = steepest {
+                for (relation, bound) in [
+                    (Relation::AtMost, max * run),
+                    (Relation::AtLeast, -max * run),
+                ] {
+                    let report = ConstraintReport {
+                        kind: ConstraintKind::MaxIncline,
+                        way: way.id,
+                        at,
+                        bound,
+                        violation: 0.0,
+                    };
+                    soft(
+                        &mut problem,
+                        report,
+                        rise.clone(),
+                        relation,
+                        bound,
+                        MAX_INCLINE_PENALTY,
+                    );
+                }
+            }
+            let asked = match tagged {
+                Some(Incline::Grade(g)) => Some((Relation::Equal, sign * g * run)),
+                Some(Incline::Up) => Some((
+                    if reversed {
+                        Relation::AtMost
+                    } else {
+                        Relation::AtLeast
+                    },
+                    0.0,
+                )),
+                Some(Incline::Down) => Some((
+                    if reversed {
+                        Relation::AtLeast
+                    } else {
+                        Relation::AtMost
+                    },
+                    0.0,
+                )),
+                None => None,
+            };
+            if let Some((relation, bound)) = asked {
+                let report = ConstraintReport {
+                    kind: ConstraintKind::TaggedIncline,
+                    way: way.id,
+                    at,
+                    bound,
+                    violation: 0.0,
+                };
+                soft(
+                    &mut problem,
+                    report,
+                    rise,
+                    relation,
+                    bound,
+                    TAGGED_INCLINE_PENALTY,
+                );
+            }
+        }
+        for i in 1..n.saturating_sub(1) {
+            let l1 = profile.along_m[i] - profile.along_m[i - 1];
+            let l2 = profile.along_m[i + 1] - profile.along_m[i];
+            if l1 <= 0.0 || l2 <= 0.0 {
+                continue;
+            }
+            problem.smoothness.push(Smoothness {
+                terms: vec![
+                    (first + i - 1, 1.0 / l1),
+                    (first + i, -1.0 / l1 - 1.0 / l2),
+                    (first + i + 1, 1.0 / l2),
+                ],
+                weight: SMOOTHNESS_WEIGHT,
+            });
+            let way = &ways[profile.ways[i] as usize];
+            let penalty = GROUND_PENALTY_PER_M * (l1 + l2) / 2.0;
+            let (kind, relation, bound) = match profile.kind {
+                StructureKind::Bridge => (
+                    ConstraintKind::AboveGround,
+                    Relation::AtLeast,
+                    profile.terrain[i],
+                ),
+                StructureKind::Tunnel => (
+                    ConstraintKind::Cover,
+                    Relation::AtMost,
+                    profile.terrain[i]
+                        - tags::tunnel_height_m(&way.tags)
+                        - tags::TUNNEL_ROOF_M
+                        - TUNNEL_COVER_M
+                        - surface_margin_m,
+                ),
+            };
+            let report = ConstraintReport {
+                kind,
+                way: way.id,
+                at: profile.points[i],
+                bound,
+                violation: 0.0,
+            };
+            soft(
+                &mut problem,
+                report,
+                vec![(first + i, 1.0)],
+                relation,
+                bound,
+                penalty,
+            );
+        }
+    }
+
+    // What each chain crosses.
+    let on = |c: usize, segment: u32, t: f64| -> (Vec<(usize, f64)>, Point, u32) {
+        let row = &rows[c];
+        let (s0, s1) = (
+            row.node_station[segment as usize],
+            row.node_station[segment as usize + 1],
+        );
+        let pieces = (s1 - s0) as f64;
+        let position = (t * pieces).clamp(0.0, pieces);
+        let j = (position.floor() as usize).min(s1 - s0 - 1);
+        let local = position - j as f64;
+        let (a, b) = (profiles[c].points[s0 + j], profiles[c].points[s0 + j + 1]);
+        let at = [a[0] + local * (b[0] - a[0]), a[1] + local * (b[1] - a[1])];
+        let terms = vec![
+            (row.first + s0 + j, 1.0 - local),
+            (row.first + s0 + j + 1, local),
+        ];
+        (terms, at, profiles[c].ways[s0 + j])
+    };
+    let mut crossings_m: Vec<(usize, f64)> = Vec::new();
+    for crossing in &group.crossings {
+        let c = crossing.chain as usize;
+        let (terms, at, way) = on(c, crossing.segment, crossing.t);
+        let along = terms
+            .iter()
+            .map(|&(v, share)| share * profiles[c].along_m[v - rows[c].first])
+            .sum();
+        crossings_m.push((c, along));
+        let upper = &ways[way as usize];
+        match (profiles[c].kind, crossing.other) {
+            (StructureKind::Bridge, Crossed::Way(below)) => {
+                let below = &ways[below as usize];
+                let Some(clearance) = tags::clearance_over_m(&below.tags) else {
+                    continue;
+                };
+                let below_layer = below
+                    .tags
+                    .get("layer")
+                    .and_then(|l| l.trim().parse::<i32>().ok())
+                    .unwrap_or(0);
+                if below_layer >= profiles[c].layer {
+                    continue;
+                }
+                let ground =
+                    ground_under(at, terrain, projection, settings, below) + surface_margin_m;
+                let bound = ground + clearance + tags::deck_thickness_m(&upper.tags);
+                let report = ConstraintReport {
+                    kind: ConstraintKind::Clearance,
+                    way: upper.id,
+                    at,
+                    bound,
+                    violation: 0.0,
+                };
+                soft(
+                    &mut problem,
+                    report,
+                    terms,
+                    Relation::AtLeast,
+                    bound,
+                    CLEARANCE_PENALTY,
+                );
+            }
+            (upper_kind, Crossed::Chain { chain, segment, t }) => {
+                let (lower_terms, _, lower_way) = on(chain as usize, segment, t);
+                let lower = &ways[lower_way as usize];
+                let (kind, gap) = match (upper_kind, profiles[chain as usize].kind) {
+                    (StructureKind::Bridge, StructureKind::Bridge) => {
+                        let Some(clearance) = tags::clearance_over_m(&lower.tags) else {
+                            continue;
+                        };
+                        (
+                            ConstraintKind::Clearance,
+                            clearance + tags::deck_thickness_m(&upper.tags),
+                        )
+                    }
+                    (StructureKind::Tunnel, StructureKind::Tunnel) => (
+                        ConstraintKind::TunnelOverTunnel,
+                        tags::tunnel_height_m(&lower.tags)
+                            + tags::TUNNEL_ROOF_M
+                            + ROCK_BETWEEN_TUNNELS_M,
+                    ),
+                    _ => continue,
+                };
+                let mut all = terms;
+                all.extend(lower_terms.into_iter().map(|(v, k)| (v, -k)));
+                let report = ConstraintReport {
+                    kind,
+                    way: upper.id,
+                    at,
+                    bound: gap,
+                    violation: 0.0,
+                };
+                soft(
+                    &mut problem,
+                    report,
+                    all,
+                    Relation::AtLeast,
+                    gap,
+                    CLEARANCE_PENALTY,
+                );
+            }
+            (StructureKind::Tunnel, Crossed::Way(_)) => {}
+        }
+    }
+
+    for (c, along) in crossings_m {
+        profiles[c].crossings_m.push(along);
+    }
+    let outcome = lp::solve(&problem);
+    for violation in &outcome.violations {
+        if let Some(report) = labels.get_mut(violation.label as usize) {
+            report.violation = violation.amount;
+        }
+    }
+    for (c, profile) in profiles.iter_mut().enumerate() {
+        let first = rows[c].first;
+        profile.elevations = outcome.values[first..first + profile.points.len()].to_vec();
+    }
+    Settled {
+        profiles,
+        variables: problem.targets.len(),
+        constraints: problem.constraints.len(),
+        components: outcome.components,
+        reports: labels,
+        failed: outcome.failed,
+    }
+}
+
+/// The highest terrain under a crossed way near a crossing: at the crossing and half the
+/// way's width to either side along the chain's normal.
+fn ground_under(
+    at: Point,
+    terrain: &dyn Elevation,
+    projection: &Projection,
+    settings: &FeatureSettings,
+    below: &Way,
+) -> f64 {
+    let lat = below.positions.first().map_or(0.0, |p| p.lat);
+    let half = projection.metres(tags::width_m(&below.tags, settings) / 2.0, lat);
+    [
+        [0.0, 0.0],
+        [half, 0.0],
+        [-half, 0.0],
+        [0.0, half],
+        [0.0, -half],
+    ]
+    .iter()
+    .map(|d| terrain.elevation_uv([at[0] + d[0], at[1] + d[1]]))
+    .fold(f64::NEG_INFINITY, f64::max)
+}
+
+/// Free length between the end of a tunnel's approach cut and its tube, metres: the steep face
+/// of the portal.
+pub const PORTAL_FACE_M: f64 = 0.5;
+/// Length over which the ground is kept over a tunnel's roof past its portal, metres.
+pub const PORTAL_COVER_M: f64 = 6.0;
+
+/// How a tunnel meets the ground along its length, in metres from its start.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TunnelPlan {
+    /// Open cuts down to the floor, from a portal end to where the tube fits under the terrain.
+    pub ramps: Vec<(f64, f64)>,
+    /// Where the ground is raised over the tube's roof (past a portal, and where the LP could
+    /// not put the tube deep enough).
+    pub raised: Vec<(f64, f64)>,
+    /// Where the tube is drawn.
+    pub tube: Vec<(f64, f64)>,
+    /// Where a portal's opening stands (the inner end of a ramp).
+    pub portals: Vec<f64>,
+}
+
+/// The height from a tunnel's floor to the top of its roof at each station, metres.
+pub fn tube_heights(profile: &Profile, ways: &[Way]) -> Vec<f64> {
+    profile
+        .ways
+        .iter()
+        .map(|&w| tags::tunnel_height_m(&ways[w as usize].tags) + tags::TUNNEL_ROOF_M)
+        .collect()
+}
+
+/// Plans where a settled tunnel is open, covered and raised. A ramp runs from a portal end
+/// until the tube fits under the terrain; if it never does, the whole tunnel is an open cut.
+pub fn plan_tunnel(profile: &Profile, ways: &[Way], surface_margin_m: f64) -> TunnelPlan {
+    let n = profile.points.len();
+    let heights = tube_heights(profile, ways);
+    // Room above the roof at each station: negative where the tube would stick out.
+    let room: Vec<f64> = (0..n)
+        .map(|i| profile.terrain[i] - profile.elevations[i] - heights[i])
+        .collect();
+    let length = profile.along_m[n - 1];
+    let fits_from = |order: &mut dyn Iterator<Item = usize>| -> Option<f64> {
+        let mut last: Option<usize> = None;
+        for i in order {
+            if room[i] >= 0.0 {
+                return Some(match last {
+                    None => profile.along_m[i],
+                    Some(j) => {
+                        let share = -room[j] / (room[i] - room[j]);
+                        profile.along_m[j] + share * (profile.along_m[i] - profile.along_m[j])
+                    }
+                });
+            }
+            last = Some(i);
+        }
+        None
+    };
+    let mut plan = TunnelPlan::default();
+    // From each end (a portal on the ground, or where the tunnel goes on from a bridge or
+    // another tunnel) the way runs in the open until the tube fits under the terrain.
+    let (Some(start), Some(end)) = (fits_from(&mut (0..n)), fits_from(&mut (0..n).rev())) else {
+        plan.ramps.push((0.0, length));
+        return plan;
+    };
+    // A portal stands where a way comes in from the open; an end joined to another chain
+    // deep enough underground has none.
+    let portal = [
+        profile.grounded[0] || start > 0.0,
+        profile.grounded[1] || end < length,
+    ];
+    let face = |portal: bool| if portal { PORTAL_FACE_M } else { 0.0 };
+    let (tube_start, tube_end) = (start + face(portal[0]), end - face(portal[1]));
+    if tube_end <= tube_start {
+        plan.ramps.push((0.0, length));
+        return plan;
+    }
+    if portal[0] {
+        if start > 0.0 {
+            plan.ramps.push((0.0, start));
+        }
+        plan.portals.push(start);
+        plan.raised
+            .push((tube_start, (tube_start + PORTAL_COVER_M).min(tube_end)));
+    }
+    if portal[1] {
+        if end < length {
+            plan.ramps.push((end, length));
+        }
+        plan.portals.push(end);
+        plan.raised
+            .push(((tube_end - PORTAL_COVER_M).max(tube_start), tube_end));
+    }
+    plan.tube.push((tube_start, tube_end));
+    // Stretches of the tube without the cover it asked for.
+    let covered = |i: usize| room[i] >= TUNNEL_COVER_M + surface_margin_m - 0.01;
+    let mut i = 0;
+    while i < n {
+        if covered(i) {
+            i += 1;
+            continue;
+        }
+        let first = i;
+        while i < n && !covered(i) {
+            i += 1;
+        }
+        let from = profile.along_m[first.saturating_sub(1)].max(tube_start);
+        let to = profile.along_m[i.min(n - 1)].min(tube_end);
+        if to > from {
+            plan.raised.push((from, to));
+        }
+    }
+    plan.raised.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut merged: Vec<(f64, f64)> = Vec::new();
+    for (a, b) in plan.raised.drain(..) {
+        match merged.last_mut() {
+            Some(last) if a <= last.1 => last.1 = last.1.max(b),
+            _ => merged.push((a, b)),
+        }
+    }
+    plan.raised = merged;
+    plan
+}
+
+/// How far the ground raised over a tunnel reaches beyond the tube's sides, metres.
+const RAISED_BEYOND_M: f64 = 0.5;
+
+/// The ground tunnels reshape in a tile, added to `set` as surfaces: each approach cut drawn
+/// as its way's road or railway down at the floor, and the ground raised over the roof where
+/// the cover is short. Returns the levels the ground takes on them, with a floor over every
+/// tube that keeps other cuts from exposing it. `features` gives the
+/// feature row of each structure way drawn in the tile (by index into `ways`).
+pub fn ground_cuts(
+    settled: &[Settled],
+    ways: &[Way],
+    features: &std::collections::HashMap<u32, u32>,
+    set: &mut FeatureSet,
+    projection: &Projection,
+    settings: &FeatureSettings,
+    surface_margin_m: f64,
+) -> Vec<Level> {
+    let mut levels = Vec::new();
+    let mut ramp_rows: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+    for profile in settled.iter().flat_map(|s| &s.profiles) {
+        if profile.kind != StructureKind::Tunnel {
+            continue;
+        }
+        let plan = plan_tunnel(profile, ways, surface_margin_m);
+        let heights = tube_heights(profile, ways);
+        let stretches = plan
+            .ramps
+            .iter()
+            .map(|&r| (r, Reshape::Cut))
+            .chain(plan.raised.iter().map(|&r| (r, Reshape::Raised)))
+            .chain(plan.tube.iter().map(|&r| (r, Reshape::Guard)));
+        for ((from, to), reshape) in stretches {
+            let raised = reshape != Reshape::Cut;
+            let stations = profile.stretch(from, to);
+            let Some(first) = stations.first() else {
+                continue;
+            };
+            // The ramp is the way at its portal; raised ground belongs to the terrain.
+            let portal_way = if from <= 0.0 {
+                first.way
+            } else {
+                stations[stations.len() - 1].way
+            };
+            let Some(&feature) = features.get(&portal_way) else {
+                continue;
+            };
+            let way = &ways[portal_way as usize];
+            let mut line: Vec<Point> = Vec::with_capacity(stations.len());
+            let mut profile_uv: Vec<(f64, f64)> = Vec::with_capacity(stations.len());
+            let mut along = 0.0;
+            for s in &stations {
+                if let Some(&last) = line.last() {
+                    let step = distance(last, s.point);
+                    if step <= 0.0 {
+                        continue;
+                    }
+                    along += step;
+                }
+                line.push(s.point);
+                let k = profile
+                    .along_m
+                    .partition_point(|&a| a <= s.along_m)
+                    .clamp(1, heights.len())
+                    - 1;
+                let elevation = if raised {
+                    s.elevation + heights[k] + TUNNEL_COVER_M
+                } else {
+                    s.elevation
+                };
+                profile_uv.push((along, elevation));
+            }
+            let lat = way.positions.first().map_or(0.0, |p| p.lat);
+            let mut width = tags::width_m(&way.tags, settings);
+            if raised {
+                width += 2.0 * RAISED_BEYOND_M;
+            }
+            let half = projection.metres(width / 2.0, lat);
+            // The cut is drawn as the way's road or railway, a row of that class of its own;
+            // raised ground belongs to the terrain.
+            let class = match (raised, way.tags.get("railway").is_some()) {
+                (true, _) => FeatureClass::Terrain,
+                (false, true) => FeatureClass::Railway,
+                (false, false) => FeatureClass::Road,
+            };
+            let surface_feature = if raised {
+                0
+            } else {
+                *ramp_rows.entry(portal_way).or_insert_with(|| {
+                    let element = set.features[feature as usize].element;
+                    set.add_feature(element, class, &way.tags)
+                })
+            };
+            let Some(mut surface) = widened_surface(class, surface_feature, &line, half) else {
+                continue;
+            };
+            if class == FeatureClass::Road {
+                surface.paving = crate::mesh::structures::paving_of(way);
+            }
+            let rule = Rule::Along {
+                stations: Stations::new(&line),
+                profile: profile_uv,
+            };
+            let level = Level::new(
+                set.surfaces.len() as u32,
+                surface.pieces.clone(),
+                surface.bounds,
+                rule,
+            );
+            match reshape {
+                Reshape::Cut => {
+                    levels.push(level);
+                    set.surfaces.push(surface);
+                }
+                Reshape::Raised => {
+                    levels.push(level.at_least());
+                    set.surfaces.push(surface);
+                }
+                // Not a surface of its own: it only keeps other ways' cuts off the roof.
+                Reshape::Guard => levels.push(level.detached()),
+            }
+        }
+    }
+    levels
+}
+
+/// How a tunnel reshapes the ground along a stretch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Reshape {
+    /// Down to the floor: the approach to a portal.
+    Cut,
+    /// Up over the roof where the cover is short: a surface of the ground.
+    Raised,
+    /// Over the roof along the whole tube, only where something else would cut lower (the
+    /// approach of another way beside or across it).
+    Guard,
+}
+
+fn distance(a: Point, b: Point) -> f64 {
+    (b[0] - a[0]).hypot(b[1] - a[1])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::osm::{LonLat, Tags};
+
+    /// Level ground at 10 m.
+    struct Flat;
+    impl Elevation for Flat {
+        fn elevation_uv(&self, _: [f64; 2]) -> f64 {
+            10.0
+        }
+    }
+
+    fn way(id: i64, tags: &[(&str, &str)], nodes: &[(i64, f64, f64)]) -> Way {
+        Way {
+            id,
+            tags: Tags::from_pairs(tags.iter().copied()),
+            nodes: nodes.iter().map(|n| n.0).collect(),
+            positions: nodes
+                .iter()
+                .map(|&(_, lon, lat)| LonLat { lon, lat })
+                .collect(),
+        }
+    }
+
+    fn settle_ways(ways: &[Way]) -> Vec<Settled> {
+        crate::osm::structures::find(ways, tags::classify)
+            .iter()
+            .map(|group| {
+                settle(
+                    group,
+                    ways,
+                    &Flat,
+                    &Projection::new(14),
+                    &FeatureSettings::default(),
+                    1.0,
+                )
+            })
+            .collect()
+    }
+
+    /// A 160 m bridge tagged `incline=10%` whose ends the level ground forces level: the
+    /// contradiction is reported on that way alone, and a bridge solved in the same LP keeps
+    /// the elevations it has without it.
+    #[test]
+    fn a_contradiction_bends_only_its_own_way() {
+        let ramp = way(
+            1,
+            &[
+                ("highway", "residential"),
+                ("bridge", "yes"),
+                ("incline", "10%"),
+            ],
+            &[(1, 7.400, 43.7), (2, 7.401, 43.7), (3, 7.402, 43.7)],
+        );
+        let over_river = way(
+            2,
+            &[
+                ("highway", "residential"),
+                ("bridge", "yes"),
+                ("layer", "2"),
+            ],
+            &[(4, 7.4005, 43.697), (5, 7.4005, 43.703)],
+        );
+        let river = way(
+            3,
+            &[("waterway", "river")],
+            &[(6, 7.4000, 43.7002), (7, 7.4010, 43.7002)],
+        );
+        let with = settle_ways(&[ramp.clone(), over_river.clone(), river.clone()]);
+        assert_eq!(
+            with.len(),
+            1,
+            "one group: the second bridge crosses the first"
+        );
+        let group = &with[0];
+        assert_eq!(group.failed, 0);
+        let violated: Vec<(i64, ConstraintKind)> =
+            group.violations(0.01).map(|v| (v.way, v.kind)).collect();
+        assert!(
+            violated.contains(&(1, ConstraintKind::TaggedIncline)),
+            "{violated:?}"
+        );
+        assert!(violated.iter().all(|&(w, _)| w == 1), "{violated:?}");
+        // The ends stay on the ground.
+        let first = &group.profiles[0];
+        assert_eq!(first.elevations[0], 10.0);
+        assert_eq!(first.elevations[first.elevations.len() - 1], 10.0);
+        // The other bridge clears the river and the first deck, as asked.
+        let second = &group.profiles[1];
+        assert!(second.elevations.iter().all(|&e| e >= 10.0 - 1e-6));
+        for report in group.reports.iter().filter(|r| r.way == 2) {
+            assert!(report.violation <= 0.01, "{report:?}");
+        }
+    }
+
+    /// A way tagged with a grade it can keep keeps it; ends joined to another chain are free.
+    #[test]
+    fn a_tagged_grade_is_kept_where_the_ends_allow_it() {
+        // A bridge ramp up from the ground to a second, higher bridge over a road.
+        let ramp = way(
+            1,
+            &[("highway", "service"), ("bridge", "yes"), ("incline", "5%")],
+            &[(1, 7.400, 43.7), (2, 7.401, 43.7)],
+        );
+        let upper = way(
+            2,
+            &[("highway", "service"), ("bridge", "yes"), ("layer", "2")],
+            &[(2, 7.401, 43.7), (3, 7.404, 43.7)],
+        );
+        let road = way(
+            3,
+            &[("highway", "primary")],
+            &[(4, 7.4025, 43.699), (5, 7.4025, 43.701)],
+        );
+        let settled = settle_ways(&[ramp, upper, road]);
+        assert_eq!(settled.len(), 1);
+        let group = &settled[0];
+        let violated: Vec<_> = group.violations(0.01).collect();
+        assert!(violated.is_empty(), "{violated:?}");
+        let first = &group.profiles[0];
+        let n = first.points.len();
+        let grade = (first.elevations[n - 1] - first.elevations[0]) / first.along_m[n - 1];
+        assert!((grade - 0.05).abs() < 1e-3, "{grade}");
+        assert_eq!(first.grounded, [true, false]);
+    }
+}

@@ -1,0 +1,238 @@
+//! What tags say about bridges and tunnels: which ways are part of one, and the measures the
+//! elevation solver and the geometry take from them (thesis §4.2, with defaults where the tags
+//! are silent).
+//!
+//! Maximum inclines by class. The thesis used one 35 % bound for every way; design guides are
+//! much stricter for fast roads and for railways, and a bound that is too loose lets a ramp
+//! come out implausibly steep, one that is too tight makes real steep streets (Monaco has many)
+//! report violations. The values are near the upper ends of European guides: motorways 6 %,
+//! trunk and primary roads 8 %, secondary and tertiary 10 %, minor and service roads 15 %,
+//! tracks 20 %, paths and footways 25 % (ramps for people), steps none; main-line railways
+//! 4 %, light rail and trams 8 %, funiculars none.
+
+use crate::osm::structures::StructureKind;
+use crate::osm::units::parse_length_m;
+use crate::osm::Tags;
+
+use super::{railways, roads, FeatureSettings};
+
+/// Whether a way is part of a bridge or a tunnel that is drawn as such, with its layer (`1` for
+/// an untagged bridge, `-1` for an untagged tunnel, as OSM reads them).
+pub fn classify(tags: &Tags) -> Option<(StructureKind, i32)> {
+    let carries = tags
+        .get("highway")
+        .is_some_and(|h| roads::default_width_m(h).is_some())
+        || tags.get("railway").is_some_and(railways::drawn);
+    if !carries || tags.get("area") == Some("yes") {
+        return None;
+    }
+    let layer = tags.get("layer").and_then(|l| l.trim().parse::<i32>().ok());
+    if tags.is_set("bridge") {
+        Some((StructureKind::Bridge, layer.unwrap_or(1)))
+    } else if tags.is_set("tunnel") && tags.get("tunnel") != Some("building_passage") {
+        Some((StructureKind::Tunnel, layer.unwrap_or(-1)))
+    } else {
+        None
+    }
+}
+
+/// True for footways, paths, cycleways and steps: light structures, people-sized clearances.
+fn is_for_people(tags: &Tags) -> bool {
+    matches!(
+        tags.get("highway"),
+        Some("footway" | "path" | "cycleway" | "steps" | "bridleway" | "pedestrian")
+    )
+}
+
+/// The width of a structure's way in metres.
+pub fn width_m(tags: &Tags, settings: &FeatureSettings) -> f64 {
+    if tags.get("railway").is_some() {
+        return tags
+            .get("width")
+            .and_then(parse_length_m)
+            .filter(|w| (0.5..=30.0).contains(w))
+            .unwrap_or_else(|| railways::width_m(tags.get("gauge"), railways::is_embedded(tags)));
+    }
+    roads::width_m(tags, settings).unwrap_or(5.0)
+}
+
+/// Thickness of a bridge deck below its surface, metres.
+pub fn deck_thickness_m(tags: &Tags) -> f64 {
+    if is_for_people(tags) {
+        0.5
+    } else {
+        1.2
+    }
+}
+
+/// Free height inside a tunnel, metres: `maxheight`, else a default for what runs in it
+/// (road vehicles 4.5 m, electrified railways 6 m, people 2.5 m).
+pub fn tunnel_height_m(tags: &Tags) -> f64 {
+    if let Some(h) = maxheight_m(tags) {
+        return h;
+    }
+    if tags.get("railway").is_some() {
+        6.0
+    } else if is_for_people(tags) {
+        2.5
+    } else {
+        4.5
+    }
+}
+
+/// Thickness of a tunnel's roof above its free height, metres.
+pub const TUNNEL_ROOF_M: f64 = 0.5;
+
+/// `maxheight` (or `maxheight:physical`) in metres, if plausible.
+fn maxheight_m(tags: &Tags) -> Option<f64> {
+    ["maxheight:physical", "maxheight"]
+        .iter()
+        .filter_map(|k| tags.get(k))
+        .find_map(parse_length_m)
+        .filter(|h| (1.5..=12.0).contains(h))
+}
+
+/// The free height a bridge must leave over a way it crosses, metres: the way's `maxheight`,
+/// else a default for what the way carries; `None` for what a bridge need not clear (ways that
+/// are themselves in a tunnel, proposed or abandoned ways).
+pub fn clearance_over_m(tags: &Tags) -> Option<f64> {
+    if tags.is_set("tunnel") {
+        return None;
+    }
+    if let Some(railway) = tags.get("railway") {
+        return railways::drawn(railway).then(|| {
+            maxheight_m(tags).unwrap_or(match railway {
+                "tram" | "light_rail" => 4.5,
+                _ => 5.5,
+            })
+        });
+    }
+    if let Some(highway) = tags.get("highway") {
+        roads::default_width_m(highway)?;
+        return Some(maxheight_m(tags).unwrap_or(if is_for_people(tags) { 2.5 } else { 4.5 }));
+    }
+    match tags.get("waterway")? {
+        "river" | "canal" => Some(3.0),
+        "stream" | "tidal_channel" => Some(1.0),
+        "drain" | "ditch" => Some(0.5),
+        _ => None,
+    }
+}
+
+/// The steepest grade (rise per run) a way may have, `None` for no bound.
+pub fn max_incline(tags: &Tags) -> Option<f64> {
+    if let Some(railway) = tags.get("railway") {
+        return match railway {
+            "funicular" | "rack" => None,
+            "tram" | "light_rail" | "subway" | "monorail" | "miniature" => Some(0.08),
+            _ if tags.is_set("rack") => None,
+            _ => Some(0.04),
+        };
+    }
+    match tags.get("highway")? {
+        "steps" => None,
+        "motorway" | "motorway_link" => Some(0.06),
+        "trunk" | "trunk_link" | "primary" | "primary_link" => Some(0.08),
+        "secondary" | "secondary_link" | "tertiary" | "tertiary_link" => Some(0.10),
+        "track" => Some(0.20),
+        "footway" | "path" | "cycleway" | "bridleway" | "pedestrian" => Some(0.25),
+        _ => Some(0.15),
+    }
+}
+
+/// What `incline=*` says of a way's grade along its direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Incline {
+    /// Rises (or, negative, falls) by this much per metre.
+    Grade(f64),
+    Up,
+    Down,
+}
+
+/// Parses `incline=*`: `10%`, `-5 %`, `3°`, `up`, `down`; `None` for anything else (and for
+/// grades steeper than 100 %, taken as mistakes).
+pub fn incline(tags: &Tags) -> Option<Incline> {
+    let value = tags.get("incline")?.trim();
+    match value {
+        "up" => return Some(Incline::Up),
+        "down" => return Some(Incline::Down),
+        _ => {}
+    }
+    let grade = if let Some(percent) = value.strip_suffix('%') {
+        percent.trim().parse::<f64>().ok()? / 100.0
+    } else if let Some(degrees) = value.strip_suffix('°') {
+        degrees.trim().parse::<f64>().ok()?.to_radians().tan()
+    } else {
+        return None;
+    };
+    (grade.is_finite() && grade.abs() <= 1.0).then_some(Incline::Grade(grade))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tags(pairs: &[(&str, &str)]) -> Tags {
+        Tags::from_pairs(pairs.iter().copied())
+    }
+
+    #[test]
+    fn bridges_and_tunnels_take_their_layers() {
+        assert_eq!(
+            classify(&tags(&[("highway", "primary"), ("bridge", "viaduct")])),
+            Some((StructureKind::Bridge, 1))
+        );
+        assert_eq!(
+            classify(&tags(&[
+                ("railway", "rail"),
+                ("tunnel", "yes"),
+                ("layer", "-3")
+            ])),
+            Some((StructureKind::Tunnel, -3))
+        );
+        for not_one in [
+            &[("highway", "primary"), ("bridge", "no")][..],
+            &[("highway", "footway"), ("tunnel", "building_passage")],
+            &[("waterway", "stream"), ("tunnel", "culvert")],
+            &[("highway", "proposed"), ("bridge", "yes")],
+        ] {
+            assert_eq!(classify(&tags(not_one)), None, "{not_one:?}");
+        }
+    }
+
+    #[test]
+    fn inclines_parse_in_percent_and_degrees() {
+        let parse = |v: &str| incline(&tags(&[("incline", v)]));
+        assert_eq!(parse("10%"), Some(Incline::Grade(0.10)));
+        assert_eq!(parse("-5 %"), Some(Incline::Grade(-0.05)));
+        assert_eq!(parse("up"), Some(Incline::Up));
+        let Some(Incline::Grade(g)) = parse("45°") else {
+            panic!("degrees");
+        };
+        assert!((g - 1.0).abs() < 1e-12);
+        assert_eq!(parse("steep"), None);
+        assert_eq!(parse("300%"), None);
+    }
+
+    #[test]
+    fn clearances_come_from_maxheight_or_what_is_below() {
+        assert_eq!(
+            clearance_over_m(&tags(&[("highway", "primary")])),
+            Some(4.5)
+        );
+        assert_eq!(
+            clearance_over_m(&tags(&[("highway", "primary"), ("maxheight", "3.8")])),
+            Some(3.8)
+        );
+        assert_eq!(clearance_over_m(&tags(&[("railway", "rail")])), Some(5.5));
+        assert_eq!(
+            clearance_over_m(&tags(&[("waterway", "stream")])),
+            Some(1.0)
+        );
+        assert_eq!(
+            clearance_over_m(&tags(&[("highway", "primary"), ("tunnel", "yes")])),
+            None
+        );
+        assert_eq!(clearance_over_m(&tags(&[("waterway", "dam")])), None);
+    }
+}

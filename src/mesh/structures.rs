@@ -1,0 +1,361 @@
+//! Bridges and tunnels drawn from their settled profiles.
+//!
+//! A bridge is a deck of its way's width: the paved top at the settled elevation, sides and an
+//! underside [`deck_thickness_m`](crate::features::structures::deck_thickness_m) below it, and
+//! piers down into the ground every [`PIER_SPACING_M`] where the deck stands high enough,
+//! kept clear of what it crosses. A tunnel is a tube along its covered stretch: the floor, its
+//! walls and ceiling, and a dark opening at each portal, where the approach cut in the ground
+//! ends. Every face is built in global tile units from the whole structure and clipped to the
+//! tile, so a structure that crosses tiles is drawn the same on both sides.
+
+use std::collections::{BTreeMap, HashMap};
+
+use super::{MeshBuffers, Part};
+use crate::elevation::structures::{plan_tunnel, tube_heights, Profile, Settled, Station};
+use crate::features::roads::Paving;
+use crate::features::structures as tags;
+use crate::features::{FeatureSettings, Projection};
+use crate::geometry::{clip_to_rect, offset_polyline, Point, Rect};
+use crate::osm::structures::StructureKind;
+use crate::osm::Way;
+use crate::tile::TileFrame;
+
+/// Distance between a bridge's piers, metres.
+pub const PIER_SPACING_M: f64 = 30.0;
+/// A deck's underside stands at least this high above the ground where a pier is built, metres.
+const PIER_MIN_HEIGHT_M: f64 = 2.0;
+/// Piers keep this far from what the bridge crosses and from its ends, metres.
+const PIER_CLEAR_M: f64 = 8.0;
+/// A pier's length along the bridge, metres, and its width as a share of the deck's (at most
+/// [`PIER_MAX_WIDTH_M`]).
+const PIER_LENGTH_M: f64 = 1.5;
+const PIER_WIDTH_SHARE: f64 = 0.5;
+const PIER_MAX_WIDTH_M: f64 = 4.0;
+/// How far a pier reaches below the terrain, metres: into the ground whatever the mesh does.
+const PIER_FOOTING_M: f64 = 2.0;
+
+/// What drawing needs besides the profiles.
+pub struct Context<'a> {
+    pub ways: &'a [Way],
+    /// Feature row of each structure way drawn in this tile (by index into `ways`).
+    pub features: &'a HashMap<u32, u32>,
+    pub frame: &'a TileFrame,
+    pub projection: &'a Projection,
+    pub settings: &'a FeatureSettings,
+    /// The mesh's error bound, metres.
+    pub surface_margin_m: f64,
+}
+
+/// The paving a structure's way shows: its road's, or `None` for a railway.
+pub fn paving_of(way: &Way) -> Option<Paving> {
+    way.tags
+        .get("highway")
+        .is_some()
+        .then(|| Paving::from_tags(&way.tags))
+}
+
+/// Draws every bridge and tunnel of the settled groups that reaches into the tile.
+pub fn build(settled: &[Settled], context: &Context<'_>) -> BTreeMap<Part, MeshBuffers> {
+    let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
+    let rect = crate::features::tile_rect(context.frame.tile);
+    let mut drawer = Drawer {
+        context,
+        rect,
+        parts: &mut parts,
+    };
+    for profile in settled.iter().flat_map(|s| &s.profiles) {
+        match profile.kind {
+            StructureKind::Bridge => drawer.bridge(profile),
+            StructureKind::Tunnel => drawer.tunnel(profile),
+        }
+    }
+    parts
+}
+
+struct Drawer<'a, 'b> {
+    context: &'a Context<'b>,
+    rect: Rect,
+    parts: &'a mut BTreeMap<Part, MeshBuffers>,
+}
+
+/// A run of stations on one way, widened.
+struct Run {
+    feature: u32,
+    way: u32,
+    stations: Vec<Station>,
+    left: Vec<Point>,
+    right: Vec<Point>,
+}
+
+impl Drawer<'_, '_> {
+    /// The stations split where the way changes (the station at a change in both runs), each
+    /// run widened to its way's width; runs on ways without a feature row here are skipped.
+    fn runs(&self, stations: &[Station]) -> Vec<Run> {
+        let mut runs = Vec::new();
+        let mut start = 0;
+        for k in 1..=stations.len() {
+            if k < stations.len() && stations[k].way == stations[start].way {
+                continue;
+            }
+            let end = k.min(stations.len() - 1);
+            let way = stations[start].way;
+            let mut run: Vec<Station> = Vec::with_capacity(end - start + 1);
+            for s in &stations[start..=end] {
+                if run.last().is_none_or(|l| l.point != s.point) {
+                    run.push(*s);
+                }
+            }
+            start = end;
+            let Some(&feature) = self.context.features.get(&way) else {
+                continue;
+            };
+            let w = &self.context.ways[way as usize];
+            let lat = w.positions.first().map_or(0.0, |p| p.lat);
+            let half = self
+                .context
+                .projection
+                .metres(tags::width_m(&w.tags, self.context.settings) / 2.0, lat);
+            let line: Vec<Point> = run.iter().map(|s| s.point).collect();
+            if let Some((left, right)) = offset_polyline(&line, half) {
+                runs.push(Run {
+                    feature,
+                    way,
+                    stations: run,
+                    left,
+                    right,
+                });
+            }
+            if k == stations.len() {
+                break;
+            }
+        }
+        runs
+    }
+
+    /// Adds a flat face given in (u, v, elevation), clipped to the tile; `facing` in the same
+    /// axes.
+    fn face(&mut self, part: Part, corners: &[[f64; 3]], facing: [f64; 3], feature: u32) {
+        let frame = self.context.frame;
+        let local: Vec<[f64; 3]> = clip_to_rect(corners, &self.rect)
+            .into_iter()
+            .map(|[u, v, elevation]| {
+                let (x, z) = frame.uv_to_local(u, v);
+                [x, frame.elevation_to_y(elevation, z), z]
+            })
+            .collect();
+        if local.len() >= 3 {
+            let facing = [facing[0], facing[2], facing[1]];
+            self.parts
+                .entry(part)
+                .or_default()
+                .push_flat_polygon(&local, facing, feature);
+        }
+    }
+
+    fn bridge(&mut self, profile: &Profile) {
+        let n = profile.points.len();
+        let length = profile.along_m[n - 1];
+        let stations = profile.stretch(0.0, length);
+        for run in self.runs(&stations) {
+            let way = &self.context.ways[run.way as usize];
+            let thickness = tags::deck_thickness_m(&way.tags);
+            let deck = Part::BridgeDeck(paving_of(way));
+            let s = &run.stations;
+            for k in 0..s.len() - 1 {
+                let (e0, e1) = (s[k].elevation, s[k + 1].elevation);
+                let (l0, l1, r0, r1) =
+                    (run.left[k], run.left[k + 1], run.right[k], run.right[k + 1]);
+                let at = |p: Point, e: f64| [p[0], p[1], e];
+                self.face(
+                    deck,
+                    &[at(l0, e0), at(l1, e1), at(r1, e1), at(r0, e0)],
+                    [0.0, 0.0, 1.0],
+                    run.feature,
+                );
+                let (b0, b1) = (e0 - thickness, e1 - thickness);
+                self.face(
+                    Part::BridgeStructure,
+                    &[at(l0, b0), at(l1, b1), at(r1, b1), at(r0, b0)],
+                    [0.0, 0.0, -1.0],
+                    run.feature,
+                );
+                for (p0, p1, centre) in [(l0, l1, s[k].point), (r0, r1, s[k].point)] {
+                    let out = [p0[0] - centre[0], p0[1] - centre[1], 0.0];
+                    self.face(
+                        Part::BridgeStructure,
+                        &[at(p0, e0), at(p1, e1), at(p1, b1), at(p0, b0)],
+                        out,
+                        run.feature,
+                    );
+                }
+            }
+            // Ends of the deck.
+            let last = s.len() - 1;
+            for (k, inner) in [(0, 1), (last, last - 1)] {
+                let e = s[k].elevation;
+                let (l, r) = (run.left[k], run.right[k]);
+                let out = [
+                    s[k].point[0] - s[inner].point[0],
+                    s[k].point[1] - s[inner].point[1],
+                    0.0,
+                ];
+                self.face(
+                    Part::BridgeStructure,
+                    &[
+                        [l[0], l[1], e],
+                        [r[0], r[1], e],
+                        [r[0], r[1], e - thickness],
+                        [l[0], l[1], e - thickness],
+                    ],
+                    out,
+                    run.feature,
+                );
+            }
+        }
+        self.piers(profile);
+    }
+
+    fn piers(&mut self, profile: &Profile) {
+        let n = profile.points.len();
+        let length = profile.along_m[n - 1];
+        let mut along = PIER_SPACING_M;
+        while along < length - PIER_CLEAR_M {
+            let here = along;
+            along += PIER_SPACING_M;
+            if here < PIER_CLEAR_M
+                || profile
+                    .crossings_m
+                    .iter()
+                    .any(|&c| (c - here).abs() < PIER_CLEAR_M)
+            {
+                continue;
+            }
+            let pair = profile.stretch(here, here + PIER_LENGTH_M);
+            let (Some(a), Some(b)) = (pair.first(), pair.last()) else {
+                continue;
+            };
+            let Some(&feature) = self.context.features.get(&a.way) else {
+                continue;
+            };
+            let way = &self.context.ways[a.way as usize];
+            let bottom = a.elevation.min(b.elevation) - tags::deck_thickness_m(&way.tags);
+            if bottom - a.terrain.max(b.terrain) < PIER_MIN_HEIGHT_M {
+                continue;
+            }
+            let foot = a.terrain.min(b.terrain) - PIER_FOOTING_M - self.context.surface_margin_m;
+            let lat = way.positions.first().map_or(0.0, |p| p.lat);
+            let width = (tags::width_m(&way.tags, self.context.settings) * PIER_WIDTH_SHARE)
+                .min(PIER_MAX_WIDTH_M);
+            let half = self.context.projection.metres(width / 2.0, lat);
+            let Some((left, right)) = offset_polyline(&[a.point, b.point], half) else {
+                continue;
+            };
+            let corners = [left[0], left[1], right[1], right[0]];
+            let centre = [
+                (a.point[0] + b.point[0]) / 2.0,
+                (a.point[1] + b.point[1]) / 2.0,
+            ];
+            for i in 0..4 {
+                let (p, q) = (corners[i], corners[(i + 1) % 4]);
+                let mid = [(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0];
+                self.face(
+                    Part::BridgeStructure,
+                    &[
+                        [p[0], p[1], foot],
+                        [q[0], q[1], foot],
+                        [q[0], q[1], bottom],
+                        [p[0], p[1], bottom],
+                    ],
+                    [mid[0] - centre[0], mid[1] - centre[1], 0.0],
+                    feature,
+                );
+            }
+        }
+    }
+
+    fn tunnel(&mut self, profile: &Profile) {
+        let plan = plan_tunnel(profile, self.context.ways, self.context.surface_margin_m);
+        for &(from, to) in &plan.tube {
+            let stations = profile.stretch(from, to);
+            for run in self.runs(&stations) {
+                let way = &self.context.ways[run.way as usize];
+                let height = tags::tunnel_height_m(&way.tags);
+                let floor = Part::TunnelFloor(paving_of(way));
+                let s = &run.stations;
+                let at = |p: Point, e: f64| [p[0], p[1], e];
+                for k in 0..s.len() - 1 {
+                    let (e0, e1) = (s[k].elevation, s[k + 1].elevation);
+                    let (c0, c1) = (e0 + height, e1 + height);
+                    let (l0, l1, r0, r1) =
+                        (run.left[k], run.left[k + 1], run.right[k], run.right[k + 1]);
+                    self.face(
+                        floor,
+                        &[at(l0, e0), at(l1, e1), at(r1, e1), at(r0, e0)],
+                        [0.0, 0.0, 1.0],
+                        run.feature,
+                    );
+                    self.face(
+                        Part::TunnelLining,
+                        &[at(l0, c0), at(l1, c1), at(r1, c1), at(r0, c0)],
+                        [0.0, 0.0, -1.0],
+                        run.feature,
+                    );
+                    for (p0, p1) in [(l0, l1), (r0, r1)] {
+                        let centre = s[k].point;
+                        let inward = [centre[0] - p0[0], centre[1] - p0[1], 0.0];
+                        self.face(
+                            Part::TunnelLining,
+                            &[at(p0, e0), at(p1, e1), at(p1, c1), at(p0, c0)],
+                            inward,
+                            run.feature,
+                        );
+                    }
+                }
+            }
+        }
+        // The opening at each portal, facing out along the ramp.
+        let heights = tube_heights(profile, self.context.ways);
+        let n = profile.points.len();
+        for &at in &plan.portals {
+            let outwards = if at < profile.along_m[n - 1] / 2.0 {
+                -1.0
+            } else {
+                1.0
+            };
+            let pair = profile.stretch(at, at + 0.1);
+            let (Some(a), Some(b)) = (pair.first(), pair.last()) else {
+                continue;
+            };
+            let Some(&feature) = self.context.features.get(&a.way) else {
+                continue;
+            };
+            let way = &self.context.ways[a.way as usize];
+            let lat = way.positions.first().map_or(0.0, |p| p.lat);
+            let half = self
+                .context
+                .projection
+                .metres(tags::width_m(&way.tags, self.context.settings) / 2.0, lat);
+            let Some((left, right)) = offset_polyline(&[a.point, b.point], half) else {
+                continue;
+            };
+            let k = profile.along_m.partition_point(|&s| s <= at).min(n - 1);
+            let top = a.elevation + heights[k] - tags::TUNNEL_ROOF_M;
+            let facing = [
+                outwards * (b.point[0] - a.point[0]),
+                outwards * (b.point[1] - a.point[1]),
+                0.0,
+            ];
+            self.face(
+                Part::TunnelPortal,
+                &[
+                    [left[0][0], left[0][1], a.elevation],
+                    [right[0][0], right[0][1], a.elevation],
+                    [right[0][0], right[0][1], top],
+                    [left[0][0], left[0][1], top],
+                ],
+                facing,
+                feature,
+            );
+        }
+    }
+}

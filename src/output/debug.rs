@@ -1,0 +1,120 @@
+//! A tile's settled elevations as GeoJSON, so a person can see why an elevation came out as it
+//! did (the debug views of the thesis, appendix A.6): every bridge and tunnel that reaches the
+//! tile as a line with its stations' elevations, its connectors (the ends on the ground or
+//! joined to another chain, and every station in between), and every soft constraint of its
+//! linear program with how far it is from holding.
+
+use serde_json::{json, Value};
+
+use crate::elevation::structures::{plan_tunnel, Settled};
+use crate::geometry::Point;
+use crate::osm::structures::StructureKind;
+use crate::osm::Way;
+use crate::tile::{u_to_lon, v_to_lat, TileId};
+
+/// A constraint is drawn as violated beyond this much, metres.
+pub const VIOLATION_TOLERANCE_M: f64 = 0.01;
+
+/// The GeoJSON feature collection of the settled groups that reach `tile`.
+pub fn structures(tile: TileId, settled: &[Settled], ways: &[Way], surface_margin_m: f64) -> Value {
+    let n = tile.tiles_per_axis();
+    let position = |p: Point| -> Value {
+        let round = |v: f64| (v * 1e7).round() / 1e7;
+        json!([round(u_to_lon(p[0], n)), round(v_to_lat(p[1], n))])
+    };
+    let kind_name = |kind: StructureKind| match kind {
+        StructureKind::Bridge => "bridge",
+        StructureKind::Tunnel => "tunnel",
+    };
+    let cm = |v: f64| (v * 100.0).round() / 100.0;
+    let mut features: Vec<Value> = Vec::new();
+    let (mut variables, mut constraints, mut components, mut violated) = (0, 0, 0, 0);
+    for (group, outcome) in settled.iter().enumerate() {
+        variables += outcome.variables;
+        constraints += outcome.constraints;
+        components += outcome.components;
+        for (chain, profile) in outcome.profiles.iter().enumerate() {
+            let mut way_ids: Vec<i64> = profile.ways.iter().map(|&w| ways[w as usize].id).collect();
+            way_ids.dedup();
+            let mut properties = json!({
+                "layer": "structure",
+                "kind": kind_name(profile.kind),
+                "group": group,
+                "chain": chain,
+                "osm_ways": way_ids,
+                "structure_layer": profile.layer,
+                "grounded": profile.grounded,
+                "length_m": cm(profile.along_m.last().copied().unwrap_or(0.0)),
+                "elevations_m": profile.elevations.iter().map(|&e| cm(e)).collect::<Vec<_>>(),
+                "terrain_m": profile.terrain.iter().map(|&e| cm(e)).collect::<Vec<_>>(),
+            });
+            if profile.kind == StructureKind::Tunnel {
+                let plan = plan_tunnel(profile, ways, surface_margin_m);
+                properties["ramps_m"] = json!(plan.ramps);
+                properties["tube_m"] = json!(plan.tube);
+                properties["raised_m"] = json!(plan.raised);
+                properties["portals_m"] = json!(plan.portals);
+            }
+            features.push(json!({
+                "type": "Feature",
+                "geometry": {
+                    "type": "LineString",
+                    "coordinates": profile.points.iter().map(|&p| position(p)).collect::<Vec<_>>(),
+                },
+                "properties": properties,
+            }));
+            let last = profile.points.len().saturating_sub(1);
+            for (i, &p) in profile.points.iter().enumerate() {
+                let connector = match (i, i == last) {
+                    (0, _) if profile.grounded[0] => "ground",
+                    (_, true) if profile.grounded[1] => "ground",
+                    (0, _) | (_, true) => "joined",
+                    _ => "station",
+                };
+                features.push(json!({
+                    "type": "Feature",
+                    "geometry": {"type": "Point", "coordinates": position(p)},
+                    "properties": {
+                        "layer": "connector",
+                        "connector": connector,
+                        "kind": kind_name(profile.kind),
+                        "osm_way": ways[profile.ways[i] as usize].id,
+                        "along_m": cm(profile.along_m[i]),
+                        "elevation_m": cm(profile.elevations[i]),
+                        "terrain_m": cm(profile.terrain[i]),
+                    },
+                }));
+            }
+        }
+        for report in &outcome.reports {
+            let holds = report.violation <= VIOLATION_TOLERANCE_M;
+            if !holds {
+                violated += 1;
+            }
+            features.push(json!({
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": position(report.at)},
+                "properties": {
+                    "layer": "constraint",
+                    "constraint": report.kind.as_str(),
+                    "osm_way": report.way,
+                    "bound_m": cm(report.bound),
+                    "violation_m": cm(report.violation),
+                    "satisfied": holds,
+                },
+            }));
+        }
+    }
+    json!({
+        "type": "FeatureCollection",
+        "tile": format!("{}/{}/{}", tile.z, tile.x, tile.y),
+        "lp": {
+            "groups": settled.len(),
+            "variables": variables,
+            "constraints": constraints,
+            "components": components,
+            "violated": violated,
+        },
+        "features": features,
+    })
+}

@@ -1,0 +1,92 @@
+//! `GET /debug/tiles/{z}/{x}/{y}.geojson`: the settled bridges and tunnels of a tile with
+//! their connectors and constraints (see [`crate::output::debug`]). Made on every request,
+//! never cached: it is for looking into how a tile came out.
+
+use axum::extract::{Path, State};
+use axum::http::{header, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+
+use super::error::ApiError;
+use super::AppState;
+use crate::tile::TileId;
+
+pub async fn structures(
+    State(state): State<AppState>,
+    Path((z, x, file)): Path<(String, String, String)>,
+) -> Result<Response, ApiError> {
+    let tile = parse(&z, &x, &file)?;
+    if tile.z != state.zoom {
+        return Err(ApiError::not_found(format!(
+            "zoom {} is not served; debug views are at zoom {}",
+            tile.z, state.zoom
+        )));
+    }
+    state
+        .sources
+        .check_coverage(tile)
+        .map_err(|e| ApiError::not_found(e.to_string()))?;
+    let worker = state.clone();
+    let body = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
+        let mosaic = worker.sources.mosaic(tile).map_err(|e| e.to_string())?;
+        let selection = worker.sources.selection(tile);
+        let settled = crate::render::settle_structures(tile, &selection, &mosaic, &worker.settings);
+        let margin = worker.settings.mesh.max_error_m;
+        let value = crate::output::debug::structures(tile, &settled, selection.all_ways, margin);
+        serde_json::to_vec(&value).map_err(|e| e.to_string())
+    })
+    .await
+    .map_err(|e| ApiError::internal(format!("debug view of {tile} failed: {e}")))?
+    .map_err(|e| ApiError::internal(format!("debug view of {tile} failed: {e}")))?;
+    Ok((
+        StatusCode::OK,
+        [(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("application/geo+json"),
+        )],
+        body,
+    )
+        .into_response())
+}
+
+/// Parses `z`, `x` and `y.geojson`.
+fn parse(z: &str, x: &str, file: &str) -> Result<TileId, ApiError> {
+    let y = file
+        .strip_suffix(".geojson")
+        .ok_or_else(|| ApiError::bad_request(format!("'{file}' is not Y.geojson")))?;
+    let number = |name: &str, text: &str| {
+        text.parse::<u64>().map_err(|_| {
+            ApiError::bad_request(format!("{name} = '{text}' is not a non-negative integer"))
+        })
+    };
+    let z = u32::try_from(number("z", z)?)
+        .map_err(|_| ApiError::bad_request(format!("zoom {z} is out of range")))?;
+    TileId::new(z, number("x", x)?, number("y", y)?)
+        .map_err(|e| ApiError::bad_request(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_geojson_paths_parse() {
+        assert_eq!(
+            parse("14", "8529", "5973.geojson").ok(),
+            Some(TileId {
+                z: 14,
+                x: 8529,
+                y: 5973
+            })
+        );
+        for (z, x, file) in [
+            ("14", "8529", "5973.glb"),
+            ("14", "x", "1.geojson"),
+            ("14", "1", "99999.geojson"),
+        ] {
+            assert_eq!(
+                parse(z, x, file).unwrap_err().status,
+                StatusCode::BAD_REQUEST
+            );
+        }
+    }
+}

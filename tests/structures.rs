@@ -1,0 +1,323 @@
+//! Bridges and tunnels of Monaco (83 bridges, 181 tunnels in the OSRM extract) settled whole
+//! and drawn: checked from the decoded glb against its own ground.
+
+mod common;
+
+use std::collections::{BTreeMap, HashMap};
+
+use common::{corners, decode, sample_osm, sample_srtm, GroundLocator, GROUND_NODES};
+use terrastitch::elevation::structures::{settle, ConstraintKind, Settled};
+use terrastitch::features::structures as tags;
+use terrastitch::features::{FeatureSettings, Projection};
+use terrastitch::mesh::ground::MeshSettings;
+use terrastitch::osm::structures::{Crossed, StructureKind};
+use terrastitch::source::Sources;
+use terrastitch::terrain::{Interpolation, TerrainModel};
+use terrastitch::TileId;
+
+/// The ten Monaco tiles.
+const TILES: [(u32, u32); 10] = [
+    (8527, 5973),
+    (8528, 5973),
+    (8529, 5973),
+    (8530, 5973),
+    (8531, 5973),
+    (8527, 5974),
+    (8528, 5974),
+    (8529, 5974),
+    (8530, 5974),
+    (8531, 5974),
+];
+
+/// Every structure group of the sample settled as the renderer settles it.
+fn settle_all(sources: &Sources) -> Vec<Settled> {
+    let tile = TileId {
+        z: 14,
+        x: 8529,
+        y: 5973,
+    };
+    let mosaic = sources.mosaic(tile).expect("srtm");
+    let terrain = TerrainModel::new(&mosaic, Interpolation::default(), 14);
+    let margin = MeshSettings::default().max_error_m;
+    sources
+        .osm
+        .structures()
+        .iter()
+        .map(|group| {
+            settle(
+                group,
+                &sources.osm.data().ways,
+                &terrain,
+                &Projection::new(14),
+                &FeatureSettings::default(),
+                margin,
+            )
+        })
+        .collect()
+}
+
+/// Where a bridge crosses a way, the underside of its deck in the tile is above the ground
+/// drawn there by at least the clearance (`maxheight` of the way below, else the default
+/// for what it carries), unless the LP reported that clearance violated. No vertex of a
+/// tunnel's floor or lining is above the ground over it.
+#[test]
+fn bridges_clear_what_they_cross_and_tunnels_stay_under_the_ground() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let ways = &sources.osm.data().ways;
+    let groups = sources.osm.structures();
+    let settled = settle_all(&sources);
+    let projection = Projection::new(14);
+    let (mut crossings, mut reported, mut tunnel_vertices) = (0, 0, 0);
+    let mut closest = f64::INFINITY;
+    for (x, y) in TILES {
+        let name = format!("14/{x}/{y}");
+        let tile = decode(&common::render_in_process(&name, &[], dir.path()));
+        let id = TileId { z: 14, x, y };
+        let frame = id.frame();
+        let size = tile.tile_size();
+        let elevation = |y: f64, z: f64| y / frame.scale_at(z);
+        let ground = GroundLocator::new(
+            GROUND_NODES
+                .iter()
+                .flat_map(|n| corners(tile.primitives(n)))
+                .collect(),
+            size,
+        );
+        // Deck triangles by OSM way.
+        let mut decks: HashMap<i64, Vec<[[f64; 3]; 3]>> = HashMap::new();
+        for primitive in tile.primitives("bridge") {
+            if !primitive.material.starts_with("bridge_deck") {
+                continue;
+            }
+            for t in primitive.triangles() {
+                let way = tile.features[primitive.feature_ids[t[0]] as usize].osm_id;
+                decks
+                    .entry(way)
+                    .or_default()
+                    .push(t.map(|i| primitive.positions[i].map(f64::from)));
+            }
+        }
+        let margin = 2.0 / size;
+        for (group, settled) in groups.iter().zip(&settled) {
+            for crossing in &group.crossings {
+                let chain = &group.chains[crossing.chain as usize];
+                let Crossed::Way(below) = crossing.other else {
+                    continue;
+                };
+                if chain.kind != StructureKind::Bridge {
+                    continue;
+                }
+                let below = &ways[below as usize];
+                let Some(clearance) = tags::clearance_over_m(&below.tags) else {
+                    continue;
+                };
+                let below_layer = below
+                    .tags
+                    .get("layer")
+                    .and_then(|l| l.parse::<i32>().ok())
+                    .unwrap_or(0);
+                if below_layer >= chain.layer {
+                    continue;
+                }
+                let k = crossing.segment as usize;
+                let (a, b) = (
+                    projection.point(chain.positions[k]),
+                    projection.point(chain.positions[k + 1]),
+                );
+                let t = crossing.t;
+                let at = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+                let inside = |c: f64, lo: u32| {
+                    c > f64::from(lo) + margin && c < f64::from(lo) + 1.0 - margin
+                };
+                if !inside(at[0], x) || !inside(at[1], y) {
+                    continue;
+                }
+                let upper = &ways[chain.ways[chain.segment_way[k] as usize].way as usize];
+                let (lx, lz) = frame.uv_to_local(at[0], at[1]);
+                let Some(deck) = decks.get(&upper.id) else {
+                    panic!(
+                        "{name}: bridge way {} crosses way {} here but has no deck",
+                        upper.id, below.id
+                    );
+                };
+                let top = GroundLocator::new(deck.clone(), size)
+                    .heights_at(lx, lz, 1e-6)
+                    .into_iter()
+                    .fold(f64::NEG_INFINITY, f64::max);
+                let under = ground
+                    .heights_at(lx, lz, 1e-6)
+                    .into_iter()
+                    .fold(f64::NEG_INFINITY, f64::max);
+                if !top.is_finite() || !under.is_finite() {
+                    continue; // the ground is cut out under a building here
+                }
+                let free =
+                    elevation(top, lz) - tags::deck_thickness_m(&upper.tags) - elevation(under, lz);
+                let violated = settled.violations(0.01).any(|v| {
+                    v.kind == ConstraintKind::Clearance
+                        && v.way == upper.id
+                        && (v.at[0] - at[0]).hypot(v.at[1] - at[1]) * size < 1.0
+                });
+                if violated {
+                    reported += 1;
+                    continue;
+                }
+                assert!(
+                    free >= clearance - 0.01,
+                    "{name}: bridge way {} leaves {free:.2} m over way {} ({:?}), {clearance} m asked",
+                    upper.id,
+                    below.id,
+                    below.tags
+                );
+                closest = closest.min(free - clearance);
+                crossings += 1;
+            }
+        }
+        for primitive in tile.primitives("tunnel") {
+            if primitive.material == "tunnel_portal" {
+                continue;
+            }
+            for (k, p) in primitive.positions.iter().enumerate() {
+                let (px, py, pz) = (f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+                let over = ground
+                    .heights_at(px, pz, 1e-6)
+                    .into_iter()
+                    .fold(f64::INFINITY, f64::min);
+                if !over.is_finite() {
+                    continue;
+                }
+                let feature = &tile.features[primitive.feature_ids[k] as usize];
+                assert!(
+                    elevation(py, pz) <= elevation(over, pz) + 0.01,
+                    "{name}: tunnel way {} ({}) at {p:?} is {:.2} m above the ground",
+                    feature.osm_id,
+                    primitive.material,
+                    elevation(py, pz) - elevation(over, pz)
+                );
+                tunnel_vertices += 1;
+            }
+        }
+    }
+    eprintln!(
+        "{crossings} crossings cleared (closest {closest:.2} m beyond the clearance), {reported} reported violated; {tunnel_vertices} tunnel vertices under the ground"
+    );
+    assert!(crossings >= 20, "only {crossings} crossings checked");
+    assert!(
+        tunnel_vertices >= 1000,
+        "only {tunnel_vertices} tunnel vertices checked"
+    );
+}
+
+/// Along every settled bridge and tunnel, no grade is steeper than its class allows unless
+/// a violation of that bound was reported for the way; a summary of what was reported.
+#[test]
+fn grades_keep_to_the_class_maximum_unless_reported() {
+    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let ways = &sources.osm.data().ways;
+    let settled = settle_all(&sources);
+    let mut by_kind: BTreeMap<ConstraintKind, usize> = BTreeMap::new();
+    let (mut segments, mut steep) = (0, 0);
+    for group in &settled {
+        assert_eq!(group.failed, 0);
+        for report in group.violations(0.01) {
+            *by_kind.entry(report.kind).or_default() += 1;
+        }
+        for profile in &group.profiles {
+            for i in 0..profile.points.len() - 1 {
+                let way = &ways[profile.ways[i] as usize];
+                let run = profile.along_m[i + 1] - profile.along_m[i];
+                let Some(max) = tags::max_incline(&way.tags) else {
+                    continue;
+                };
+                if run <= 0.0 {
+                    continue;
+                }
+                segments += 1;
+                let grade = (profile.elevations[i + 1] - profile.elevations[i]).abs() / run;
+                if grade <= max + 1e-3 {
+                    continue;
+                }
+                steep += 1;
+                let reported = group.violations(0.001).any(|v| {
+                    matches!(
+                        v.kind,
+                        ConstraintKind::MaxIncline | ConstraintKind::TaggedIncline
+                    ) && v.way == way.id
+                });
+                assert!(
+                    reported,
+                    "way {} rises {grade:.3} per metre, over its {max}, unreported",
+                    way.id
+                );
+            }
+        }
+    }
+    eprintln!("{segments} segments, {steep} steeper than their class allows (all reported); violations by kind: {by_kind:?}");
+    assert!(segments > 1000);
+}
+
+/// The debug view shows the settled structures of a tile with their connectors and
+/// constraints; rendering a tile counts its LP in `/metrics`; bad debug paths are JSON errors.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_debug_view_shows_connectors_and_constraints() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let server = common::TestServer::start(&dir.path().join("cache.sqlite")).await;
+    let response = reqwest::get(server.url("/debug/tiles/14/8530/5973.geojson"))
+        .await
+        .expect("request reaches the server");
+    assert_eq!(response.status(), 200);
+    assert_eq!(response.headers()["content-type"], "application/geo+json");
+    let view: serde_json::Value = response.json().await.expect("GeoJSON");
+    assert_eq!(view["type"], "FeatureCollection");
+    assert!(
+        view["lp"]["variables"].as_u64().unwrap_or(0) > 100,
+        "{}",
+        view["lp"]
+    );
+    let features = view["features"].as_array().expect("features");
+    let count = |layer: &str| {
+        features
+            .iter()
+            .filter(|f| f["properties"]["layer"] == layer)
+            .count()
+    };
+    assert!(count("structure") > 10);
+    assert!(count("connector") > count("structure"));
+    assert!(count("constraint") > 100);
+    // Every constraint tells whether it holds, and the count of those that do not matches.
+    let violated = features
+        .iter()
+        .filter(|f| f["properties"]["layer"] == "constraint")
+        .filter(|f| f["properties"]["satisfied"] == false)
+        .count();
+    assert_eq!(Some(violated as u64), view["lp"]["violated"].as_u64());
+    // Grounded ends sit at the terrain.
+    for f in features
+        .iter()
+        .filter(|f| f["properties"]["connector"] == "ground")
+    {
+        let p = &f["properties"];
+        assert_eq!(p["elevation_m"], p["terrain_m"], "{p}");
+    }
+
+    for (path, status) in [
+        ("/debug/tiles/14/8530/5973.json", 400),
+        ("/debug/tiles/14/abc/5973.geojson", 400),
+        ("/debug/tiles/13/4265/2986.geojson", 404),
+    ] {
+        let response = reqwest::get(server.url(path)).await.expect("request");
+        assert_eq!(response.status(), status, "{path}");
+        let body: serde_json::Value = response.json().await.expect("a JSON error");
+        assert!(body["error"].is_string(), "{body}");
+    }
+
+    let response = reqwest::get(server.url("/tiles/14/8530/5973.glb"))
+        .await
+        .expect("request");
+    assert_eq!(response.status(), 200);
+    // (The body read, so the connection is free and the server can stop.)
+    assert!(!response.bytes().await.expect("body").is_empty());
+    assert!(server.metric("terrastitch_lp_components_total").await > 10.0);
+    server.stop().await;
+}
