@@ -189,6 +189,7 @@ fn render(args: RenderArgs) -> Result<()> {
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1000.0;
         eprintln!("load           {:8.1} ms", ms(load));
         eprintln!("features       {:8.1} ms", ms(t.features));
+        eprintln!("structures     {:8.1} ms", ms(t.structures));
         eprintln!("triangulation  {:8.1} ms", ms(t.triangulation));
         eprintln!("terrain        {:8.1} ms", ms(t.terrain));
         eprintln!("elevation      {:8.1} ms", ms(t.elevation));
@@ -212,6 +213,10 @@ fn render(args: RenderArgs) -> Result<()> {
             s.trees,
             s.objects,
             s.features_by_class
+        );
+        eprintln!(
+            "elevation LP: {} variables, {} constraints, {} components, {} soft constraints violated",
+            s.lp_variables, s.lp_constraints, s.lp_components, s.lp_violations
         );
     }
     Ok(())

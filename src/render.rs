@@ -50,6 +50,8 @@ pub enum RenderError {
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageTimings {
     pub features: Duration,
+    /// Bridges and tunnels settled by the LP, and the ground they reshape.
+    pub structures: Duration,
     pub triangulation: Duration,
     pub terrain: Duration,
     pub elevation: Duration,
@@ -58,7 +60,12 @@ pub struct StageTimings {
 
 impl StageTimings {
     pub fn total(&self) -> Duration {
-        self.features + self.triangulation + self.terrain + self.elevation + self.glb
+        self.features
+            + self.structures
+            + self.triangulation
+            + self.terrain
+            + self.elevation
+            + self.glb
     }
 }
 
@@ -133,6 +140,8 @@ struct Prepared<'a> {
     structure_features: HashMap<u32, u32>,
     /// The ground tunnels reshape: their approach cuts and the ground raised over them.
     cuts: Vec<elevation::settled::Level>,
+    /// Roads and junctions, level across.
+    roads: elevation::roads::RoadLevels,
     /// Every way of the data, for the structures' indices.
     all_ways: &'a [crate::osm::Way],
     feature_settings: FeatureSettings,
@@ -173,15 +182,19 @@ fn prepare<'a>(
         &settings.features,
         margin,
     );
-    timings.elevation = started.elapsed();
+    timings.structures = started.elapsed();
 
     let started = Instant::now();
     // Water areas lie flat at the level of their lowest shore.
     let water = elevation::water::levels(&feature_set, &terrain, frame.size_m);
+    // Roads level across their width, junctions level.
+    let cut_surfaces: Vec<u32> = cuts.iter().map(|c| c.surface).collect();
+    let roads = elevation::roads::levels(&feature_set, &terrain, frame.size_m, &cut_surfaces);
     let settled = elevation::settled::Ground {
         terrain: &terrain,
         water: &water,
         cuts: &cuts,
+        roads: &roads,
     };
     let mut ground = ground::triangulate(
         &frame,
@@ -191,21 +204,27 @@ fn prepare<'a>(
         &settled,
     )?;
     let levels: Vec<&elevation::settled::Level> = water.iter().chain(&cuts).collect();
-    elevation::settled::flatten(&mut ground, &levels, &frame);
+    elevation::settled::flatten(&mut ground, &levels, &roads, &frame);
     timings.triangulation = started.elapsed();
 
-    // Normals from the terrain's gradient at each vertex: a function of global data, so a
-    // vertex on a shared edge gets the same normal in both tiles.
+    // Normals from the settled ground's gradient at each vertex, from the terrain's on the
+    // tile's edges (a function of global data, so a vertex on a shared edge gets the same
+    // normal in both tiles).
     let started = Instant::now();
     let normal_step = NORMAL_STEP_M * 2f64.powi(i32::from(NORMAL_STEP_ZOOM.saturating_sub(tile.z)));
-    let height_at = |x: f64, z: f64| {
-        let (u, v) = frame.local_to_uv(x, z);
-        frame.elevation_to_y(settled.elevation_uv([u, v]), z)
-    };
+    // A vertex on the tile's edge takes the terrain's normal: the settled ground beyond the
+    // edge depends on features this tile does not hold, the terrain does not.
+    let size = frame.size_m;
     let normals: Vec<[f64; 3]> = ground
         .vertices
         .iter()
         .map(|&[x, z]| {
+            let on_edge = x == 0.0 || z == 0.0 || x == size || z == size;
+            let model: &dyn Elevation = if on_edge { &terrain } else { &settled };
+            let height_at = |x: f64, z: f64| {
+                let (u, v) = frame.local_to_uv(x, z);
+                frame.elevation_to_y(model.elevation_uv([u, v]), z)
+            };
             let h = normal_step;
             let dy_dx = (height_at(x + h, z) - height_at(x - h, z)) / (2.0 * h);
             let dy_dz = (height_at(x, z + h) - height_at(x, z - h)) / (2.0 * h);
@@ -220,6 +239,7 @@ fn prepare<'a>(
         structures,
         structure_features,
         cuts,
+        roads,
         all_ways: selection.all_ways,
         feature_settings: settings.features.clone(),
         surface_margin_m: margin,
@@ -298,6 +318,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         structures,
         structure_features,
         cuts,
+        roads,
         all_ways,
         feature_settings,
         surface_margin_m,
@@ -360,6 +381,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         terrain,
         water,
         cuts,
+        roads,
     };
     let solids = mesh::buildings::solids(
         &feature_set.buildings,
@@ -409,7 +431,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         &vertex_y,
         frame,
     );
-    timings.elevation += started.elapsed();
+    timings.elevation = started.elapsed();
 
     let started = Instant::now();
     let description = glb::TileDescription {

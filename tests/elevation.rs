@@ -141,3 +141,188 @@ fn water_lies_flat_and_meets_its_shore_and_waterways_run_down() {
     assert!(shores > 100, "{shores} shore vertices");
     assert!(waterways >= 1, "{waterways} waterways");
 }
+
+/// Every cross-section of a road drawn by the network (the left and right corners of each
+/// piece, where the mesh has vertices) is level within 1 cm, and every junction is level
+/// within 1 cm — except where a corner is shared with water (the water's level wins there) or
+/// lies on the tile's edge.
+#[test]
+fn roads_are_level_across_and_junctions_level() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let (mut sections, mut junctions, mut tilted, mut tilted_junctions) = (0, 0, 0, 0);
+    for (x, y) in TILES {
+        let name = format!("14/{x}/{y}");
+        let tile = decode(&common::render_in_process(&name, &[], dir.path()));
+        let id = TileId { z: 14, x, y };
+        let frame = id.frame();
+        let size = tile.tile_size() as f32;
+        let key = |x: f32, z: f32| [x.to_bits(), z.to_bits()];
+        // Elevation of every road vertex, and the positions water holds.
+        let mut road: HashMap<[u32; 2], f64> = HashMap::new();
+        let mut owners: HashMap<[u32; 2], std::collections::BTreeSet<u32>> = HashMap::new();
+        for primitive in tile.primitives("road") {
+            for (&p, &feature) in primitive.positions.iter().zip(&primitive.feature_ids) {
+                let e = f64::from(p[1]) / frame.scale_at(f64::from(p[2]));
+                road.insert(key(p[0], p[2]), e);
+                owners.entry(key(p[0], p[2])).or_default().insert(feature);
+            }
+        }
+        let wet: std::collections::HashSet<[u32; 2]> = tile
+            .primitives("water")
+            .iter()
+            .flat_map(|p| p.positions.iter().map(|q| key(q[0], q[2])))
+            .collect();
+        // Where a tunnel runs under a road too shallow for its roof, the ground over the tube
+        // is raised and the road with it.
+        let mut near_tunnels = common::corners(tile.primitives("tunnel"));
+        // The approach cuts: road triangles of tunnel ways.
+        for primitive in tile.primitives("road") {
+            for t in primitive.triangles() {
+                let row = &tile.features[primitive.feature_ids[t[0]] as usize];
+                if row.tags.contains_key("tunnel") {
+                    near_tunnels.push(t.map(|i| primitive.positions[i].map(f64::from)));
+                }
+            }
+        }
+        let tubes = common::GroundLocator::new(near_tunnels, f64::from(size));
+        let over_tube = |x: f64, z: f64| {
+            [[0.0, 0.0], [0.8, 0.0], [-0.8, 0.0], [0.0, 0.8], [0.0, -0.8]]
+                .iter()
+                .any(|d| !tubes.heights_at(x + d[0], z + d[1], 1e-6).is_empty())
+        };
+        let at = |p: [f64; 2]| -> Option<f64> {
+            let (lx, lz) = frame.uv_to_local(p[0], p[1]);
+            if over_tube(lx, lz) {
+                return None;
+            }
+            let (lx, lz) = (lx as f32, lz as f32);
+            // A vertex two roads (or a road and its junction) share takes one of their levels.
+            let shared = owners.get(&key(lx, lz)).is_some_and(|o| o.len() > 1);
+            if lx <= 0.0
+                || lz <= 0.0
+                || lx >= size
+                || lz >= size
+                || wet.contains(&key(lx, lz))
+                || shared
+            {
+                return None;
+            }
+            road.get(&key(lx, lz)).copied()
+        };
+        let at_junction = |p: [f64; 2]| -> Option<f64> {
+            let (lx, lz) = frame.uv_to_local(p[0], p[1]);
+            if over_tube(lx, lz) {
+                return None;
+            }
+            let (lx, lz) = (lx as f32, lz as f32);
+            if lx <= 0.0 || lz <= 0.0 || lx >= size || lz >= size || wet.contains(&key(lx, lz)) {
+                return None;
+            }
+            road.get(&key(lx, lz)).copied()
+        };
+        let set = features::collect(&sources.selection(id), id, &Default::default());
+        for surface in &set.surfaces {
+            if surface.junction_at.is_some() {
+                // Corners another junction also holds (junctions close enough to touch) take
+                // one of their levels.
+                let shared = |c: [f64; 2]| {
+                    set.surfaces
+                        .iter()
+                        .filter(|o| o.junction_at.is_some() && !std::ptr::eq(*o, surface))
+                        .flat_map(|o| &o.pieces)
+                        .any(|q| q.contains(c) || on_outline(q, c))
+                };
+                let corners = || surface.pieces.iter().flat_map(|p| p.outer.iter());
+                let mut heights: Vec<f64> = corners().filter_map(|&c| at_junction(c)).collect();
+                let spread = |h: &[f64]| {
+                    let low = h.iter().copied().fold(f64::INFINITY, f64::min);
+                    h.iter().copied().fold(f64::NEG_INFINITY, f64::max) - low
+                };
+                if heights.len() >= 2 && spread(&heights) >= 0.01 {
+                    heights = corners()
+                        .filter(|&&c| !shared(c))
+                        .filter_map(|&c| at_junction(c))
+                        .collect();
+                }
+                if heights.len() >= 2 {
+                    let low = heights.iter().copied().fold(f64::INFINITY, f64::min);
+                    let high = heights.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    if high - low < 0.01 {
+                        junctions += 1;
+                    } else {
+                        tilted_junctions += 1;
+                    }
+                }
+                continue;
+            }
+            for (k, piece) in surface.pieces.iter().enumerate() {
+                // Pieces of a way drawn by the network are quads: left[i], left[i + 1],
+                // right[i + 1], right[i] (squares drawn as areas are not).
+                let Some(stretch) = surface.piece_lines.iter().find(|(r, _)| r.contains(&k)) else {
+                    continue;
+                };
+                let stretch = Some(stretch);
+                let [l0, l1, r1, r0] = [0, 1, 2, 3].map(|k| piece.outer[k]);
+                // Where another stretch of road overlaps this one (arms meeting at a sharp
+                // angle), a point takes one of their levels.
+                let overlapped = |c: [f64; 2]| {
+                    set.surfaces
+                        .iter()
+                        .filter(|o| o.class == features::FeatureClass::Road)
+                        .flat_map(|o| {
+                            o.pieces.iter().enumerate().filter(move |(m, _)| {
+                                !(std::ptr::eq(o, surface)
+                                    && stretch.is_some_and(|(r, _)| r.contains(m)))
+                            })
+                        })
+                        .any(|(_, q)| q.contains(c) || on_outline(q, c))
+                };
+                for (l, r) in [(l0, r0), (l1, r1)] {
+                    if let (Some(a), Some(b)) = (at(l), at(r)) {
+                        if (a - b).abs() >= 0.01 && (overlapped(l) || overlapped(r)) {
+                            continue;
+                        }
+                        if (a - b).abs() >= 0.01 {
+                            tilted += 1;
+                            continue;
+                        }
+                        assert!(
+                            (a - b).abs() < 0.01,
+                            "{name}: a cross-section of way {:?} tilts {:.3} m",
+                            set.features[surface.feature as usize].element,
+                            a - b
+                        );
+                        sections += 1;
+                    }
+                }
+            }
+        }
+    }
+    eprintln!(
+        "{sections} road cross-sections and {junctions} junctions level, {tilted} and {tilted_junctions} not"
+    );
+    assert!(sections > 1000, "{sections} cross-sections");
+    assert!(junctions > 100, "{junctions} junctions");
+    // Not quite all: on a bend folded so tightly that a cross-section touches another, its
+    // corners take two stations, and a vertex the triangulation put a hair from the water's
+    // outline keeps the water's level (a handful on these tiles).
+    assert!(
+        tilted * 1000 < sections,
+        "{tilted} of {sections} cross-sections tilted"
+    );
+    assert!(
+        tilted_junctions * 200 < junctions,
+        "{tilted_junctions} of {junctions} junctions tilted"
+    );
+}
+
+/// True when `c` lies on a polygon's outline (within a few micrometres).
+fn on_outline(polygon: &terrastitch::geometry::Polygon, c: [f64; 2]) -> bool {
+    polygon.rings().any(|ring| {
+        (0..ring.len()).any(|i| {
+            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+            terrastitch::geometry::distance_to_segment(c, a, b) < 1e-9
+        })
+    })
+}

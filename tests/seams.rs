@@ -55,8 +55,33 @@ fn edge(tile: &DecodedTile, side: &str) -> BTreeSet<(u32, u32, [u32; 3])> {
     vertices
 }
 
+/// Vertices of bridges and tunnels on one side of a tile, as bit patterns of (y, along):
+/// a deck or tube crossing the edge is cut at the same points in both tiles.
+fn structure_edge(tile: &DecodedTile, side: &str) -> BTreeSet<(u32, u32)> {
+    let size = tile.tile_size() as f32;
+    let mut vertices = BTreeSet::new();
+    for node in ["bridge", "tunnel"] {
+        for primitive in tile.primitives(node) {
+            for p in &primitive.positions {
+                let (on_side, along) = match side {
+                    "west" => (p[0] == 0.0, p[2]),
+                    "east" => (p[0] == size, p[2]),
+                    "north" => (p[2] == 0.0, p[0]),
+                    "south" => (p[2] == size, p[0]),
+                    _ => unreachable!(),
+                };
+                if on_side {
+                    vertices.insert((p[1].to_bits(), along.to_bits()));
+                }
+            }
+        }
+    }
+    vertices
+}
+
 fn check_pairs(tiles: &BTreeMap<(u32, u32), DecodedTile>) -> usize {
     let mut pairs = 0;
+    let mut structure_vertices = 0;
     for (&(x, y), tile) in tiles {
         for (neighbour, mine, theirs) in
             [((x + 1, y), "east", "west"), ((x, y + 1), "south", "north")]
@@ -83,9 +108,22 @@ fn check_pairs(tiles: &BTreeMap<(u32, u32), DecodedTile>) -> usize {
                 only_a,
                 only_b
             );
+            let (a, b) = (structure_edge(tile, mine), structure_edge(other, theirs));
+            assert!(
+                a == b,
+                "14/{x}/{y} {mine} edge's bridges and tunnels ({} vertices) differ from 14/{}/{}'s ({}): only in the first {:?}, only in the second {:?}",
+                a.len(),
+                neighbour.0,
+                neighbour.1,
+                b.len(),
+                a.difference(&b).take(3).collect::<Vec<_>>(),
+                b.difference(&a).take(3).collect::<Vec<_>>()
+            );
+            structure_vertices += a.len();
             pairs += 1;
         }
     }
+    eprintln!("{structure_vertices} bridge and tunnel vertices on shared edges");
     pairs
 }
 

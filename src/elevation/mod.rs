@@ -2,6 +2,7 @@
 //! constraints between them, and one robust LP ([`lp`]) chooses every elevation at once.
 
 pub mod lp;
+pub mod roads;
 pub mod settled;
 pub mod structures;
 pub mod water;

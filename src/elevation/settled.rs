@@ -2,6 +2,7 @@
 //! terrain (water lying flat, a cut down to a tunnel's portal, ground raised over a tunnel's
 //! roof), and the ground model that puts them together.
 
+use super::roads::RoadLevels;
 use crate::geometry::{distance_to_segment, Point, Polygon, Rect};
 use crate::terrain::Elevation;
 
@@ -34,27 +35,125 @@ pub enum Rule {
         /// Distance along the line (tile units) and elevation, by distance.
         profile: Vec<(f64, f64)>,
     },
+    /// The profile's elevation at the point's station across a strip of quads (a road level
+    /// across its width).
+    Across {
+        sections: Sections,
+        /// Distance along the sections' midpoints (tile units) and elevation.
+        profile: Vec<(f64, f64)>,
+    },
 }
 
 impl Rule {
     pub fn elevation(&self, p: Point) -> f64 {
         match self {
             Rule::Level(level) => *level,
-            Rule::Along { stations, profile } => {
-                let along = stations.at(p);
-                let k = profile.partition_point(|&(s, _)| s <= along);
-                match (
-                    k.checked_sub(1).and_then(|i| profile.get(i)),
-                    profile.get(k),
-                ) {
-                    (Some(&(s0, h0)), Some(&(s1, h1))) if s1 > s0 => {
-                        h0 + (h1 - h0) * (along - s0) / (s1 - s0)
-                    }
-                    (Some(&(_, h)), _) | (None, Some(&(_, h))) => h,
-                    (None, None) => 0.0,
+            Rule::Along { stations, profile } => at_station(profile, stations.at(p)),
+            Rule::Across { sections, profile } => at_station(profile, sections.at(p)),
+        }
+    }
+}
+
+/// A profile's elevation at a station, interpolated.
+fn at_station(profile: &[(f64, f64)], along: f64) -> f64 {
+    let k = profile.partition_point(|&(s, _)| s <= along);
+    match (
+        k.checked_sub(1).and_then(|i| profile.get(i)),
+        profile.get(k),
+    ) {
+        (Some(&(s0, h0)), Some(&(s1, h1))) if s1 > s0 => h0 + (h1 - h0) * (along - s0) / (s1 - s0),
+        (Some(&(_, h)), _) | (None, Some(&(_, h))) => h,
+        (None, None) => 0.0,
+    }
+}
+
+/// Stations over a strip of quads between cross-sections (a road widened from its line): a
+/// point in the quad between sections `k` and `k + 1` lies at the share of the way given by
+/// its distances to the two, so every point of a cross-section has the same station however
+/// tight the bend (where bisector bands of the centre line would cross inside the strip).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sections {
+    /// Each cross-section's two ends.
+    sections: Vec<(Point, Point)>,
+    /// The station of each section: the distance along the line through their midpoints.
+    starts: Vec<f64>,
+}
+
+impl Sections {
+    /// The sections of quads given as `[left_k, left_k+1, right_k+1, right_k]`, in order along
+    /// the strip. `None` if a quad does not continue the one before.
+    pub fn from_quads(quads: &[Polygon]) -> Option<Sections> {
+        let mut sections: Vec<(Point, Point)> = Vec::with_capacity(quads.len() + 1);
+        for quad in quads {
+            let [l0, l1, r1, r0] = <[Point; 4]>::try_from(quad.outer.as_slice()).ok()?;
+            match sections.last() {
+                Some(&last) if last != (l0, r0) => return None,
+                Some(_) => {}
+                None => sections.push((l0, r0)),
+            }
+            sections.push((l1, r1));
+        }
+        let mid = |(a, b): (Point, Point)| [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
+        let mut starts = Vec::with_capacity(sections.len());
+        let mut along = 0.0;
+        for k in 0..sections.len() {
+            if k > 0 {
+                let (a, b) = (mid(sections[k - 1]), mid(sections[k]));
+                along += (b[0] - a[0]).hypot(b[1] - a[1]);
+            }
+            starts.push(along);
+        }
+        (sections.len() >= 2).then_some(Sections { sections, starts })
+    }
+
+    /// The line through the sections' midpoints.
+    pub fn centre_line(&self) -> Vec<Point> {
+        self.sections
+            .iter()
+            .map(|(a, b)| [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0])
+            .collect()
+    }
+
+    /// The station of `p`: in the quad that holds it (the nearest, for a point just outside).
+    pub fn at(&self, p: Point) -> f64 {
+        // On a cross-section (a quad on the inside of a tight bend may fold over its
+        // neighbour, so the quad that holds a point there is ambiguous).
+        if let Some(k) = (0..self.sections.len()).find(|&k| {
+            let (l, r) = self.sections[k];
+            distance_to_segment(p, l, r) <= ON_OUTLINE
+        }) {
+            return self.starts[k];
+        }
+        let mut best: Option<(f64, f64)> = None;
+        for k in 0..self.sections.len() - 1 {
+            let (l0, r0) = self.sections[k];
+            let (l1, r1) = self.sections[k + 1];
+            let quad = Polygon {
+                outer: vec![l0, l1, r1, r0],
+                holes: Vec::new(),
+            };
+            let d0 = distance_to_segment(p, l0, r0);
+            let d1 = distance_to_segment(p, l1, r1);
+            let share = if d0 + d1 > 0.0 { d0 / (d0 + d1) } else { 0.0 };
+            let along = self.starts[k] + share * (self.starts[k + 1] - self.starts[k]);
+            let outside = if quad.contains(p) {
+                0.0
+            } else {
+                quad.rings()
+                    .flat_map(|ring| {
+                        (0..ring.len()).map(move |i| (ring[i], ring[(i + 1) % ring.len()]))
+                    })
+                    .map(|(a, b)| distance_to_segment(p, a, b))
+                    .fold(f64::INFINITY, f64::min)
+            };
+            if best.is_none_or(|(d, _)| outside < d) {
+                best = Some((outside, along));
+                if outside == 0.0 {
+                    break;
                 }
             }
         }
+        best.map_or(0.0, |(_, along)| along)
     }
 }
 
@@ -73,6 +172,14 @@ pub struct Stations {
 
 impl Stations {
     pub fn new(line: &[Point]) -> Stations {
+        // A repeated point would make a band of no length that takes in everything.
+        let mut distinct: Vec<Point> = Vec::with_capacity(line.len());
+        for &p in line {
+            if distinct.last() != Some(&p) {
+                distinct.push(p);
+            }
+        }
+        let line = distinct.as_slice();
         let n = line.len();
         let unit = |d: Point| {
             let length = d[0].hypot(d[1]);
@@ -143,6 +250,8 @@ const CELLS: usize = 48;
 #[derive(Debug, Clone)]
 struct CellIndex {
     bounds: Rect,
+    /// Cells per side: more for outlines of more segments, at most [`CELLS`].
+    side: usize,
     cells: Vec<Cell>,
 }
 
@@ -150,8 +259,9 @@ struct CellIndex {
 enum Cell {
     Inside,
     Outside,
-    /// Segments of the outline near the cell: `(a, b)` pairs.
-    Crossed(Vec<(Point, Point)>),
+    /// Segments of the outline near the cell (`(a, b)` pairs) and the pieces whose bounds
+    /// meet it.
+    Crossed(Vec<(Point, Point)>, Vec<u32>),
 }
 
 impl CellIndex {
@@ -160,58 +270,82 @@ impl CellIndex {
             min: [bounds.min[0] - ON_OUTLINE, bounds.min[1] - ON_OUTLINE],
             max: [bounds.max[0] + ON_OUTLINE, bounds.max[1] + ON_OUTLINE],
         };
+        let segments: usize = pieces.iter().flat_map(Polygon::rings).map(Vec::len).sum();
+        let side = ((segments as f64).sqrt().ceil() as usize * 2).clamp(4, CELLS);
         let size = [
-            (bounds.max[0] - bounds.min[0]) / CELLS as f64,
-            (bounds.max[1] - bounds.min[1]) / CELLS as f64,
+            (bounds.max[0] - bounds.min[0]) / side as f64,
+            (bounds.max[1] - bounds.min[1]) / side as f64,
         ];
-        let mut crossed: Vec<Vec<(Point, Point)>> = vec![Vec::new(); CELLS * CELLS];
+        let cell_span = |lo: f64, hi: f64, axis: usize| {
+            let cell = |v: f64| {
+                (((v - bounds.min[axis]) / size[axis]).floor().max(0.0) as usize).min(side - 1)
+            };
+            cell(lo)..=cell(hi)
+        };
+        let mut crossed: Vec<Vec<(Point, Point)>> = vec![Vec::new(); side * side];
+        let mut touching: Vec<Vec<u32>> = vec![Vec::new(); side * side];
+        for (k, piece) in pieces.iter().enumerate() {
+            let b = piece.bounds();
+            for row in cell_span(b.min[1], b.max[1], 1) {
+                for column in cell_span(b.min[0], b.max[0], 0) {
+                    touching[row * side + column].push(k as u32);
+                }
+            }
+        }
         for ring in pieces.iter().flat_map(Polygon::rings) {
             for i in 0..ring.len() {
                 let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
                 let span = |axis: usize| {
-                    let lo = a[axis].min(b[axis]) - ON_OUTLINE - bounds.min[axis];
-                    let hi = a[axis].max(b[axis]) + ON_OUTLINE - bounds.min[axis];
-                    let cell = |v: f64| ((v / size[axis]).floor().max(0.0) as usize).min(CELLS - 1);
-                    cell(lo)..=cell(hi)
+                    cell_span(
+                        a[axis].min(b[axis]) - ON_OUTLINE,
+                        a[axis].max(b[axis]) + ON_OUTLINE,
+                        axis,
+                    )
                 };
                 for row in span(1) {
                     for column in span(0) {
-                        crossed[row * CELLS + column].push((a, b));
+                        crossed[row * side + column].push((a, b));
                     }
                 }
             }
         }
         let cells = crossed
             .into_iter()
+            .zip(touching)
             .enumerate()
-            .map(|(k, segments)| {
+            .map(|(k, (segments, near))| {
                 if !segments.is_empty() {
-                    return Cell::Crossed(segments);
+                    return Cell::Crossed(segments, near);
                 }
                 // No outline in the cell: its centre tells for all of it.
                 let centre = [
-                    bounds.min[0] + ((k % CELLS) as f64 + 0.5) * size[0],
-                    bounds.min[1] + ((k / CELLS) as f64 + 0.5) * size[1],
+                    bounds.min[0] + ((k % side) as f64 + 0.5) * size[0],
+                    bounds.min[1] + ((k / side) as f64 + 0.5) * size[1],
                 ];
-                if pieces.iter().any(|piece| piece.contains(centre)) {
+                if near.iter().any(|&i| pieces[i as usize].contains(centre)) {
                     Cell::Inside
                 } else {
                     Cell::Outside
                 }
             })
             .collect();
-        CellIndex { bounds, cells }
+        CellIndex {
+            bounds,
+            side,
+            cells,
+        }
     }
 
     fn cell(&self, p: Point) -> Option<&Cell> {
         if !self.bounds.contains(p) {
             return None;
         }
+        let side = self.side;
         let index = |axis: usize| {
-            let size = (self.bounds.max[axis] - self.bounds.min[axis]) / CELLS as f64;
-            (((p[axis] - self.bounds.min[axis]) / size).floor().max(0.0) as usize).min(CELLS - 1)
+            let size = (self.bounds.max[axis] - self.bounds.min[axis]) / side as f64;
+            (((p[axis] - self.bounds.min[axis]) / size).floor().max(0.0) as usize).min(side - 1)
         };
-        self.cells.get(index(1) * CELLS + index(0))
+        self.cells.get(index(1) * side + index(0))
     }
 }
 
@@ -251,11 +385,11 @@ impl Level {
         match self.cells.cell(p) {
             None | Some(Cell::Outside) => false,
             Some(Cell::Inside) => true,
-            Some(Cell::Crossed(segments)) => {
+            Some(Cell::Crossed(segments, near)) => {
                 segments
                     .iter()
                     .any(|&(a, b)| distance_to_segment(p, a, b) <= ON_OUTLINE)
-                    || self.pieces.iter().any(|piece| piece.contains(p))
+                    || near.iter().any(|&i| self.pieces[i as usize].contains(p))
             }
         }
     }
@@ -269,6 +403,7 @@ impl Level {
 pub fn flatten(
     ground: &mut crate::mesh::ground::Ground,
     levels: &[&Level],
+    roads: &RoadLevels,
     frame: &crate::tile::TileFrame,
 ) {
     let size_m = frame.size_m;
@@ -279,6 +414,26 @@ pub fn flatten(
         .collect();
     let on_edge = |p: Point| p[0] == 0.0 || p[1] == 0.0 || p[0] == size_m || p[1] == size_m;
     let mut settled: Vec<Option<f64>> = vec![None; ground.vertices.len()];
+    // Roads first: a vertex a road shares with water or a cut takes the water's or the cut's.
+    let road_surfaces: std::collections::HashSet<u32> = roads.surfaces().collect();
+    let mut on_road: Vec<Option<f64>> = vec![None; ground.vertices.len()];
+    for triangle in &ground.triangles {
+        if !triangle.surface.is_some_and(|s| road_surfaces.contains(&s)) {
+            continue;
+        }
+        for &vertex in &triangle.vertices {
+            let slot = &mut on_road[vertex as usize];
+            if slot.is_none() {
+                let [x, z] = ground.vertices[vertex as usize];
+                let (u, v) = frame.local_to_uv(x, z);
+                // A vertex on water or in a cut (on its outline, say, next to a twin the
+                // triangulation made a hair away) keeps what the ground model gave it.
+                if !levels.iter().any(|l| !l.at_least && l.covers([u, v])) {
+                    *slot = roads.elevation([u, v]);
+                }
+            }
+        }
+    }
     for triangle in &ground.triangles {
         let Some(rule) = triangle.surface.and_then(|s| rule_of.get(&s)) else {
             continue;
@@ -293,7 +448,7 @@ pub fn flatten(
     }
     let floors: Vec<&&Level> = levels.iter().filter(|l| l.at_least).collect();
     for (v, level) in settled.into_iter().enumerate() {
-        if let Some(level) = level {
+        if let Some(level) = level.or(on_road[v]) {
             let [x, z] = ground.vertices[v];
             let (u, w) = frame.local_to_uv(x, z);
             let raised = floors.iter().any(|f| f.covers([u, w]));
@@ -311,6 +466,8 @@ pub struct Ground<'a> {
     pub water: &'a [Level],
     /// Where tunnels cut into the ground or run under raised ground.
     pub cuts: &'a [Level],
+    /// Roads level across and junctions level.
+    pub roads: &'a RoadLevels,
 }
 
 impl Elevation for Ground<'_> {
@@ -339,10 +496,9 @@ impl Elevation for Ground<'_> {
                 cut = Some(h);
             }
         }
-        match (raised, cut) {
-            (Some(raised), _) => raised.max(self.terrain.elevation_uv(p)),
-            (None, Some(cut)) => cut,
-            (None, None) => self.terrain.elevation_uv(p),
-        }
+        let ground = cut
+            .or_else(|| self.roads.elevation(p))
+            .unwrap_or_else(|| self.terrain.elevation_uv(p));
+        raised.map_or(ground, |raised| raised.max(ground))
     }
 }

@@ -124,6 +124,7 @@ mod tests {
             terrain: &Slope,
             water: &water,
             cuts: &[],
+            roads: &Default::default(),
         };
         // Flat inside and on the outline (the high side too), the terrain outside.
         for p in [[0.15, 0.15], [0.2, 0.15], [0.1, 0.1], [0.2, 0.2]] {

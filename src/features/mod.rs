@@ -129,6 +129,10 @@ pub struct Surface {
     /// The line a surface drawn at a width follows (a waterway's, in the direction it flows),
     /// in global tile units; empty for areas.
     pub centreline: Vec<Point>,
+    /// For a road drawn by the network: the line each run of `pieces` follows.
+    pub piece_lines: Vec<(std::ops::Range<usize>, Vec<Point>)>,
+    /// For a junction: the node it is drawn round.
+    pub junction_at: Option<Point>,
 }
 
 impl Surface {
@@ -157,6 +161,8 @@ impl Surface {
             paving: None,
             embedded: false,
             centreline: Vec::new(),
+            piece_lines: Vec::new(),
+            junction_at: None,
         })
     }
 

@@ -39,6 +39,10 @@ const BEND_RADIUS_PER_HALF_WIDTH: f64 = 3.0;
 pub struct RoadSurface {
     pub pieces: Vec<Polygon>,
     pub outline: Vec<Vec<Point>>,
+    /// The line each run of `pieces` is widened from (a stretch between junctions, from node
+    /// to node before its ends are cut back): the left and right corners of a piece lie on
+    /// the same bisector of it.
+    pub lines: Vec<(std::ops::Range<usize>, Vec<Point>)>,
 }
 
 /// A junction's polygon and the roads that meet there (indices into the network's lines).
@@ -203,6 +207,10 @@ pub fn build(lines: &[RoadLine]) -> Network {
             );
         }
         let surface = &mut network.roads[piece.road];
+        let first = surface.pieces.len();
+        surface
+            .lines
+            .push((first..first + last, piece.points.clone()));
         surface.pieces.extend((0..last).map(|i| Polygon {
             outer: vec![left[i], left[i + 1], right[i + 1], right[i]],
             holes: Vec::new(),

@@ -9,7 +9,7 @@ use std::collections::HashMap;
 
 use super::road_network::{self, RoadLine};
 use super::{Area, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface};
-use crate::geometry::Polygon;
+use crate::geometry::{Point, Polygon};
 use crate::osm::units::{parse_count, parse_length_m};
 use crate::osm::{ElementRef, ElementType, Node, Tags, Way};
 
@@ -161,12 +161,14 @@ pub(super) fn add_ways(
             Surface::from_parts(FeatureClass::Road, *feature, road.pieces, road.outline)
         {
             surface.paving = Some(*paving);
+            surface.piece_lines = road.lines;
             set.surfaces.push(surface);
         }
     }
     let node_tags: HashMap<i64, &Tags> = nodes.iter().map(|n| (n.id, &n.tags)).collect();
     let no_tags = Tags::default();
     for junction in network.junctions {
+        let centre = network_centre(&lines, &junction);
         let element = ElementRef {
             element_type: ElementType::Node,
             id: junction.node,
@@ -188,9 +190,19 @@ pub(super) fn add_ways(
             Surface::from_polygons(FeatureClass::Road, feature, vec![polygon])
         {
             surface.paving = paving;
+            surface.junction_at = centre;
             set.surfaces.push(surface);
         }
     }
+}
+
+/// The point of a junction's node.
+fn network_centre(lines: &[RoadLine], junction: &road_network::Junction) -> Option<Point> {
+    junction.roads.iter().find_map(|&r| {
+        let line = &lines[r];
+        let k = line.nodes.iter().position(|&n| n == junction.node)?;
+        Some(line.points[k])
+    })
 }
 
 /// Squares and plazas: `highway=* + area=yes` and `area:highway=*`.

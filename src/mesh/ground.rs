@@ -529,6 +529,8 @@ mod tests {
             paving: None,
             embedded: false,
             centreline: Vec::new(),
+            piece_lines: Vec::new(),
+            junction_at: None,
         }
     }
 
@@ -755,6 +757,8 @@ mod tests {
             paving: None,
             embedded: false,
             centreline: Vec::new(),
+            piece_lines: Vec::new(),
+            junction_at: None,
                     }
                 })
                 .collect();
