@@ -11,7 +11,7 @@
 
 use std::collections::HashMap;
 
-use super::settled::{Level, Rule, Sections, Stations};
+use super::settled::{samples_along, Level, Rule, Sections, Stations};
 use crate::features::{FeatureClass, FeatureSet};
 use crate::geometry::{Point, Polygon, Rect};
 use crate::terrain::Elevation;
@@ -147,21 +147,8 @@ pub fn levels(
 
 /// The terrain along a line: at its vertices and every `step` (tile units) between them.
 fn profile(line: &[Point], terrain: &dyn Elevation, step: f64) -> Vec<(f64, f64)> {
-    let mut profile = Vec::new();
-    let mut start = 0.0;
-    for pair in line.windows(2) {
-        let (a, b) = (pair[0], pair[1]);
-        let length = (b[0] - a[0]).hypot(b[1] - a[1]);
-        let steps = (length / step).ceil().max(1.0) as usize;
-        for k in 0..steps {
-            let t = k as f64 / steps as f64;
-            let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-            profile.push((start + t * length, terrain.elevation_uv(p)));
-        }
-        start += length;
-    }
-    if let Some(&end) = line.last() {
-        profile.push((start, terrain.elevation_uv(end)));
-    }
-    profile
+    samples_along(line, step)
+        .into_iter()
+        .map(|(along, p)| (along, terrain.elevation_uv(p)))
+        .collect()
 }

@@ -54,6 +54,30 @@ impl Rule {
     }
 }
 
+/// Points along a line with their distance along it (tile units): each vertex, points every
+/// `step` or less between them, and the last vertex.
+pub fn samples_along(line: &[Point], step: f64) -> Vec<(f64, Point)> {
+    let mut samples = Vec::new();
+    let mut start = 0.0;
+    for pair in line.windows(2) {
+        let (a, b) = (pair[0], pair[1]);
+        let length = (b[0] - a[0]).hypot(b[1] - a[1]);
+        let steps = (length / step).ceil().max(1.0) as usize;
+        for k in 0..steps {
+            let t = k as f64 / steps as f64;
+            samples.push((
+                start + t * length,
+                [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])],
+            ));
+        }
+        start += length;
+    }
+    if let Some(&end) = line.last() {
+        samples.push((start, end));
+    }
+    samples
+}
+
 /// A profile's elevation at a station, interpolated.
 fn at_station(profile: &[(f64, f64)], along: f64) -> f64 {
     let k = profile.partition_point(|&(s, _)| s <= along);

@@ -334,20 +334,28 @@ pub fn settle(
         }
     }
 
+    // A soft constraint `terms (relation) rhs`, reported as what it stands for, on which way
+    // and where.
     let mut soft = |problem: &mut Problem,
-                    report: ConstraintReport,
+                    (kind, way, at): (ConstraintKind, i64, Point),
                     terms: Vec<(usize, f64)>,
-                    kind: Relation,
+                    relation: Relation,
                     rhs: f64,
                     penalty: f64| {
         problem.constraints.push(Constraint {
             terms,
-            kind,
+            kind: relation,
             rhs,
             penalty: Some(penalty),
             label: labels.len() as u32,
         });
-        labels.push(report);
+        labels.push(ConstraintReport {
+            kind,
+            way,
+            at,
+            bound: rhs,
+            violation: 0.0,
+        });
     };
 
     // Along each chain: grades, smoothness, the ground.
@@ -378,16 +386,9 @@ pub fn settle(
                     (Relation::AtMost, max * run),
                     (Relation::AtLeast, -max * run),
                 ] {
-                    let report = ConstraintReport {
-                        kind: ConstraintKind::MaxIncline,
-                        way: way.id,
-                        at,
-                        bound,
-                        violation: 0.0,
-                    };
                     soft(
                         &mut problem,
-                        report,
+                        (ConstraintKind::MaxIncline, way.id, at),
                         rise.clone(),
                         relation,
                         bound,
@@ -416,16 +417,9 @@ pub fn settle(
                 None => None,
             };
             if let Some((relation, bound)) = asked {
-                let report = ConstraintReport {
-                    kind: ConstraintKind::TaggedIncline,
-                    way: way.id,
-                    at,
-                    bound,
-                    violation: 0.0,
-                };
                 soft(
                     &mut problem,
-                    report,
+                    (ConstraintKind::TaggedIncline, way.id, at),
                     rise,
                     relation,
                     bound,
@@ -465,16 +459,9 @@ pub fn settle(
                         - surface_margin_m,
                 ),
             };
-            let report = ConstraintReport {
-                kind,
-                way: way.id,
-                at: profile.points[i],
-                bound,
-                violation: 0.0,
-            };
             soft(
                 &mut problem,
-                report,
+                (kind, way.id, profile.points[i]),
                 vec![(first + i, 1.0)],
                 relation,
                 bound,
@@ -529,16 +516,9 @@ pub fn settle(
                 let ground =
                     ground_under(at, terrain, projection, settings, below) + surface_margin_m;
                 let bound = ground + clearance + tags::deck_thickness_m(&upper.tags);
-                let report = ConstraintReport {
-                    kind: ConstraintKind::Clearance,
-                    way: upper.id,
-                    at,
-                    bound,
-                    violation: 0.0,
-                };
                 soft(
                     &mut problem,
-                    report,
+                    (ConstraintKind::Clearance, upper.id, at),
                     terms,
                     Relation::AtLeast,
                     bound,
@@ -568,16 +548,9 @@ pub fn settle(
                 };
                 let mut all = terms;
                 all.extend(lower_terms.into_iter().map(|(v, k)| (v, -k)));
-                let report = ConstraintReport {
-                    kind,
-                    way: upper.id,
-                    at,
-                    bound: gap,
-                    violation: 0.0,
-                };
                 soft(
                     &mut problem,
-                    report,
+                    (kind, upper.id, at),
                     all,
                     Relation::AtLeast,
                     gap,

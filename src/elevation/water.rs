@@ -8,7 +8,7 @@
 //! at its width follows the lowest ground met so far along its whole way (sampled as often),
 //! level across each station, so its water only ever runs down.
 
-use super::settled::{Level, Rule, Stations};
+use super::settled::{samples_along, Level, Rule, Stations};
 use crate::features::{FeatureClass, FeatureSet, Surface};
 use crate::geometry::{Point, Polygon};
 use crate::terrain::Elevation;
@@ -47,26 +47,14 @@ fn downstream(line: &[Point], terrain: &dyn Elevation, metres_per_unit: f64) -> 
         return None;
     }
     let step = SHORE_STEP_M / metres_per_unit;
-    let mut profile: Vec<(f64, f64)> = Vec::new();
-    let mut start = 0.0;
     let mut lowest = f64::INFINITY;
-    let mut sample = |along: f64, p: Point, profile: &mut Vec<(f64, f64)>| {
-        lowest = lowest.min(terrain.elevation_uv(p));
-        profile.push((along, lowest));
-    };
-    for pair in line.windows(2) {
-        let (a, b) = (pair[0], pair[1]);
-        let length = (b[0] - a[0]).hypot(b[1] - a[1]);
-        let steps = (length / step).ceil().max(1.0) as usize;
-        for k in 0..steps {
-            let t = k as f64 / steps as f64;
-            let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-            sample(start + t * length, p, &mut profile);
-        }
-        start += length;
-    }
-    let end = line[line.len() - 1];
-    sample(start, end, &mut profile);
+    let profile: Vec<(f64, f64)> = samples_along(line, step)
+        .into_iter()
+        .map(|(along, p)| {
+            lowest = lowest.min(terrain.elevation_uv(p));
+            (along, lowest)
+        })
+        .collect();
     Some(Rule::Along {
         stations: Stations::new(line),
         profile,
