@@ -4,25 +4,11 @@ mod common;
 
 use std::collections::HashMap;
 
-use common::{decode, sample_osm, sample_srtm, GROUND_NODES};
+use common::{decode, sample_osm, sample_srtm, GROUND_NODES, MONACO_TILES as TILES};
 use terrastitch::elevation::settled::Stations;
 use terrastitch::features;
 use terrastitch::source::Sources;
 use terrastitch::TileId;
-
-/// The ten Monaco tiles: the coast with the sea and the harbours, ponds, streams.
-const TILES: [(u32, u32); 10] = [
-    (8527, 5973),
-    (8528, 5973),
-    (8529, 5973),
-    (8530, 5973),
-    (8531, 5973),
-    (8527, 5974),
-    (8528, 5974),
-    (8529, 5974),
-    (8530, 5974),
-    (8531, 5974),
-];
 
 /// Every water area (not a waterway drawn at its width) is flat within 1 cm, and the ground
 /// that meets it at its shore is at its level: the water never stands above its banks. Every

@@ -5,7 +5,9 @@ mod common;
 
 use std::collections::{BTreeMap, HashMap};
 
-use common::{corners, decode, sample_osm, sample_srtm, GroundLocator, GROUND_NODES};
+use common::{
+    corners, decode, sample_osm, sample_srtm, GroundLocator, GROUND_NODES, MONACO_TILES as TILES,
+};
 use terrastitch::elevation::structures::{settle, ConstraintKind, Settled};
 use terrastitch::features::structures as tags;
 use terrastitch::features::{FeatureSettings, Projection};
@@ -14,20 +16,6 @@ use terrastitch::osm::structures::{Crossed, StructureKind};
 use terrastitch::source::Sources;
 use terrastitch::terrain::{Interpolation, TerrainModel};
 use terrastitch::TileId;
-
-/// The ten Monaco tiles.
-const TILES: [(u32, u32); 10] = [
-    (8527, 5973),
-    (8528, 5973),
-    (8529, 5973),
-    (8530, 5973),
-    (8531, 5973),
-    (8527, 5974),
-    (8528, 5974),
-    (8529, 5974),
-    (8530, 5974),
-    (8531, 5974),
-];
 
 /// Every structure group of the sample settled as the renderer settles it.
 fn settle_all(sources: &Sources) -> Vec<Settled> {
@@ -112,11 +100,7 @@ fn bridges_clear_what_they_cross_and_tunnels_stay_under_the_ground() {
                 let Some(clearance) = tags::clearance_over_m(&below.tags) else {
                     continue;
                 };
-                let below_layer = below
-                    .tags
-                    .get("layer")
-                    .and_then(|l| l.parse::<i32>().ok())
-                    .unwrap_or(0);
+                let below_layer = tags::layer(&below.tags).unwrap_or(0);
                 if below_layer >= chain.layer {
                     continue;
                 }

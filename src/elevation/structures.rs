@@ -505,11 +505,7 @@ pub fn settle(
                 let Some(clearance) = tags::clearance_over_m(&below.tags) else {
                     continue;
                 };
-                let below_layer = below
-                    .tags
-                    .get("layer")
-                    .and_then(|l| l.trim().parse::<i32>().ok())
-                    .unwrap_or(0);
+                let below_layer = tags::layer(&below.tags).unwrap_or(0);
                 if below_layer >= profiles[c].layer {
                     continue;
                 }

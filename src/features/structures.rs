@@ -26,7 +26,7 @@ pub fn classify(tags: &Tags) -> Option<(StructureKind, i32)> {
     if !carries || tags.get("area") == Some("yes") {
         return None;
     }
-    let layer = tags.get("layer").and_then(|l| l.trim().parse::<i32>().ok());
+    let layer = layer(tags);
     if tags.is_set("bridge") {
         Some((StructureKind::Bridge, layer.unwrap_or(1)))
     } else if tags.is_set("tunnel") && tags.get("tunnel") != Some("building_passage") {
@@ -34,6 +34,11 @@ pub fn classify(tags: &Tags) -> Option<(StructureKind, i32)> {
     } else {
         None
     }
+}
+
+/// The `layer` tag, if it is a whole number.
+pub fn layer(tags: &Tags) -> Option<i32> {
+    tags.get("layer").and_then(|l| l.trim().parse::<i32>().ok())
 }
 
 /// True for footways, paths, cycleways and steps: light structures, people-sized clearances.

@@ -38,6 +38,21 @@ pub fn render_in_process(tile: &str, args: &[&std::ffi::OsStr], out_dir: &Path) 
     std::fs::read(&file).expect("tile written")
 }
 
+/// The ten Monaco tiles: the coast with the sea and the harbours, the hills behind, bridges,
+/// tunnels, ponds and streams.
+pub const MONACO_TILES: [(u32, u32); 10] = [
+    (8527, 5973),
+    (8528, 5973),
+    (8529, 5973),
+    (8530, 5973),
+    (8531, 5973),
+    (8527, 5974),
+    (8528, 5974),
+    (8529, 5974),
+    (8530, 5974),
+    (8531, 5974),
+];
+
 /// The glTF nodes of the ground (every class but buildings).
 pub const GROUND_NODES: [&str; 5] = ["terrain", "road", "railway", "water", "landcover"];
 
