@@ -644,17 +644,7 @@ fn structure_rows(
                     continue;
                 }
                 let reach = projection.metres(STRUCTURE_REACH_M, way.positions[0].lat);
-                let points = projection.points(&way.positions);
-                let near = points.iter().fold(
-                    crate::geometry::Rect {
-                        min: [f64::INFINITY; 2],
-                        max: [f64::NEG_INFINITY; 2],
-                    },
-                    |r, p| crate::geometry::Rect {
-                        min: [r.min[0].min(p[0]), r.min[1].min(p[1])],
-                        max: [r.max[0].max(p[0]), r.max[1].max(p[1])],
-                    },
-                );
+                let near = crate::geometry::Rect::around(&projection.points(&way.positions));
                 let meets = near.min[0] - reach <= rect.max[0]
                     && near.max[0] + reach >= rect.min[0]
                     && near.min[1] - reach <= rect.max[1]

@@ -125,9 +125,6 @@ impl Drawer<'_, '_> {
                     right,
                 });
             }
-            if k == stations.len() {
-                break;
-            }
         }
         runs
     }
