@@ -31,6 +31,18 @@ fn render(tile: (u32, u32), srtm: &Path, out: &Path) -> Vec<u8> {
     render_in_process(&tile, &["--srtm".as_ref(), srtm.as_os_str()], out)
 }
 
+/// Where along a side of a tile of `size` a vertex lies, if it is on that side.
+fn along_side(p: &[f32; 3], side: &str, size: f32) -> Option<f32> {
+    let (on_side, along) = match side {
+        "west" => (p[0] == 0.0, p[2]),
+        "east" => (p[0] == size, p[2]),
+        "north" => (p[2] == 0.0, p[0]),
+        "south" => (p[2] == size, p[0]),
+        _ => unreachable!(),
+    };
+    on_side.then_some(along)
+}
+
 /// Ground vertices (every ground class) on one side of a tile, as bit patterns of
 /// (y, along, normal): a normal that differs would show as a lighting seam.
 fn edge(tile: &DecodedTile, side: &str) -> BTreeSet<(u32, u32, [u32; 3])> {
@@ -39,14 +51,7 @@ fn edge(tile: &DecodedTile, side: &str) -> BTreeSet<(u32, u32, [u32; 3])> {
     for node in GROUND_NODES {
         for primitive in tile.primitives(node) {
             for (p, normal) in primitive.positions.iter().zip(&primitive.normals) {
-                let (on_side, along) = match side {
-                    "west" => (p[0] == 0.0, p[2]),
-                    "east" => (p[0] == size, p[2]),
-                    "north" => (p[2] == 0.0, p[0]),
-                    "south" => (p[2] == size, p[0]),
-                    _ => unreachable!(),
-                };
-                if on_side {
+                if let Some(along) = along_side(p, side, size) {
                     vertices.insert((p[1].to_bits(), along.to_bits(), normal.map(f32::to_bits)));
                 }
             }
@@ -63,14 +68,7 @@ fn structure_edge(tile: &DecodedTile, side: &str) -> BTreeSet<(u32, u32)> {
     for node in ["bridge", "tunnel"] {
         for primitive in tile.primitives(node) {
             for p in &primitive.positions {
-                let (on_side, along) = match side {
-                    "west" => (p[0] == 0.0, p[2]),
-                    "east" => (p[0] == size, p[2]),
-                    "north" => (p[2] == 0.0, p[0]),
-                    "south" => (p[2] == size, p[0]),
-                    _ => unreachable!(),
-                };
-                if on_side {
+                if let Some(along) = along_side(p, side, size) {
                     vertices.insert((p[1].to_bits(), along.to_bits()));
                 }
             }

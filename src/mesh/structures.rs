@@ -88,6 +88,12 @@ struct Run {
 }
 
 impl Drawer<'_, '_> {
+    /// `metres` in global tile units where `way` is.
+    fn in_units(&self, way: &Way, metres: f64) -> f64 {
+        let lat = way.positions.first().map_or(0.0, |p| p.lat);
+        self.context.projection.metres(metres, lat)
+    }
+
     /// The stations split where the way changes (the station at a change in both runs), each
     /// run widened to its way's width; runs on ways without a feature row here are skipped.
     fn runs(&self, stations: &[Station]) -> Vec<Run> {
@@ -110,11 +116,7 @@ impl Drawer<'_, '_> {
                 continue;
             };
             let w = &self.context.ways[way as usize];
-            let lat = w.positions.first().map_or(0.0, |p| p.lat);
-            let half = self
-                .context
-                .projection
-                .metres(tags::width_m(&w.tags, self.context.settings) / 2.0, lat);
+            let half = self.in_units(w, tags::width_m(&w.tags, self.context.settings) / 2.0);
             let line: Vec<Point> = run.iter().map(|s| s.point).collect();
             if let Some((left, right)) = offset_polyline(&line, half) {
                 runs.push(Run {
@@ -240,10 +242,9 @@ impl Drawer<'_, '_> {
                 continue;
             }
             let foot = a.terrain.min(b.terrain) - PIER_FOOTING_M - self.context.surface_margin_m;
-            let lat = way.positions.first().map_or(0.0, |p| p.lat);
             let width = (tags::width_m(&way.tags, self.context.settings) * PIER_WIDTH_SHARE)
                 .min(PIER_MAX_WIDTH_M);
-            let half = self.context.projection.metres(width / 2.0, lat);
+            let half = self.in_units(way, width / 2.0);
             let Some((left, right)) = offset_polyline(&[a.point, b.point], half) else {
                 continue;
             };
@@ -327,11 +328,7 @@ impl Drawer<'_, '_> {
                 continue;
             };
             let way = &self.context.ways[a.way as usize];
-            let lat = way.positions.first().map_or(0.0, |p| p.lat);
-            let half = self
-                .context
-                .projection
-                .metres(tags::width_m(&way.tags, self.context.settings) / 2.0, lat);
+            let half = self.in_units(way, tags::width_m(&way.tags, self.context.settings) / 2.0);
             let Some((left, right)) = offset_polyline(&[a.point, b.point], half) else {
                 continue;
             };
