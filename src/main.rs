@@ -190,6 +190,7 @@ fn render(args: RenderArgs) -> Result<()> {
         eprintln!("load           {:8.1} ms", ms(load));
         eprintln!("features       {:8.1} ms", ms(t.features));
         eprintln!("structures     {:8.1} ms", ms(t.structures));
+        eprintln!("roads          {:8.1} ms", ms(t.roads));
         eprintln!("triangulation  {:8.1} ms", ms(t.triangulation));
         eprintln!("terrain        {:8.1} ms", ms(t.terrain));
         eprintln!("elevation      {:8.1} ms", ms(t.elevation));

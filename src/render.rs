@@ -52,6 +52,8 @@ pub struct StageTimings {
     pub features: Duration,
     /// Bridges and tunnels settled by the LP, and the ground they reshape.
     pub structures: Duration,
+    /// Ground roads held to their grade by the LP.
+    pub roads: Duration,
     pub triangulation: Duration,
     pub terrain: Duration,
     pub elevation: Duration,
@@ -62,6 +64,7 @@ impl StageTimings {
     pub fn total(&self) -> Duration {
         self.features
             + self.structures
+            + self.roads
             + self.triangulation
             + self.terrain
             + self.elevation
@@ -88,8 +91,8 @@ pub struct RenderStats {
     pub trees: usize,
     /// Street-level objects placed (instances).
     pub objects: usize,
-    /// The elevation LP of the bridges and tunnels that reach the tile: variables,
-    /// constraints, components solved, and soft constraints violated.
+    /// The elevation LPs of the bridges and tunnels that reach the tile and of its ground
+    /// roads: variables, constraints, components solved, and soft constraints violated.
     pub lp_variables: usize,
     pub lp_constraints: usize,
     pub lp_components: usize,
@@ -142,6 +145,8 @@ struct Prepared<'a> {
     cuts: Vec<elevation::settled::Level>,
     /// Roads and junctions, level across.
     roads: elevation::roads::RoadLevels,
+    /// The profiles of the ground roads, held to their grade.
+    road_profiles: elevation::road_profiles::RoadProfiles,
     /// Every way of the data, for the structures' indices.
     all_ways: &'a [crate::osm::Way],
     feature_settings: FeatureSettings,
@@ -185,11 +190,21 @@ fn prepare<'a>(
     timings.structures = started.elapsed();
 
     let started = Instant::now();
+    let road_profiles = settle_roads(tile, selection, &feature_set, &terrain, settings);
+    timings.roads = started.elapsed();
+
+    let started = Instant::now();
     // Water areas lie flat at the level of their lowest shore.
     let water = elevation::water::levels(&feature_set, &terrain, frame.size_m);
     // Roads level across their width, junctions level.
     let cut_surfaces: Vec<u32> = cuts.iter().map(|c| c.surface).collect();
-    let roads = elevation::roads::levels(&feature_set, &terrain, frame.size_m, &cut_surfaces);
+    let roads = elevation::roads::levels(
+        &feature_set,
+        &road_profiles,
+        &terrain,
+        frame.size_m,
+        &cut_surfaces,
+    );
     let settled = elevation::settled::Ground {
         terrain: &terrain,
         water: &water,
@@ -240,6 +255,7 @@ fn prepare<'a>(
         structure_features,
         cuts,
         roads,
+        road_profiles,
         all_ways: selection.all_ways,
         feature_settings: settings.features.clone(),
         surface_margin_m: margin,
@@ -285,6 +301,73 @@ fn settle_groups(
         .collect()
 }
 
+/// Settles the profiles of the ground roads drawn in `set`; violated soft constraints are
+/// logged at debug level.
+fn settle_roads(
+    tile: TileId,
+    selection: &Selection<'_>,
+    set: &FeatureSet,
+    terrain: &dyn Elevation,
+    settings: &RenderSettings,
+) -> elevation::road_profiles::RoadProfiles {
+    let Some(graph) = selection.roads else {
+        return Default::default();
+    };
+    let drawn: std::collections::HashSet<i64> = set
+        .surfaces
+        .iter()
+        .filter(|s| s.class == features::FeatureClass::Road && !s.piece_lines.is_empty())
+        .filter_map(|s| set.features.get(s.feature as usize)?.element)
+        .filter(|e| e.element_type == crate::osm::ElementType::Way)
+        .map(|e| e.id)
+        .collect();
+    let ways: Vec<&crate::osm::Way> = selection
+        .ways
+        .iter()
+        .copied()
+        .filter(|w| drawn.contains(&w.id))
+        .collect();
+    // The tile and a little around it: what the tile draws of a stretch reaches no farther.
+    let reach = 0.05;
+    let (x, y) = (f64::from(tile.x), f64::from(tile.y));
+    let area = crate::geometry::Rect {
+        min: [x - reach, y - reach],
+        max: [x + 1.0 + reach, y + 1.0 + reach],
+    };
+    let profiles = elevation::road_profiles::settle(
+        area,
+        &ways,
+        selection.all_ways,
+        graph,
+        terrain,
+        &features::Projection::new(tile.z),
+        &settings.features,
+    );
+    for report in &profiles.violations {
+        tracing::debug!(
+            %tile,
+            way = report.way,
+            constraint = report.kind.as_str(),
+            bound = report.bound,
+            violation = report.violation,
+            "soft constraint violated"
+        );
+    }
+    profiles
+}
+
+/// The ground roads of a tile, settled as its glb settles them.
+pub fn settle_road_profiles(
+    tile: TileId,
+    selection: &Selection<'_>,
+    mosaic: &Mosaic,
+    settings: &RenderSettings,
+) -> elevation::road_profiles::RoadProfiles {
+    let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
+    let set = features::collect(selection, tile, &settings.features);
+    settle_roads(tile, selection, &set, &terrain, settings)
+}
+
 /// The bridges and tunnels that reach a tile, settled as its glb settles them.
 pub fn settle_structures(
     tile: TileId,
@@ -319,6 +402,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         structure_features,
         cuts,
         roads,
+        road_profiles,
         all_ways,
         feature_settings,
         surface_margin_m,
@@ -466,16 +550,24 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
             .filter(|(model, _)| matches!(model, mesh::models::Model::Object(_)))
             .map(|(_, t)| t.len())
             .sum(),
-        lp_variables: structures.iter().map(|s| s.variables).sum(),
-        lp_constraints: structures.iter().map(|s| s.constraints).sum(),
-        lp_components: structures.iter().map(|s| s.components).sum(),
+        lp_variables: structures.iter().map(|s| s.variables).sum::<usize>()
+            + road_profiles.variables,
+        lp_constraints: structures.iter().map(|s| s.constraints).sum::<usize>()
+            + road_profiles.constraints,
+        lp_components: structures.iter().map(|s| s.components).sum::<usize>()
+            + road_profiles.components,
         lp_violations: structures
             .iter()
             .map(|s| {
                 s.violations(crate::output::debug::VIOLATION_TOLERANCE_M)
                     .count()
             })
-            .sum(),
+            .sum::<usize>()
+            + road_profiles
+                .violations
+                .iter()
+                .filter(|r| r.violation > crate::output::debug::VIOLATION_TOLERANCE_M)
+                .count(),
     };
     RenderedTile {
         glb: bytes,

@@ -7,6 +7,8 @@ use std::collections::HashMap;
 use common::{decode, sample_osm, sample_srtm, GROUND_NODES, MONACO_TILES as TILES};
 use terrastitch::elevation::settled::Stations;
 use terrastitch::features;
+use terrastitch::features::structures as tags;
+use terrastitch::render::RenderSettings;
 use terrastitch::source::Sources;
 use terrastitch::TileId;
 
@@ -161,22 +163,8 @@ fn roads_are_level_across_and_junctions_level() {
             .collect();
         // Where a tunnel runs under a road too shallow for its roof, the ground over the tube
         // is raised and the road with it.
-        let mut near_tunnels = common::corners(tile.primitives("tunnel"));
-        // The approach cuts: road triangles of tunnel ways.
-        for primitive in tile.primitives("road") {
-            for t in primitive.triangles() {
-                let row = &tile.features[primitive.feature_ids[t[0]] as usize];
-                if row.tags.contains_key("tunnel") {
-                    near_tunnels.push(t.map(|i| primitive.positions[i].map(f64::from)));
-                }
-            }
-        }
-        let tubes = common::GroundLocator::new(near_tunnels, f64::from(size));
-        let over_tube = |x: f64, z: f64| {
-            [[0.0, 0.0], [0.8, 0.0], [-0.8, 0.0], [0.0, 0.8], [0.0, -0.8]]
-                .iter()
-                .any(|d| !tubes.heights_at(x + d[0], z + d[1], 1e-6).is_empty())
-        };
+        let tunnels = common::TunnelFootprint::new(&tile);
+        let over_tube = |x: f64, z: f64| tunnels.near(x, z);
         let at = |p: [f64; 2]| -> Option<f64> {
             let (lx, lz) = frame.uv_to_local(p[0], p[1]);
             if over_tube(lx, lz) {
@@ -300,6 +288,163 @@ fn roads_are_level_across_and_junctions_level() {
     assert!(
         tilted_junctions * 200 < junctions,
         "{tilted_junctions} of {junctions} junctions tilted"
+    );
+}
+
+/// Every ground road of the ten Monaco tiles keeps to its class's steepest grade unless the LP
+/// reported that grade violated on that way nearby: along its settled profile in the tile
+/// (every pair of stations, 10 m apart at most), and in the decoded glb between every two consecutive cross-sections
+/// of its drawn strip that are level (the vertices the mesh holds it at; the mesh is linear
+/// between them), measured along the strip's centre.
+#[test]
+fn road_grades_keep_to_the_class_maximum_unless_reported() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let settings = RenderSettings::default();
+    let (mut segments, mut steep, mut drawn, mut drawn_steep, mut settled_stretches) =
+        (0, 0, 0, 0, 0);
+    for (x, y) in TILES {
+        let name = format!("14/{x}/{y}");
+        let tile = decode(&common::render_in_process(&name, &[], dir.path()));
+        let id = TileId { z: 14, x, y };
+        let frame = id.frame();
+        let size = tile.tile_size() as f32;
+        let selection = sources.selection(id);
+        let mosaic = sources.mosaic(id).expect("srtm");
+        let roads = terrastitch::render::settle_road_profiles(id, &selection, &mosaic, &settings);
+        settled_stretches += roads.settled;
+        // A violation of the way's grade reported within 15 m of the segment from `a` to `b`.
+        let reported = |way: i64, a: [f64; 2], b: [f64; 2], metre: f64| {
+            roads.violations.iter().any(|r| {
+                r.way == way
+                    && r.violation > 0.0
+                    && terrastitch::geometry::distance_to_segment(r.at, a, b) < 15.0 * metre
+            })
+        };
+        let max_of = |way: i64| {
+            let way = selection.ways.iter().find(|w| w.id == way)?;
+            let mut max = tags::max_incline(&way.tags)?;
+            if let Some(tags::Incline::Grade(g)) = tags::incline(&way.tags) {
+                max = max.max(g.abs());
+            }
+            Some(max)
+        };
+        for (&way, profile) in &roads.profiles {
+            let Some(max) = max_of(way) else {
+                continue;
+            };
+            let in_tile = |p: [f64; 2]| {
+                p[0] >= f64::from(x)
+                    && p[0] <= f64::from(x + 1)
+                    && p[1] >= f64::from(y)
+                    && p[1] <= f64::from(y + 1)
+            };
+            for i in 0..profile.points.len() - 1 {
+                if !in_tile(profile.points[i]) || !in_tile(profile.points[i + 1]) {
+                    continue;
+                }
+                let run = (profile.along[i + 1] - profile.along[i]) / profile.metre;
+                let rise = profile.elevations[i + 1] - profile.elevations[i];
+                segments += 1;
+                if run > 0.0 && rise.abs() > max * run + 1e-3 {
+                    steep += 1;
+                    assert!(
+                        reported(way, profile.points[i], profile.points[i + 1], profile.metre),
+                        "{name}: way {way}'s profile rises {:.3} per metre at station {i}, \
+                         over its {max}, unreported",
+                        rise.abs() / run
+                    );
+                }
+            }
+        }
+
+        // The drawn strips: the elevation of every road vertex the way alone holds.
+        let key = |x: f32, z: f32| [x.to_bits(), z.to_bits()];
+        let mut road: HashMap<[u32; 2], (f64, u32)> = HashMap::new();
+        let mut shared: std::collections::HashSet<[u32; 2]> = Default::default();
+        for primitive in tile.primitives("road") {
+            for (&p, &feature) in primitive.positions.iter().zip(&primitive.feature_ids) {
+                let e = f64::from(p[1]) / frame.scale_at(f64::from(p[2]));
+                if road
+                    .insert(key(p[0], p[2]), (e, feature))
+                    .is_some_and(|o| o.1 != feature)
+                {
+                    shared.insert(key(p[0], p[2]));
+                }
+            }
+        }
+        let wet: std::collections::HashSet<[u32; 2]> = tile
+            .primitives("water")
+            .iter()
+            .flat_map(|p| p.positions.iter().map(|q| key(q[0], q[2])))
+            .collect();
+        let tunnels = common::TunnelFootprint::new(&tile);
+        let at = |p: [f64; 2]| -> Option<(f64, [f64; 2])> {
+            let (lx, lz) = frame.uv_to_local(p[0], p[1]);
+            if tunnels.near(lx, lz) {
+                return None;
+            }
+            let k = key(lx as f32, lz as f32);
+            let inside = |c: f32| c > 0.0 && c < size;
+            if !inside(lx as f32) || !inside(lz as f32) || wet.contains(&k) || shared.contains(&k) {
+                return None;
+            }
+            road.get(&k).map(|&(h, _)| (h, [lx, lz]))
+        };
+        let set = features::collect(&selection, id, &Default::default());
+        for surface in &set.surfaces {
+            let Some(element) = set.features[surface.feature as usize].element else {
+                continue;
+            };
+            let Some(max) = max_of(element.id) else {
+                continue;
+            };
+            for (range, _) in &surface.piece_lines {
+                for k in range.clone() {
+                    let Some(piece) = surface.pieces.get(k) else {
+                        continue;
+                    };
+                    let [l0, l1, r1, r0] = [0, 1, 2, 3].map(|c| piece.outer[c]);
+                    let (Some(a), Some(b), Some(c), Some(d)) = (at(l0), at(r0), at(l1), at(r1))
+                    else {
+                        continue;
+                    };
+                    // A cross-section that is not level (a corner held by a cut or raised
+                    // ground beside it) is the cross-section test's concern.
+                    if (a.0 - b.0).abs() > 0.01 || (c.0 - d.0).abs() > 0.01 {
+                        continue;
+                    }
+                    let mid = |p: [f64; 2], q: [f64; 2]| [(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0];
+                    let (m0, m1) = (mid(a.1, b.1), mid(c.1, d.1));
+                    let run = (m1[0] - m0[0]).hypot(m1[1] - m0[1]);
+                    if run < 0.5 {
+                        continue;
+                    }
+                    drawn += 1;
+                    let rise = (c.0 + d.0 - a.0 - b.0) / 2.0;
+                    if rise.abs() > max * run + 0.005 {
+                        drawn_steep += 1;
+                        let metre = 1.0 / frame.size_m;
+                        assert!(
+                            reported(element.id, l0, l1, metre),
+                            "{name}: way {} is drawn rising {:.3} per metre over {run:.1} m, \
+                             over its {max}, unreported",
+                            element.id,
+                            rise.abs() / run
+                        );
+                    }
+                }
+            }
+        }
+    }
+    eprintln!(
+        "{segments} profile segments, {steep} steeper than their class; {drawn} drawn \
+         cross-section pairs, {drawn_steep} steeper; all reported; {settled_stretches} \
+         stretches settled by the LP"
+    );
+    assert!(
+        drawn > 10_000,
+        "{drawn} cross-section pairs measured in the glb"
     );
 }
 

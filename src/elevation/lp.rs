@@ -149,13 +149,14 @@ pub fn solve(problem: &Problem) -> Outcome {
         }
     }
     let mut outcome = Outcome::default();
-    for id in 0..members.len() {
+    let solved = solve_all(problem, &members, &constraints, &smooth);
+    for (id, solution) in solved.into_iter().enumerate() {
         outcome.components += 1;
         let size = (members[id].len(), constraints[id].len());
         if size.0 > outcome.largest.0 {
             outcome.largest = size;
         }
-        match solve_component(problem, &members[id], &constraints[id], &smooth[id]) {
+        match solution {
             Some((solved, violations)) => {
                 // A fixed variable keeps its value to the bit (tile edges must match).
                 for (&v, x) in members[id].iter().zip(solved) {
@@ -169,6 +170,66 @@ pub fn solve(problem: &Problem) -> Outcome {
     snap_equalities(problem, &mut values);
     outcome.values = values;
     outcome
+}
+
+/// Components below this many are solved on the calling thread.
+const COMPONENTS_PER_THREAD: usize = 16;
+/// Most threads one problem's components are spread over.
+const MAX_THREADS: usize = 4;
+
+type Solved = Option<(Vec<f64>, Vec<Violation>)>;
+
+/// Solves every component, spread over a few threads when there are many: each component is
+/// solved alone, so the result does not depend on how they are spread.
+fn solve_all(
+    problem: &Problem,
+    members: &[Vec<usize>],
+    constraints: &[Vec<usize>],
+    smooth: &[Vec<usize>],
+) -> Vec<Solved> {
+    let solve_range = |range: std::ops::Range<usize>| -> Vec<Solved> {
+        range
+            .map(|id| solve_component(problem, &members[id], &constraints[id], &smooth[id]))
+            .collect()
+    };
+    let count = members.len();
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(MAX_THREADS)
+        .min(count / COMPONENTS_PER_THREAD)
+        .max(1);
+    if threads == 1 {
+        return solve_range(0..count);
+    }
+    // Interleaved shares: components of similar size sit together in the list.
+    let shares: Vec<Vec<Solved>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                scope.spawn(move || {
+                    (t..count)
+                        .step_by(threads)
+                        .map(|id| {
+                            solve_component(problem, &members[id], &constraints[id], &smooth[id])
+                        })
+                        .collect::<Vec<Solved>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|payload| std::panic::resume_unwind(payload))
+            })
+            .collect()
+    });
+    let mut out: Vec<Solved> = (0..count).map(|_| None).collect();
+    for (t, share) in shares.into_iter().enumerate() {
+        for (k, solution) in share.into_iter().enumerate() {
+            out[t + k * threads] = solution;
+        }
+    }
+    out
 }
 
 /// One component as an LP; `None` if the solver fails.

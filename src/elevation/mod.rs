@@ -2,6 +2,7 @@
 //! constraints between them, and one robust LP ([`lp`]) chooses every elevation at once.
 
 pub mod lp;
+pub mod road_profiles;
 pub mod roads;
 pub mod settled;
 pub mod structures;

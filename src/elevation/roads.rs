@@ -2,18 +2,22 @@
 //! the left, centre and right connectors of a cross-section are equal; a junction area is
 //! flat).
 //!
-//! Each stretch of a road between junctions follows the terrain along its centre line,
-//! sampled every [`PROFILE_STEP_M`]; every point of the stretch takes the profile's elevation
-//! at its station along that line (the station of a bisector band, the same for the left and
-//! right corners of a cross-section). A junction lies at the terrain under its node, which is
-//! where the profiles of the roads that meet there start. All of it is computed from the
-//! ways alone, so tiles that share a road draw it the same.
+//! Each stretch of a road between junctions follows its way's settled profile
+//! ([`super::road_profiles`]: the terrain, held to the class's grade and level where it leaves a
+//! junction) along its centre line, sampled every [`PROFILE_STEP_M`]; every point of the
+//! stretch takes the profile's elevation at its station across the strip (the same for the
+//! left and right corners of a cross-section). A junction lies at the terrain under its node,
+//! which is where the profiles of the roads that meet there start. All of it is computed from
+//! whole ways, so tiles that share a road draw it the same.
 
 use std::collections::HashMap;
 
+use super::road_profiles::RoadProfiles;
 use super::settled::{samples_along, Level, Rule, Sections, Stations};
+use crate::features::road_network::StretchLine;
 use crate::features::{FeatureClass, FeatureSet};
 use crate::geometry::{Point, Polygon, Rect};
+use crate::osm::ElementType;
 use crate::terrain::Elevation;
 
 /// Spacing of the terrain samples along a road's centre line, metres.
@@ -87,9 +91,11 @@ fn cell_of(p: Point) -> (i64, i64) {
 }
 
 /// The levels of the road surfaces of `set` drawn by the road network (surfaces listed in
-/// `skip` are settled otherwise); `metres_per_unit` is the tile's size.
+/// `skip` are settled otherwise), along the profiles of their ways (the terrain for a way
+/// without one); `metres_per_unit` is the tile's size.
 pub fn levels(
     set: &FeatureSet,
+    profiles: &RoadProfiles,
     terrain: &dyn Elevation,
     metres_per_unit: f64,
     skip: &[u32],
@@ -112,6 +118,16 @@ pub fn levels(
             );
             continue;
         }
+        let way = set
+            .features
+            .get(surface.feature as usize)
+            .and_then(|f| f.element)
+            .filter(|e| e.element_type == ElementType::Way)
+            .and_then(|e| profiles.profiles.get(&e.id));
+        let profile = |line: &StretchLine, centre: &[Point]| match way {
+            Some(way) => way.along_stretch(line, centre, step),
+            None => terrain_profile(centre, terrain, step),
+        };
         for (range, line) in &surface.piece_lines {
             let Some(pieces) = surface.pieces.get(range.clone()) else {
                 continue;
@@ -130,13 +146,13 @@ pub fn levels(
                 Some(sections) => {
                     let centre = sections.centre_line();
                     Rule::Across {
-                        profile: profile(&centre, terrain, step),
+                        profile: profile(line, &centre),
                         sections,
                     }
                 }
                 None => Rule::Along {
-                    stations: Stations::new(line),
-                    profile: profile(line, terrain, step),
+                    stations: Stations::new(&line.points),
+                    profile: profile(line, &line.points),
                 },
             };
             out.push(Level::new(index as u32, pieces, bounds, rule), false);
@@ -146,7 +162,7 @@ pub fn levels(
 }
 
 /// The terrain along a line: at its vertices and every `step` (tile units) between them.
-fn profile(line: &[Point], terrain: &dyn Elevation, step: f64) -> Vec<(f64, f64)> {
+fn terrain_profile(line: &[Point], terrain: &dyn Elevation, step: f64) -> Vec<(f64, f64)> {
     samples_along(line, step)
         .into_iter()
         .map(|(along, p)| (along, terrain.elevation_uv(p)))

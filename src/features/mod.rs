@@ -130,7 +130,7 @@ pub struct Surface {
     /// in global tile units; empty for areas.
     pub centreline: Vec<Point>,
     /// For a road drawn by the network: the line each run of `pieces` follows.
-    pub piece_lines: Vec<(std::ops::Range<usize>, Vec<Point>)>,
+    pub piece_lines: Vec<(std::ops::Range<usize>, road_network::StretchLine)>,
     /// For a junction: the node it is drawn round.
     pub junction_at: Option<Point>,
 }

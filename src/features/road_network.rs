@@ -42,7 +42,18 @@ pub struct RoadSurface {
     /// The line each run of `pieces` is widened from (a stretch between junctions, from node
     /// to node before its ends are cut back): the left and right corners of a piece lie on
     /// the same bisector of it.
-    pub lines: Vec<(std::ops::Range<usize>, Vec<Point>)>,
+    pub lines: Vec<(std::ops::Range<usize>, StretchLine)>,
+}
+
+/// A stretch's line as drawn: from node to node with its bends rounded, and for each point
+/// the distance along the way's own line (from the stretch's first node, tile units) it stands
+/// for: a rounded bend stands for the corner it replaces.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StretchLine {
+    pub points: Vec<Point>,
+    pub stations: Vec<f64>,
+    /// Where each rounded bend begins and ends, as distances along the way's own line.
+    pub bends: Vec<(f64, f64)>,
 }
 
 /// A junction's polygon and the roads that meet there (indices into the network's lines).
@@ -86,14 +97,58 @@ struct Cap {
 /// A stretch of one road between two break points (junctions or the road's ends).
 struct Piece {
     road: usize,
-    points: Vec<Point>,
+    line: StretchLine,
     start: Option<ArmKey>,
     end: Option<ArmKey>,
+}
+
+/// Where a piece of a road is cut back at a junction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cut {
+    /// The index of the junction's point in the road's line.
+    pub index: usize,
+    /// Whether the piece runs from there towards higher indices.
+    pub forward: bool,
+    /// How far along the piece it is cut back, tile units.
+    pub distance: f64,
+}
+
+/// How far the pieces of `lines[road]` are cut back at its junctions: the cuts [`build`]
+/// makes, as long as `lines` holds every line that meets those junctions.
+pub fn cuts(lines: &[RoadLine], road: usize) -> Vec<Cut> {
+    let arms_at = arms_by_node(lines);
+    let (_, cut) = split_and_cut(lines, &arms_at);
+    let mut out: Vec<Cut> = cut
+        .into_iter()
+        .filter(|(arm, _)| arm.road == road)
+        .map(|(arm, distance)| Cut {
+            index: arm.index,
+            forward: arm.forward,
+            distance,
+        })
+        .collect();
+    out.sort_by_key(|c| (c.index, c.forward));
+    out
+}
+
+/// The line a stretch of road between junctions is drawn along: its bends rounded with a
+/// radius that grows with the road's half width.
+pub fn stretch_line(points: &[Point], half_width: f64) -> StretchLine {
+    smooth_along(points, half_width * BEND_RADIUS_PER_HALF_WIDTH)
 }
 
 /// Draws the network of `lines`.
 pub fn build(lines: &[RoadLine]) -> Network {
     let arms_at = arms_by_node(lines);
+    let (pieces, cut) = split_and_cut(lines, &arms_at);
+    widen(lines, &arms_at, &pieces, &cut)
+}
+
+/// 1–2: the pieces between junctions and how far each arm is cut back.
+fn split_and_cut(
+    lines: &[RoadLine],
+    arms_at: &HashMap<i64, Vec<ArmKey>>,
+) -> (Vec<Piece>, HashMap<ArmKey, f64>) {
     let junction_at = |node: i64| arms_at.get(&node).is_some_and(|arms| is_junction(arms));
 
     // 1. Split at junctions and smooth the bends in between.
@@ -105,10 +160,9 @@ pub fn build(lines: &[RoadLine]) -> Network {
             if i + 1 < n && !junction_at(line.nodes[i]) {
                 continue;
             }
-            let radius = line.half_width * BEND_RADIUS_PER_HALF_WIDTH;
             pieces.push(Piece {
                 road,
-                points: smooth(&line.points[start..=i], radius),
+                line: stretch_line(&line.points[start..=i], line.half_width),
                 start: junction_at(line.nodes[start]).then_some(ArmKey {
                     road,
                     index: start,
@@ -143,7 +197,7 @@ pub fn build(lines: &[RoadLine]) -> Network {
         }
     }
     for piece in &pieces {
-        let length = polyline_length(&piece.points);
+        let length = polyline_length(&piece.line.points);
         let share = if piece.start.is_some() && piece.end.is_some() {
             0.45
         } else {
@@ -155,16 +209,25 @@ pub fn build(lines: &[RoadLine]) -> Network {
             }
         }
     }
+    (pieces, cut)
+}
 
+/// 3–4: the pieces trimmed and widened, and the junction polygons between them.
+fn widen(
+    lines: &[RoadLine],
+    arms_at: &HashMap<i64, Vec<ArmKey>>,
+    pieces: &[Piece],
+    cut: &HashMap<ArmKey, f64>,
+) -> Network {
     // 3. Trim and widen the pieces, keeping their caps at junctions.
     let mut network = Network {
         roads: vec![RoadSurface::default(); lines.len()],
         junctions: Vec::new(),
     };
     let mut caps: HashMap<ArmKey, Cap> = HashMap::new();
-    for piece in &pieces {
+    for piece in pieces {
         let cut_of = |key: Option<ArmKey>| key.and_then(|k| cut.get(&k)).copied().unwrap_or(0.0);
-        let Some(trimmed) = trim(&piece.points, cut_of(piece.start), cut_of(piece.end)) else {
+        let Some(trimmed) = trim(&piece.line.points, cut_of(piece.start), cut_of(piece.end)) else {
             continue;
         };
         let half_width = lines[piece.road].half_width;
@@ -180,7 +243,7 @@ pub fn build(lines: &[RoadLine]) -> Network {
             )
         };
         if let Some(key) = piece.start {
-            let (base_plus, base_minus) = base(piece.points[0], piece.points[1]);
+            let (base_plus, base_minus) = base(piece.line.points[0], piece.line.points[1]);
             caps.insert(
                 key,
                 Cap {
@@ -193,8 +256,8 @@ pub fn build(lines: &[RoadLine]) -> Network {
             );
         }
         if let Some(key) = piece.end {
-            let (n, m) = (trimmed.len(), piece.points.len());
-            let (base_plus, base_minus) = base(piece.points[m - 1], piece.points[m - 2]);
+            let (n, m) = (trimmed.len(), piece.line.points.len());
+            let (base_plus, base_minus) = base(piece.line.points[m - 1], piece.line.points[m - 2]);
             caps.insert(
                 key,
                 Cap {
@@ -210,7 +273,7 @@ pub fn build(lines: &[RoadLine]) -> Network {
         let first = surface.pieces.len();
         surface
             .lines
-            .push((first..first + last, piece.points.clone()));
+            .push((first..first + last, piece.line.clone()));
         surface.pieces.extend((0..last).map(|i| Polygon {
             outer: vec![left[i], left[i + 1], right[i + 1], right[i]],
             holes: Vec::new(),
@@ -654,12 +717,30 @@ const BEND_STEP: f64 = 0.35;
 /// `radius` unless that would reach past half of either segment (then tighter), so neighbouring
 /// bends never overlap. The ends of the polyline stay.
 pub fn smooth(points: &[Point], radius: f64) -> Vec<Point> {
+    smooth_along(points, radius).points
+}
+
+/// [`smooth`], with the distance along `points` each point of the result stands for.
+pub fn smooth_along(points: &[Point], radius: f64) -> StretchLine {
     let n = points.len();
-    if n < 3 || radius <= 0.0 {
-        return points.to_vec();
+    let mut along = Vec::with_capacity(n);
+    let mut total = 0.0;
+    for (i, p) in points.iter().enumerate() {
+        if i > 0 {
+            total += (p[0] - points[i - 1][0]).hypot(p[1] - points[i - 1][1]);
+        }
+        along.push(total);
     }
-    let mut out: Vec<Point> = Vec::with_capacity(n * 3);
-    out.push(points[0]);
+    if n < 3 || radius <= 0.0 {
+        return StretchLine {
+            points: points.to_vec(),
+            stations: along,
+            bends: Vec::new(),
+        };
+    }
+    let mut bends = Vec::new();
+    let mut out: Vec<(Point, f64)> = Vec::with_capacity(n * 3);
+    out.push((points[0], 0.0));
     for i in 1..n - 1 {
         let (p, v, q) = (points[i - 1], points[i], points[i + 1]);
         let (din, dout) = (unit(p, v), unit(v, q));
@@ -668,7 +749,7 @@ pub fn smooth(points: &[Point], radius: f64) -> Vec<Point> {
         let len_in = (v[0] - p[0]).hypot(v[1] - p[1]);
         let len_out = (q[0] - v[0]).hypot(q[1] - v[1]);
         if bend < MIN_BEND || len_in == 0.0 || len_out == 0.0 {
-            out.push(v);
+            out.push((v, along[i]));
             continue;
         }
         let cut = (radius * (bend / 2.0).tan())
@@ -687,29 +768,44 @@ pub fn smooth(points: &[Point], radius: f64) -> Vec<Point> {
         let centre = [a[0] + normal[0] * side * r, a[1] + normal[1] * side * r];
         let start = [a[0] - centre[0], a[1] - centre[1]];
         let steps = ((bend / BEND_STEP).ceil() as usize).max(1);
-        out.push(a);
+        // The arc stands for the corner from `a` to `b`, evenly.
+        out.push((a, along[i] - cut));
         for k in 1..steps {
-            let phi = side * bend * k as f64 / steps as f64;
+            let share = k as f64 / steps as f64;
+            let phi = side * bend * share;
             let (sin, cos) = phi.sin_cos();
-            out.push([
-                centre[0] + start[0] * cos - start[1] * sin,
-                centre[1] + start[0] * sin + start[1] * cos,
-            ]);
+            out.push((
+                [
+                    centre[0] + start[0] * cos - start[1] * sin,
+                    centre[1] + start[0] * sin + start[1] * cos,
+                ],
+                along[i] - cut + 2.0 * cut * share,
+            ));
         }
-        out.push(b);
+        out.push((b, along[i] + cut));
+        bends.push((along[i] - cut, along[i] + cut));
     }
-    out.push(points[n - 1]);
-    let mut deduped: Vec<Point> = Vec::with_capacity(out.len());
-    for p in out {
+    out.push((points[n - 1], total));
+    let mut deduped = StretchLine {
+        bends,
+        ..StretchLine::default()
+    };
+    for (p, station) in out {
         let near = deduped
+            .points
             .last()
             .is_some_and(|l: &Point| (l[0] - p[0]).abs() < 1e-12 && (l[1] - p[1]).abs() < 1e-12);
         if !near {
-            deduped.push(p);
+            deduped.points.push(p);
+            deduped.stations.push(station);
         }
     }
-    if deduped.len() < 2 {
-        return points.to_vec();
+    if deduped.points.len() < 2 {
+        return StretchLine {
+            points: points.to_vec(),
+            stations: along,
+            bends: Vec::new(),
+        };
     }
     deduped
 }

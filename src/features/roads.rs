@@ -112,6 +112,46 @@ pub fn is_off_ground(tags: &Tags) -> bool {
         || tags.get("area") == Some("yes")
 }
 
+/// True for the ways whose shared nodes are joints of the road network's profiles: drawn
+/// roads, on the ground or not, and railways (a level crossing holds both at one height).
+pub fn joins(tags: &Tags) -> bool {
+    tags.get("highway")
+        .is_some_and(|h| default_width_m(h).is_some())
+        || tags.is_set("railway")
+}
+
+/// The line a ground road way is drawn along, `None` for a way that is not a road on the
+/// ground.
+pub fn road_line(
+    way: &Way,
+    projection: &Projection,
+    settings: &FeatureSettings,
+) -> Option<RoadLine> {
+    if is_off_ground(&way.tags) {
+        return None;
+    }
+    let width = width_m(&way.tags, settings)?;
+    let first = way.positions.first()?;
+    let mut line = RoadLine {
+        nodes: Vec::with_capacity(way.nodes.len()),
+        points: Vec::with_capacity(way.nodes.len()),
+        half_width: projection.metres(width / 2.0, first.lat),
+        metre: projection.metres(1.0, first.lat),
+    };
+    for (&node, &position) in way.nodes.iter().zip(&way.positions) {
+        let point = projection.point(position);
+        if line.points.last() != Some(&point) {
+            line.nodes.push(node);
+            line.points.push(point);
+        }
+    }
+    if line.points.len() < 2 {
+        tracing::debug!(way = way.id, "road of a single point; skipped");
+        return None;
+    }
+    Some(line)
+}
+
 /// Adds the roads among `ways` as one network: a surface per way, split and cut back where
 /// ways meet, and a surface per junction (traced to its OSM node).
 pub(super) fn add_ways(
@@ -124,29 +164,12 @@ pub(super) fn add_ways(
     let mut lines = Vec::new();
     let mut roads: Vec<(u32, Paving, f64)> = Vec::new();
     for way in ways {
-        if is_off_ground(&way.tags) {
+        let Some(line) = road_line(way, projection, settings) else {
             continue;
-        }
+        };
         let Some(width) = width_m(&way.tags, settings) else {
             continue;
         };
-        let mut line = RoadLine {
-            nodes: Vec::with_capacity(way.nodes.len()),
-            points: Vec::with_capacity(way.nodes.len()),
-            half_width: projection.metres(width / 2.0, way.positions[0].lat),
-            metre: projection.metres(1.0, way.positions[0].lat),
-        };
-        for (&node, &position) in way.nodes.iter().zip(&way.positions) {
-            let point = projection.point(position);
-            if line.points.last() != Some(&point) {
-                line.nodes.push(node);
-                line.points.push(point);
-            }
-        }
-        if line.points.len() < 2 {
-            tracing::debug!(way = way.id, "road of a single point; skipped");
-            continue;
-        }
         let element = ElementRef {
             element_type: ElementType::Way,
             id: way.id,

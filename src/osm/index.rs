@@ -8,7 +8,7 @@
 
 use std::collections::HashMap;
 
-use super::structures::{self, Classify, Group};
+use super::structures::{self, Classify, Group, StructureKind};
 use super::{Bounds, LonLat, Node, OsmData, Relation, Way};
 use crate::tile::{lon_lat_to_uv, TileId};
 
@@ -24,6 +24,20 @@ pub struct OsmIndex {
     structures: Vec<Group>,
     /// The cells each structure group touches.
     structure_cells: HashMap<(u32, u32), Vec<u32>>,
+    roads: RoadGraph,
+}
+
+/// The nodes where ways join (shared by two ways, or met twice by one), each with the indices
+/// of the ways through it.
+pub type Joints = HashMap<i64, Vec<u32>>;
+
+/// What the profile of a road on the ground depends on beyond the road itself, for the whole
+/// data: where it joins other ways, and where a bridge passes over it.
+#[derive(Debug, Default)]
+pub struct RoadGraph {
+    pub joints: Joints,
+    /// By way id, where a bridge crosses over the way.
+    pub under_bridges: HashMap<i64, Vec<LonLat>>,
 }
 
 #[derive(Debug, Default)]
@@ -44,8 +58,11 @@ pub struct Selection<'a> {
     pub coastlines: Vec<&'a Way>,
     /// The bridges and tunnels that reach near the tile, whole, with what they cross.
     pub structures: Vec<&'a Group>,
-    /// Every way of the data, for the indices in `structures`.
+    /// Every way of the data, for the indices in `structures` and `joints`.
     pub all_ways: &'a [Way],
+    /// Where the ways of the data join and pass under bridges, near the tile or not (see
+    /// [`OsmIndex::with_joints`]).
+    pub roads: Option<&'a RoadGraph>,
 }
 
 impl OsmIndex {
@@ -98,6 +115,30 @@ impl OsmIndex {
             .filter(|&i| data.ways[i as usize].tags.get("natural") == Some("coastline"))
             .collect();
         let structures = structures::find(&data.ways, classify);
+        let mut under_bridges: HashMap<i64, Vec<LonLat>> = HashMap::new();
+        for group in &structures {
+            for crossing in &group.crossings {
+                let chain = &group.chains[crossing.chain as usize];
+                let (structures::Crossed::Way(below), StructureKind::Bridge) =
+                    (crossing.other, chain.kind)
+                else {
+                    continue;
+                };
+                let k = crossing.segment as usize;
+                let (Some(a), Some(b), Some(way)) = (
+                    chain.positions.get(k),
+                    chain.positions.get(k + 1),
+                    data.ways.get(below as usize),
+                ) else {
+                    continue;
+                };
+                let t = crossing.t;
+                under_bridges.entry(way.id).or_default().push(LonLat {
+                    lon: a.lon + t * (b.lon - a.lon),
+                    lat: a.lat + t * (b.lat - a.lat),
+                });
+            }
+        }
         let mut structure_cells: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
         for (i, group) in structures.iter().enumerate() {
             for cell in cells_of(&group.bounds, n) {
@@ -111,7 +152,45 @@ impl OsmIndex {
             coastlines,
             structures,
             structure_cells,
+            roads: RoadGraph {
+                joints: Joints::new(),
+                under_bridges,
+            },
         }
+    }
+
+    /// Finds where the ways that `joins` accepts join one another: the nodes such ways share
+    /// or one of them meets twice.
+    pub fn with_joints(mut self, joins: fn(&super::Tags) -> bool) -> OsmIndex {
+        let mut through: HashMap<i64, (usize, Vec<u32>)> = HashMap::new();
+        for (i, way) in self.data.ways.iter().enumerate() {
+            if !joins(&way.tags) {
+                continue;
+            }
+            for (k, &node) in way.nodes.iter().enumerate() {
+                // A closed way meets its first node again at its end; any other repeat of a
+                // node next to itself is a duplicated point, not a joint.
+                if k > 0 && way.nodes[k - 1] == node {
+                    continue;
+                }
+                let entry = through.entry(node).or_default();
+                entry.0 += 1;
+                if entry.1.last() != Some(&(i as u32)) {
+                    entry.1.push(i as u32);
+                }
+            }
+        }
+        self.roads.joints = through
+            .into_iter()
+            .filter(|(_, (count, _))| *count > 1)
+            .map(|(node, (_, ways))| (node, ways))
+            .collect();
+        self
+    }
+
+    /// Where ways join (from [`OsmIndex::with_joints`]) and pass under bridges.
+    pub fn roads(&self) -> &RoadGraph {
+        &self.roads
     }
 
     pub fn data(&self) -> &OsmData {
@@ -176,6 +255,7 @@ impl OsmIndex {
                 .filter(|g| self::meets(&g.bounds, &area))
                 .collect(),
             all_ways: &self.data.ways,
+            roads: Some(&self.roads),
         }
     }
 }

@@ -8,7 +8,7 @@ pub mod multipolygon;
 pub mod structures;
 pub mod units;
 
-pub use index::OsmIndex;
+pub use index::{Joints, OsmIndex, RoadGraph};
 
 /// An element's tags, sorted by key so lookups are a binary search and iteration is deterministic.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]

@@ -2,10 +2,12 @@
 //! did (the debug views of the thesis, appendix A.6): every bridge and tunnel that reaches the
 //! tile as a line with its stations' elevations, its connectors (the ends on the ground or
 //! joined to another chain, and every station in between), and every soft constraint of its
-//! linear program with how far it is from holding.
+//! linear program with how far it is from holding; and every ground road whose profile left
+//! the terrain, with the soft constraints of its grade that had to give way.
 
 use serde_json::{json, Value};
 
+use crate::elevation::road_profiles::RoadProfiles;
 use crate::elevation::structures::{plan_tunnel, Settled};
 use crate::geometry::Point;
 use crate::osm::structures::StructureKind;
@@ -15,8 +17,15 @@ use crate::tile::{u_to_lon, v_to_lat, TileId};
 /// A constraint is drawn as violated beyond this much, metres.
 pub const VIOLATION_TOLERANCE_M: f64 = 0.01;
 
-/// The GeoJSON feature collection of the settled groups that reach `tile`.
-pub fn structures(tile: TileId, settled: &[Settled], ways: &[Way], surface_margin_m: f64) -> Value {
+/// The GeoJSON feature collection of the settled groups that reach `tile` and of its ground
+/// roads.
+pub fn elevations(
+    tile: TileId,
+    settled: &[Settled],
+    roads: &RoadProfiles,
+    ways: &[Way],
+    surface_margin_m: f64,
+) -> Value {
     let n = tile.tiles_per_axis();
     let position = |p: Point| -> Value {
         let round = |v: f64| (v * 1e7).round() / 1e7;
@@ -105,6 +114,47 @@ pub fn structures(tile: TileId, settled: &[Settled], ways: &[Way], surface_margi
             }));
         }
     }
+    // Ground roads: the profiles that left the terrain, and what gave way.
+    let mut road_ids: Vec<&i64> = roads.profiles.keys().collect();
+    road_ids.sort_unstable();
+    for id in road_ids {
+        let profile = &roads.profiles[id];
+        if profile.elevations == profile.terrain {
+            continue;
+        }
+        features.push(json!({
+            "type": "Feature",
+            "geometry": {
+                "type": "LineString",
+                "coordinates": profile.points.iter().map(|&p| position(p)).collect::<Vec<_>>(),
+            },
+            "properties": {
+                "layer": "road_profile",
+                "osm_way": id,
+                "elevations_m": profile.elevations.iter().map(|&e| cm(e)).collect::<Vec<_>>(),
+                "terrain_m": profile.terrain.iter().map(|&e| cm(e)).collect::<Vec<_>>(),
+            },
+        }));
+    }
+    let mut road_violations = 0;
+    for report in &roads.violations {
+        if report.violation <= VIOLATION_TOLERANCE_M {
+            continue;
+        }
+        road_violations += 1;
+        features.push(json!({
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": position(report.at)},
+            "properties": {
+                "layer": "road_constraint",
+                "constraint": report.kind.as_str(),
+                "osm_way": report.way,
+                "bound_m": cm(report.bound),
+                "violation_m": cm(report.violation),
+                "satisfied": false,
+            },
+        }));
+    }
     json!({
         "type": "FeatureCollection",
         "tile": format!("{}/{}/{}", tile.z, tile.x, tile.y),
@@ -114,6 +164,14 @@ pub fn structures(tile: TileId, settled: &[Settled], ways: &[Way], surface_margi
             "constraints": constraints,
             "components": components,
             "violated": violated,
+        },
+        "roads": {
+            "stretches": roads.stretches,
+            "settled": roads.settled,
+            "variables": roads.variables,
+            "constraints": roads.constraints,
+            "components": roads.components,
+            "violated": road_violations,
         },
         "features": features,
     })

@@ -1,5 +1,5 @@
-//! `GET /debug/tiles/{z}/{x}/{y}.geojson`: the settled bridges and tunnels of a tile with
-//! their connectors and constraints (see [`crate::output::debug`]). Made on every request,
+//! `GET /debug/tiles/{z}/{x}/{y}.geojson`: the settled bridges, tunnels and ground roads of a
+//! tile with their connectors and constraints (see [`crate::output::debug`]). Made on every request,
 //! never cached: it is for looking into how a tile came out.
 
 use axum::extract::{Path, State};
@@ -10,7 +10,7 @@ use super::error::ApiError;
 use super::AppState;
 use crate::tile::TileId;
 
-pub async fn structures(
+pub async fn elevations(
     State(state): State<AppState>,
     Path((z, x, file)): Path<(String, String, String)>,
 ) -> Result<Response, ApiError> {
@@ -30,8 +30,11 @@ pub async fn structures(
         let mosaic = worker.sources.mosaic(tile).map_err(|e| e.to_string())?;
         let selection = worker.sources.selection(tile);
         let settled = crate::render::settle_structures(tile, &selection, &mosaic, &worker.settings);
+        let roads =
+            crate::render::settle_road_profiles(tile, &selection, &mosaic, &worker.settings);
         let margin = worker.settings.mesh.max_error_m;
-        let value = crate::output::debug::structures(tile, &settled, selection.all_ways, margin);
+        let value =
+            crate::output::debug::elevations(tile, &settled, &roads, selection.all_ways, margin);
         serde_json::to_vec(&value).map_err(|e| e.to_string())
     })
     .await

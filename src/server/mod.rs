@@ -64,7 +64,7 @@ pub fn pipeline_id(settings: &RenderSettings) -> String {
 pub fn router(state: AppState) -> Router {
     Router::new()
         .route("/tiles/{z}/{x}/{file}", get(tiles::tile))
-        .route("/debug/tiles/{z}/{x}/{file}", get(debug::structures))
+        .route("/debug/tiles/{z}/{x}/{file}", get(debug::elevations))
         .route("/layer.json", get(layer::layer))
         .route("/health", get(health))
         .route("/metrics", get(metrics))

@@ -63,7 +63,8 @@ impl Sources {
         let data = osm_pbf::read_extracts(osm_paths)?;
         let srtm = SrtmDirectory::open(srtm_dir)?;
         Ok(Sources {
-            osm: OsmIndex::new(data, zoom, crate::features::structures::classify),
+            osm: OsmIndex::new(data, zoom, crate::features::structures::classify)
+                .with_joints(crate::features::roads::joins),
             srtm,
             osm_paths: osm_paths.to_vec(),
         })

@@ -392,3 +392,30 @@ pub fn corners(primitives: &[Primitive]) -> Vec<[[f64; 3]; 3]> {
         })
         .collect()
 }
+
+/// Where a tunnel runs (its tube, or the approach cut of a tunnel way drawn as road) in a
+/// decoded tile: the ground over a tube too shallow for its roof is raised, and a road on it
+/// with it.
+pub struct TunnelFootprint(GroundLocator);
+
+impl TunnelFootprint {
+    pub fn new(tile: &DecodedTile) -> TunnelFootprint {
+        let mut triangles = corners(tile.primitives("tunnel"));
+        for primitive in tile.primitives("road") {
+            for t in primitive.triangles() {
+                let row = &tile.features[primitive.feature_ids[t[0]] as usize];
+                if row.tags.contains_key("tunnel") {
+                    triangles.push(t.map(|i| primitive.positions[i].map(f64::from)));
+                }
+            }
+        }
+        TunnelFootprint(GroundLocator::new(triangles, tile.tile_size()))
+    }
+
+    /// True within 0.8 m of a tunnel.
+    pub fn near(&self, x: f64, z: f64) -> bool {
+        [[0.0, 0.0], [0.8, 0.0], [-0.8, 0.0], [0.0, 0.8], [0.0, -0.8]]
+            .iter()
+            .any(|d| !self.0.heights_at(x + d[0], z + d[1], 1e-6).is_empty())
+    }
+}
