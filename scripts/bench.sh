@@ -9,7 +9,7 @@ trap 'kill $server 2>/dev/null || true; rm -rf "$out"' EXIT
 
 echo "== cold render of $tile (render command, release build)"
 /usr/bin/time -v "$bin" render "$tile" -o "$out/tile.glb" --timings 2> "$out/render.txt" || { cat "$out/render.txt"; exit 1; }
-grep -E '^(load|features|structures|roads|triangulation|terrain|elevation|glb|total|triangles|elevation LP:) ' "$out/render.txt"
+grep -E '^(load|features|structures|roads|triangulation|terrain|elevation|glb|total|triangles|elevation LP:|of which ground roads:) ' "$out/render.txt"
 grep -E 'Maximum resident set size|Elapsed \(wall' "$out/render.txt"
 ls -l "$out/tile.glb" | awk '{print "glb bytes", $5}'
 

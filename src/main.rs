@@ -219,6 +219,13 @@ fn render(args: RenderArgs) -> Result<()> {
             "elevation LP: {} variables, {} constraints, {} components, {} soft constraints violated",
             s.lp_variables, s.lp_constraints, s.lp_components, s.lp_violations
         );
+        eprintln!(
+            "of which ground roads: {} stretches, {} variables, {} constraints, {} violated",
+            s.road_stretches_settled,
+            s.road_lp_variables,
+            s.road_lp_constraints,
+            s.road_lp_violations
+        );
     }
     Ok(())
 }

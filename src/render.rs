@@ -97,6 +97,12 @@ pub struct RenderStats {
     pub lp_constraints: usize,
     pub lp_components: usize,
     pub lp_violations: usize,
+    /// Of those, the ground roads': stretches settled by the LP, variables, constraints and
+    /// soft constraints violated.
+    pub road_stretches_settled: usize,
+    pub road_lp_variables: usize,
+    pub road_lp_constraints: usize,
+    pub road_lp_violations: usize,
 }
 
 #[derive(Debug, Clone)]
@@ -568,6 +574,14 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
                 .iter()
                 .filter(|r| r.violation > crate::output::debug::VIOLATION_TOLERANCE_M)
                 .count(),
+        road_stretches_settled: road_profiles.settled,
+        road_lp_variables: road_profiles.variables,
+        road_lp_constraints: road_profiles.constraints,
+        road_lp_violations: road_profiles
+            .violations
+            .iter()
+            .filter(|r| r.violation > crate::output::debug::VIOLATION_TOLERANCE_M)
+            .count(),
     };
     RenderedTile {
         glb: bytes,

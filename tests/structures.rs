@@ -241,8 +241,78 @@ fn grades_keep_to_the_class_maximum_unless_reported() {
     assert!(segments > 1000);
 }
 
-/// The debug view shows the settled structures of a tile with their connectors and
-/// constraints; rendering a tile counts its LP in `/metrics`; bad debug paths are JSON errors.
+/// Under a building or a tree, a settled tunnel's roof stays below its foundations (3 m,
+/// a storey more per underground level) or roots (1.5 m) and the mesh's error bound, unless
+/// the LP reported that bound violated there.
+#[test]
+fn tunnels_keep_clear_of_the_foundations_over_them() {
+    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let ways = &sources.osm.data().ways;
+    let groups = sources.osm.structures();
+    let settled = settle_all(&sources);
+    let projection = Projection::new(14);
+    let margin = MeshSettings::default().max_error_m;
+    let (mut under, mut reported, mut buildings) = (0, 0, 0);
+    for (group, outcome) in groups.iter().zip(&settled) {
+        let outlines: Vec<(terrastitch::geometry::Polygon, f64)> = group
+            .above
+            .iter()
+            .filter(|a| a.positions.len() > 1)
+            .map(|a| {
+                let outline = terrastitch::geometry::Polygon {
+                    outer: projection.points(&a.positions),
+                    holes: Vec::new(),
+                };
+                (outline, a.depth_m)
+            })
+            .collect();
+        buildings += outlines.len();
+        for profile in &outcome.profiles {
+            if profile.kind != StructureKind::Tunnel {
+                continue;
+            }
+            let last = profile.points.len() - 1;
+            for i in 1..last {
+                let p = profile.points[i];
+                let Some(depth) = outlines
+                    .iter()
+                    .filter(|(o, _)| o.contains(p))
+                    .map(|&(_, d)| d)
+                    .reduce(f64::max)
+                else {
+                    continue;
+                };
+                under += 1;
+                let way = &ways[profile.ways[i] as usize];
+                let roof =
+                    profile.elevations[i] + tags::tunnel_height_m(&way.tags) + tags::TUNNEL_ROOF_M;
+                if roof <= profile.terrain[i] - depth - margin + 0.01 {
+                    continue;
+                }
+                let violated = outcome.violations(0.001).any(|v| {
+                    v.kind == ConstraintKind::Foundations
+                        && v.way == way.id
+                        && (v.at[0] - p[0]).hypot(v.at[1] - p[1]) < 1e-9
+                });
+                assert!(
+                    violated,
+                    "tunnel way {} at station {i}: roof {roof:.2} m, ground {:.2} m, \
+                     foundations {depth} m deep, unreported",
+                    way.id, profile.terrain[i]
+                );
+                reported += 1;
+            }
+        }
+    }
+    eprintln!(
+        "{buildings} buildings over tunnels; {under} tunnel stations under them, {reported} \
+         too shallow and reported"
+    );
+    assert!(under > 100, "{under} tunnel stations under buildings");
+}
+
+/// The debug view shows the settled structures and ground roads of a tile with their
+/// connectors and constraints; rendering a tile counts its LP in `/metrics`; bad debug paths are JSON errors.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_debug_view_shows_connectors_and_constraints() {
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -276,6 +346,28 @@ async fn the_debug_view_shows_connectors_and_constraints() {
         .filter(|f| f["properties"]["satisfied"] == false)
         .count();
     assert_eq!(Some(violated as u64), view["lp"]["violated"].as_u64());
+    // The ground roads: profiles that left the terrain, each with both profiles, and the
+    // constraints that gave way, as many as the summary says.
+    assert!(
+        view["roads"]["settled"].as_u64().unwrap_or(0) > 10,
+        "{}",
+        view["roads"]
+    );
+    assert!(count("road_profile") > 10);
+    for f in features
+        .iter()
+        .filter(|f| f["properties"]["layer"] == "road_profile")
+    {
+        let p = &f["properties"];
+        let n = f["geometry"]["coordinates"].as_array().map(Vec::len);
+        assert_eq!(p["elevations_m"].as_array().map(Vec::len), n, "{p}");
+        assert_eq!(p["terrain_m"].as_array().map(Vec::len), n, "{p}");
+        assert_ne!(p["elevations_m"], p["terrain_m"], "{p}");
+    }
+    assert_eq!(
+        Some(count("road_constraint") as u64),
+        view["roads"]["violated"].as_u64()
+    );
     // Grounded ends sit at the terrain.
     for f in features
         .iter()

@@ -23,7 +23,7 @@ use crate::elevation::lp::{self, Constraint, Problem, Relation, Smoothness};
 use crate::elevation::settled::{Level, Rule, Stations};
 use crate::features::structures::{self as tags, Incline};
 use crate::features::{widened_surface, FeatureClass, FeatureSet, FeatureSettings, Projection};
-use crate::geometry::Point;
+use crate::geometry::{Point, Polygon, Rect};
 use crate::osm::structures::{Crossed, Group, StructureKind};
 use crate::osm::Way;
 use crate::terrain::Elevation;
@@ -60,6 +60,8 @@ pub enum ConstraintKind {
     AboveGround,
     /// A tunnel's roof under the ground.
     Cover,
+    /// A tunnel's roof under the foundations of a building or the roots of a tree over it.
+    Foundations,
     /// A tunnel above another.
     TunnelOverTunnel,
     /// The steepest grade of the way's class.
@@ -74,6 +76,7 @@ impl ConstraintKind {
             ConstraintKind::Clearance => "clearance",
             ConstraintKind::AboveGround => "above_ground",
             ConstraintKind::Cover => "cover",
+            ConstraintKind::Foundations => "foundations",
             ConstraintKind::TunnelOverTunnel => "tunnel_over_tunnel",
             ConstraintKind::MaxIncline => "max_incline",
             ConstraintKind::TaggedIncline => "tagged_incline",
@@ -359,6 +362,7 @@ pub fn settle(
     };
 
     // Along each chain: grades, smoothness, the ground.
+    let foundations = Foundations::new(group, projection);
     for (c, profile) in profiles.iter().enumerate() {
         let first = rows[c].first;
         let n = profile.points.len();
@@ -449,15 +453,24 @@ pub fn settle(
                     Relation::AtLeast,
                     profile.terrain[i],
                 ),
-                StructureKind::Tunnel => (
-                    ConstraintKind::Cover,
-                    Relation::AtMost,
-                    profile.terrain[i]
-                        - tags::tunnel_height_m(&way.tags)
-                        - tags::TUNNEL_ROOF_M
-                        - TUNNEL_COVER_M
-                        - surface_margin_m,
-                ),
+                StructureKind::Tunnel => {
+                    // Under a building or a tree, the roof stays below its foundations.
+                    let (kind, cover) = match foundations.depth_at(profile.points[i]) {
+                        Some(depth) if depth > TUNNEL_COVER_M => {
+                            (ConstraintKind::Foundations, depth)
+                        }
+                        _ => (ConstraintKind::Cover, TUNNEL_COVER_M),
+                    };
+                    (
+                        kind,
+                        Relation::AtMost,
+                        profile.terrain[i]
+                            - tags::tunnel_height_m(&way.tags)
+                            - tags::TUNNEL_ROOF_M
+                            - cover
+                            - surface_margin_m,
+                    )
+                }
             };
             soft(
                 &mut problem,
@@ -577,6 +590,60 @@ pub fn settle(
         components: outcome.components,
         reports: labels,
         failed: outcome.failed,
+    }
+}
+
+/// What reaches down into the ground over a group's tunnels, in tile units.
+struct Foundations {
+    outlines: Vec<(Polygon, Rect, f64)>,
+    points: Vec<(Point, f64)>,
+    /// How near a tree a station is under it.
+    root_radius: f64,
+}
+
+/// A tree's roots reach this far around its trunk, metres.
+const ROOT_RADIUS_M: f64 = 3.0;
+
+impl Foundations {
+    fn new(group: &Group, projection: &Projection) -> Foundations {
+        let mut out = Foundations {
+            outlines: Vec::new(),
+            points: Vec::new(),
+            root_radius: 0.0,
+        };
+        for above in &group.above {
+            let points = projection.points(&above.positions);
+            match points.as_slice() {
+                [] => {}
+                [p] => out.points.push((*p, above.depth_m)),
+                _ => {
+                    let bounds = Rect::around(&points);
+                    let outline = Polygon {
+                        outer: points,
+                        holes: Vec::new(),
+                    };
+                    out.outlines.push((outline, bounds, above.depth_m));
+                }
+            }
+        }
+        let lat = group.bounds.south;
+        out.root_radius = projection.metres(ROOT_RADIUS_M, lat);
+        out
+    }
+
+    /// How deep the deepest foundation over `p` reaches, metres.
+    fn depth_at(&self, p: Point) -> Option<f64> {
+        let outlines = self
+            .outlines
+            .iter()
+            .filter(|(outline, bounds, _)| bounds.contains(p) && outline.contains(p))
+            .map(|&(_, _, depth)| depth);
+        let trees = self
+            .points
+            .iter()
+            .filter(|(q, _)| (q[0] - p[0]).hypot(q[1] - p[1]) <= self.root_radius)
+            .map(|&(_, depth)| depth);
+        outlines.chain(trees).reduce(f64::max)
     }
 }
 

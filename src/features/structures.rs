@@ -124,6 +124,32 @@ pub fn clearance_over_m(tags: &Tags) -> Option<f64> {
     }
 }
 
+/// Tunnel roofs stay this far under a building, metres (a foundation slab and footings), and
+/// a storey deeper for each underground level.
+pub const FOUNDATION_DEPTH_M: f64 = 3.0;
+/// A storey below ground, metres.
+const UNDERGROUND_LEVEL_M: f64 = 3.0;
+/// Tunnel roofs stay this far under a tree, metres (its roots).
+pub const ROOT_DEPTH_M: f64 = 1.5;
+
+/// How deep what the tags describe reaches into the ground (a building's foundations and
+/// underground levels, a tree's roots), `None` for what does not.
+pub fn foundation_depth_m(tags: &Tags) -> Option<f64> {
+    if tags.get("natural") == Some("tree") {
+        return Some(ROOT_DEPTH_M);
+    }
+    let building = tags.get("building")?;
+    if building == "no" || tags.get("location") == Some("underground") {
+        return None;
+    }
+    let underground = tags
+        .get("building:levels:underground")
+        .and_then(crate::osm::units::parse_count)
+        .filter(|l| (0.0..=10.0).contains(l))
+        .unwrap_or(0.0);
+    Some(FOUNDATION_DEPTH_M + underground.round() * UNDERGROUND_LEVEL_M)
+}
+
 /// The steepest grade (rise per run) a way may have, `None` for no bound.
 pub fn max_incline(tags: &Tags) -> Option<f64> {
     if let Some(railway) = tags.get("railway") {

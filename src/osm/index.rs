@@ -188,6 +188,88 @@ impl OsmIndex {
         self
     }
 
+    /// Finds, for every group with a tunnel, the ways and nodes over its tunnels (within
+    /// [`ABOVE_TUNNEL_DEG`] of a tunnel's line) that `depth` says reach down into the ground.
+    pub fn with_foundations(mut self, depth: fn(&super::Tags) -> Option<f64>) -> OsmIndex {
+        let n = f64::from(1u32 << self.zoom);
+        for group in &mut self.structures {
+            let tunnels: Vec<&structures::Chain> = group
+                .chains
+                .iter()
+                .filter(|c| c.kind == StructureKind::Tunnel)
+                .collect();
+            if tunnels.is_empty() {
+                continue;
+            }
+            // Each tunnel segment with the box around it that something near it meets.
+            let segments: Vec<(LonLat, LonLat, Bounds)> = tunnels
+                .iter()
+                .flat_map(|chain| chain.positions.windows(2))
+                .filter_map(|pair| {
+                    let bounds = bounds_of(pair)?.expanded(ABOVE_TUNNEL_DEG);
+                    Some((pair[0], pair[1], bounds))
+                })
+                .collect();
+            // Near a tunnel's line, or an outline the line passes through.
+            let near = |positions: &[LonLat]| {
+                let Some(bounds) = bounds_of(positions) else {
+                    return false;
+                };
+                segments
+                    .iter()
+                    .filter(|(_, _, around)| meets(around, &bounds))
+                    .any(|&(a, b, _)| {
+                        positions
+                            .iter()
+                            .any(|&p| degrees_to_segment(p, a, b) < ABOVE_TUNNEL_DEG)
+                            || [a, b]
+                                .iter()
+                                .any(|p| meets(&bounds, &bounds_of(&[*p]).unwrap_or(bounds)))
+                    })
+            };
+            let area = group.bounds.expanded(ABOVE_TUNNEL_DEG);
+            let mut ways: Vec<u32> = Vec::new();
+            let mut nodes: Vec<u32> = Vec::new();
+            for cell in cells_of(&area, n) {
+                if let Some(content) = self.cells.get(&cell) {
+                    ways.extend(&content.ways);
+                    nodes.extend(&content.nodes);
+                }
+            }
+            ways.sort_unstable();
+            ways.dedup();
+            nodes.sort_unstable();
+            nodes.dedup();
+            for i in ways {
+                let way = &self.data.ways[i as usize];
+                let Some(depth_m) = depth(&way.tags) else {
+                    continue;
+                };
+                if way.is_closed() && near(&way.positions) {
+                    group.above.push(structures::Above {
+                        id: way.id,
+                        positions: way.positions.clone(),
+                        depth_m,
+                    });
+                }
+            }
+            for i in nodes {
+                let node = &self.data.nodes[i as usize];
+                let Some(depth_m) = depth(&node.tags) else {
+                    continue;
+                };
+                if near(&[node.position]) {
+                    group.above.push(structures::Above {
+                        id: node.id,
+                        positions: vec![node.position],
+                        depth_m,
+                    });
+                }
+            }
+        }
+        self
+    }
+
     /// Where ways join (from [`OsmIndex::with_joints`]) and pass under bridges.
     pub fn roads(&self) -> &RoadGraph {
         &self.roads
@@ -258,6 +340,26 @@ impl OsmIndex {
             roads: Some(&self.roads),
         }
     }
+}
+
+/// How far (degrees) from a tunnel's line a building's vertex or a tree may stand and still
+/// reach down over it: about 40 m, a wide tunnel's half width and a building's size.
+pub const ABOVE_TUNNEL_DEG: f64 = 0.0004;
+
+/// Distance from `p` to the segment `a`–`b` in degrees, longitude scaled by the latitude.
+fn degrees_to_segment(p: LonLat, a: LonLat, b: LonLat) -> f64 {
+    let k = p.lat.to_radians().cos();
+    let (px, py) = (p.lon * k, p.lat);
+    let (ax, ay) = (a.lon * k, a.lat);
+    let (bx, by) = (b.lon * k, b.lat);
+    let (dx, dy) = (bx - ax, by - ay);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((px - ax) * dx + (py - ay) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (px - ax - t * dx).hypot(py - ay - t * dy)
 }
 
 /// Like [`Bounds::intersects`], but a box of zero width (a node, a north–south way) counts.

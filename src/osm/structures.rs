@@ -66,6 +66,19 @@ pub struct Group {
     pub chains: Vec<Chain>,
     pub crossings: Vec<Crossing>,
     pub bounds: Bounds,
+    /// What reaches down into the ground over the group's tunnels (foundations, roots).
+    pub above: Vec<Above>,
+}
+
+/// Something that reaches down into the ground: a building's outline or a tree's position,
+/// and how deep.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Above {
+    /// The OSM element.
+    pub id: i64,
+    /// A closed outline, or one position.
+    pub positions: Vec<LonLat>,
+    pub depth_m: f64,
 }
 
 /// What makes a way part of a structure: its kind and layer, or `None`.
@@ -150,6 +163,7 @@ pub fn find(ways: &[Way], classify: Classify) -> Vec<Group> {
                 chains: Vec::new(),
                 crossings: Vec::new(),
                 bounds,
+                above: Vec::new(),
             });
             groups.len() - 1
         });

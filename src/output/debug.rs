@@ -114,12 +114,18 @@ pub fn elevations(
             }));
         }
     }
-    // Ground roads: the profiles that left the terrain, and what gave way.
+    // Ground roads: the profiles that left the terrain (by half a centimetre, as written), and
+    // what gave way.
     let mut road_ids: Vec<&i64> = roads.profiles.keys().collect();
     road_ids.sort_unstable();
     for id in road_ids {
         let profile = &roads.profiles[id];
-        if profile.elevations == profile.terrain {
+        let left = profile
+            .elevations
+            .iter()
+            .zip(&profile.terrain)
+            .any(|(e, t)| (e - t).abs() >= 0.005);
+        if !left {
             continue;
         }
         features.push(json!({

@@ -64,7 +64,8 @@ impl Sources {
         let srtm = SrtmDirectory::open(srtm_dir)?;
         Ok(Sources {
             osm: OsmIndex::new(data, zoom, crate::features::structures::classify)
-                .with_joints(crate::features::roads::joins),
+                .with_joints(crate::features::roads::joins)
+                .with_foundations(crate::features::structures::foundation_depth_m),
             srtm,
             osm_paths: osm_paths.to_vec(),
         })
