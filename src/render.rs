@@ -151,6 +151,8 @@ struct Prepared<'a> {
     cuts: Vec<elevation::settled::Level>,
     /// Roads and junctions, level across.
     roads: elevation::roads::RoadLevels,
+    /// Cliffs and retaining walls.
+    steps: elevation::steps::Steps,
     /// The profiles of the ground roads, held to their grade.
     road_profiles: elevation::road_profiles::RoadProfiles,
     /// Every way of the data, for the structures' indices.
@@ -211,11 +213,14 @@ fn prepare<'a>(
         frame.size_m,
         &cut_surfaces,
     );
+    // Cliffs and retaining walls step the terrain.
+    let steps = elevation::steps::Steps::new(&feature_set.steps);
     let settled = elevation::settled::Ground {
         terrain: &terrain,
         water: &water,
         cuts: &cuts,
         roads: &roads,
+        steps: &steps,
     };
     let mut ground = ground::triangulate(
         &frame,
@@ -261,6 +266,7 @@ fn prepare<'a>(
         structure_features,
         cuts,
         roads,
+        steps,
         road_profiles,
         all_ways: selection.all_ways,
         feature_settings: settings.features.clone(),
@@ -408,6 +414,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         structure_features,
         cuts,
         roads,
+        steps,
         road_profiles,
         all_ways,
         feature_settings,
@@ -472,6 +479,7 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         water,
         cuts,
         roads,
+        steps,
     };
     let solids = mesh::buildings::solids(
         &feature_set.buildings,

@@ -416,7 +416,10 @@ fn road_grades_keep_to_the_class_maximum_unless_reported() {
                     }
                     let mid = |p: [f64; 2], q: [f64; 2]| [(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0];
                     let (m0, m1) = (mid(a.1, b.1), mid(c.1, d.1));
-                    let run = (m1[0] - m0[0]).hypot(m1[1] - m0[1]);
+                    // Local coordinates are Web Mercator metres: on the ground, shorter by
+                    // the projection's scale.
+                    let run = (m1[0] - m0[0]).hypot(m1[1] - m0[1])
+                        / frame.scale_at((m0[1] + m1[1]) / 2.0);
                     if run < 0.5 {
                         continue;
                     }
@@ -424,7 +427,7 @@ fn road_grades_keep_to_the_class_maximum_unless_reported() {
                     let rise = (c.0 + d.0 - a.0 - b.0) / 2.0;
                     if rise.abs() > max * run + 0.005 {
                         drawn_steep += 1;
-                        let metre = 1.0 / frame.size_m;
+                        let metre = roads.profiles.get(&element.id).map_or(0.0, |p| p.metre);
                         assert!(
                             reported(element.id, l0, l1, metre),
                             "{name}: way {} is drawn rising {:.3} per metre over {run:.1} m, \
@@ -446,6 +449,102 @@ fn road_grades_keep_to_the_class_maximum_unless_reported() {
         drawn > 10_000,
         "{drawn} cross-section pairs measured in the glb"
     );
+}
+
+/// Along every cliff and retaining wall of the ten Monaco tiles, the ground on the edge of its
+/// face on the high side (the way's left) stands above the edge on the low side by the step's
+/// height (within 5 %: at a bend the two edges are nearest to different points of the line),
+/// away from its ends (where the step fades), from sharp bends and from vertices a road, water
+/// or another surface holds.
+#[test]
+fn cliffs_and_retaining_walls_step_the_ground() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let (mut steps, mut pairs) = (0, 0);
+    for (x, y) in TILES {
+        let name = format!("14/{x}/{y}");
+        let id = TileId { z: 14, x, y };
+        let set = features::collect(&sources.selection(id), id, &Default::default());
+        if set.steps.is_empty() {
+            continue;
+        }
+        let tile = decode(&common::render_in_process(&name, &[], dir.path()));
+        let frame = id.frame();
+        let size = tile.tile_size() as f32;
+        let key = |x: f32, z: f32| [x.to_bits(), z.to_bits()];
+        // Ground vertex elevations, and the vertices any other surface's triangles hold too.
+        let mut heights: HashMap<[u32; 2], f64> = HashMap::new();
+        let mut owners: HashMap<[u32; 2], std::collections::BTreeSet<u32>> = HashMap::new();
+        for node in GROUND_NODES {
+            for primitive in tile.primitives(node) {
+                for (&p, &feature) in primitive.positions.iter().zip(&primitive.feature_ids) {
+                    let e = f64::from(p[1]) / frame.scale_at(f64::from(p[2]));
+                    heights.entry(key(p[0], p[2])).or_insert(e);
+                    owners.entry(key(p[0], p[2])).or_default().insert(feature);
+                }
+            }
+        }
+        let at = |p: [f64; 2], feature: u32| -> Option<f64> {
+            let (lx, lz) = frame.uv_to_local(p[0], p[1]);
+            let (lx, lz) = (lx as f32, lz as f32);
+            if lx <= 0.0 || lz <= 0.0 || lx >= size || lz >= size {
+                return None;
+            }
+            let k = key(lx, lz);
+            // Held by the face and the terrain or land cover around it, nothing else.
+            let foreign = owners.get(&k)?.iter().any(|&f| {
+                f != feature
+                    && !matches!(
+                        tile.features[f as usize].class.as_str(),
+                        "terrain" | "landcover"
+                    )
+            });
+            (!foreign).then(|| heights.get(&k).copied()).flatten()
+        };
+        for step in &set.steps {
+            steps += 1;
+            let band = terrastitch::elevation::steps::band_m(step.height_m) * step.metre;
+            let mut along = 0.0;
+            let total: f64 = step
+                .line
+                .windows(2)
+                .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+                .sum();
+            let Some(face) = set.surfaces.iter().find(|s| s.feature == step.face) else {
+                panic!("{name}: a step without its face");
+            };
+            for (k, piece) in face.pieces.iter().enumerate() {
+                if k > 0 {
+                    let (a, b) = (step.line[k - 1], step.line[k]);
+                    along += (b[0] - a[0]).hypot(b[1] - a[1]);
+                }
+                if along < band || total - along < band {
+                    continue;
+                }
+                let (left, right) = (piece.outer[0], piece.outer[3]);
+                // At a sharp bend the face's mitred corners lie far apart, each nearest to
+                // another stretch of the line.
+                let width = (left[0] - right[0]).hypot(left[1] - right[1]) / step.metre;
+                if width > 1.2 * step.thickness_m {
+                    continue;
+                }
+                let (Some(high), Some(low)) = (at(left, step.face), at(right, step.face)) else {
+                    continue;
+                };
+                pairs += 1;
+                assert!(
+                    high - low >= 0.95 * step.height_m,
+                    "{name}: the {:?} of feature {} steps {:.2} m, {} m asked",
+                    step.kind,
+                    step.feature,
+                    high - low,
+                    step.height_m
+                );
+            }
+        }
+    }
+    eprintln!("{steps} cliffs and retaining walls; {pairs} cross-sections of their faces stepped");
+    assert!(pairs > 20, "{pairs} cross-sections checked");
 }
 
 /// True when `c` lies on a polygon's outline (within a few micrometres).

@@ -5,5 +5,6 @@ pub mod lp;
 pub mod road_profiles;
 pub mod roads;
 pub mod settled;
+pub mod steps;
 pub mod structures;
 pub mod water;

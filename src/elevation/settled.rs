@@ -483,8 +483,8 @@ pub fn flatten(
     }
 }
 
-/// The ground: the terrain, with water areas flat at their levels and the ground reshaped
-/// around bridges and tunnels.
+/// The ground: the terrain, with water areas flat at their levels, the ground reshaped around
+/// bridges and tunnels, roads on their profiles, and steps at cliffs and retaining walls.
 pub struct Ground<'a> {
     pub terrain: &'a dyn Elevation,
     pub water: &'a [Level],
@@ -492,6 +492,8 @@ pub struct Ground<'a> {
     pub cuts: &'a [Level],
     /// Roads level across and junctions level.
     pub roads: &'a RoadLevels,
+    /// Cliffs and retaining walls, stepping the terrain around them.
+    pub steps: &'a super::steps::Steps,
 }
 
 impl Elevation for Ground<'_> {
@@ -520,9 +522,14 @@ impl Elevation for Ground<'_> {
                 cut = Some(h);
             }
         }
-        let ground = cut
-            .or_else(|| self.roads.elevation(p))
-            .unwrap_or_else(|| self.terrain.elevation_uv(p));
+        let ground = cut.or_else(|| self.roads.elevation(p)).unwrap_or_else(|| {
+            let terrain = self.terrain.elevation_uv(p);
+            if self.steps.is_empty() {
+                terrain
+            } else {
+                self.steps.ground(p, terrain, self.terrain)
+            }
+        });
         raised.map_or(ground, |raised| raised.max(ground))
     }
 }

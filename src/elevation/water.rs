@@ -113,6 +113,7 @@ mod tests {
             water: &water,
             cuts: &[],
             roads: &Default::default(),
+            steps: &Default::default(),
         };
         // Flat inside and on the outline (the high side too), the terrain outside.
         for p in [[0.15, 0.15], [0.2, 0.15], [0.1, 0.1], [0.2, 0.2]] {

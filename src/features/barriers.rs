@@ -89,8 +89,47 @@ pub enum EdgeKind {
 #[derive(Debug, Clone, PartialEq)]
 pub struct GroundStep {
     pub kind: EdgeKind,
+    /// Global tile units, the high side on the left.
     pub line: Vec<Point>,
+    /// How much higher the left side stands than the right, metres.
+    pub height_m: f64,
+    /// The width of the face between the two sides, metres (a wall's thickness).
+    pub thickness_m: f64,
+    /// One metre in tile units where the step is.
+    pub metre: f64,
+    /// The feature row of the way (a barrier's, or the cliff's own).
     pub feature: u32,
+    /// The feature row of its face, drawn in the ground.
+    pub face: u32,
+}
+
+/// A cliff's height when untagged, metres (the SRTM surface already falls across a large one).
+const DEFAULT_CLIFF_HEIGHT_M: f64 = 3.0;
+/// The width of a cliff's face, metres.
+const CLIFF_FACE_M: f64 = 0.5;
+
+/// The `height` tag, if plausible (metres).
+fn height_tag(tags: &crate::osm::Tags) -> Option<f64> {
+    tags.get("height")
+        .and_then(parse_length_m)
+        .filter(|h| (0.2..=50.0).contains(h))
+}
+
+/// A step's face, drawn as bare rock in the ground between its two sides (a land-cover row of
+/// the way in the feature table), so the ground's triangulation has an edge on each side.
+fn add_face(set: &mut FeatureSet, step: &mut GroundStep, way: &Way) {
+    let element = ElementRef {
+        element_type: ElementType::Way,
+        id: way.id,
+    };
+    step.face = set.add_feature(Some(element), FeatureClass::LandCover, &way.tags);
+    let half = step.thickness_m / 2.0 * step.metre;
+    if let Some(mut surface) =
+        super::widened_surface(FeatureClass::LandCover, step.face, &step.line, half)
+    {
+        surface.cover = Some(super::landcover::Cover::BareRock);
+        set.surfaces.push(surface);
+    }
 }
 
 pub(super) fn add_way(set: &mut FeatureSet, way: &Way, projection: &Projection) {
@@ -99,13 +138,22 @@ pub(super) fn add_way(set: &mut FeatureSet, way: &Way, projection: &Projection) 
         id: way.id,
     };
     let line = projection.points(&way.positions);
+    let Some(lat) = way.positions.first().map(|p| p.lat) else {
+        return;
+    };
     if way.tags.get("natural") == Some("cliff") {
-        let feature = set.add_feature(Some(element), FeatureClass::Barrier, &way.tags);
-        set.steps.push(GroundStep {
+        let mut step = GroundStep {
             kind: EdgeKind::Cliff,
             line,
-            feature,
-        });
+            height_m: height_tag(&way.tags).unwrap_or(DEFAULT_CLIFF_HEIGHT_M),
+            thickness_m: CLIFF_FACE_M,
+            metre: projection.metres(1.0, lat),
+            feature: 0,
+            face: 0,
+        };
+        add_face(set, &mut step, way);
+        step.feature = step.face;
+        set.steps.push(step);
         return;
     }
     let Some(kind) = BarrierKind::from_tags(&way.tags) else {
@@ -115,11 +163,8 @@ pub(super) fn add_way(set: &mut FeatureSet, way: &Way, projection: &Projection) 
         return;
     }
     let (default_height, default_thickness) = kind.size_m();
-    let height_m = way
-        .tags
-        .get("height")
-        .and_then(parse_length_m)
-        .filter(|h| (0.2..=30.0).contains(h))
+    let height_m = height_tag(&way.tags)
+        .filter(|h| *h <= 30.0)
         .unwrap_or(default_height);
     let thickness_m = way
         .tags
@@ -129,11 +174,18 @@ pub(super) fn add_way(set: &mut FeatureSet, way: &Way, projection: &Projection) 
         .unwrap_or(default_thickness);
     let feature = set.add_feature(Some(element), FeatureClass::Barrier, &way.tags);
     if kind == BarrierKind::RetainingWall {
-        set.steps.push(GroundStep {
+        // The wall stands on the low side and its top is the high side's ground.
+        let mut step = GroundStep {
             kind: EdgeKind::RetainingWall,
             line: line.clone(),
+            height_m,
+            thickness_m,
+            metre: projection.metres(1.0, lat),
             feature,
-        });
+            face: 0,
+        };
+        add_face(set, &mut step, way);
+        set.steps.push(step);
     }
     set.barriers.push(Barrier {
         kind,

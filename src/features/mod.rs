@@ -329,6 +329,7 @@ impl FeatureSet {
         }
         for step in &mut self.steps {
             step.feature = renumbered[step.feature as usize];
+            step.face = renumbered[step.face as usize];
         }
         for line in &mut self.power_lines {
             line.feature = renumbered[line.feature as usize];
