@@ -298,16 +298,10 @@ fn settle_groups(
                 &settings.features,
                 settings.mesh.max_error_m,
             );
-            for report in settled.violations(crate::output::debug::VIOLATION_TOLERANCE_M) {
-                tracing::debug!(
-                    %tile,
-                    way = report.way,
-                    constraint = report.kind.as_str(),
-                    bound = report.bound,
-                    violation = report.violation,
-                    "soft constraint violated"
-                );
-            }
+            log_violations(
+                tile,
+                settled.violations(crate::output::debug::VIOLATION_TOLERANCE_M),
+            );
             settled
         })
         .collect()
@@ -355,7 +349,16 @@ fn settle_roads(
         &features::Projection::new(tile.z),
         &settings.features,
     );
-    for report in &profiles.violations {
+    log_violations(tile, profiles.violations.iter());
+    profiles
+}
+
+/// Logs soft constraints that had to give way, at debug level.
+fn log_violations<'a>(
+    tile: TileId,
+    reports: impl Iterator<Item = &'a elevation::structures::ConstraintReport>,
+) {
+    for report in reports {
         tracing::debug!(
             %tile,
             way = report.way,
@@ -365,7 +368,6 @@ fn settle_roads(
             "soft constraint violated"
         );
     }
-    profiles
 }
 
 /// The ground roads of a tile, settled as its glb settles them.

@@ -737,6 +737,28 @@ mod tests {
         )
     }
 
+    /// A residential street 200 m east (way 1) with a short side street at each end, so both
+    /// its ends are joints.
+    fn street_with_side_streets() -> Vec<Way> {
+        vec![
+            way(
+                1,
+                &[("highway", "residential")],
+                &[(1, 0.0, 0.0), (2, 200.0, 0.0)],
+            ),
+            way(
+                2,
+                &[("highway", "service")],
+                &[(1, 0.0, 0.0), (3, 0.0, 40.0)],
+            ),
+            way(
+                3,
+                &[("highway", "service")],
+                &[(2, 200.0, 0.0), (4, 200.0, 40.0)],
+            ),
+        ]
+    }
+
     fn grades(profile: &WayProfile) -> Vec<f64> {
         (0..profile.points.len() - 1)
             .map(|i| {
@@ -753,24 +775,7 @@ mod tests {
     fn a_bump_steeper_than_the_class_is_smoothed_to_its_grade() {
         let hump = |x: f64| 0.1 * x + (6.0 - 0.3 * (x - 100.0).abs()).max(0.0);
         let terrain = East(hump);
-        let ways = vec![
-            way(
-                1,
-                &[("highway", "residential")],
-                &[(1, 0.0, 0.0), (2, 200.0, 0.0)],
-            ),
-            // Joints at both ends: short side streets.
-            way(
-                2,
-                &[("highway", "service")],
-                &[(1, 0.0, 0.0), (3, 0.0, 40.0)],
-            ),
-            way(
-                3,
-                &[("highway", "service")],
-                &[(2, 200.0, 0.0), (4, 200.0, 40.0)],
-            ),
-        ];
+        let ways = street_with_side_streets();
         let settled = settle_all(&ways, &joints(&ways), &terrain);
         let profile = &settled.profiles[&1];
         assert!(settled.settled >= 1);
@@ -888,23 +893,7 @@ mod tests {
     #[test]
     fn a_road_under_a_bridge_stays_on_the_ground() {
         let terrain = East(|x| (0.3 * (x - 100.0).abs()).min(15.0));
-        let ways = vec![
-            way(
-                1,
-                &[("highway", "residential")],
-                &[(1, 0.0, 0.0), (2, 200.0, 0.0)],
-            ),
-            way(
-                2,
-                &[("highway", "service")],
-                &[(1, 0.0, 0.0), (3, 0.0, 40.0)],
-            ),
-            way(
-                3,
-                &[("highway", "service")],
-                &[(2, 200.0, 0.0), (4, 200.0, 40.0)],
-            ),
-        ];
+        let ways = street_with_side_streets();
         let mut graph = RoadGraph {
             joints: joints(&ways),
             under_bridges: Default::default(),
