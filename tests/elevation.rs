@@ -503,7 +503,7 @@ fn cliffs_and_retaining_walls_step_the_ground() {
         };
         for step in &set.steps {
             steps += 1;
-            let band = terrastitch::elevation::steps::band_m(step.height_m) * step.metre;
+            let band = step.band_m() * step.metre;
             let mut along = 0.0;
             let total: f64 = step
                 .line

@@ -5,7 +5,8 @@
 //! model disagree, even a rise the wrong way). At a step's line the ground is half the step's
 //! height above the terrain under the line on the high side (the way's left) and as much below
 //! it on the low side, so the two sides differ by the step's height whatever the terrain does
-//! there; away from the line it blends back into the terrain, reaching it [`band_m`] away and
+//! there; away from the line it blends back into the terrain, reaching it
+//! [`GroundStep::band_m`] away and
 //! over as much from the line's ends. The step's face (its thickness wide, drawn as its own
 //! surface) holds the triangulation's edges on both sides, so the drop is drawn where the wall
 //! is. A point on the line itself, or inside the face, is on the low side: a wall stands at the
@@ -34,19 +35,13 @@ struct Step {
     bounds: Rect,
 }
 
-/// How far from a step's line (and from its ends, along it) its change of the ground fades
-/// out, metres: twice its height, and at least 3 m.
-pub fn band_m(height_m: f64) -> f64 {
-    (2.0 * height_m).max(3.0)
-}
-
 impl Steps {
     pub fn new(steps: &[GroundStep]) -> Steps {
         let steps = steps
             .iter()
             .filter(|s| s.line.len() >= 2 && s.height_m > 0.0)
             .map(|s| {
-                let band = band_m(s.height_m) * s.metre;
+                let band = s.band_m() * s.metre;
                 let mut along = Vec::with_capacity(s.line.len());
                 let mut total = 0.0;
                 for (i, p) in s.line.iter().enumerate() {
@@ -56,17 +51,13 @@ impl Steps {
                     }
                     along.push(total);
                 }
-                let around = Rect::around(&s.line);
                 Step {
                     line: s.line.clone(),
                     along,
                     half_height_m: s.height_m / 2.0,
                     half_face: s.thickness_m / 2.0 * s.metre,
                     band,
-                    bounds: Rect {
-                        min: [around.min[0] - band, around.min[1] - band],
-                        max: [around.max[0] + band, around.max[1] + band],
-                    },
+                    bounds: s.reach(),
                 }
             })
             .collect();

@@ -3,7 +3,7 @@
 //! places where the ground changes height abruptly (thesis §2.3.5), for the elevation stage.
 
 use super::{FeatureClass, FeatureSet, Projection};
-use crate::geometry::Point;
+use crate::geometry::{Point, Rect};
 use crate::osm::units::parse_length_m;
 use crate::osm::{ElementRef, ElementType, Tags, Way};
 
@@ -101,6 +101,24 @@ pub struct GroundStep {
     pub feature: u32,
     /// The feature row of its face, drawn in the ground.
     pub face: u32,
+}
+
+impl GroundStep {
+    /// How far from its line (and from its ends, along it) the step changes the ground,
+    /// metres: twice its height, and at least 3 m.
+    pub fn band_m(&self) -> f64 {
+        (2.0 * self.height_m).max(3.0)
+    }
+
+    /// The box around the ground the step changes, tile units.
+    pub fn reach(&self) -> Rect {
+        let around = Rect::around(&self.line);
+        let band = self.band_m() * self.metre;
+        Rect {
+            min: [around.min[0] - band, around.min[1] - band],
+            max: [around.max[0] + band, around.max[1] + band],
+        }
+    }
 }
 
 /// A cliff's height when untagged, metres (the SRTM surface already falls across a large one).

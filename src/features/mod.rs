@@ -287,8 +287,8 @@ impl FeatureSet {
             .retain(|b| b.footprint.bounds().intersects(rect));
         self.barriers
             .retain(|b| Rect::around(&b.line).intersects(rect));
-        self.steps
-            .retain(|s| Rect::around(&s.line).intersects(rect));
+        // A step just outside changes the ground on the edge.
+        self.steps.retain(|s| s.reach().intersects(rect));
         self.power_lines
             .retain(|l| Rect::around(&l.line).intersects(rect));
         let mut used = vec![false; self.features.len()];
