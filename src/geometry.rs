@@ -253,6 +253,41 @@ pub fn clip_to_rect<const N: usize>(polygon: &[[f64; N]], rect: &Rect) -> Vec<[f
     output
 }
 
+/// The distance along a polyline from its first point to each of its points.
+pub fn distances_along(points: &[Point]) -> Vec<f64> {
+    let mut total = 0.0;
+    let mut out = Vec::with_capacity(points.len());
+    for (i, p) in points.iter().enumerate() {
+        if i > 0 {
+            let q = points[i - 1];
+            total += (p[0] - q[0]).hypot(p[1] - q[1]);
+        }
+        out.push(total);
+    }
+    out
+}
+
+/// Where `x` falls among ascending `xs` (at least two): the index `k` of the interval from
+/// `xs[k - 1]` to `xs[k]` that holds it (the first or last one beyond the ends) and the share
+/// of the way along it, clamped to 0–1.
+pub fn bracket(xs: &[f64], x: f64) -> (usize, f64) {
+    let k = xs.partition_point(|&v| v <= x).clamp(1, xs.len() - 1);
+    let (x0, x1) = (xs[k - 1], xs[k]);
+    let t = if x1 > x0 {
+        ((x - x0) / (x1 - x0)).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (k, t)
+}
+
+/// The value at `x` of the piecewise linear function through `(xs[i], ys[i])` (`xs`
+/// ascending, at least two), held at its ends beyond them.
+pub fn interpolate(xs: &[f64], ys: &[f64], x: f64) -> f64 {
+    let (k, t) = bracket(xs, x);
+    ys[k - 1] + t * (ys[k] - ys[k - 1])
+}
+
 /// Distance from `p` to the segment `a`–`b`.
 pub fn distance_to_segment(p: Point, a: Point, b: Point) -> f64 {
     let d = [b[0] - a[0], b[1] - a[1]];

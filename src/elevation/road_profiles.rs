@@ -22,7 +22,7 @@ use crate::features::road_network::{self, Cut, RoadLine, StretchLine};
 use crate::features::roads::road_line;
 use crate::features::structures::{self as tags, Incline};
 use crate::features::{FeatureSettings, Projection};
-use crate::geometry::{distance_to_segment, Point, Rect};
+use crate::geometry::{bracket, distance_to_segment, distances_along, interpolate, Point, Rect};
 use crate::osm::{Joints, RoadGraph, Way};
 use crate::terrain::Elevation;
 
@@ -63,15 +63,7 @@ pub struct WayProfile {
 impl WayProfile {
     /// The elevation at a distance along the way (tile units), interpolated between stations.
     pub fn at(&self, along: f64) -> f64 {
-        let n = self.along.len();
-        let k = self.along.partition_point(|&a| a <= along).clamp(1, n - 1);
-        let (a0, a1) = (self.along[k - 1], self.along[k]);
-        let t = if a1 > a0 {
-            ((along - a0) / (a1 - a0)).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        self.elevations[k - 1] + t * (self.elevations[k] - self.elevations[k - 1])
+        interpolate(&self.along, &self.elevations, along)
     }
 
     /// Where `p` lies along the way (tile units): its nearest point on the segments that
@@ -117,14 +109,7 @@ impl WayProfile {
             return Vec::new();
         }
         let start = self.locate(first, 0.0..total).unwrap_or(0.0);
-        let mut lengths = Vec::with_capacity(points.len());
-        let mut length = 0.0;
-        for (i, p) in points.iter().enumerate() {
-            if i > 0 {
-                length += (p[0] - points[i - 1][0]).hypot(p[1] - points[i - 1][1]);
-            }
-            lengths.push(length);
-        }
+        let lengths = distances_along(points);
         // How far along `line` the centre line begins: where its first point falls on the
         // first stretch of `line` (the longest cut is well within that).
         let cut = centre.first().map_or(0.0, |&c| {
@@ -145,18 +130,7 @@ impl WayProfile {
             best.1
         });
         // Where on the way a distance along `line` stands.
-        let station = |at: f64| -> f64 {
-            let k = lengths
-                .partition_point(|&l| l <= at)
-                .clamp(1, points.len() - 1);
-            let (l0, l1) = (lengths[k - 1], lengths[k]);
-            let t = if l1 > l0 {
-                ((at - l0) / (l1 - l0)).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            line.stations[k - 1] + t * (line.stations[k] - line.stations[k - 1])
-        };
+        let station = |at: f64| interpolate(&lengths, &line.stations, at);
         super::settled::samples_along(centre, step)
             .into_iter()
             .map(|(along, _)| (along, self.at(start + station(cut + along))))
@@ -299,26 +273,10 @@ fn draft<'a>(
 ) -> Option<Draft<'a>> {
     let line = road_line(way, projection, settings)?;
     let step = STATION_SPACING_M * line.metre;
-    let mut node_along = Vec::with_capacity(line.points.len());
-    let mut total = 0.0;
-    for (i, p) in line.points.iter().enumerate() {
-        if i > 0 {
-            let q = line.points[i - 1];
-            total += (p[0] - q[0]).hypot(p[1] - q[1]);
-        }
-        node_along.push(total);
-    }
+    let node_along = distances_along(&line.points);
     // The point at a distance along the line.
     let point_at = |along: f64| -> Point {
-        let k = node_along
-            .partition_point(|&a| a <= along)
-            .clamp(1, line.points.len() - 1);
-        let (a0, a1) = (node_along[k - 1], node_along[k]);
-        let t = if a1 > a0 {
-            ((along - a0) / (a1 - a0)).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
+        let (k, t) = bracket(&node_along, along);
         let (a, b) = (line.points[k - 1], line.points[k]);
         [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
     };
@@ -421,29 +379,8 @@ fn level_length(cuts: &[Cut], index: usize, forward: bool, metre: f64) -> f64 {
 /// shorter than the corners they replace, so a grade held along the drawn road holds along
 /// the way's own line too.
 fn drawn_runs(drawn: &StretchLine, relative: &[f64], metre: f64) -> Vec<f64> {
-    let points = &drawn.points;
-    let mut lengths = Vec::with_capacity(points.len());
-    let mut length = 0.0;
-    for (i, p) in points.iter().enumerate() {
-        if i > 0 {
-            let q = points[i - 1];
-            length += (p[0] - q[0]).hypot(p[1] - q[1]);
-        }
-        lengths.push(length);
-    }
-    let drawn_at = |s: f64| -> f64 {
-        let k = drawn
-            .stations
-            .partition_point(|&t| t <= s)
-            .clamp(1, points.len() - 1);
-        let (s0, s1) = (drawn.stations[k - 1], drawn.stations[k]);
-        let t = if s1 > s0 {
-            ((s - s0) / (s1 - s0)).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        lengths[k - 1] + t * (lengths[k] - lengths[k - 1])
-    };
+    let lengths = distances_along(&drawn.points);
+    let drawn_at = |s: f64| interpolate(&drawn.stations, &lengths, s);
     relative
         .windows(2)
         .map(|pair| (drawn_at(pair[1]) - drawn_at(pair[0])) / metre)

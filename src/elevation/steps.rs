@@ -14,7 +14,7 @@
 //! way and the global terrain, so tiles agree.
 
 use crate::features::barriers::GroundStep;
-use crate::geometry::{Point, Rect};
+use crate::geometry::{distances_along, Point, Rect};
 use crate::terrain::Elevation;
 
 /// The steps of a tile's ground, ready to be read.
@@ -42,18 +42,9 @@ impl Steps {
             .filter(|s| s.line.len() >= 2 && s.height_m > 0.0)
             .map(|s| {
                 let band = s.band_m() * s.metre;
-                let mut along = Vec::with_capacity(s.line.len());
-                let mut total = 0.0;
-                for (i, p) in s.line.iter().enumerate() {
-                    if i > 0 {
-                        let q = s.line[i - 1];
-                        total += (p[0] - q[0]).hypot(p[1] - q[1]);
-                    }
-                    along.push(total);
-                }
                 Step {
                     line: s.line.clone(),
-                    along,
+                    along: distances_along(&s.line),
                     half_height_m: s.height_m / 2.0,
                     half_face: s.thickness_m / 2.0 * s.metre,
                     band,

@@ -723,14 +723,8 @@ pub fn smooth(points: &[Point], radius: f64) -> Vec<Point> {
 /// [`smooth`], with the distance along `points` each point of the result stands for.
 pub fn smooth_along(points: &[Point], radius: f64) -> StretchLine {
     let n = points.len();
-    let mut along = Vec::with_capacity(n);
-    let mut total = 0.0;
-    for (i, p) in points.iter().enumerate() {
-        if i > 0 {
-            total += (p[0] - points[i - 1][0]).hypot(p[1] - points[i - 1][1]);
-        }
-        along.push(total);
-    }
+    let along = geometry::distances_along(points);
+    let total = along.last().copied().unwrap_or(0.0);
     if n < 3 || radius <= 0.0 {
         return StretchLine {
             points: points.to_vec(),
