@@ -1,26 +1,28 @@
-//! Roads on the ground keep to the grade of their class (thesis §4.2, inclines) and lie level
-//! with the junctions they leave.
+//! Roads on the ground keep to the grade of their class (thesis §4.2, inclines), lie level
+//! with the junctions they leave, and stay down under the bridges that cross them.
 //!
 //! A road on the ground follows the terrain, but the terrain approximates SRTM (a surface model
 //! of 30 m cells, with buildings and trees in it): it has bumps no road has and slopes steeper
 //! than a road of the class is built. Each ground road way is cut at its joints (nodes it shares
 //! with another road or a railway, [`crate::osm::Joints`]), which stay at the terrain. Between
-//! two joints the way is sampled every [`STATION_SPACING_M`]; where the terrain along it is
-//! steeper than the class allows ([`tags::max_incline`]), where the way is tagged `incline=*`,
-//! or where the level part at a junction (as far as the network cuts the road back there) would
-//! leave a step, the stretch is settled by the LP: near the terrain, smooth, level with the
-//! junction over the cut, with the class's steepest grade and the tagged grade as soft
-//! constraints that report what they could not hold. Stretches within their grade keep the
-//! terrain and need no LP. Everything is decided from the whole way and every way at its
-//! joints, so two tiles that share a road draw it alike to the bit.
+//! two joints the way has a station at each node, where each bend the network rounds begins and
+//! ends, and every [`STATION_SPACING_M`] at most. Where the terrain along it is steeper than
+//! the class allows ([`crate::features::structures::max_incline`]), where the way is tagged
+//! `incline=*`, where the level part at a junction (as far as the network cuts the road back
+//! there) would leave a step, or where a bridge over it was settled from lower ground, the
+//! stretch is settled by the LP: near the terrain, smooth, level with the junction over the
+//! cut, with the class's steepest grade, the tagged grade and the bridge's ground as soft
+//! constraints that report what they could not hold; grades are measured along the road as
+//! drawn. Stretches within their grade keep the terrain and need no LP. Everything is decided
+//! from the whole way and every way at its joints, so two tiles that share a road draw it alike
+//! to the bit.
 
 use std::collections::HashMap;
 
 use super::lp::{self, Constraint, Problem, Relation, Smoothness};
-use super::structures::{ConstraintKind, ConstraintReport};
+use super::structures::{ConstraintKind, ConstraintReport, GradeAsked};
 use crate::features::road_network::{self, Cut, RoadLine, StretchLine};
 use crate::features::roads::road_line;
-use crate::features::structures::{self as tags, Incline};
 use crate::features::{FeatureSettings, Projection};
 use crate::geometry::{bracket, distance_to_segment, distances_along, interpolate, Point, Rect};
 use crate::osm::{Joints, RoadGraph, Way};
@@ -477,11 +479,8 @@ fn add_stretch(
     let candidate: Vec<f64> = (s0..=s1)
         .map(|i| level_at(i).unwrap_or(terrain[i]))
         .collect();
-    let tagged = tags::incline(tags);
-    let mut steepest = tags::max_incline(tags);
-    if let (Some(max), Some(Incline::Grade(g))) = (steepest, tagged) {
-        steepest = Some(max.max(g.abs()));
-    }
+    let asked = GradeAsked::of(tags, false);
+    let steepest = asked.steepest;
     let run_m = |i: usize| stretch.runs_m[i - s0];
     let too_steep = steepest.is_some_and(|max| {
         (s0..s1).any(|i| {
@@ -492,7 +491,7 @@ fn add_stretch(
         let (a, b) = (candidate[u.station - s0], candidate[u.station + 1 - s0]);
         a + u.t * (b - a) > u.bound + GRADE_TOLERANCE
     });
-    if tagged.is_none() && !too_steep && !blocked {
+    if asked.tagged.is_none() && !too_steep && !blocked {
         profile.elevations[s0..=s1].copy_from_slice(&candidate);
         return None;
     }
@@ -546,20 +545,14 @@ fn add_stretch(
                 );
             }
         }
-        let asked = match tagged {
-            Some(Incline::Grade(g)) => Some((Relation::Equal, g * run)),
-            Some(Incline::Up) => Some((Relation::AtLeast, 0.0)),
-            Some(Incline::Down) => Some((Relation::AtMost, 0.0)),
-            None => None,
-        };
-        if let Some((relation, bound)) = asked {
+        if let Some((relation, per_metre)) = asked.tagged {
             soft(
                 problem,
                 ConstraintKind::TaggedIncline,
                 at,
                 rise,
                 relation,
-                bound,
+                per_metre * run,
                 TAGGED_INCLINE_PENALTY,
             );
         }

@@ -199,6 +199,36 @@ impl Settled {
     }
 }
 
+/// What a way's tags ask of its grade, along a run in its direction or, `reversed`, against
+/// it: the steepest grade either way (the class's, or a steeper tagged one) and the tagged
+/// grade as a relation on the rise per metre.
+pub(crate) struct GradeAsked {
+    pub steepest: Option<f64>,
+    pub tagged: Option<(Relation, f64)>,
+}
+
+impl GradeAsked {
+    pub fn of(tags: &crate::osm::Tags, reversed: bool) -> GradeAsked {
+        let incline = tags::incline(tags);
+        let mut steepest = tags::max_incline(tags);
+        if let (Some(max), Some(Incline::Grade(g))) = (steepest, incline) {
+            steepest = Some(max.max(g.abs()));
+        }
+        let (up, down) = if reversed {
+            (Relation::AtMost, Relation::AtLeast)
+        } else {
+            (Relation::AtLeast, Relation::AtMost)
+        };
+        let tagged = match incline {
+            Some(Incline::Grade(g)) => Some((Relation::Equal, if reversed { -g } else { g })),
+            Some(Incline::Up) => Some((up, 0.0)),
+            Some(Incline::Down) => Some((down, 0.0)),
+            None => None,
+        };
+        GradeAsked { steepest, tagged }
+    }
+}
+
 /// How elevation is read along a chain: the variable at each station.
 struct Row {
     first: usize,
@@ -377,15 +407,10 @@ pub fn settle(
                 .iter()
                 .find(|w| w.way == profile.ways[i])
                 .is_some_and(|w| w.reversed);
-            let sign = if reversed { -1.0 } else { 1.0 };
             let rise = vec![(first + i + 1, 1.0), (first + i, -1.0)];
             let at = profile.points[i];
-            let tagged = tags::incline(&way.tags);
-            let mut steepest = tags::max_incline(&way.tags);
-            if let (Some(max), Some(Incline::Grade(g))) = (steepest, tagged) {
-                steepest = Some(max.max(g.abs()));
-            }
-            if let Some(max) = steepest {
+            let asked = GradeAsked::of(&way.tags, reversed);
+            if let Some(max) = asked.steepest {
                 for (relation, bound) in [
                     (Relation::AtMost, max * run),
                     (Relation::AtLeast, -max * run),
@@ -400,33 +425,13 @@ pub fn settle(
                     );
                 }
             }
-            let asked = match tagged {
-                Some(Incline::Grade(g)) => Some((Relation::Equal, sign * g * run)),
-                Some(Incline::Up) => Some((
-                    if reversed {
-                        Relation::AtMost
-                    } else {
-                        Relation::AtLeast
-                    },
-                    0.0,
-                )),
-                Some(Incline::Down) => Some((
-                    if reversed {
-                        Relation::AtLeast
-                    } else {
-                        Relation::AtMost
-                    },
-                    0.0,
-                )),
-                None => None,
-            };
-            if let Some((relation, bound)) = asked {
+            if let Some((relation, per_metre)) = asked.tagged {
                 soft(
                     &mut problem,
                     (ConstraintKind::TaggedIncline, way.id, at),
                     rise,
                     relation,
-                    bound,
+                    per_metre * run,
                     TAGGED_INCLINE_PENALTY,
                 );
             }
