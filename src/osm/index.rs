@@ -222,9 +222,7 @@ impl OsmIndex {
                         positions
                             .iter()
                             .any(|&p| degrees_to_segment(p, a, b) < ABOVE_TUNNEL_DEG)
-                            || [a, b]
-                                .iter()
-                                .any(|p| meets(&bounds, &bounds_of(&[*p]).unwrap_or(bounds)))
+                            || [a, b].iter().any(|p| holds(&bounds, *p))
                     })
             };
             let area = group.bounds.expanded(ABOVE_TUNNEL_DEG);
@@ -345,6 +343,11 @@ impl OsmIndex {
 /// How far (degrees) from a tunnel's line a building's vertex or a tree may stand and still
 /// reach down over it: about 40 m, a wide tunnel's half width and a building's size.
 pub const ABOVE_TUNNEL_DEG: f64 = 0.0004;
+
+/// True when `p` lies in the box (on its border too).
+fn holds(bounds: &Bounds, p: LonLat) -> bool {
+    (bounds.west..=bounds.east).contains(&p.lon) && (bounds.south..=bounds.north).contains(&p.lat)
+}
 
 /// Distance from `p` to the segment `a`–`b` in degrees, longitude scaled by the latitude.
 fn degrees_to_segment(p: LonLat, a: LonLat, b: LonLat) -> f64 {
