@@ -296,6 +296,66 @@ async fn a_tile_is_identical_twice_and_after_a_restart_comes_from_sqlite() {
     server.stop().await;
 }
 
+/// `/tiles.json` describes the tileset: the attribution, the area of the OSM data, the zoom,
+/// and absolute URL templates that lead to tiles.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_tilejson_describes_the_tileset_and_leads_to_tiles() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    let response = reqwest::get(server.url("/tiles.json")).await.unwrap();
+    assert_eq!(response.status(), 200);
+    let tilejson: serde_json::Value = response.json().await.unwrap();
+    assert_eq!(
+        tilejson["attribution"],
+        "© OpenStreetMap contributors, SRTM: NASA/USGS"
+    );
+    assert_eq!(
+        (tilejson["minzoom"].as_u64(), tilejson["maxzoom"].as_u64()),
+        (Some(14), Some(14))
+    );
+    let bounds: Vec<f64> = tilejson["bounds"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|v| v.as_f64())
+        .collect();
+    // Monaco's extract: around the principality, not the world.
+    assert_eq!(bounds.len(), 4);
+    assert!(bounds[0] < 7.42 && bounds[2] > 7.42 && bounds[1] < 43.73 && bounds[3] > 43.73);
+    assert!(
+        bounds[2] - bounds[0] < 1.0 && bounds[3] - bounds[1] < 1.0,
+        "{bounds:?}"
+    );
+    for (key, extension) in [("tiles", "glb"), ("terrain", "terrain")] {
+        let template = tilejson[key][0].as_str().unwrap();
+        assert_eq!(
+            template,
+            server.url(&format!("/tiles/{{z}}/{{x}}/{{y}}.{extension}")),
+            "{key}"
+        );
+        let url = template
+            .replace("{z}", "14")
+            .replace("{x}", "8529")
+            .replace("{y}", "5973");
+        let response = reqwest::get(&url).await.unwrap();
+        assert_eq!(response.status(), 200, "{url}");
+        assert!(!response.bytes().await.unwrap().is_empty());
+    }
+    // Behind a proxy that ends TLS, the templates say https.
+    let response = reqwest::Client::new()
+        .get(server.url("/tiles.json"))
+        .header("x-forwarded-proto", "https")
+        .send()
+        .await
+        .unwrap();
+    let tilejson: serde_json::Value = response.json().await.unwrap();
+    assert!(tilejson["tiles"][0]
+        .as_str()
+        .unwrap()
+        .starts_with("https://"));
+    server.stop().await;
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_requests_get_a_status_and_a_json_error() {
     let dir = tempfile::tempdir().unwrap();

@@ -4,6 +4,7 @@ pub mod debug;
 pub mod error;
 pub mod layer;
 pub mod metrics;
+pub mod tilejson;
 pub mod tiles;
 
 use std::sync::Arc;
@@ -66,6 +67,7 @@ pub fn router(state: AppState) -> Router {
         .route("/tiles/{z}/{x}/{file}", get(tiles::tile))
         .route("/debug/tiles/{z}/{x}/{file}", get(debug::elevations))
         .route("/layer.json", get(layer::layer))
+        .route("/tiles.json", get(tilejson::tilejson))
         .route("/health", get(health))
         .route("/metrics", get(metrics))
         .fallback(not_found)

@@ -1,0 +1,66 @@
+//! `GET /tiles.json`: the tileset described TileJSON-style, for clients that discover tiles
+//! from one URL: its name and attribution, the area the OSM data covers, the zoom tiles are
+//! served at, and URL templates for the glb tiles and the quantized-mesh terrain.
+//!
+//! The templates are absolute, built from the request's `Host` (and `X-Forwarded-Proto`, behind
+//! a proxy that ends TLS), since TileJSON clients resolve them on their own; without a `Host`
+//! they are paths from the server's root.
+
+use axum::extract::State;
+use axum::http::{header, HeaderMap};
+use axum::Json;
+use serde_json::{json, Value};
+
+use super::AppState;
+use crate::output::glb::ATTRIBUTION;
+
+pub async fn tilejson(State(state): State<AppState>, headers: HeaderMap) -> Json<Value> {
+    let text = |name| {
+        headers
+            .get(name)
+            .and_then(|v| v.to_str().ok())
+            .filter(|v| !v.is_empty())
+    };
+    let base = match text(header::HOST.as_str()) {
+        Some(host) => {
+            let scheme = match text("x-forwarded-proto") {
+                Some("https") => "https",
+                _ => "http",
+            };
+            format!("{scheme}://{host}")
+        }
+        None => String::new(),
+    };
+    let bounds = state
+        .sources
+        .osm
+        .data()
+        .coverage
+        .iter()
+        .map(|b| [b.west, b.south, b.east, b.north])
+        .reduce(|a, b| {
+            [
+                a[0].min(b[0]),
+                a[1].min(b[1]),
+                a[2].max(b[2]),
+                a[3].max(b[3]),
+            ]
+        })
+        .unwrap_or([-180.0, -85.051_128_78, 180.0, 85.051_128_78]);
+    let z = state.zoom;
+    Json(json!({
+        "tilejson": "3.0.0",
+        "name": "terrastitch",
+        "description": "3D tiles of OpenStreetMap on SRTM terrain: glTF binary, one per zoom-14 tile",
+        "attribution": ATTRIBUTION,
+        "scheme": "xyz",
+        "format": "glb",
+        "minzoom": z,
+        "maxzoom": z,
+        "bounds": bounds,
+        "center": [(bounds[0] + bounds[2]) / 2.0, (bounds[1] + bounds[3]) / 2.0, z],
+        "tiles": [format!("{base}/tiles/{{z}}/{{x}}/{{y}}.glb")],
+        "terrain": [format!("{base}/tiles/{{z}}/{{x}}/{{y}}.terrain")],
+        "terrain_layer": format!("{base}/layer.json"),
+    }))
+}
