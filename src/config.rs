@@ -32,6 +32,9 @@ pub struct ServerConfig {
     pub zoom: u8,
     /// Renders that may run at once (0: one per core).
     pub render_threads: usize,
+    /// Origins browsers may read the tiles from (CORS, for `GET` and `HEAD`): `["*"]` for any,
+    /// else exact origins such as `https://maps.example.org`; empty to send no CORS headers.
+    pub cors_origins: Vec<String>,
 }
 
 impl Default for ServerConfig {
@@ -40,6 +43,7 @@ impl Default for ServerConfig {
             listen: "127.0.0.1:8080".to_string(),
             zoom: 14,
             render_threads: 0,
+            cors_origins: vec!["*".to_string()],
         }
     }
 }

@@ -127,13 +127,7 @@ fn serve(args: ServeArgs) -> Result<()> {
         config.cache.memory_mib * 1024 * 1024,
         server::pipeline_id(&config.render),
     );
-    let state = AppState::new(
-        sources,
-        cache,
-        config.render.clone(),
-        config.server.zoom,
-        config.server.render_threads,
-    );
+    let state = AppState::new(sources, cache, config.render.clone(), &config.server);
     let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
     runtime.block_on(async move {
         let listener = tokio::net::TcpListener::bind(&config.server.listen)

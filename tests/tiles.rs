@@ -297,7 +297,7 @@ async fn a_tile_is_identical_twice_and_after_a_restart_comes_from_sqlite() {
 }
 
 /// `/tiles.json` describes the tileset: the attribution, the area of the OSM data, the zoom,
-/// and absolute URL templates that lead to tiles.
+/// and absolute URL templates that lead to tiles, which a page on another origin may read.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_tilejson_describes_the_tileset_and_leads_to_tiles() {
     let dir = tempfile::tempdir().unwrap();
@@ -341,6 +341,32 @@ async fn the_tilejson_describes_the_tileset_and_leads_to_tiles() {
         assert_eq!(response.status(), 200, "{url}");
         assert!(!response.bytes().await.unwrap().is_empty());
     }
+    // A page on another origin may read the tiles (CORS on by default, for GET and HEAD).
+    let client = reqwest::Client::new();
+    let response = client
+        .get(server.url("/tiles/14/8529/5973.glb"))
+        .header("origin", "http://viewer.example")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.headers()["access-control-allow-origin"], "*");
+    assert!(response.headers()["access-control-expose-headers"]
+        .to_str()
+        .unwrap()
+        .contains("etag"));
+    assert!(!response.bytes().await.unwrap().is_empty());
+    let preflight = client
+        .request(reqwest::Method::OPTIONS, server.url("/tiles.json"))
+        .header("origin", "http://viewer.example")
+        .header("access-control-request-method", "GET")
+        .send()
+        .await
+        .unwrap();
+    assert!(preflight.status().is_success(), "{}", preflight.status());
+    assert!(preflight.headers()["access-control-allow-methods"]
+        .to_str()
+        .unwrap()
+        .contains("GET"));
     // Behind a proxy that ends TLS, the templates say https.
     let response = reqwest::Client::new()
         .get(server.url("/tiles.json"))

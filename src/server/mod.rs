@@ -16,6 +16,7 @@ use axum::Router;
 use tokio::sync::Semaphore;
 
 use crate::cache::TileCache;
+use crate::config::ServerConfig;
 use crate::render::RenderSettings;
 use crate::source::Sources;
 use error::ApiError;
@@ -31,6 +32,8 @@ pub struct AppState {
     pub metrics: Arc<Metrics>,
     /// Renders allowed to run at once.
     pub render_permits: Arc<Semaphore>,
+    /// Origins allowed to read responses in a browser (`*` for any).
+    pub cors_origins: Arc<Vec<String>>,
 }
 
 impl AppState {
@@ -38,21 +41,21 @@ impl AppState {
         sources: Sources,
         cache: TileCache,
         settings: RenderSettings,
-        zoom: u8,
-        render_threads: usize,
+        server: &ServerConfig,
     ) -> AppState {
-        let threads = if render_threads == 0 {
+        let threads = if server.render_threads == 0 {
             std::thread::available_parallelism().map_or(2, |n| n.get())
         } else {
-            render_threads
+            server.render_threads
         };
         AppState {
             sources: Arc::new(sources),
             cache,
             settings: Arc::new(settings),
-            zoom,
+            zoom: server.zoom,
             metrics: Arc::new(Metrics::default()),
             render_permits: Arc::new(Semaphore::new(threads)),
+            cors_origins: Arc::new(server.cors_origins.clone()),
         }
     }
 }
@@ -63,7 +66,8 @@ pub fn pipeline_id(settings: &RenderSettings) -> String {
 }
 
 pub fn router(state: AppState) -> Router {
-    Router::new()
+    let cors = cors(&state.cors_origins);
+    let router = Router::new()
         .route("/tiles/{z}/{x}/{file}", get(tiles::tile))
         .route("/debug/tiles/{z}/{x}/{file}", get(debug::elevations))
         .route("/layer.json", get(layer::layer))
@@ -71,8 +75,41 @@ pub fn router(state: AppState) -> Router {
         .route("/health", get(health))
         .route("/metrics", get(metrics))
         .fallback(not_found)
-        .with_state(state)
-        .layer(tower_http::trace::TraceLayer::new_for_http())
+        .with_state(state);
+    let router = match cors {
+        Some(cors) => router.layer(cors),
+        None => router,
+    };
+    router.layer(tower_http::trace::TraceLayer::new_for_http())
+}
+
+/// CORS for `GET` and `HEAD` from the configured origins; `None` when there are none.
+fn cors(origins: &[String]) -> Option<tower_http::cors::CorsLayer> {
+    use tower_http::cors::{AllowOrigin, CorsLayer};
+    let allow = if origins.iter().any(|o| o == "*") {
+        AllowOrigin::any()
+    } else {
+        let exact: Vec<axum::http::HeaderValue> = origins
+            .iter()
+            .filter_map(|o| match axum::http::HeaderValue::from_str(o) {
+                Ok(value) => Some(value),
+                Err(_) => {
+                    tracing::warn!(origin = %o, "CORS origin is not a valid header value; ignored");
+                    None
+                }
+            })
+            .collect();
+        if exact.is_empty() {
+            return None;
+        }
+        AllowOrigin::list(exact)
+    };
+    Some(
+        CorsLayer::new()
+            .allow_methods([axum::http::Method::GET, axum::http::Method::HEAD])
+            .allow_origin(allow)
+            .expose_headers([header::ETAG, header::CONTENT_DISPOSITION]),
+    )
 }
 
 async fn health() -> impl IntoResponse {

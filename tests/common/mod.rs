@@ -84,13 +84,11 @@ impl TestServer {
             .expect("sample data loads");
         let store = TileStore::open(cache).expect("cache opens");
         let tile_cache = TileCache::new(store, 64 << 20, server::pipeline_id(&config.render));
-        let state = AppState::new(
-            sources,
-            tile_cache,
-            config.render.clone(),
-            config.server.zoom,
-            2,
-        );
+        let server_config = terrastitch::config::ServerConfig {
+            render_threads: 2,
+            ..config.server.clone()
+        };
+        let state = AppState::new(sources, tile_cache, config.render.clone(), &server_config);
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
             .await
             .expect("bind");
