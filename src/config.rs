@@ -35,6 +35,8 @@ pub struct ServerConfig {
     /// Origins browsers may read the tiles from (CORS, for `GET` and `HEAD`): `["*"]` for any,
     /// else exact origins such as `https://maps.example.org`; empty to send no CORS headers.
     pub cors_origins: Vec<String>,
+    /// `Cache-Control` sent with tiles (and their `304`s); empty to send none.
+    pub cache_control: String,
 }
 
 impl Default for ServerConfig {
@@ -44,6 +46,7 @@ impl Default for ServerConfig {
             zoom: 14,
             render_threads: 0,
             cors_origins: vec!["*".to_string()],
+            cache_control: "public, max-age=86400".to_string(),
         }
     }
 }

@@ -296,6 +296,48 @@ async fn a_tile_is_identical_twice_and_after_a_restart_comes_from_sqlite() {
     server.stop().await;
 }
 
+/// A client that holds a tile asks with its `ETag` and gets a `304` without a body; another
+/// tag gets the tile; every answer says how long it may be kept.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_tile_the_client_holds_is_not_sent_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    let client = reqwest::Client::new();
+    for path in ["/tiles/14/8529/5973.glb", "/tiles/14/8529/5973.terrain"] {
+        let first = client.get(server.url(path)).send().await.unwrap();
+        assert_eq!(first.status(), 200);
+        assert_eq!(first.headers()["cache-control"], "public, max-age=86400");
+        let etag = first.headers()["etag"].clone();
+        assert!(!first.bytes().await.unwrap().is_empty());
+        for asked in [
+            etag.to_str().unwrap().to_string(),
+            format!("\"other\", {}", etag.to_str().unwrap()),
+            format!("W/{}", etag.to_str().unwrap()),
+            "*".to_string(),
+        ] {
+            let again = client
+                .get(server.url(path))
+                .header("if-none-match", &asked)
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(again.status(), 304, "{path} {asked}");
+            assert_eq!(again.headers()["etag"], etag);
+            assert_eq!(again.headers()["cache-control"], "public, max-age=86400");
+            assert!(again.bytes().await.unwrap().is_empty());
+        }
+        let changed = client
+            .get(server.url(path))
+            .header("if-none-match", "\"something-else\"")
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(changed.status(), 200, "{path}");
+        assert!(!changed.bytes().await.unwrap().is_empty());
+    }
+    server.stop().await;
+}
+
 /// `/tiles.json` describes the tileset: the attribution, the area of the OSM data, the zoom,
 /// and absolute URL templates that lead to tiles, which a page on another origin may read.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -34,6 +34,8 @@ pub struct AppState {
     pub render_permits: Arc<Semaphore>,
     /// Origins allowed to read responses in a browser (`*` for any).
     pub cors_origins: Arc<Vec<String>>,
+    /// `Cache-Control` for tiles, if any.
+    pub cache_control: Option<axum::http::HeaderValue>,
 }
 
 impl AppState {
@@ -56,6 +58,14 @@ impl AppState {
             metrics: Arc::new(Metrics::default()),
             render_permits: Arc::new(Semaphore::new(threads)),
             cors_origins: Arc::new(server.cors_origins.clone()),
+            cache_control: match axum::http::HeaderValue::from_str(&server.cache_control) {
+                Ok(value) if !server.cache_control.is_empty() => Some(value),
+                Ok(_) => None,
+                Err(_) => {
+                    tracing::warn!(value = %server.cache_control, "Cache-Control is not a valid header value; none sent");
+                    None
+                }
+            },
         }
     }
 }

@@ -137,6 +137,19 @@ pub async fn tile(
     if let Ok(etag) = HeaderValue::from_str(&cached.etag) {
         headers.insert(header::ETAG, etag);
     }
+    if let Some(cache_control) = &state.cache_control {
+        headers.insert(header::CACHE_CONTROL, cache_control.clone());
+    }
+    // A client that holds this very tile gets a `304` without the body.
+    if request_headers
+        .get_all(header::IF_NONE_MATCH)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .any(|v| matches_etag(v, &cached.etag))
+    {
+        headers.remove(header::CONTENT_ENCODING);
+        return Ok((StatusCode::NOT_MODIFIED, headers).into_response());
+    }
     headers.insert(
         "x-cache",
         HeaderValue::from_static(if origin == Origin::Rendered {
@@ -219,6 +232,15 @@ fn render_format(state: &AppState, tile: TileId, format: Format) -> Result<Vec<u
             gzip(&rendered.bytes).map_err(|e| RenderFailure(format!("gzip: {e}")))
         }
     }
+}
+
+/// True when an `If-None-Match` value names `etag` (or is `*`): a comma-separated list of
+/// entity tags, compared weakly as RFC 9110 asks (a `W/` prefix is ignored).
+fn matches_etag(if_none_match: &str, etag: &str) -> bool {
+    let bare = |tag: &str| tag.trim().trim_start_matches("W/").to_string();
+    if_none_match
+        .split(',')
+        .any(|tag| tag.trim() == "*" || bare(tag) == bare(etag))
 }
 
 fn gzip(data: &[u8]) -> std::io::Result<Vec<u8>> {
