@@ -21,6 +21,7 @@ pub struct Config {
     pub sources: SourcesConfig,
     pub cache: CacheConfig,
     pub render: RenderSettings,
+    pub log: LogConfig,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -37,6 +38,17 @@ pub struct ServerConfig {
     pub cors_origins: Vec<String>,
     /// `Cache-Control` sent with tiles (and their `304`s); empty to send none.
     pub cache_control: String,
+    /// Requests that may wait for a render slot; past that a request gets `503` with
+    /// `Retry-After`.
+    pub render_queue: usize,
+    /// Longest a render may take, seconds (0: no limit).
+    pub render_timeout_s: u64,
+    /// Bearer token for `/admin/*`; empty turns those routes off.
+    pub admin_token: String,
+    /// Render slots background work (stale tiles, regeneration) may hold at once.
+    pub background_renders: usize,
+    /// Seconds between checks of the sources for new versions (0: never).
+    pub check_interval_s: u64,
 }
 
 impl Default for ServerConfig {
@@ -47,6 +59,11 @@ impl Default for ServerConfig {
             render_threads: 0,
             cors_origins: vec!["*".to_string()],
             cache_control: "public, max-age=86400".to_string(),
+            render_queue: 64,
+            render_timeout_s: 120,
+            admin_token: String::new(),
+            background_renders: 1,
+            check_interval_s: 300,
         }
     }
 }
@@ -76,6 +93,9 @@ pub struct CacheConfig {
     pub path: PathBuf,
     /// Memory for the in-process cache in front of SQLite, in MiB.
     pub memory_mib: u64,
+    /// Largest size of the SQLite cache's tiles, MiB; past it the least recently served go
+    /// (0: no cap).
+    pub max_size_mib: u64,
 }
 
 impl Default for CacheConfig {
@@ -83,6 +103,30 @@ impl Default for CacheConfig {
         CacheConfig {
             path: PathBuf::from("cache/tiles.sqlite"),
             memory_mib: 256,
+            max_size_mib: 10240,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct LogConfig {
+    /// `text` (for people) or `json` (one object per line, for log collectors).
+    pub format: LogFormat,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum LogFormat {
+    #[default]
+    Text,
+    Json,
+}
+
+impl Default for LogConfig {
+    fn default() -> Self {
+        LogConfig {
+            format: LogFormat::Text,
         }
     }
 }

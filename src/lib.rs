@@ -3,8 +3,9 @@
 //! The data flows through the modules in this order: [`source`] (extracts and rasters) →
 //! [`osm`] (the OSM model and its spatial index) → [`features`] (roads, water, buildings…) →
 //! [`terrain`] (elevation between samples) → [`mesh`] (the ground triangulation with features
-//! stitched in, extruded buildings) → [`output`] (glb) → [`cache`] → [`server`].
-//! [`render::render`] is the pure core from one tile's inputs to its bytes.
+//! stitched in, extruded buildings) → [`output`] (glb) → [`cache`] → [`server`] and
+//! [`offline`] (`seed`, `export`). [`render::render`] is the pure core from one tile's inputs
+//! to its bytes; [`pipeline::make`] feeds it from the opened sources.
 
 pub mod cache;
 pub mod config;
@@ -12,8 +13,10 @@ pub mod elevation;
 pub mod features;
 pub mod geometry;
 pub mod mesh;
+pub mod offline;
 pub mod osm;
 pub mod output;
+pub mod pipeline;
 pub mod render;
 pub mod server;
 pub mod source;

@@ -1,15 +1,18 @@
-//! The `terrastitch` command: `serve` and `render`.
+//! The `terrastitch` command: `serve`, `render`, `seed` and `export`.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 
-use terrastitch::cache::{TileCache, TileStore};
-use terrastitch::config::Config;
+use terrastitch::cache::{Format, SqliteStore, TileCache};
+use terrastitch::config::{Config, LogFormat};
+use terrastitch::offline::{export, seed};
 use terrastitch::server::{self, AppState};
 use terrastitch::source::Sources;
+use terrastitch::tile::{LonLatBounds, TileRange};
 use terrastitch::TileId;
 
 #[derive(Parser)]
@@ -29,6 +32,10 @@ enum Command {
     Serve(ServeArgs),
     /// Render one tile to a file, without the server.
     Render(RenderArgs),
+    /// Render every tile of a box into the cache (resumable; --shard splits the work).
+    Seed(SeedArgs),
+    /// Write a box's tiles to an MBTiles file, or to DIR/z/x/y.glb with `-o DIR/`.
+    Export(ExportArgs),
 }
 
 /// Where the data comes from; flags override the configuration file.
@@ -71,6 +78,46 @@ struct RenderArgs {
     timings: bool,
 }
 
+/// The tiles of a box, for `seed` and `export`.
+#[derive(Args)]
+struct AreaArgs {
+    /// The box, as W,S,E,N in degrees (e.g. 7.40,43.72,7.44,43.75)
+    #[arg(long, value_name = "W,S,E,N", allow_hyphen_values = true)]
+    bbox: LonLatBounds,
+    /// Formats to make: glb, terrain (quantized-mesh with normals and water mask); repeat for
+    /// several
+    #[arg(long = "format", value_name = "FORMAT", default_values = ["glb"])]
+    formats: Vec<String>,
+    /// SQLite file of the tile cache [default: cache/tiles.sqlite]
+    #[arg(long, value_name = "FILE")]
+    cache: Option<PathBuf>,
+    /// Renders at once [default: one per core]
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
+}
+
+#[derive(Args)]
+struct SeedArgs {
+    #[command(flatten)]
+    area: AreaArgs,
+    #[command(flatten)]
+    sources: SourceArgs,
+    /// Make only the i-th of n shares of the box's tiles (1 ≤ i ≤ n), e.g. 2/4
+    #[arg(long, value_name = "i/n")]
+    shard: Option<seed::Shard>,
+}
+
+#[derive(Args)]
+struct ExportArgs {
+    #[command(flatten)]
+    area: AreaArgs,
+    #[command(flatten)]
+    sources: SourceArgs,
+    /// Output: an MBTiles file, or a directory when the path ends in / (DIR/z/x/y.glb)
+    #[arg(short = 'o', long = "output", value_name = "FILE|DIR/")]
+    output: PathBuf,
+}
+
 fn load_config(args: &SourceArgs) -> Result<Config> {
     let mut config = Config::load(args.config.as_deref())?;
     if !args.osm.is_empty() {
@@ -99,35 +146,53 @@ fn open_sources(config: &Config) -> Result<Sources> {
 }
 
 fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
-    match Cli::parse().command {
-        Command::Serve(args) => serve(args),
-        Command::Render(args) => render(args),
+    let cli = Cli::parse();
+    let sources = match &cli.command {
+        Command::Serve(args) => &args.sources,
+        Command::Render(args) => &args.sources,
+        Command::Seed(args) => &args.sources,
+        Command::Export(args) => &args.sources,
+    };
+    let config = load_config(sources)?;
+    init_logging(config.log.format);
+    match cli.command {
+        Command::Serve(args) => serve(args, config),
+        Command::Render(args) => render(args, config),
+        Command::Seed(args) => seed(args, config),
+        Command::Export(args) => export(args, config),
     }
 }
 
-fn serve(args: ServeArgs) -> Result<()> {
-    let mut config = load_config(&args.sources)?;
+/// Logs to stderr, as text or as one JSON object per line; `RUST_LOG` filters.
+fn init_logging(format: LogFormat) {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
+    match format {
+        LogFormat::Text => builder.init(),
+        LogFormat::Json => builder.json().with_current_span(true).init(),
+    }
+}
+
+/// The tile store a configuration names.
+fn open_store(config: &Config) -> Result<SqliteStore> {
+    let cap = (config.cache.max_size_mib > 0).then(|| config.cache.max_size_mib * 1024 * 1024);
+    Ok(SqliteStore::open(&config.cache.path, cap)?)
+}
+
+fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
     if let Some(listen) = args.listen {
         config.server.listen = listen;
     }
     if let Some(cache) = args.cache {
         config.cache.path = cache;
     }
-    let sources = open_sources(&config)?;
-    let store = TileStore::open(&config.cache.path)?;
-    let cache = TileCache::new(
-        store,
-        config.cache.memory_mib * 1024 * 1024,
-        server::pipeline_id(&config.render),
-    );
-    let state = AppState::new(sources, cache, config.render.clone(), &config.server);
+    let store = open_store(&config)?;
+    let cache = TileCache::new(Arc::new(store), config.cache.memory_mib * 1024 * 1024);
+    let mut state = AppState::new(cache, config.render.clone(), &config.server);
+    state.source_config = Some(Arc::new(config.sources.clone()));
     let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
     runtime.block_on(async move {
         let listener = tokio::net::TcpListener::bind(&config.server.listen)
@@ -137,8 +202,42 @@ fn serve(args: ServeArgs) -> Result<()> {
         tracing::info!("serving on http://{address}/");
         // The line tests and scripts wait for.
         eprintln!("listening on http://{address}");
-        server::serve(listener, state, shutdown_signal()).await?;
-        Ok(())
+        // The sources load while the server already answers `/health` (and `/ready` with
+        // `503`); a source that cannot be loaded stops the server with its error.
+        let (failed_tx, failed_rx) = tokio::sync::oneshot::channel::<anyhow::Error>();
+        let loading = state.clone();
+        tokio::task::spawn_blocking(move || match open_sources(&config) {
+            Ok(sources) => loading.set_sources(sources),
+            Err(error) => {
+                loading.sources_failed(format!("{error:#}"));
+                let _ = failed_tx.send(error);
+            }
+        });
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<anyhow::Error>();
+        let watcher = tokio::spawn(async move {
+            if let Ok(error) = failed_rx.await {
+                let _ = stop_tx.send(error);
+            }
+        });
+        let failure = Arc::new(std::sync::Mutex::new(None));
+        let recorded = failure.clone();
+        let shutdown = async move {
+            tokio::select! {
+                _ = shutdown_signal() => {},
+                Ok(error) = stop_rx => {
+                    if let Ok(mut slot) = recorded.lock() {
+                        *slot = Some(error);
+                    }
+                },
+            }
+        };
+        server::serve(listener, state, shutdown).await?;
+        watcher.abort();
+        let failure = failure.lock().ok().and_then(|mut f| f.take());
+        match failure {
+            Some(error) => Err(error),
+            None => Ok(()),
+        }
     })
 }
 
@@ -164,9 +263,8 @@ async fn shutdown_signal() {
     tracing::info!("shutting down");
 }
 
-fn render(args: RenderArgs) -> Result<()> {
+fn render(args: RenderArgs, config: Config) -> Result<()> {
     let tile: TileId = args.tile.parse()?;
-    let config = load_config(&args.sources)?;
     let started = Instant::now();
     let sources = open_sources(&config)?;
     if let Err(uncovered) = sources.check_coverage(tile) {
@@ -221,5 +319,150 @@ fn render(args: RenderArgs) -> Result<()> {
             s.road_lp_violations
         );
     }
+    Ok(())
+}
+
+/// The formats named on the command line.
+fn formats(names: &[String]) -> Result<Vec<Format>> {
+    let mut formats = Vec::new();
+    for name in names.iter().flat_map(|n| n.split(',')) {
+        let format = match name.trim() {
+            "glb" => Format::Glb,
+            "terrain" => Format::Terrain(terrastitch::output::quantized_mesh::Extensions {
+                normals: true,
+                watermask: true,
+            }),
+            other => anyhow::bail!("unknown format '{other}'; expected glb or terrain"),
+        };
+        if !formats.contains(&format) {
+            formats.push(format);
+        }
+    }
+    Ok(formats)
+}
+
+/// Renders the planned tiles of a box into the store, with a progress bar on a terminal.
+fn seed_area(
+    area: &AreaArgs,
+    config: &Config,
+    sources: &Sources,
+    store: &SqliteStore,
+    shard: seed::Shard,
+) -> Result<seed::SeedReport> {
+    let range = TileRange::covering(config.server.zoom, &area.bbox);
+    let formats = formats(&area.formats)?;
+    let pipeline = server::pipeline_id(&config.render);
+    let plan = seed::plan(sources, store, &pipeline, range, &formats, shard)?;
+    eprintln!(
+        "{} tiles in the box; this share: {} to make, {} already in the cache, {} outside the data",
+        plan.in_box,
+        plan.to_make.len(),
+        plan.already,
+        plan.uncovered
+    );
+    let bar = indicatif::ProgressBar::new(plan.to_make.len() as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} tiles  {per_sec}  {elapsed_precise} elapsed, {eta} left",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let threads = area
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()));
+    let limit = (config.server.render_timeout_s > 0)
+        .then(|| std::time::Duration::from_secs(config.server.render_timeout_s));
+    let report = seed::seed(
+        sources,
+        store,
+        &config.render,
+        &pipeline,
+        config.server.zoom,
+        &plan.to_make,
+        threads,
+        limit,
+        &|progress| bar.set_position(progress.done as u64),
+    )?;
+    bar.finish_and_clear();
+    eprintln!(
+        "made {} tiles in {:.1} s ({:.2} tiles/s), {} bytes stored; {} failed",
+        report.made,
+        report.elapsed.as_secs_f64(),
+        report.tiles_per_second(),
+        report.stored_bytes,
+        report.failed.len()
+    );
+    for (key, error) in &report.failed {
+        eprintln!("  {} ({}): {error}", key.tile, key.format.as_str());
+    }
+    Ok(report)
+}
+
+fn with_cache(mut config: Config, cache: &Option<PathBuf>) -> Config {
+    if let Some(cache) = cache {
+        config.cache.path = cache.clone();
+    }
+    config
+}
+
+fn seed(args: SeedArgs, config: Config) -> Result<()> {
+    let config = with_cache(config, &args.area.cache);
+    let sources = open_sources(&config)?;
+    let store = open_store(&config)?;
+    let report = seed_area(
+        &args.area,
+        &config,
+        &sources,
+        &store,
+        args.shard.unwrap_or_default(),
+    )?;
+    if !report.failed.is_empty() {
+        anyhow::bail!("{} tiles could not be made", report.failed.len());
+    }
+    Ok(())
+}
+
+fn export(args: ExportArgs, config: Config) -> Result<()> {
+    let config = with_cache(config, &args.area.cache);
+    let sources = open_sources(&config)?;
+    let store = open_store(&config)?;
+    // Whatever the cache lacks is made first.
+    let report = seed_area(
+        &args.area,
+        &config,
+        &sources,
+        &store,
+        seed::Shard::default(),
+    )?;
+    if !report.failed.is_empty() {
+        anyhow::bail!(
+            "{} tiles could not be made; nothing exported",
+            report.failed.len()
+        );
+    }
+    let range = TileRange::covering(config.server.zoom, &args.area.bbox);
+    let formats = formats(&args.area.formats)?;
+    let keys: Vec<_> = range
+        .tiles()
+        .filter(|t| sources.check_coverage(*t).is_ok())
+        .flat_map(|tile| {
+            formats
+                .iter()
+                .map(move |&format| terrastitch::cache::TileKey { tile, format })
+        })
+        .collect();
+    let target = export::Target::from_path(&args.output);
+    if matches!(target, export::Target::Mbtiles(_)) && formats.len() > 1 {
+        anyhow::bail!(
+            "an MBTiles file holds one format; export to a directory (-o DIR/) for several"
+        );
+    }
+    let written = export::export(&store, &keys, &target, &args.area.bbox, config.server.zoom)?;
+    eprintln!(
+        "exported {} tiles, {} bytes of tile data, to {}",
+        written.tiles,
+        written.bytes,
+        args.output.display()
+    );
     Ok(())
 }

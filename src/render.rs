@@ -44,6 +44,41 @@ pub enum RenderError {
     Ground(#[from] ground::GroundError),
     #[error("rendering tile {tile} failed unexpectedly: {message}")]
     Panicked { tile: TileId, message: String },
+    #[error("rendering tile {tile} took longer than its limit of {} s (stopped after {stage})", .limit.as_secs_f64())]
+    TimedOut {
+        tile: TileId,
+        limit: Duration,
+        stage: &'static str,
+    },
+}
+
+/// When a render must give up: checked between its stages.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Deadline {
+    at: Option<(Instant, Duration)>,
+}
+
+impl Deadline {
+    /// No limit.
+    pub fn none() -> Deadline {
+        Deadline { at: None }
+    }
+
+    /// `limit` from now.
+    pub fn after(limit: Duration) -> Deadline {
+        Deadline {
+            at: Some((Instant::now() + limit, limit)),
+        }
+    }
+
+    fn check(&self, tile: TileId, stage: &'static str) -> Result<(), RenderError> {
+        match self.at {
+            Some((at, limit)) if Instant::now() > at => {
+                Err(RenderError::TimedOut { tile, limit, stage })
+            }
+            _ => Ok(()),
+        }
+    }
 }
 
 /// Time spent in each stage.
@@ -172,6 +207,7 @@ fn prepare<'a>(
     mosaic: &'a Mosaic,
     settings: &RenderSettings,
     timings: &mut StageTimings,
+    deadline: Deadline,
 ) -> Result<Prepared<'a>, RenderError> {
     let frame = tile.frame();
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
@@ -179,6 +215,7 @@ fn prepare<'a>(
     let started = Instant::now();
     let mut feature_set = features::collect(selection, tile, &settings.features);
     timings.features = started.elapsed();
+    deadline.check(tile, "features")?;
 
     // Bridges and tunnels, each settled whole by the LP; tunnels cut into the ground.
     let started = Instant::now();
@@ -196,10 +233,12 @@ fn prepare<'a>(
         margin,
     );
     timings.structures = started.elapsed();
+    deadline.check(tile, "structures")?;
 
     let started = Instant::now();
     let road_profiles = settle_roads(tile, selection, &feature_set, &terrain, settings);
     timings.roads = started.elapsed();
+    deadline.check(tile, "roads")?;
 
     let started = Instant::now();
     // Water areas lie flat at the level of their lowest shore.
@@ -232,6 +271,7 @@ fn prepare<'a>(
     let levels: Vec<&elevation::settled::Level> = water.iter().chain(&cuts).collect();
     elevation::settled::flatten(&mut ground, &levels, &roads, &frame);
     timings.triangulation = started.elapsed();
+    deadline.check(tile, "triangulation")?;
 
     // Normals from the settled ground's gradient at each vertex, from the terrain's on the
     // tile's edges (a function of global data, so a vertex on a shared edge gets the same
@@ -400,9 +440,20 @@ pub fn render(
     mosaic: &Mosaic,
     settings: &RenderSettings,
 ) -> Result<RenderedTile, RenderError> {
+    render_within(tile, selection, mosaic, settings, Deadline::none())
+}
+
+/// [`render`], giving up with [`RenderError::TimedOut`] once `deadline` has passed.
+pub fn render_within(
+    tile: TileId,
+    selection: &Selection<'_>,
+    mosaic: &Mosaic,
+    settings: &RenderSettings,
+    deadline: Deadline,
+) -> Result<RenderedTile, RenderError> {
     guarded(tile, || {
         let mut timings = StageTimings::default();
-        let prepared = prepare(tile, selection, mosaic, settings, &mut timings)?;
+        let prepared = prepare(tile, selection, mosaic, settings, &mut timings, deadline)?;
         Ok(render_glb(tile, &prepared, timings))
     })
 }
@@ -619,10 +670,11 @@ pub fn render_terrain(
     mosaic: &Mosaic,
     settings: &RenderSettings,
     extensions: quantized_mesh::Extensions,
+    deadline: Deadline,
 ) -> Result<RenderedTerrain, RenderError> {
     guarded(tile, || {
         let mut timings = StageTimings::default();
-        let prepared = prepare(tile, selection, mosaic, settings, &mut timings)?;
+        let prepared = prepare(tile, selection, mosaic, settings, &mut timings, deadline)?;
         Ok(encode_terrain(tile, &prepared, extensions, timings))
     })
 }
@@ -637,13 +689,21 @@ pub fn render_overview_terrain(
     settings: &RenderSettings,
     served_zoom: u8,
     extensions: quantized_mesh::Extensions,
+    deadline: Deadline,
 ) -> Result<RenderedTerrain, RenderError> {
     let levels_above = i32::from(served_zoom) - i32::from(tile.z);
     let mut settings = settings.clone();
     settings.mesh.max_error_m *= 2f64.powi(levels_above.max(0));
     guarded(tile, || {
         let mut timings = StageTimings::default();
-        let prepared = prepare(tile, &Selection::default(), mosaic, &settings, &mut timings)?;
+        let prepared = prepare(
+            tile,
+            &Selection::default(),
+            mosaic,
+            &settings,
+            &mut timings,
+            deadline,
+        )?;
         Ok(encode_terrain(tile, &prepared, extensions, timings))
     })
 }

@@ -162,6 +162,98 @@ impl LonLatBounds {
     }
 }
 
+impl FromStr for LonLatBounds {
+    type Err = String;
+
+    /// Parses `W,S,E,N` in degrees.
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let numbers: Vec<f64> = s
+            .split(',')
+            .map(|part| part.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| format!("'{s}' is not a box W,S,E,N of four numbers in degrees"))?;
+        let [west, south, east, north] = numbers.as_slice() else {
+            return Err(format!(
+                "'{s}' is not a box W,S,E,N of four numbers in degrees"
+            ));
+        };
+        let bounds = LonLatBounds {
+            west: *west,
+            south: *south,
+            east: *east,
+            north: *north,
+        };
+        if !(-180.0..=180.0).contains(&bounds.west)
+            || !(-180.0..=180.0).contains(&bounds.east)
+            || !(-90.0..=90.0).contains(&bounds.south)
+            || !(-90.0..=90.0).contains(&bounds.north)
+        {
+            return Err(format!(
+                "box {s} lies outside longitudes ±180 and latitudes ±90"
+            ));
+        }
+        if bounds.west >= bounds.east || bounds.south >= bounds.north {
+            return Err(format!(
+                "box {s} is empty: west must be below east and south below north"
+            ));
+        }
+        Ok(bounds)
+    }
+}
+
+/// The tiles of one zoom that a box touches: columns `min_x..=max_x`, rows `min_y..=max_y`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TileRange {
+    pub z: u8,
+    pub min_x: u32,
+    pub max_x: u32,
+    pub min_y: u32,
+    pub max_y: u32,
+}
+
+impl TileRange {
+    /// The tiles at zoom `z` that overlap `bounds` (clamped to the Web Mercator square).
+    pub fn covering(z: u8, bounds: &LonLatBounds) -> TileRange {
+        let n = f64::from(1u32 << z.min(MAX_ZOOM));
+        let last = (n as u64).saturating_sub(1) as f64;
+        let lat = |l: f64| l.clamp(-MAX_LATITUDE_DEG, MAX_LATITUDE_DEG);
+        let (u0, v0) = lon_lat_to_uv(bounds.west, lat(bounds.north), n);
+        let (u1, v1) = lon_lat_to_uv(bounds.east, lat(bounds.south), n);
+        // A box ending on a tile edge (within rounding) does not reach the tile beyond it.
+        const EDGE: f64 = 1e-9;
+        let first = |t: f64| (t + EDGE).floor().clamp(0.0, last) as u32;
+        let end = |t: f64| ((t - EDGE).ceil() - 1.0).clamp(0.0, last) as u32;
+        TileRange {
+            z,
+            min_x: first(u0),
+            max_x: end(u1).max(first(u0)),
+            min_y: first(v0),
+            max_y: end(v1).max(first(v0)),
+        }
+    }
+
+    pub fn len(&self) -> u64 {
+        u64::from(self.max_x - self.min_x + 1) * u64::from(self.max_y - self.min_y + 1)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    pub fn contains(&self, tile: TileId) -> bool {
+        tile.z == self.z
+            && (self.min_x..=self.max_x).contains(&tile.x)
+            && (self.min_y..=self.max_y).contains(&tile.y)
+    }
+
+    /// The tiles row by row, north to south, west to east.
+    pub fn tiles(&self) -> impl Iterator<Item = TileId> + '_ {
+        let z = self.z;
+        (self.min_y..=self.max_y)
+            .flat_map(move |y| (self.min_x..=self.max_x).map(move |x| TileId { z, x, y }))
+    }
+}
+
 /// Longitude and latitude to global tile units at `n` tiles per axis.
 pub fn lon_lat_to_uv(lon: f64, lat: f64, n: f64) -> (f64, f64) {
     let u = (lon + 180.0) / 360.0 * n;
@@ -241,6 +333,28 @@ impl TileFrame {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_box_covers_the_tiles_it_touches_and_no_more() {
+        let monaco: LonLatBounds = "7.40,43.72,7.44,43.75".parse().unwrap();
+        let range = TileRange::covering(14, &monaco);
+        for tile in range.tiles() {
+            assert!(tile.bounds().intersects(&monaco), "{tile}");
+        }
+        assert_eq!(range.tiles().count() as u64, range.len());
+        // A box that is exactly one tile covers that tile alone.
+        let tile = TileId {
+            z: 14,
+            x: 8529,
+            y: 5973,
+        };
+        let exact = TileRange::covering(14, &tile.bounds());
+        assert_eq!(exact.len(), 1);
+        assert!(exact.contains(tile));
+        for bad in ["1,2,3", "7.44,43.72,7.40,43.75", "a,b,c,d", "0,0,200,1"] {
+            assert!(bad.parse::<LonLatBounds>().is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn beausoleil_lies_in_its_published_tile() {

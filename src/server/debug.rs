@@ -21,14 +21,14 @@ pub async fn elevations(
             tile.z, state.zoom
         )));
     }
-    state
-        .sources
+    let sources = state.sources()?;
+    sources
         .check_coverage(tile)
         .map_err(|e| ApiError::not_found(e.to_string()))?;
     let worker = state.clone();
     let body = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
-        let mosaic = worker.sources.mosaic(tile).map_err(|e| e.to_string())?;
-        let selection = worker.sources.selection(tile);
+        let mosaic = sources.mosaic(tile).map_err(|e| e.to_string())?;
+        let selection = sources.selection(tile);
         let settled = crate::render::settle_structures(tile, &selection, &mosaic, &worker.settings);
         let roads =
             crate::render::settle_road_profiles(tile, &selection, &mosaic, &worker.settings);

@@ -10,13 +10,14 @@ use axum::extract::State;
 use axum::Json;
 use serde_json::{json, Value};
 
+use super::error::ApiError;
 use super::AppState;
 use crate::output::glb::ATTRIBUTION;
 use crate::tile::TileId;
 
-pub async fn layer(State(state): State<AppState>) -> Json<Value> {
+pub async fn layer(State(state): State<AppState>) -> Result<Json<Value>, ApiError> {
     let z = state.zoom;
-    let cells: Vec<_> = state.sources.srtm.cells().collect();
+    let cells: Vec<_> = state.sources()?.srtm.cells().collect();
     let mut bounds: Option<[f64; 4]> = None;
     let mut ranges = Vec::new();
     for cell in &cells {
@@ -46,7 +47,7 @@ pub async fn layer(State(state): State<AppState>) -> Json<Value> {
         })
         .collect();
     available.push(Value::Array(ranges));
-    Json(json!({
+    Ok(Json(json!({
         "tilejson": "2.1.0",
         "name": "terrastitch",
         "description": "Terrain from SRTM with OpenStreetMap roads, railways and water stitched into it",
@@ -61,5 +62,5 @@ pub async fn layer(State(state): State<AppState>) -> Json<Value> {
         "available": available,
         "extensions": ["octvertexnormals", "watermask"],
         "attribution": ATTRIBUTION,
-    }))
+    })))
 }

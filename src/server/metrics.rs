@@ -1,19 +1,169 @@
-//! Counters exposed at `/metrics` in the Prometheus text format.
+//! Counters, gauges and histograms exposed at `/metrics` in the Prometheus text format.
 
+use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+use std::time::Duration;
 
-#[derive(Debug, Default)]
+use crate::render::StageTimings;
+
+/// Upper bounds of the render-time buckets, seconds.
+const SECONDS_BUCKETS: &[f64] = &[
+    0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0,
+];
+
+/// A histogram with fixed buckets.
+#[derive(Debug)]
+pub struct Histogram {
+    bounds: &'static [f64],
+    /// One count per bound, then one for +Inf (not cumulative).
+    counts: Vec<AtomicU64>,
+    sum_micros: AtomicU64,
+}
+
+impl Histogram {
+    pub fn new(bounds: &'static [f64]) -> Histogram {
+        Histogram {
+            bounds,
+            counts: (0..=bounds.len()).map(|_| AtomicU64::new(0)).collect(),
+            sum_micros: AtomicU64::new(0),
+        }
+    }
+
+    pub fn observe(&self, duration: Duration) {
+        let seconds = duration.as_secs_f64();
+        let bucket = self
+            .bounds
+            .iter()
+            .position(|&b| seconds <= b)
+            .unwrap_or(self.bounds.len());
+        self.counts[bucket].fetch_add(1, Ordering::Relaxed);
+        self.sum_micros
+            .fetch_add(duration.as_micros() as u64, Ordering::Relaxed);
+    }
+
+    /// The series lines of this histogram under `name` with `labels` (`key="value"` pairs).
+    fn write(&self, out: &mut String, name: &str, labels: &str) {
+        let separator = if labels.is_empty() { "" } else { "," };
+        let mut cumulative = 0;
+        for (i, count) in self.counts.iter().enumerate() {
+            cumulative += count.load(Ordering::Relaxed);
+            let bound = self
+                .bounds
+                .get(i)
+                .map_or("+Inf".to_string(), |b| b.to_string());
+            let _ = writeln!(
+                out,
+                "{name}_bucket{{{labels}{separator}le=\"{bound}\"}} {cumulative}"
+            );
+        }
+        let braces = if labels.is_empty() {
+            String::new()
+        } else {
+            format!("{{{labels}}}")
+        };
+        let _ = writeln!(
+            out,
+            "{name}_sum{braces} {:.6}\n{name}_count{braces} {cumulative}",
+            self.sum_micros.load(Ordering::Relaxed) as f64 / 1e6
+        );
+    }
+}
+
+/// The render stages timed, with their label.
+const STAGES: [&str; 8] = [
+    "features",
+    "structures",
+    "roads",
+    "triangulation",
+    "terrain",
+    "elevation",
+    "encode",
+    "total",
+];
+
+fn stage_durations(t: &StageTimings) -> [Duration; 8] {
+    [
+        t.features,
+        t.structures,
+        t.roads,
+        t.triangulation,
+        t.terrain,
+        t.elevation,
+        t.glb,
+        t.total(),
+    ]
+}
+
+#[derive(Debug)]
 pub struct Metrics {
     pub renders: AtomicU64,
     pub render_failures: AtomicU64,
+    /// Renders stopped at the time limit.
+    pub render_timeouts: AtomicU64,
+    /// Requests turned away because the render queue was full.
+    pub rejected_busy: AtomicU64,
     pub hits_memory: AtomicU64,
     pub hits_store: AtomicU64,
+    pub misses: AtomicU64,
+    /// Stale tiles served while their replacement was made.
+    pub stale_served: AtomicU64,
     pub tile_requests: AtomicU64,
-    pub render_seconds_micros: AtomicU64,
     /// Components of the elevation LP solved, and soft constraints they violated.
     pub lp_components: AtomicU64,
     pub lp_violations: AtomicU64,
+    /// Tiles made again in the background (stale, regenerated), and those that failed.
+    pub regenerations: AtomicU64,
+    pub regeneration_failures: AtomicU64,
+    /// Source files downloaded, failed downloads, bytes downloaded.
+    pub downloads: AtomicU64,
+    pub download_failures: AtomicU64,
+    pub download_bytes: AtomicU64,
+    /// Render time per stage (index as [`STAGES`]).
+    stage_seconds: Vec<Histogram>,
+    /// Responses by route template and status.
+    responses: Mutex<BTreeMap<(String, u16), u64>>,
+    request_seconds: Histogram,
+}
+
+impl Default for Metrics {
+    fn default() -> Self {
+        Metrics {
+            renders: AtomicU64::new(0),
+            render_failures: AtomicU64::new(0),
+            render_timeouts: AtomicU64::new(0),
+            rejected_busy: AtomicU64::new(0),
+            hits_memory: AtomicU64::new(0),
+            hits_store: AtomicU64::new(0),
+            misses: AtomicU64::new(0),
+            stale_served: AtomicU64::new(0),
+            tile_requests: AtomicU64::new(0),
+            lp_components: AtomicU64::new(0),
+            lp_violations: AtomicU64::new(0),
+            regenerations: AtomicU64::new(0),
+            regeneration_failures: AtomicU64::new(0),
+            downloads: AtomicU64::new(0),
+            download_failures: AtomicU64::new(0),
+            download_bytes: AtomicU64::new(0),
+            stage_seconds: STAGES
+                .iter()
+                .map(|_| Histogram::new(SECONDS_BUCKETS))
+                .collect(),
+            responses: Mutex::new(BTreeMap::new()),
+            request_seconds: Histogram::new(SECONDS_BUCKETS),
+        }
+    }
+}
+
+/// What the render pool holds at one moment.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PoolGauges {
+    pub running: usize,
+    pub waiting: usize,
+    pub background_waiting: usize,
+    /// Tiles queued to be made again, or being made.
+    pub regenerating: usize,
 }
 
 impl Metrics {
@@ -21,10 +171,30 @@ impl Metrics {
         counter.fetch_add(1, Ordering::Relaxed);
     }
 
-    pub fn render_text(&self) -> String {
+    pub fn add(counter: &AtomicU64, n: u64) {
+        counter.fetch_add(n, Ordering::Relaxed);
+    }
+
+    pub fn observe_render(&self, timings: &StageTimings) {
+        for (histogram, duration) in self.stage_seconds.iter().zip(stage_durations(timings)) {
+            histogram.observe(duration);
+        }
+    }
+
+    pub fn observe_response(&self, route: &str, status: u16, elapsed: Duration) {
+        *self
+            .responses
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .entry((route.to_string(), status))
+            .or_insert(0) += 1;
+        self.request_seconds.observe(elapsed);
+    }
+
+    pub fn render_text(&self, pool: PoolGauges) -> String {
         let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
         let mut out = String::new();
-        let mut counter = |name: &str, help: &str, value: String| {
+        let mut counter = |name: &str, help: &str, value: u64| {
             let _ = writeln!(
                 out,
                 "# HELP {name} {help}\n# TYPE {name} counter\n{name} {value}"
@@ -33,32 +203,67 @@ impl Metrics {
         counter(
             "terrastitch_tile_requests_total",
             "Tile requests received.",
-            get(&self.tile_requests).to_string(),
+            get(&self.tile_requests),
         );
         counter(
             "terrastitch_renders_total",
             "Tiles rendered.",
-            get(&self.renders).to_string(),
+            get(&self.renders),
         );
         counter(
             "terrastitch_render_failures_total",
             "Renders that failed.",
-            get(&self.render_failures).to_string(),
+            get(&self.render_failures),
         );
         counter(
-            "terrastitch_render_seconds_total",
-            "Time spent rendering.",
-            format!("{:.6}", get(&self.render_seconds_micros) as f64 / 1e6),
+            "terrastitch_render_timeouts_total",
+            "Renders stopped at the time limit.",
+            get(&self.render_timeouts),
+        );
+        counter(
+            "terrastitch_rejected_busy_total",
+            "Tile requests answered 503 because the render queue was full.",
+            get(&self.rejected_busy),
+        );
+        counter(
+            "terrastitch_stale_served_total",
+            "Stale tiles served while their replacement was made.",
+            get(&self.stale_served),
         );
         counter(
             "terrastitch_lp_components_total",
             "Components of the elevation linear program solved.",
-            get(&self.lp_components).to_string(),
+            get(&self.lp_components),
         );
         counter(
             "terrastitch_lp_violations_total",
             "Soft elevation constraints (from tags and defaults) violated in rendered tiles.",
-            get(&self.lp_violations).to_string(),
+            get(&self.lp_violations),
+        );
+        counter(
+            "terrastitch_regenerations_total",
+            "Tiles made again in the background.",
+            get(&self.regenerations),
+        );
+        counter(
+            "terrastitch_regeneration_failures_total",
+            "Background remakes that failed (the old tile stays).",
+            get(&self.regeneration_failures),
+        );
+        counter(
+            "terrastitch_downloads_total",
+            "Source files downloaded.",
+            get(&self.downloads),
+        );
+        counter(
+            "terrastitch_download_failures_total",
+            "Source downloads that failed.",
+            get(&self.download_failures),
+        );
+        counter(
+            "terrastitch_download_bytes_total",
+            "Bytes of source files downloaded.",
+            get(&self.download_bytes),
         );
         let _ = writeln!(
             out,
@@ -66,6 +271,74 @@ impl Metrics {
             get(&self.hits_memory),
             get(&self.hits_store)
         );
+        let _ = writeln!(
+            out,
+            "# HELP terrastitch_cache_misses_total Tiles found in no cache layer and rendered.\n# TYPE terrastitch_cache_misses_total counter\nterrastitch_cache_misses_total {}",
+            get(&self.misses)
+        );
+        let _ = writeln!(
+            out,
+            "# HELP terrastitch_render_queue Renders by state: running, waiting (requests waiting for a slot), background (remakes waiting for a slot), regenerating (tiles queued to be made again, or being made).\n# TYPE terrastitch_render_queue gauge\nterrastitch_render_queue{{state=\"running\"}} {}\nterrastitch_render_queue{{state=\"waiting\"}} {}\nterrastitch_render_queue{{state=\"background\"}} {}\nterrastitch_render_queue{{state=\"regenerating\"}} {}",
+            pool.running, pool.waiting, pool.background_waiting, pool.regenerating
+        );
+        let _ = writeln!(
+            out,
+            "# HELP terrastitch_render_stage_seconds Render time by stage.\n# TYPE terrastitch_render_stage_seconds histogram"
+        );
+        for (stage, histogram) in STAGES.iter().zip(&self.stage_seconds) {
+            histogram.write(
+                &mut out,
+                "terrastitch_render_stage_seconds",
+                &format!("stage=\"{stage}\""),
+            );
+        }
+        let _ = writeln!(
+            out,
+            "# HELP terrastitch_http_requests_total HTTP responses by route and status.\n# TYPE terrastitch_http_requests_total counter"
+        );
+        for ((route, status), n) in self
+            .responses
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .iter()
+        {
+            let _ = writeln!(
+                out,
+                "terrastitch_http_requests_total{{route=\"{route}\",status=\"{status}\"}} {n}"
+            );
+        }
+        let _ = writeln!(
+            out,
+            "# HELP terrastitch_http_request_seconds Time to answer a request (to its headers).\n# TYPE terrastitch_http_request_seconds histogram"
+        );
+        self.request_seconds
+            .write(&mut out, "terrastitch_http_request_seconds", "");
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn histograms_are_cumulative_and_count_everything() {
+        let histogram = Histogram::new(&[0.1, 1.0]);
+        for ms in [50, 500, 5000, 70] {
+            histogram.observe(Duration::from_millis(ms));
+        }
+        let mut out = String::new();
+        histogram.write(&mut out, "h", "stage=\"x\"");
+        assert!(
+            out.contains("h_bucket{stage=\"x\",le=\"0.1\"} 2\n"),
+            "{out}"
+        );
+        assert!(out.contains("h_bucket{stage=\"x\",le=\"1\"} 3\n"), "{out}");
+        assert!(
+            out.contains("h_bucket{stage=\"x\",le=\"+Inf\"} 4\n"),
+            "{out}"
+        );
+        assert!(out.contains("h_count{stage=\"x\"} 4\n"), "{out}");
+        assert!(out.contains("h_sum{stage=\"x\"} 5.620000\n"), "{out}");
     }
 }

@@ -1,62 +1,95 @@
 //! The HTTP server: routes, shared state, and how requests reach the cache and the renderer.
 
+pub mod admin;
 pub mod debug;
 pub mod error;
 pub mod layer;
 pub mod metrics;
+pub mod pool;
+pub mod regenerate;
 pub mod tilejson;
 pub mod tiles;
 
-use std::sync::Arc;
+use std::sync::{Arc, RwLock};
+use std::time::{Duration, Instant};
 
+use axum::extract::{MatchedPath, Request, State};
 use axum::http::{header, StatusCode};
-use axum::response::IntoResponse;
-use axum::routing::get;
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
 use axum::Router;
-use tokio::sync::Semaphore;
 
 use crate::cache::TileCache;
-use crate::config::ServerConfig;
+use crate::config::{ServerConfig, SourcesConfig};
 use crate::render::RenderSettings;
 use crate::source::Sources;
 use error::ApiError;
-use metrics::Metrics;
+use metrics::{Metrics, PoolGauges};
+use pool::RenderPool;
+
+/// How long a client is asked to wait before retrying when sources load or renders queue.
+pub const RETRY_AFTER_S: u64 = 5;
+
+/// Where the sources stand.
+#[derive(Debug, Clone)]
+enum SourceState {
+    Loading,
+    Ready(Arc<Sources>),
+    Failed(String),
+}
 
 /// Everything a request handler needs.
 #[derive(Debug, Clone)]
 pub struct AppState {
-    pub sources: Arc<Sources>,
+    sources: Arc<RwLock<SourceState>>,
     pub cache: TileCache,
     pub settings: Arc<RenderSettings>,
+    /// Identity of the rendering code and settings, stored with every tile.
+    pub pipeline: Arc<str>,
     pub zoom: u8,
     pub metrics: Arc<Metrics>,
-    /// Renders allowed to run at once.
-    pub render_permits: Arc<Semaphore>,
+    pub pool: Arc<RenderPool>,
+    /// Longest a render may take.
+    pub render_limit: Option<Duration>,
     /// Origins allowed to read responses in a browser (`*` for any).
     pub cors_origins: Arc<Vec<String>>,
     /// `Cache-Control` for tiles, if any.
     pub cache_control: Option<axum::http::HeaderValue>,
+    /// The bearer token `/admin/*` asks for; `None` turns those routes off.
+    pub admin_token: Option<Arc<str>>,
+    pub check_interval: Option<Duration>,
+    /// Tiles to make again in the background.
+    pub regenerator: Arc<regenerate::Regenerator>,
+    /// Workers making them (each holds at most one render slot).
+    pub background_workers: usize,
+    /// What the sources were loaded from, for reloading them when they change.
+    pub source_config: Option<Arc<SourcesConfig>>,
 }
 
 impl AppState {
-    pub fn new(
-        sources: Sources,
-        cache: TileCache,
-        settings: RenderSettings,
-        server: &ServerConfig,
-    ) -> AppState {
+    /// A server without sources yet: tiles are refused with `503` until
+    /// [`AppState::set_sources`].
+    pub fn new(cache: TileCache, settings: RenderSettings, server: &ServerConfig) -> AppState {
         let threads = if server.render_threads == 0 {
             std::thread::available_parallelism().map_or(2, |n| n.get())
         } else {
             server.render_threads
         };
         AppState {
-            sources: Arc::new(sources),
+            sources: Arc::new(RwLock::new(SourceState::Loading)),
             cache,
+            pipeline: pipeline_id(&settings).into(),
             settings: Arc::new(settings),
             zoom: server.zoom,
             metrics: Arc::new(Metrics::default()),
-            render_permits: Arc::new(Semaphore::new(threads)),
+            pool: Arc::new(RenderPool::new(
+                threads,
+                server.render_queue,
+                server.background_renders,
+            )),
+            render_limit: (server.render_timeout_s > 0)
+                .then(|| Duration::from_secs(server.render_timeout_s)),
             cors_origins: Arc::new(server.cors_origins.clone()),
             cache_control: match axum::http::HeaderValue::from_str(&server.cache_control) {
                 Ok(value) if !server.cache_control.is_empty() => Some(value),
@@ -66,6 +99,49 @@ impl AppState {
                     None
                 }
             },
+            admin_token: (!server.admin_token.is_empty())
+                .then(|| server.admin_token.as_str().into()),
+            check_interval: (server.check_interval_s > 0)
+                .then(|| Duration::from_secs(server.check_interval_s)),
+            regenerator: regenerate::new_queue(),
+            background_workers: server.background_renders.max(1),
+            source_config: None,
+        }
+    }
+
+    /// The loaded sources, or a `503` while they load (a `500` if loading failed).
+    pub fn sources(&self) -> Result<Arc<Sources>, ApiError> {
+        match &*self.sources.read().unwrap_or_else(|p| p.into_inner()) {
+            SourceState::Ready(sources) => Ok(sources.clone()),
+            SourceState::Loading => Err(ApiError::unavailable(
+                "the sources are still loading; retry shortly",
+                RETRY_AFTER_S,
+            )),
+            SourceState::Failed(message) => Err(ApiError::internal(format!(
+                "the sources could not be loaded: {message}"
+            ))),
+        }
+    }
+
+    /// Puts loaded sources in place (replacing any before them: tiles made from the old ones
+    /// become stale).
+    pub fn set_sources(&self, sources: Sources) {
+        *self.sources.write().unwrap_or_else(|p| p.into_inner()) =
+            SourceState::Ready(Arc::new(sources));
+    }
+
+    /// Records that the sources could not be loaded (`/ready` says why).
+    pub fn sources_failed(&self, message: String) {
+        *self.sources.write().unwrap_or_else(|p| p.into_inner()) = SourceState::Failed(message);
+    }
+
+    pub fn pool_gauges(&self) -> PoolGauges {
+        let (running, waiting, background_waiting) = self.pool.gauges();
+        PoolGauges {
+            running,
+            waiting,
+            background_waiting,
+            regenerating: self.regenerator.len(),
         }
     }
 }
@@ -83,14 +159,86 @@ pub fn router(state: AppState) -> Router {
         .route("/layer.json", get(layer::layer))
         .route("/tiles.json", get(tilejson::tilejson))
         .route("/health", get(health))
+        .route("/ready", get(ready))
         .route("/metrics", get(metrics))
+        .route("/admin/regenerate", post(admin::regenerate))
+        .route("/admin/purge", post(admin::purge))
         .fallback(not_found)
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            count_response,
+        ))
         .with_state(state);
     let router = match cors {
         Some(cors) => router.layer(cors),
         None => router,
     };
-    router.layer(tower_http::trace::TraceLayer::new_for_http())
+    router
+        .layer(
+            tower_http::trace::TraceLayer::new_for_http().make_span_with(|request: &Request| {
+                let id = request
+                    .headers()
+                    .get(REQUEST_ID)
+                    .and_then(|v| v.to_str().ok())
+                    .unwrap_or("");
+                tracing::info_span!("request", id = %id, method = %request.method(), uri = %request.uri())
+            }),
+        )
+        .layer(tower_http::request_id::PropagateRequestIdLayer::new(
+            header::HeaderName::from_static(REQUEST_ID),
+        ))
+        .layer(tower_http::request_id::SetRequestIdLayer::new(
+            header::HeaderName::from_static(REQUEST_ID),
+            RequestIds::default(),
+        ))
+}
+
+/// The header that carries a request's id (kept if the client sent one).
+pub const REQUEST_ID: &str = "x-request-id";
+
+/// Request ids: this process's start time and a counter, unique across restarts.
+#[derive(Debug, Clone)]
+struct RequestIds {
+    prefix: Arc<str>,
+    next: Arc<std::sync::atomic::AtomicU64>,
+}
+
+impl Default for RequestIds {
+    fn default() -> Self {
+        let started = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_millis() as u64);
+        RequestIds {
+            prefix: format!("{started:x}").into(),
+            next: Arc::default(),
+        }
+    }
+}
+
+impl tower_http::request_id::MakeRequestId for RequestIds {
+    fn make_request_id<B>(
+        &mut self,
+        _request: &axum::http::Request<B>,
+    ) -> Option<tower_http::request_id::RequestId> {
+        let n = self.next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        axum::http::HeaderValue::from_str(&format!("{}-{n}", self.prefix))
+            .ok()
+            .map(tower_http::request_id::RequestId::new)
+    }
+}
+
+/// Counts every response by its route template and status.
+async fn count_response(State(state): State<AppState>, request: Request, next: Next) -> Response {
+    let started = Instant::now();
+    let route = request
+        .extensions()
+        .get::<MatchedPath>()
+        .map_or_else(|| "unmatched".to_string(), |p| p.as_str().to_string());
+    let response = next.run(request).await;
+    state
+        .metrics
+        .observe_response(&route, response.status().as_u16(), started.elapsed());
+    response
 }
 
 /// CORS for `GET` and `HEAD` from the configured origins; `None` when there are none.
@@ -126,10 +274,27 @@ async fn health() -> impl IntoResponse {
     axum::Json(serde_json::json!({ "status": "ok" }))
 }
 
-async fn metrics(axum::extract::State(state): axum::extract::State<AppState>) -> impl IntoResponse {
+/// Ready when the sources are loaded: `200`, else `503` saying what is missing.
+async fn ready(State(state): State<AppState>) -> Response {
+    match state.sources() {
+        Ok(sources) => axum::Json(serde_json::json!({
+            "status": "ready",
+            "osm_extracts": sources.osm_paths.len(),
+            "srtm_files": sources.srtm.cells().count(),
+        }))
+        .into_response(),
+        Err(error) => (
+            StatusCode::SERVICE_UNAVAILABLE,
+            axum::Json(serde_json::json!({ "status": "not ready", "error": error.message })),
+        )
+            .into_response(),
+    }
+}
+
+async fn metrics(State(state): State<AppState>) -> impl IntoResponse {
     (
         [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
-        state.metrics.render_text(),
+        state.metrics.render_text(state.pool_gauges()),
     )
 }
 
@@ -140,13 +305,44 @@ async fn not_found(uri: axum::http::Uri) -> ApiError {
     )
 }
 
-/// Serves until `shutdown` completes.
+/// Serves until `shutdown` completes, then lets the requests in flight (and their renders)
+/// finish. Runs the background tasks: recording which tiles memory served, making stale tiles
+/// again, and checking the sources for new versions when configured.
 pub async fn serve(
     listener: tokio::net::TcpListener,
     state: AppState,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    axum::serve(listener, router(state))
+    let mut background = vec![tokio::spawn(background_tasks(state.clone()))];
+    background.extend(regenerate::start(&state, state.background_workers));
+    if let (Some(interval), Some(config)) = (state.check_interval, state.source_config.clone()) {
+        background.push(tokio::spawn(regenerate::watch_sources(
+            state.clone(),
+            config,
+            interval,
+        )));
+    }
+    let result = axum::serve(listener, router(state.clone()))
         .with_graceful_shutdown(shutdown)
-        .await
+        .await;
+    for task in background {
+        task.abort();
+    }
+    state.pool.close();
+    if let Err(error) = state.cache.flush_touches().await {
+        tracing::warn!(%error, "recording served tiles failed");
+    }
+    result
+}
+
+/// Every few seconds: tell the store which tiles memory served.
+async fn background_tasks(state: AppState) {
+    let mut interval = tokio::time::interval(Duration::from_secs(10));
+    interval.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    loop {
+        interval.tick().await;
+        if let Err(error) = state.cache.flush_touches().await {
+            tracing::warn!(%error, "recording served tiles failed");
+        }
+    }
 }

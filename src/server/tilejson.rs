@@ -11,10 +11,14 @@ use axum::http::{header, HeaderMap};
 use axum::Json;
 use serde_json::{json, Value};
 
+use super::error::ApiError;
 use super::AppState;
 use crate::output::glb::ATTRIBUTION;
 
-pub async fn tilejson(State(state): State<AppState>, headers: HeaderMap) -> Json<Value> {
+pub async fn tilejson(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+) -> Result<Json<Value>, ApiError> {
     let text = |name| {
         headers
             .get(name)
@@ -32,7 +36,7 @@ pub async fn tilejson(State(state): State<AppState>, headers: HeaderMap) -> Json
         None => String::new(),
     };
     let bounds = state
-        .sources
+        .sources()?
         .osm
         .data()
         .coverage
@@ -48,7 +52,7 @@ pub async fn tilejson(State(state): State<AppState>, headers: HeaderMap) -> Json
         })
         .unwrap_or([-180.0, -85.051_128_78, 180.0, 85.051_128_78]);
     let z = state.zoom;
-    Json(json!({
+    Ok(Json(json!({
         "tilejson": "3.0.0",
         "name": "terrastitch",
         "description": "3D tiles of OpenStreetMap on SRTM terrain: glTF binary, one per zoom-14 tile",
@@ -62,5 +66,5 @@ pub async fn tilejson(State(state): State<AppState>, headers: HeaderMap) -> Json
         "tiles": [format!("{base}/tiles/{{z}}/{{x}}/{{y}}.glb")],
         "terrain": [format!("{base}/tiles/{{z}}/{{x}}/{{y}}.terrain")],
         "terrain_layer": format!("{base}/layer.json"),
-    }))
+    })))
 }

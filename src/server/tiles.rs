@@ -3,7 +3,7 @@
 //! The route captures the last segment whole (`{y}.glb`): axum 0.8 panics on a capture followed
 //! by a literal in one segment.
 
-use std::time::Instant;
+use std::sync::Arc;
 
 use axum::extract::{Path, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
@@ -11,9 +11,13 @@ use axum::response::{IntoResponse, Response};
 
 use super::error::ApiError;
 use super::metrics::Metrics;
-use super::AppState;
-use crate::cache::{Format, Origin, TileKey};
+use super::pool::Refused;
+use super::{AppState, RETRY_AFTER_S};
+use crate::cache::encoding::{Accepted, Encoding};
+use crate::cache::{CacheError, Format, Origin, Provenance, Served, TileKey};
 use crate::output::quantized_mesh::Extensions;
+use crate::render::Deadline;
+use crate::source::Sources;
 use crate::tile::{TileId, TileIdError};
 
 /// Parses `z`, `x` and `y.ext` into a tile and a format; `accept` chooses quantized-mesh
@@ -77,177 +81,241 @@ pub async fn tile(
             ),
         }));
     }
+    let sources = state.sources()?;
     if !overview {
         // Overview tiles cover whatever they cover: sea level where there is no data.
-        state
-            .sources
+        sources
             .check_coverage(tile)
             .map_err(|e| ApiError::not_found(e.to_string()))?;
     }
 
     let key = TileKey { tile, format };
-    let render_state = state.clone();
-    let permits = state.render_permits.clone();
-    let runtime = tokio::runtime::Handle::current();
-    let render = move || -> Result<Vec<u8>, RenderFailure> {
-        // Runs on the blocking pool: wait here for one of the render slots.
-        let _permit = runtime
-            .block_on(permits.acquire_owned())
-            .map_err(|_| RenderFailure("the server is shutting down".to_string()))?;
-        let started = Instant::now();
-        let result = render_format(&render_state, tile, format);
-        let metrics = &render_state.metrics;
-        Metrics::count(&metrics.renders);
-        metrics.render_seconds_micros.fetch_add(
-            started.elapsed().as_micros() as u64,
-            std::sync::atomic::Ordering::Relaxed,
-        );
-        if result.is_err() {
-            Metrics::count(&metrics.render_failures);
-        }
-        result
-    };
-    let (cached, origin) = state.cache.get_or_render(key, render).await.map_err(|e| {
-        tracing::error!(%tile, error = %e, "tile failed");
-        ApiError::internal(format!("tile {tile} could not be made: {e}"))
-    })?;
-    match origin {
+    let wanted = provenance(&state, &sources, tile);
+    let render = render_job(&state, sources.clone(), key, Priority::Request);
+    let served = state
+        .cache
+        .get_or_render(key, &wanted, render)
+        .await
+        .map_err(|e| failure_response(&state, tile, &e))?;
+    match served.origin {
         Origin::Memory => Metrics::count(&state.metrics.hits_memory),
         Origin::Store => Metrics::count(&state.metrics.hits_store),
-        Origin::Rendered => {}
+        Origin::Rendered => Metrics::count(&state.metrics.misses),
     }
+    if served.stale {
+        Metrics::count(&state.metrics.stale_served);
+        state.regenerator.stale(key);
+    }
+    Ok(respond(&state, key, &served, &request_headers))
+}
 
+/// What a tile made now from these sources is made from.
+pub fn provenance(state: &AppState, sources: &Sources, tile: TileId) -> Provenance {
+    Provenance {
+        pipeline: state.pipeline.to_string(),
+        sources: sources.version_for(tile),
+    }
+}
+
+/// The tile's response: the smallest coding the client accepts, its validator, and the
+/// headers a download and a browser need; `304` when the client holds it.
+fn respond(state: &AppState, key: TileKey, served: &Served, request: &HeaderMap) -> Response {
+    let accepted = Accepted::parse(
+        request
+            .get_all(header::ACCEPT_ENCODING)
+            .iter()
+            .filter_map(|v| v.to_str().ok()),
+    );
+    let tile = &served.tile;
+    let (coding, body) = tile.bodies.choose(&accepted);
+    let etag = coded_etag(&tile.etag, coding);
     let mut headers = HeaderMap::new();
-    match format {
+    match key.format {
         Format::Glb => {
             headers.insert(
                 header::CONTENT_TYPE,
                 HeaderValue::from_static("model/gltf-binary"),
             );
+            headers.insert(header::VARY, HeaderValue::from_static("Accept-Encoding"));
         }
         Format::Terrain(_) => {
             headers.insert(
                 header::CONTENT_TYPE,
                 HeaderValue::from_static("application/vnd.quantized-mesh"),
             );
-            headers.insert(header::CONTENT_ENCODING, HeaderValue::from_static("gzip"));
-            headers.insert(header::VARY, HeaderValue::from_static("Accept"));
+            headers.insert(
+                header::VARY,
+                HeaderValue::from_static("Accept, Accept-Encoding"),
+            );
         }
     }
-    if let Ok(etag) = HeaderValue::from_str(&cached.etag) {
-        headers.insert(header::ETAG, etag);
+    if let Ok(value) = HeaderValue::from_str(&etag) {
+        headers.insert(header::ETAG, value);
     }
     if let Some(cache_control) = &state.cache_control {
         headers.insert(header::CACHE_CONTROL, cache_control.clone());
     }
-    // A client that holds this very tile gets a `304` without the body.
-    if request_headers
+    // A client that holds this tile, in any coding, gets a `304` without the body.
+    if request
         .get_all(header::IF_NONE_MATCH)
         .iter()
         .filter_map(|v| v.to_str().ok())
-        .any(|v| matches_etag(v, &cached.etag))
+        .any(|v| matches_etag(v, &tile.etag))
     {
-        headers.remove(header::CONTENT_ENCODING);
-        return Ok((StatusCode::NOT_MODIFIED, headers).into_response());
+        return (StatusCode::NOT_MODIFIED, headers).into_response();
+    }
+    if coding != Encoding::Identity {
+        headers.insert(
+            header::CONTENT_ENCODING,
+            HeaderValue::from_static(coding.as_str()),
+        );
     }
     headers.insert(
         "x-cache",
-        HeaderValue::from_static(if origin == Origin::Rendered {
-            "miss"
-        } else {
-            "hit"
+        HeaderValue::from_static(match (served.origin, served.stale) {
+            (_, true) => "stale",
+            (Origin::Rendered, false) => "miss",
+            _ => "hit",
         }),
     );
-    headers.insert("x-cache-layer", HeaderValue::from_static(origin.as_str()));
+    headers.insert(
+        "x-cache-layer",
+        HeaderValue::from_static(served.origin.as_str()),
+    );
+    let tile_id = key.tile;
     if let Ok(disposition) = HeaderValue::from_str(&format!(
         "attachment; filename=\"{}_{}_{}.{}\"",
-        tile.z,
-        tile.x,
-        tile.y,
-        format.extension()
+        tile_id.z,
+        tile_id.x,
+        tile_id.y,
+        key.format.extension()
     )) {
         headers.insert(header::CONTENT_DISPOSITION, disposition);
     }
-    Ok((StatusCode::OK, headers, cached.data.clone()).into_response())
+    (StatusCode::OK, headers, body.clone()).into_response()
 }
 
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct RenderFailure(String);
+/// The validator of one coding of a tile: a strong ETag must differ between codings
+/// (RFC 9110 §8.8.3), so the coding is appended to the content's digest.
+fn coded_etag(etag: &str, coding: Encoding) -> String {
+    match coding {
+        Encoding::Identity => etag.to_string(),
+        other => format!("{}-{}\"", etag.trim_end_matches('"'), other.as_str()),
+    }
+}
 
-/// Loads the tile's inputs and renders it in a format (runs on the blocking pool).
-fn render_format(state: &AppState, tile: TileId, format: Format) -> Result<Vec<u8>, RenderFailure> {
-    let mosaic = state
-        .sources
-        .mosaic(tile)
-        .map_err(|e| RenderFailure(e.to_string()))?;
-    let failure = |e: crate::render::RenderError| RenderFailure(e.to_string());
-    match format {
-        Format::Glb => {
-            let selection = state.sources.selection(tile);
-            let rendered = crate::render::render(tile, &selection, &mosaic, &state.settings)
-                .map_err(failure)?;
-            let metrics = &state.metrics;
-            let add = |counter: &std::sync::atomic::AtomicU64, n: usize| {
-                counter.fetch_add(n as u64, std::sync::atomic::Ordering::Relaxed);
-            };
-            add(&metrics.lp_components, rendered.stats.lp_components);
-            add(&metrics.lp_violations, rendered.stats.lp_violations);
-            tracing::info!(
-                %tile,
-                triangles = rendered.stats.triangles,
-                lp_violations = rendered.stats.lp_violations,
-                bytes = rendered.stats.glb_bytes,
-                ms = rendered.timings.total().as_millis() as u64,
-                "rendered glb"
-            );
-            Ok(rendered.glb)
+/// True when an `If-None-Match` value names the tile whose identity validator is `etag`, in
+/// any coding (or is `*`): a comma-separated list of entity tags, compared weakly as RFC 9110
+/// asks (a `W/` prefix is ignored).
+fn matches_etag(if_none_match: &str, etag: &str) -> bool {
+    let bare = |tag: &str| tag.trim().trim_start_matches("W/").to_string();
+    let forms = [Encoding::Identity, Encoding::Gzip, Encoding::Brotli].map(|c| coded_etag(etag, c));
+    if_none_match
+        .split(',')
+        .any(|tag| tag.trim() == "*" || forms.iter().any(|form| bare(tag) == *form))
+}
+
+/// Who a render is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Priority {
+    /// A request waits for it: it may queue, or be refused when the queue is full.
+    Request,
+    /// Background work: it waits until no request does.
+    Background,
+}
+
+/// Why a render gave no tile.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderFailure {
+    #[error(transparent)]
+    Refused(#[from] Refused),
+    #[error("{0}")]
+    TimedOut(String),
+    #[error("{0}")]
+    Failed(String),
+}
+
+/// The error response for a tile that could not be made.
+fn failure_response(state: &AppState, tile: TileId, error: &CacheError<RenderFailure>) -> ApiError {
+    match error {
+        CacheError::Render(RenderFailure::Refused(refused)) => {
+            Metrics::count(&state.metrics.rejected_busy);
+            tracing::warn!(%tile, %refused, "tile refused");
+            ApiError::unavailable(
+                format!("tile {tile} cannot be rendered now: {refused}; retry shortly"),
+                RETRY_AFTER_S,
+            )
         }
-        Format::Terrain(extensions) => {
-            let rendered = if tile.z < state.zoom {
-                crate::render::render_overview_terrain(
-                    tile,
-                    &mosaic,
-                    &state.settings,
-                    state.zoom,
-                    extensions,
-                )
-            } else {
-                crate::render::render_terrain(
-                    tile,
-                    &state.sources.selection(tile),
-                    &mosaic,
-                    &state.settings,
-                    extensions,
-                )
-            }
-            .map_err(failure)?;
-            tracing::info!(
-                %tile,
-                triangles = rendered.report.triangles,
-                bytes = rendered.bytes.len(),
-                ms = rendered.timings.total().as_millis() as u64,
-                "rendered terrain"
-            );
-            gzip(&rendered.bytes).map_err(|e| RenderFailure(format!("gzip: {e}")))
+        CacheError::Render(RenderFailure::TimedOut(message)) => {
+            tracing::error!(%tile, %message, "render stopped at its time limit");
+            ApiError::unavailable(message.clone(), RETRY_AFTER_S)
+        }
+        other => {
+            tracing::error!(%tile, error = %other, "tile failed");
+            ApiError::internal(format!("tile {tile} could not be made: {other}"))
         }
     }
 }
 
-/// True when an `If-None-Match` value names `etag` (or is `*`): a comma-separated list of
-/// entity tags, compared weakly as RFC 9110 asks (a `W/` prefix is ignored).
-fn matches_etag(if_none_match: &str, etag: &str) -> bool {
-    let bare = |tag: &str| tag.trim().trim_start_matches("W/").to_string();
-    if_none_match
-        .split(',')
-        .any(|tag| tag.trim() == "*" || bare(tag) == bare(etag))
+/// A render of `key` from `sources`, to run on the blocking pool: it takes a render slot
+/// first (at `priority`), then renders within the time limit, counting what it did.
+pub fn render_job(
+    state: &AppState,
+    sources: Arc<Sources>,
+    key: TileKey,
+    priority: Priority,
+) -> impl FnOnce() -> Result<Vec<u8>, RenderFailure> + Send + 'static {
+    let state = state.clone();
+    move || {
+        let pool = state.pool.clone();
+        let _slot = match priority {
+            Priority::Request => pool.acquire()?,
+            Priority::Background => pool.acquire_background()?,
+        };
+        let deadline = state.render_limit.map_or(Deadline::none(), Deadline::after);
+        let result = render_format(&state, &sources, key, deadline);
+        let metrics = &state.metrics;
+        Metrics::count(&metrics.renders);
+        match &result {
+            Ok(_) => {}
+            Err(RenderFailure::TimedOut(_)) => Metrics::count(&metrics.render_timeouts),
+            Err(_) => Metrics::count(&metrics.render_failures),
+        }
+        result
+    }
 }
 
-fn gzip(data: &[u8]) -> std::io::Result<Vec<u8>> {
-    use std::io::Write;
-    let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
-    encoder.write_all(data)?;
-    encoder.finish()
+/// Makes the tile, uncompressed, and records what the render measured (runs on the blocking
+/// pool).
+fn render_format(
+    state: &AppState,
+    sources: &Sources,
+    key: TileKey,
+    deadline: Deadline,
+) -> Result<Vec<u8>, RenderFailure> {
+    let made = crate::pipeline::make(sources, key, &state.settings, state.zoom, deadline).map_err(
+        |e| {
+            if e.timed_out() {
+                RenderFailure::TimedOut(e.to_string())
+            } else {
+                RenderFailure::Failed(e.to_string())
+            }
+        },
+    )?;
+    let metrics = &state.metrics;
+    Metrics::add(&metrics.lp_components, made.lp_components as u64);
+    Metrics::add(&metrics.lp_violations, made.lp_violations as u64);
+    metrics.observe_render(&made.timings);
+    tracing::info!(
+        tile = %key.tile,
+        format = key.format.as_str(),
+        triangles = made.triangles,
+        lp_violations = made.lp_violations,
+        bytes = made.bytes.len(),
+        ms = made.timings.total().as_millis() as u64,
+        "rendered"
+    );
+    Ok(made.bytes)
 }
 
 #[cfg(test)]

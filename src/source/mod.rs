@@ -51,9 +51,18 @@ pub struct Sources {
     pub osm: OsmIndex,
     pub srtm: SrtmDirectory,
     pub osm_paths: Vec<PathBuf>,
+    /// Each extract's version: a digest of its bytes.
+    pub osm_versions: Vec<String>,
+    /// Each extract's size and modification time when it was read.
+    osm_files: Vec<String>,
 }
 
 impl Sources {
+    /// Opens the sources a configuration names.
+    pub fn load(config: &crate::config::SourcesConfig, zoom: u8) -> Result<Sources, SourceError> {
+        Sources::open(&config.osm, &config.srtm, zoom)
+    }
+
     /// Reads the extracts, indexes them at `zoom`, and checks the SRTM directory.
     pub fn open(
         osm_paths: &[PathBuf],
@@ -61,6 +70,14 @@ impl Sources {
         zoom: u8,
     ) -> Result<Sources, SourceError> {
         let data = osm_pbf::read_extracts(osm_paths)?;
+        let osm_versions = osm_paths
+            .iter()
+            .map(|path| osm_pbf::content_digest(path))
+            .collect::<Result<Vec<_>, _>>()?;
+        let osm_files = osm_paths
+            .iter()
+            .map(|path| srtm::file_version(path).unwrap_or_default())
+            .collect();
         let srtm = SrtmDirectory::open(srtm_dir)?;
         Ok(Sources {
             osm: OsmIndex::new(data, zoom, crate::features::structures::classify)
@@ -68,7 +85,67 @@ impl Sources {
                 .with_foundations(crate::features::structures::foundation_depth_m),
             srtm,
             osm_paths: osm_paths.to_vec(),
+            osm_versions,
+            osm_files,
         })
+    }
+
+    /// The source files that changed on disk since they were read: an extract rewritten or
+    /// replaced, an SRTM file added, removed or rewritten.
+    pub fn changed_files(&self) -> Vec<String> {
+        let mut changed = Vec::new();
+        for (path, version) in self.osm_paths.iter().zip(&self.osm_files) {
+            if srtm::file_version(path).ok().as_ref() != Some(version) {
+                changed.push(path.display().to_string());
+            }
+        }
+        match SrtmDirectory::open(self.srtm.root()) {
+            Ok(now) => {
+                let cells: std::collections::BTreeSet<CellId> =
+                    now.cells().chain(self.srtm.cells()).collect();
+                for cell in cells {
+                    if now.version(cell) != self.srtm.version(cell) {
+                        changed.push(format!("{}.hgt", cell.name()));
+                    }
+                }
+            }
+            Err(error) => changed.push(error.to_string()),
+        }
+        changed
+    }
+
+    /// The version of the sources a tile is made from: a digest of the versions of the
+    /// extracts that reach it and of the SRTM files around it (those its mosaic reads). A tile stored with another
+    /// version is stale.
+    pub fn version_for(&self, tile: TileId) -> String {
+        use sha2::Digest;
+        let mut digest = sha2::Sha256::new();
+        // Only the extracts that reach the tile's query area count.
+        let area = tile.bounds().expanded(QUERY_MARGIN_DEG);
+        let coverage = &self.osm.data().coverage;
+        for (i, version) in self.osm_versions.iter().enumerate() {
+            if coverage.get(i).is_none_or(|c| c.intersects(&area)) {
+                digest.update(version.as_bytes());
+                digest.update(b";");
+            }
+        }
+        for cell in Self::mosaic_cells(tile) {
+            digest.update(cell.name().as_bytes());
+            digest.update(self.srtm.version(cell).unwrap_or("none").as_bytes());
+            digest.update(b";");
+        }
+        digest.finalize()[..8]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect()
+    }
+
+    /// The cells whose files the mosaic of a tile reads.
+    fn mosaic_cells(tile: TileId) -> impl Iterator<Item = CellId> {
+        let b = tile.bounds().expanded(MOSAIC_MARGIN_DEG);
+        let (lon0, lon1) = (b.west.floor() as i32, b.east.floor() as i32);
+        (b.south.floor() as i32..=b.north.floor() as i32)
+            .flat_map(move |lat| (lon0..=lon1).map(move |lon| CellId { lat, lon }))
     }
 
     /// The SRTM cells a tile needs.
@@ -113,13 +190,10 @@ impl Sources {
 
     /// The SRTM files around a tile (its own cells and any its margin reaches).
     pub fn mosaic(&self, tile: TileId) -> Result<Mosaic, SrtmError> {
-        let b = tile.bounds().expanded(MOSAIC_MARGIN_DEG);
         let mut tiles: Vec<Arc<srtm::SrtmTile>> = Vec::new();
-        for lat in b.south.floor() as i32..=b.north.floor() as i32 {
-            for lon in b.west.floor() as i32..=b.east.floor() as i32 {
-                if let Some(t) = self.srtm.tile(CellId { lat, lon })? {
-                    tiles.push(t);
-                }
+        for cell in Self::mosaic_cells(tile) {
+            if let Some(t) = self.srtm.tile(cell)? {
+                tiles.push(t);
             }
         }
         Ok(Mosaic::new(tiles))

@@ -23,6 +23,31 @@ pub enum OsmReadError {
     Empty { path: PathBuf },
 }
 
+/// A digest of an extract's bytes: its version (the same data downloaded again or touched
+/// keeps it).
+pub fn content_digest(path: &std::path::Path) -> Result<String, OsmReadError> {
+    use sha2::Digest;
+    use std::io::Read;
+    let failed = |e: std::io::Error| OsmReadError::Pbf {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    };
+    let mut file = std::fs::File::open(path).map_err(failed)?;
+    let mut digest = sha2::Sha256::new();
+    let mut buffer = vec![0u8; 1 << 16];
+    loop {
+        let n = file.read(&mut buffer).map_err(failed)?;
+        if n == 0 {
+            break;
+        }
+        digest.update(&buffer[..n]);
+    }
+    Ok(digest.finalize()[..8]
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect())
+}
+
 /// Ways as read, before their nodes are resolved.
 struct RawWay {
     tags: Tags,

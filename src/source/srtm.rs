@@ -314,10 +314,27 @@ pub fn fill_voids(raw: &[i16], size: usize) -> Option<Vec<f32>> {
     Some(heights)
 }
 
+/// A file's version as its size and modification time (nanoseconds): a file replaced by
+/// another, or rewritten, gets a new one.
+pub fn file_version(path: &Path) -> Result<String, SrtmError> {
+    let metadata = fs::metadata(path).map_err(|source| SrtmError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let modified = metadata
+        .modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos());
+    Ok(format!("{}-{modified}", metadata.len()))
+}
+
 /// The SRTM files of one directory, checked at start and decoded on demand.
 pub struct SrtmDirectory {
     root: PathBuf,
     files: BTreeMap<CellId, PathBuf>,
+    /// Each file's version: its size and modification time.
+    versions: BTreeMap<CellId, String>,
     decoded: moka::sync::Cache<CellId, Arc<SrtmTile>>,
 }
 
@@ -339,6 +356,7 @@ impl SrtmDirectory {
             source,
         })?;
         let mut files: BTreeMap<CellId, PathBuf> = BTreeMap::new();
+        let mut versions = BTreeMap::new();
         for entry in entries {
             let entry = entry.map_err(|source| SrtmError::Directory {
                 path: root.to_path_buf(),
@@ -361,12 +379,14 @@ impl SrtmDirectory {
             }
             let plain_exists = files.get(&cell).is_some_and(|p| !is_zip(p));
             if !plain_exists {
+                versions.insert(cell, file_version(&path)?);
                 files.insert(cell, path);
             }
         }
         Ok(SrtmDirectory {
             root: root.to_path_buf(),
             files,
+            versions,
             decoded: moka::sync::Cache::new(DECODED_FILES_CACHED),
         })
     }
@@ -378,6 +398,11 @@ impl SrtmDirectory {
     /// The cells with a file.
     pub fn cells(&self) -> impl Iterator<Item = CellId> + '_ {
         self.files.keys().copied()
+    }
+
+    /// The version of a cell's file (its size and modification time), if there is one.
+    pub fn version(&self, cell: CellId) -> Option<&str> {
+        self.versions.get(&cell).map(String::as_str)
     }
 
     pub fn has(&self, cell: CellId) -> bool {

@@ -7,8 +7,8 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use terrastitch::cache::{TileCache, TileStore};
-use terrastitch::config::Config;
+use terrastitch::cache::{SqliteStore, TileCache};
+use terrastitch::config::{Config, ServerConfig};
 use terrastitch::server::{self, AppState};
 use terrastitch::source::Sources;
 
@@ -82,13 +82,24 @@ impl TestServer {
         let config = Config::default();
         let sources = Sources::open(&[sample_osm()], &sample_srtm(), config.server.zoom)
             .expect("sample data loads");
-        let store = TileStore::open(cache).expect("cache opens");
-        let tile_cache = TileCache::new(store, 64 << 20, server::pipeline_id(&config.render));
         let server_config = terrastitch::config::ServerConfig {
             render_threads: 2,
             ..config.server.clone()
         };
-        let state = AppState::new(sources, tile_cache, config.render.clone(), &server_config);
+        TestServer::start_with(cache, sources, &server_config).await
+    }
+
+    /// Starts a server on `sources` with its cache in `cache` and the given settings.
+    pub async fn start_with(
+        cache: &Path,
+        sources: Sources,
+        server_config: &ServerConfig,
+    ) -> TestServer {
+        let config = Config::default();
+        let store = SqliteStore::open(cache, None).expect("cache opens");
+        let tile_cache = TileCache::new(std::sync::Arc::new(store), 64 << 20);
+        let state = AppState::new(tile_cache, config.render.clone(), server_config);
+        state.set_sources(sources);
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
             .await
             .expect("bind");

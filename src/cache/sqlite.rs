@@ -1,0 +1,519 @@
+//! The SQLite tile store: one file in WAL mode, its schema made by the numbered SQL files in
+//! `migrations/` (compiled into the binary, applied in order, tracked by `PRAGMA user_version`),
+//! with an optional size cap kept by evicting the least recently served tiles.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use rusqlite::{params, Connection, OptionalExtension};
+
+use super::encoding::{Bodies, Encoding};
+use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
+use super::{Format, TileKey};
+use crate::tile::TileId;
+
+/// The migrations, in order; the schema version is the number of migrations applied.
+const MIGRATIONS: &[(&str, &str)] = &[
+    (
+        "0001_tiles.sql",
+        include_str!("../../migrations/0001_tiles.sql"),
+    ),
+    (
+        "0002_codings_versions_access.sql",
+        include_str!("../../migrations/0002_codings_versions_access.sql"),
+    ),
+];
+
+/// Eviction brings the store down to this share of its cap, so it does not run on every put.
+const EVICT_TO: f64 = 0.9;
+
+pub struct SqliteStore {
+    path: PathBuf,
+    connection: Mutex<Connection>,
+    /// Largest total of stored bytes, if capped.
+    max_bytes: Option<u64>,
+}
+
+impl std::fmt::Debug for SqliteStore {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SqliteStore")
+            .field("path", &self.path)
+            .field("max_bytes", &self.max_bytes)
+            .finish()
+    }
+}
+
+impl SqliteStore {
+    /// Opens (creating if needed) the store at `path` and brings its schema up to date.
+    /// `max_bytes` caps the stored bytes (`None`: no cap).
+    pub fn open(path: &Path, max_bytes: Option<u64>) -> Result<SqliteStore, StoreError> {
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|source| StoreError::Directory {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        }
+        let sqlite = |source| StoreError::Sqlite {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut connection = Connection::open(path).map_err(sqlite)?;
+        connection
+            .pragma_update(None, "journal_mode", "WAL")
+            .map_err(sqlite)?;
+        connection
+            .pragma_update(None, "synchronous", "NORMAL")
+            .map_err(sqlite)?;
+        connection
+            .busy_timeout(std::time::Duration::from_secs(5))
+            .map_err(sqlite)?;
+        let version: i64 = connection
+            .pragma_query_value(None, "user_version", |row| row.get(0))
+            .map_err(sqlite)?;
+        if version > MIGRATIONS.len() as i64 {
+            return Err(StoreError::NewerSchema {
+                path: path.to_path_buf(),
+                found: version,
+                supported: MIGRATIONS.len(),
+            });
+        }
+        for (number, (_, sql)) in MIGRATIONS.iter().enumerate().skip(version.max(0) as usize) {
+            let transaction = connection.transaction().map_err(sqlite)?;
+            transaction.execute_batch(sql).map_err(sqlite)?;
+            transaction
+                .pragma_update(None, "user_version", (number + 1) as i64)
+                .map_err(sqlite)?;
+            transaction.commit().map_err(sqlite)?;
+        }
+        Ok(SqliteStore {
+            path: path.to_path_buf(),
+            connection: Mutex::new(connection),
+            max_bytes,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn connection(&self) -> std::sync::MutexGuard<'_, Connection> {
+        // A panic while holding the lock cannot leave SQLite inconsistent (each statement is
+        // atomic), so a poisoned lock is still usable.
+        self.connection.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn error(&self, source: rusqlite::Error) -> StoreError {
+        StoreError::Sqlite {
+            path: self.path.clone(),
+            source,
+        }
+    }
+
+    /// `PRAGMA integrity_check`: an error naming the damage if the file is not sound.
+    pub fn check_integrity(&self) -> Result<(), StoreError> {
+        let connection = self.connection();
+        let mut statement = connection
+            .prepare("PRAGMA integrity_check")
+            .map_err(|e| self.error(e))?;
+        let lines: Vec<String> = statement
+            .query_map([], |row| row.get(0))
+            .map_err(|e| self.error(e))?
+            .collect::<Result<_, _>>()
+            .map_err(|e| self.error(e))?;
+        if lines == ["ok"] {
+            Ok(())
+        } else {
+            Err(StoreError::Damaged {
+                path: self.path.clone(),
+                report: lines.join("; "),
+            })
+        }
+    }
+
+    /// Deletes the least recently served tiles (never `keep`) until the store is under
+    /// [`EVICT_TO`] of its cap; returns how many went.
+    fn evict(&self, connection: &Connection, keep: &TileKey) -> Result<u64, rusqlite::Error> {
+        let Some(cap) = self.max_bytes else {
+            return Ok(0);
+        };
+        let mut total: u64 = connection.query_row("SELECT total(size) FROM tiles", [], |row| {
+            row.get::<_, f64>(0).map(|t| t as u64)
+        })?;
+        if total <= cap {
+            return Ok(0);
+        }
+        let target = (cap as f64 * EVICT_TO) as u64;
+        let mut evicted = 0;
+        let mut oldest = connection.prepare(
+            "SELECT z, x, y, format, size FROM tiles ORDER BY accessed_at ASC, created_at ASC",
+        )?;
+        let mut rows = oldest.query([])?;
+        let mut doomed = Vec::new();
+        while total > target {
+            let Some(row) = rows.next()? else { break };
+            let (z, x, y, format, size): (u8, u32, u32, String, u64) = (
+                row.get(0)?,
+                row.get(1)?,
+                row.get(2)?,
+                row.get(3)?,
+                row.get(4)?,
+            );
+            let same = (z, x, y) == (keep.tile.z, keep.tile.x, keep.tile.y)
+                && format == keep.format.as_str();
+            if same {
+                continue;
+            }
+            doomed.push((z, x, y, format));
+            total = total.saturating_sub(size);
+        }
+        drop(rows);
+        for (z, x, y, format) in doomed {
+            evicted += connection.execute(
+                "DELETE FROM tiles WHERE z = ?1 AND x = ?2 AND y = ?3 AND format = ?4",
+                params![z, x, y, format],
+            )? as u64;
+        }
+        Ok(evicted)
+    }
+}
+
+/// The SQL condition and parameters that select a filter's tiles.
+fn filter_sql(filter: &TileFilter) -> (String, Vec<i64>) {
+    match filter {
+        TileFilter::All => ("1".to_string(), Vec::new()),
+        TileFilter::Range(range) => (
+            "z = ? AND x BETWEEN ? AND ? AND y BETWEEN ? AND ?".to_string(),
+            vec![
+                i64::from(range.z),
+                i64::from(range.min_x),
+                i64::from(range.max_x),
+                i64::from(range.min_y),
+                i64::from(range.max_y),
+            ],
+        ),
+        TileFilter::Tiles(tiles) if tiles.is_empty() => ("0".to_string(), Vec::new()),
+        TileFilter::Tiles(tiles) => {
+            let condition = vec!["(z = ? AND x = ? AND y = ?)"; tiles.len()].join(" OR ");
+            let values = tiles
+                .iter()
+                .flat_map(|t| [i64::from(t.z), i64::from(t.x), i64::from(t.y)])
+                .collect();
+            (condition, values)
+        }
+    }
+}
+
+impl TileStore for SqliteStore {
+    fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError> {
+        type Row = (
+            Vec<u8>,
+            String,
+            Option<Vec<u8>>,
+            String,
+            String,
+            String,
+            i64,
+        );
+        let row: Option<Row> = self
+            .connection()
+            .query_row(
+                "SELECT data, encoding, data_br, etag, pipeline, sources, created_at FROM tiles
+                 WHERE z = ?1 AND x = ?2 AND y = ?3 AND format = ?4",
+                params![key.tile.z, key.tile.x, key.tile.y, key.format.as_str()],
+                |row| {
+                    Ok((
+                        row.get(0)?,
+                        row.get(1)?,
+                        row.get(2)?,
+                        row.get(3)?,
+                        row.get(4)?,
+                        row.get(5)?,
+                        row.get(6)?,
+                    ))
+                },
+            )
+            .optional()
+            .map_err(|e| self.error(e))?;
+        let Some((data, encoding, brotli, etag, pipeline, sources, created_at)) = row else {
+            return Ok(None);
+        };
+        let coding = Encoding::from_name(&encoding).unwrap_or(Encoding::Identity);
+        let bodies = match Bodies::from_stored(data, coding, brotli) {
+            Ok(bodies) => bodies,
+            Err(error) => {
+                // A damaged row is dropped and made again rather than served.
+                tracing::warn!(tile = %key.tile, format = key.format.as_str(), %error, "dropping a damaged cached tile");
+                self.remove(&TileFilter::Tiles(vec![key.tile]))?;
+                return Ok(None);
+            }
+        };
+        Ok(Some(StoredTile {
+            bodies,
+            etag,
+            made_by: Provenance { pipeline, sources },
+            created_at,
+        }))
+    }
+
+    fn put(&self, key: &TileKey, tile: &StoredTile) -> Result<(), StoreError> {
+        let (coding, primary) = tile.bodies.primary();
+        let mut connection = self.connection();
+        let transaction = connection.transaction().map_err(|e| self.error(e))?;
+        transaction
+            .execute(
+                "INSERT OR REPLACE INTO tiles
+                   (z, x, y, format, pipeline, data, etag, created_at,
+                    encoding, data_br, sources, size, accessed_at)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?8)",
+                params![
+                    key.tile.z,
+                    key.tile.x,
+                    key.tile.y,
+                    key.format.as_str(),
+                    tile.made_by.pipeline,
+                    primary.as_ref(),
+                    tile.etag,
+                    tile.created_at,
+                    coding.as_str(),
+                    tile.bodies.brotli.as_deref(),
+                    tile.made_by.sources,
+                    tile.bodies.stored_len() as i64,
+                ],
+            )
+            .map_err(|e| self.error(e))?;
+        let evicted = self.evict(&transaction, key).map_err(|e| self.error(e))?;
+        transaction.commit().map_err(|e| self.error(e))?;
+        if evicted > 0 {
+            tracing::info!(
+                evicted,
+                cap = self.max_bytes,
+                "cache over its size cap; least recently served tiles evicted"
+            );
+        }
+        Ok(())
+    }
+
+    fn touch(&self, keys: &[TileKey], at: i64) -> Result<(), StoreError> {
+        let mut connection = self.connection();
+        let transaction = connection.transaction().map_err(|e| self.error(e))?;
+        {
+            let mut statement = transaction
+                .prepare_cached(
+                    "UPDATE tiles SET accessed_at = max(accessed_at, ?5)
+                     WHERE z = ?1 AND x = ?2 AND y = ?3 AND format = ?4",
+                )
+                .map_err(|e| self.error(e))?;
+            for key in keys {
+                statement
+                    .execute(params![
+                        key.tile.z,
+                        key.tile.x,
+                        key.tile.y,
+                        key.format.as_str(),
+                        at
+                    ])
+                    .map_err(|e| self.error(e))?;
+            }
+        }
+        transaction.commit().map_err(|e| self.error(e))
+    }
+
+    fn remove(&self, filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
+        let removed: Vec<TileKey> = self
+            .list(filter)?
+            .into_iter()
+            .map(|entry| entry.key)
+            .collect();
+        let (condition, values) = filter_sql(filter);
+        self.connection()
+            .execute(
+                &format!("DELETE FROM tiles WHERE {condition}"),
+                rusqlite::params_from_iter(values),
+            )
+            .map_err(|e| self.error(e))?;
+        Ok(removed)
+    }
+
+    fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
+        let (condition, values) = filter_sql(filter);
+        let connection = self.connection();
+        let mut statement = connection
+            .prepare(&format!(
+                "SELECT z, x, y, format, pipeline, sources, size, accessed_at FROM tiles
+                 WHERE {condition} ORDER BY accessed_at DESC, z, x, y"
+            ))
+            .map_err(|e| self.error(e))?;
+        let rows = statement
+            .query_map(rusqlite::params_from_iter(values), |row| {
+                Ok((
+                    TileId {
+                        z: row.get(0)?,
+                        x: row.get(1)?,
+                        y: row.get(2)?,
+                    },
+                    row.get::<_, String>(3)?,
+                    Provenance {
+                        pipeline: row.get(4)?,
+                        sources: row.get(5)?,
+                    },
+                    row.get::<_, i64>(6)?,
+                    row.get::<_, i64>(7)?,
+                ))
+            })
+            .map_err(|e| self.error(e))?;
+        let mut entries = Vec::new();
+        for row in rows {
+            let (tile, format, made_by, size, accessed_at) = row.map_err(|e| self.error(e))?;
+            // Rows of a format this program does not know are left alone.
+            if let Some(format) = Format::from_name(&format) {
+                entries.push(StoredEntry {
+                    key: TileKey { tile, format },
+                    made_by,
+                    size: size.max(0) as u64,
+                    accessed_at,
+                });
+            }
+        }
+        Ok(entries)
+    }
+
+    fn usage(&self) -> Result<Usage, StoreError> {
+        self.connection()
+            .query_row("SELECT count(*), total(size) FROM tiles", [], |row| {
+                Ok(Usage {
+                    tiles: row.get::<_, i64>(0)?.max(0) as u64,
+                    bytes: row.get::<_, f64>(1)? as u64,
+                })
+            })
+            .map_err(|e| self.error(e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cache::store::unix_now;
+    use crate::tile::TileId;
+
+    fn key(x: u32) -> TileKey {
+        TileKey {
+            tile: TileId { z: 14, x, y: 2 },
+            format: Format::Glb,
+        }
+    }
+
+    fn tile(data: Vec<u8>, pipeline: &str, at: i64) -> StoredTile {
+        StoredTile {
+            etag: crate::cache::etag_of(&data),
+            bodies: Bodies::compress(data).unwrap(),
+            made_by: Provenance {
+                pipeline: pipeline.to_string(),
+                sources: "s1".to_string(),
+            },
+            created_at: at,
+        }
+    }
+
+    #[test]
+    fn stores_a_tile_with_its_provenance_and_reopens_without_migrating_twice() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("sub/tiles.sqlite");
+        let store = SqliteStore::open(&path, None).unwrap();
+        let stored = tile(vec![7; 10_000], "v1", unix_now());
+        store.put(&key(1), &stored).unwrap();
+        let found = store.get(&key(1)).unwrap().unwrap();
+        assert_eq!(found, stored);
+        assert!(
+            found.bodies.gzip.is_some(),
+            "a repetitive tile is stored compressed"
+        );
+        assert_eq!(store.get(&key(2)).unwrap(), None);
+        let usage = store.usage().unwrap();
+        assert_eq!(usage.tiles, 1);
+        assert!(usage.bytes < 1_000, "{usage:?}");
+        drop(store);
+        let store = SqliteStore::open(&path, None).unwrap();
+        assert_eq!(store.usage().unwrap().tiles, 1);
+        store.check_integrity().unwrap();
+    }
+
+    #[test]
+    fn a_version_one_cache_keeps_its_tiles_through_the_migration() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.sqlite");
+        {
+            let connection = Connection::open(&path).unwrap();
+            connection.execute_batch(MIGRATIONS[0].1).unwrap();
+            connection.pragma_update(None, "user_version", 1).unwrap();
+            connection
+                .execute(
+                    "INSERT INTO tiles VALUES (14, 1, 2, 'glb', 'old', x'010203', '\"e\"', 5)",
+                    [],
+                )
+                .unwrap();
+        }
+        let store = SqliteStore::open(&path, None).unwrap();
+        let found = store.get(&key(1)).unwrap().unwrap();
+        assert_eq!(found.bodies.identity.as_ref(), &[1, 2, 3]);
+        assert_eq!(found.made_by.pipeline, "old");
+        assert_eq!(store.list(&TileFilter::All).unwrap()[0].accessed_at, 5);
+    }
+
+    #[test]
+    fn over_its_cap_the_store_evicts_the_least_recently_served() {
+        let dir = tempfile::tempdir().unwrap();
+        let noise = |seed: u64| -> Vec<u8> {
+            let mut state = seed | 1;
+            (0..10_000)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    state as u8
+                })
+                .collect()
+        };
+        let store = SqliteStore::open(&dir.path().join("t.sqlite"), Some(35_000)).unwrap();
+        for x in 0..3 {
+            store
+                .put(
+                    &key(x),
+                    &tile(noise(u64::from(x) + 1), "v", 100 + i64::from(x)),
+                )
+                .unwrap();
+        }
+        // Tile 0 was served last; tile 1 is now the least recently served.
+        store.touch(&[key(0)], 200).unwrap();
+        store.put(&key(3), &tile(noise(9), "v", 150)).unwrap();
+        let left: Vec<u32> = store
+            .list(&TileFilter::All)
+            .unwrap()
+            .iter()
+            .map(|e| e.key.tile.x)
+            .collect();
+        assert_eq!(left, vec![0, 3, 2], "most recently served first");
+        assert!(store.usage().unwrap().bytes <= 35_000);
+    }
+
+    #[test]
+    fn removes_by_range_and_by_list() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = SqliteStore::open(&dir.path().join("t.sqlite"), None).unwrap();
+        for x in 0..6 {
+            store
+                .put(&key(x), &tile(vec![x as u8; 100], "v", 1))
+                .unwrap();
+        }
+        let range = crate::tile::TileRange {
+            z: 14,
+            min_x: 1,
+            max_x: 2,
+            min_y: 0,
+            max_y: 5,
+        };
+        assert_eq!(store.remove(&TileFilter::Range(range)).unwrap().len(), 2);
+        let listed = TileFilter::Tiles(vec![key(4).tile, key(9).tile]);
+        assert_eq!(store.remove(&listed).unwrap(), vec![key(4)]);
+        assert_eq!(store.usage().unwrap().tiles, 3);
+    }
+}

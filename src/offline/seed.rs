@@ -1,0 +1,237 @@
+//! `terrastitch seed`: renders every tile of a box into the cache.
+//!
+//! Resumable: a tile the cache already holds, made by this pipeline from these sources, is not
+//! made again, and every tile is stored in one transaction as soon as it is made, so a seed
+//! killed at any moment leaves a sound cache with whole tiles only. `--shard i/n` takes the
+//! tiles whose place in the box's row-major order is `i − 1` modulo `n`: the shares depend on
+//! the box alone, so jobs on several machines split a region without talking to each other.
+
+use std::collections::HashMap;
+use std::str::FromStr;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use crate::cache::encoding::Bodies;
+use crate::cache::{
+    etag_of, unix_now, Format, Provenance, StoreError, StoredTile, TileFilter, TileKey, TileStore,
+};
+use crate::render::{Deadline, RenderSettings};
+use crate::source::Sources;
+use crate::tile::TileRange;
+
+/// The `i`-th of `n` shares of a box's tiles (`1 ≤ i ≤ n`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: u64,
+    pub count: u64,
+}
+
+impl Default for Shard {
+    fn default() -> Self {
+        Shard { index: 1, count: 1 }
+    }
+}
+
+impl FromStr for Shard {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let bad = || format!("shard '{s}' is not i/n with 1 ≤ i ≤ n, e.g. 2/4");
+        let (i, n) = s.split_once('/').ok_or_else(bad)?;
+        let index: u64 = i.trim().parse().map_err(|_| bad())?;
+        let count: u64 = n.trim().parse().map_err(|_| bad())?;
+        if index == 0 || index > count {
+            return Err(bad());
+        }
+        Ok(Shard { index, count })
+    }
+}
+
+impl Shard {
+    /// Whether the tile at `position` in the box's order is in this share.
+    pub fn takes(&self, position: u64) -> bool {
+        position % self.count == self.index - 1
+    }
+}
+
+/// The tiles a seed will make.
+#[derive(Debug, Clone, Default)]
+pub struct Plan {
+    /// In this shard, covered by the sources, and not already in the cache as they would be
+    /// made now.
+    pub to_make: Vec<TileKey>,
+    /// In this shard and already in the cache, current.
+    pub already: usize,
+    /// In this shard but outside the data (no SRTM file for them).
+    pub uncovered: usize,
+    /// The box's tiles in all shards, times the formats.
+    pub in_box: u64,
+}
+
+/// Plans a seed of `range` in `formats`: this shard's tiles that the cache lacks.
+pub fn plan(
+    sources: &Sources,
+    store: &dyn TileStore,
+    pipeline: &str,
+    range: TileRange,
+    formats: &[Format],
+    shard: Shard,
+) -> Result<Plan, StoreError> {
+    let held: HashMap<TileKey, Provenance> = store
+        .list(&TileFilter::Range(range))?
+        .into_iter()
+        .map(|entry| (entry.key, entry.made_by))
+        .collect();
+    let mut plan = Plan {
+        in_box: range.len() * formats.len() as u64,
+        ..Plan::default()
+    };
+    for (position, tile) in range.tiles().enumerate() {
+        if !shard.takes(position as u64) {
+            continue;
+        }
+        if sources.check_coverage(tile).is_err() {
+            plan.uncovered += formats.len();
+            continue;
+        }
+        let wanted = Provenance {
+            pipeline: pipeline.to_string(),
+            sources: sources.version_for(tile),
+        };
+        for &format in formats {
+            let key = TileKey { tile, format };
+            if held.get(&key) == Some(&wanted) {
+                plan.already += 1;
+            } else {
+                plan.to_make.push(key);
+            }
+        }
+    }
+    Ok(plan)
+}
+
+/// How a seed went.
+#[derive(Debug, Clone, Default)]
+pub struct SeedReport {
+    pub made: usize,
+    /// Tiles that failed, with why.
+    pub failed: Vec<(TileKey, String)>,
+    /// Bytes stored (compressed as kept).
+    pub stored_bytes: u64,
+    pub elapsed: Duration,
+}
+
+impl SeedReport {
+    pub fn tiles_per_second(&self) -> f64 {
+        self.made as f64 / self.elapsed.as_secs_f64().max(1e-9)
+    }
+}
+
+/// What the seed tells its progress display after each tile.
+#[derive(Debug, Clone, Copy)]
+pub struct Progress {
+    pub done: usize,
+    pub total: usize,
+}
+
+/// Makes the planned tiles on `threads` threads and stores each as soon as it is made.
+/// A tile that fails is reported and the others go on; a store error stops the seed.
+#[allow(clippy::too_many_arguments)]
+pub fn seed(
+    sources: &Sources,
+    store: &dyn TileStore,
+    settings: &RenderSettings,
+    pipeline: &str,
+    served_zoom: u8,
+    keys: &[TileKey],
+    threads: usize,
+    render_limit: Option<Duration>,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<SeedReport, StoreError> {
+    let started = Instant::now();
+    let next = AtomicUsize::new(0);
+    let done = AtomicUsize::new(0);
+    let report = Mutex::new(SeedReport::default());
+    let stop: Mutex<Option<StoreError>> = Mutex::new(None);
+    std::thread::scope(|scope| {
+        for _ in 0..threads.max(1) {
+            scope.spawn(|| loop {
+                if stop.lock().map_or(true, |s| s.is_some()) {
+                    return;
+                }
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                let Some(&key) = keys.get(i) else { return };
+                let deadline = render_limit.map_or(Deadline::none(), Deadline::after);
+                let outcome = crate::pipeline::make(sources, key, settings, served_zoom, deadline)
+                    .map_err(|e| e.to_string())
+                    .and_then(|made| {
+                        let tile = StoredTile {
+                            etag: etag_of(&made.bytes),
+                            bodies: Bodies::compress(made.bytes).map_err(|e| e.to_string())?,
+                            made_by: Provenance {
+                                pipeline: pipeline.to_string(),
+                                sources: sources.version_for(key.tile),
+                            },
+                            created_at: unix_now(),
+                        };
+                        Ok(tile)
+                    });
+                match outcome {
+                    Ok(tile) => match store.put(&key, &tile) {
+                        Ok(()) => {
+                            if let Ok(mut r) = report.lock() {
+                                r.made += 1;
+                                r.stored_bytes += tile.bodies.stored_len() as u64;
+                            }
+                        }
+                        Err(error) => {
+                            if let Ok(mut s) = stop.lock() {
+                                s.get_or_insert(error);
+                            }
+                            return;
+                        }
+                    },
+                    Err(error) => {
+                        tracing::error!(tile = %key.tile, format = key.format.as_str(), %error, "tile failed");
+                        if let Ok(mut r) = report.lock() {
+                            r.failed.push((key, error));
+                        }
+                    }
+                }
+                let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
+                progress(Progress {
+                    done: finished,
+                    total: keys.len(),
+                });
+            });
+        }
+    });
+    if let Some(error) = stop.into_inner().unwrap_or_else(|p| p.into_inner()) {
+        return Err(error);
+    }
+    let mut report = report.into_inner().unwrap_or_else(|p| p.into_inner());
+    report.elapsed = started.elapsed();
+    report.failed.sort_by_key(|(key, _)| *key);
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_split_the_tiles_without_overlap_or_gap() {
+        let shards: Vec<Shard> = ["1/3", "2/3", "3/3"]
+            .iter()
+            .map(|s| s.parse().unwrap())
+            .collect();
+        for position in 0..100u64 {
+            let takers = shards.iter().filter(|s| s.takes(position)).count();
+            assert_eq!(takers, 1, "tile {position}");
+        }
+        for bad in ["0/3", "4/3", "3", "a/b", "1/0"] {
+            assert!(bad.parse::<Shard>().is_err(), "{bad}");
+        }
+    }
+}

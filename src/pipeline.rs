@@ -1,0 +1,88 @@
+//! One tile from the opened sources to its bytes, in a format: the step the server, `seed`
+//! and `export` share. Reads the tile's SRTM files and OSM elements from [`Sources`], renders
+//! with [`crate::render`], and returns the uncompressed body with what the render measured.
+
+use crate::cache::{Format, TileKey};
+use crate::render::{Deadline, RenderError, RenderSettings, StageTimings};
+use crate::source::srtm::SrtmError;
+use crate::source::Sources;
+
+/// A tile made.
+#[derive(Debug, Clone)]
+pub struct Made {
+    /// The body, uncompressed.
+    pub bytes: Vec<u8>,
+    pub timings: StageTimings,
+    pub triangles: usize,
+    /// Components of the elevation LP solved, and soft constraints they violated (glb only).
+    pub lp_components: usize,
+    pub lp_violations: usize,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum MakeError {
+    #[error(transparent)]
+    Srtm(#[from] SrtmError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+}
+
+impl MakeError {
+    pub fn timed_out(&self) -> bool {
+        matches!(self, MakeError::Render(RenderError::TimedOut { .. }))
+    }
+}
+
+/// Makes `key` from `sources`. Terrain tiles above `served_zoom` are overviews: terrain alone.
+pub fn make(
+    sources: &Sources,
+    key: TileKey,
+    settings: &RenderSettings,
+    served_zoom: u8,
+    deadline: Deadline,
+) -> Result<Made, MakeError> {
+    let tile = key.tile;
+    let mosaic = sources.mosaic(tile)?;
+    match key.format {
+        Format::Glb => {
+            let selection = sources.selection(tile);
+            let rendered =
+                crate::render::render_within(tile, &selection, &mosaic, settings, deadline)?;
+            Ok(Made {
+                triangles: rendered.stats.triangles,
+                lp_components: rendered.stats.lp_components,
+                lp_violations: rendered.stats.lp_violations,
+                timings: rendered.timings,
+                bytes: rendered.glb,
+            })
+        }
+        Format::Terrain(extensions) => {
+            let rendered = if tile.z < served_zoom {
+                crate::render::render_overview_terrain(
+                    tile,
+                    &mosaic,
+                    settings,
+                    served_zoom,
+                    extensions,
+                    deadline,
+                )
+            } else {
+                crate::render::render_terrain(
+                    tile,
+                    &sources.selection(tile),
+                    &mosaic,
+                    settings,
+                    extensions,
+                    deadline,
+                )
+            }?;
+            Ok(Made {
+                triangles: rendered.report.triangles,
+                lp_components: 0,
+                lp_violations: 0,
+                timings: rendered.timings,
+                bytes: rendered.bytes,
+            })
+        }
+    }
+}
