@@ -41,8 +41,8 @@ pub struct ServerConfig {
     /// Requests that may wait for a render slot; past that a request gets `503` with
     /// `Retry-After`.
     pub render_queue: usize,
-    /// Longest a render may take, seconds (0: no limit).
-    pub render_timeout_s: u64,
+    /// Longest a render may take, milliseconds (0: no limit).
+    pub render_timeout_ms: u64,
     /// Bearer token for `/admin/*`; empty turns those routes off.
     pub admin_token: String,
     /// Render slots background work (stale tiles, regeneration) may hold at once.
@@ -60,7 +60,7 @@ impl Default for ServerConfig {
             cors_origins: vec!["*".to_string()],
             cache_control: "public, max-age=86400".to_string(),
             render_queue: 64,
-            render_timeout_s: 120,
+            render_timeout_ms: 120_000,
             admin_token: String::new(),
             background_renders: 1,
             check_interval_s: 300,
@@ -71,10 +71,27 @@ impl Default for ServerConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct SourcesConfig {
-    /// OSM extracts (`.osm.pbf`).
+    /// OSM extracts (`.osm.pbf`): local files, or `http(s)://` URLs downloaded once into
+    /// `downloads` and checked for new versions with the other sources.
     pub osm: Vec<PathBuf>,
     /// Directory of SRTM files (`.hgt`, `.hgt.zip`).
     pub srtm: PathBuf,
+    /// URL template of SRTM files the directory lacks, fetched when a tile needs one:
+    /// `{lat}` (`N43`), `{lon}` (`E007`), `{name}` (`N43E007`), e.g.
+    /// `https://example.org/srtm/{lat}{lon}.hgt.zip`. Empty: none.
+    pub srtm_url: String,
+    /// Where downloads go.
+    pub downloads: PathBuf,
+    /// Longest wait to connect, for a response to start, and between two reads, seconds.
+    pub download_timeout_s: u64,
+    /// Attempts after the first when a download fails in transit or with a 5xx.
+    pub download_retries: u32,
+    /// Wait before the first retry, milliseconds; doubled for each further one.
+    pub download_backoff_ms: u64,
+    /// How long a failed download is answered from memory before it is tried again, seconds.
+    pub download_failure_memory_s: u64,
+    /// Expected SHA-256 (hex) of downloaded files, by file name.
+    pub checksums: std::collections::BTreeMap<String, String>,
 }
 
 impl Default for SourcesConfig {
@@ -82,6 +99,27 @@ impl Default for SourcesConfig {
         SourcesConfig {
             osm: vec![PathBuf::from("data/monaco-osrm-2016.osm.pbf")],
             srtm: PathBuf::from("data"),
+            srtm_url: String::new(),
+            downloads: PathBuf::from("data/downloads"),
+            download_timeout_s: 30,
+            download_retries: 3,
+            download_backoff_ms: 500,
+            download_failure_memory_s: 60,
+            checksums: std::collections::BTreeMap::new(),
+        }
+    }
+}
+
+impl SourcesConfig {
+    /// The download settings.
+    pub fn fetch_settings(&self) -> crate::source::fetch::FetchSettings {
+        crate::source::fetch::FetchSettings {
+            data_dir: self.downloads.clone(),
+            timeout: std::time::Duration::from_secs(self.download_timeout_s.max(1)),
+            retries: self.download_retries,
+            backoff: std::time::Duration::from_millis(self.download_backoff_ms),
+            failure_memory: std::time::Duration::from_secs(self.download_failure_memory_s),
+            checksums: self.checksums.clone().into_iter().collect(),
         }
     }
 }

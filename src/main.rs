@@ -11,6 +11,7 @@ use terrastitch::cache::{Format, SqliteStore, TileCache};
 use terrastitch::config::{Config, LogFormat};
 use terrastitch::offline::{export, seed};
 use terrastitch::server::{self, AppState};
+use terrastitch::source::fetch::Fetcher;
 use terrastitch::source::Sources;
 use terrastitch::tile::{LonLatBounds, TileRange};
 use terrastitch::TileId;
@@ -129,16 +130,13 @@ fn load_config(args: &SourceArgs) -> Result<Config> {
     Ok(config)
 }
 
-fn open_sources(config: &Config) -> Result<Sources> {
+/// Opens (downloading what the data directory lacks) the configured sources.
+fn open_sources(config: &Config, fetcher: Arc<Fetcher>) -> Result<Sources> {
     let started = Instant::now();
-    let sources = Sources::open(
-        &config.sources.osm,
-        &config.sources.srtm,
-        config.server.zoom,
-    )?;
+    let sources = Sources::load(&config.sources, config.server.zoom, fetcher)?;
     tracing::info!(
         ways = sources.osm.data().ways.len(),
-        srtm_files = sources.srtm.cells().count(),
+        srtm_files = sources.srtm.cells().len(),
         ms = started.elapsed().as_millis() as u64,
         "sources loaded"
     );
@@ -193,6 +191,7 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
     let cache = TileCache::new(Arc::new(store), config.cache.memory_mib * 1024 * 1024);
     let mut state = AppState::new(cache, config.render.clone(), &config.server);
     state.source_config = Some(Arc::new(config.sources.clone()));
+    state.fetcher = Arc::new(Fetcher::new(config.sources.fetch_settings()));
     let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
     runtime.block_on(async move {
         let listener = tokio::net::TcpListener::bind(&config.server.listen)
@@ -206,7 +205,8 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
         // `503`); a source that cannot be loaded stops the server with its error.
         let (failed_tx, failed_rx) = tokio::sync::oneshot::channel::<anyhow::Error>();
         let loading = state.clone();
-        tokio::task::spawn_blocking(move || match open_sources(&config) {
+        let fetcher = state.fetcher.clone();
+        tokio::task::spawn_blocking(move || match open_sources(&config, fetcher) {
             Ok(sources) => loading.set_sources(sources),
             Err(error) => {
                 loading.sources_failed(format!("{error:#}"));
@@ -266,7 +266,13 @@ async fn shutdown_signal() {
 fn render(args: RenderArgs, config: Config) -> Result<()> {
     let tile: TileId = args.tile.parse()?;
     let started = Instant::now();
-    let sources = open_sources(&config)?;
+    let sources = open_sources(
+        &config,
+        Arc::new(Fetcher::new(config.sources.fetch_settings())),
+    )?;
+    if sources.check_coverage(tile).is_err() {
+        sources.fetch_missing_srtm(tile)?;
+    }
     if let Err(uncovered) = sources.check_coverage(tile) {
         anyhow::bail!(uncovered);
     }
@@ -370,8 +376,8 @@ fn seed_area(
     let threads = area
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()));
-    let limit = (config.server.render_timeout_s > 0)
-        .then(|| std::time::Duration::from_secs(config.server.render_timeout_s));
+    let limit = (config.server.render_timeout_ms > 0)
+        .then(|| std::time::Duration::from_millis(config.server.render_timeout_ms));
     let report = seed::seed(
         sources,
         store,
@@ -407,7 +413,10 @@ fn with_cache(mut config: Config, cache: &Option<PathBuf>) -> Config {
 
 fn seed(args: SeedArgs, config: Config) -> Result<()> {
     let config = with_cache(config, &args.area.cache);
-    let sources = open_sources(&config)?;
+    let sources = open_sources(
+        &config,
+        Arc::new(Fetcher::new(config.sources.fetch_settings())),
+    )?;
     let store = open_store(&config)?;
     let report = seed_area(
         &args.area,
@@ -424,7 +433,10 @@ fn seed(args: SeedArgs, config: Config) -> Result<()> {
 
 fn export(args: ExportArgs, config: Config) -> Result<()> {
     let config = with_cache(config, &args.area.cache);
-    let sources = open_sources(&config)?;
+    let sources = open_sources(
+        &config,
+        Arc::new(Fetcher::new(config.sources.fetch_settings())),
+    )?;
     let store = open_store(&config)?;
     // Whatever the cache lacks is made first.
     let report = seed_area(

@@ -63,7 +63,7 @@ pub struct Plan {
     pub to_make: Vec<TileKey>,
     /// In this shard and already in the cache, current.
     pub already: usize,
-    /// In this shard but outside the data (no SRTM file for them).
+    /// In this shard but outside the data (no SRTM file for them, nor one to download).
     pub uncovered: usize,
     /// The box's tiles in all shards, times the formats.
     pub in_box: u64,
@@ -90,6 +90,12 @@ pub fn plan(
     for (position, tile) in range.tiles().enumerate() {
         if !shard.takes(position as u64) {
             continue;
+        }
+        if sources.check_coverage(tile).is_err() {
+            // Download what the configured SRTM source has for it.
+            if let Err(error) = sources.fetch_missing_srtm(tile) {
+                tracing::info!(%error, "tile left out");
+            }
         }
         if sources.check_coverage(tile).is_err() {
             plan.uncovered += formats.len();

@@ -17,7 +17,7 @@ use crate::tile::TileId;
 
 pub async fn layer(State(state): State<AppState>) -> Result<Json<Value>, ApiError> {
     let z = state.zoom;
-    let cells: Vec<_> = state.sources()?.srtm.cells().collect();
+    let cells: Vec<_> = state.sources()?.srtm.cells();
     let mut bounds: Option<[f64; 4]> = None;
     let mut ranges = Vec::new();
     for cell in &cells {

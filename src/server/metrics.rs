@@ -7,6 +7,7 @@ use std::sync::Mutex;
 use std::time::Duration;
 
 use crate::render::StageTimings;
+use crate::source::fetch::FetchStats;
 
 /// Upper bounds of the render-time buckets, seconds.
 const SECONDS_BUCKETS: &[f64] = &[
@@ -116,10 +117,6 @@ pub struct Metrics {
     /// Tiles made again in the background (stale, regenerated), and those that failed.
     pub regenerations: AtomicU64,
     pub regeneration_failures: AtomicU64,
-    /// Source files downloaded, failed downloads, bytes downloaded.
-    pub downloads: AtomicU64,
-    pub download_failures: AtomicU64,
-    pub download_bytes: AtomicU64,
     /// Render time per stage (index as [`STAGES`]).
     stage_seconds: Vec<Histogram>,
     /// Responses by route template and status.
@@ -143,9 +140,6 @@ impl Default for Metrics {
             lp_violations: AtomicU64::new(0),
             regenerations: AtomicU64::new(0),
             regeneration_failures: AtomicU64::new(0),
-            downloads: AtomicU64::new(0),
-            download_failures: AtomicU64::new(0),
-            download_bytes: AtomicU64::new(0),
             stage_seconds: STAGES
                 .iter()
                 .map(|_| Histogram::new(SECONDS_BUCKETS))
@@ -191,7 +185,7 @@ impl Metrics {
         self.request_seconds.observe(elapsed);
     }
 
-    pub fn render_text(&self, pool: PoolGauges) -> String {
+    pub fn render_text(&self, pool: PoolGauges, downloads: &FetchStats) -> String {
         let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
         let mut out = String::new();
         let mut counter = |name: &str, help: &str, value: u64| {
@@ -252,18 +246,23 @@ impl Metrics {
         );
         counter(
             "terrastitch_downloads_total",
-            "Source files downloaded.",
-            get(&self.downloads),
+            "Source files downloaded whole.",
+            get(&downloads.downloads),
         );
         counter(
             "terrastitch_download_failures_total",
-            "Source downloads that failed.",
-            get(&self.download_failures),
+            "Source downloads that failed after their retries.",
+            get(&downloads.failures),
+        );
+        counter(
+            "terrastitch_download_requests_total",
+            "HTTP requests sent for source files, retries included.",
+            get(&downloads.requests),
         );
         counter(
             "terrastitch_download_bytes_total",
-            "Bytes of source files downloaded.",
-            get(&self.download_bytes),
+            "Bytes of source files received.",
+            get(&downloads.bytes),
         );
         let _ = writeln!(
             out,

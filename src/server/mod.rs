@@ -23,6 +23,7 @@ use axum::Router;
 use crate::cache::TileCache;
 use crate::config::{ServerConfig, SourcesConfig};
 use crate::render::RenderSettings;
+use crate::source::fetch::Fetcher;
 use crate::source::Sources;
 use error::ApiError;
 use metrics::{Metrics, PoolGauges};
@@ -65,6 +66,8 @@ pub struct AppState {
     pub background_workers: usize,
     /// What the sources were loaded from, for reloading them when they change.
     pub source_config: Option<Arc<SourcesConfig>>,
+    /// Downloads source files; shared by every load of the sources.
+    pub fetcher: Arc<Fetcher>,
 }
 
 impl AppState {
@@ -88,8 +91,8 @@ impl AppState {
                 server.render_queue,
                 server.background_renders,
             )),
-            render_limit: (server.render_timeout_s > 0)
-                .then(|| Duration::from_secs(server.render_timeout_s)),
+            render_limit: (server.render_timeout_ms > 0)
+                .then(|| Duration::from_millis(server.render_timeout_ms)),
             cors_origins: Arc::new(server.cors_origins.clone()),
             cache_control: match axum::http::HeaderValue::from_str(&server.cache_control) {
                 Ok(value) if !server.cache_control.is_empty() => Some(value),
@@ -106,6 +109,7 @@ impl AppState {
             regenerator: regenerate::new_queue(),
             background_workers: server.background_renders.max(1),
             source_config: None,
+            fetcher: Arc::new(Fetcher::new(SourcesConfig::default().fetch_settings())),
         }
     }
 
@@ -280,7 +284,7 @@ async fn ready(State(state): State<AppState>) -> Response {
         Ok(sources) => axum::Json(serde_json::json!({
             "status": "ready",
             "osm_extracts": sources.osm_paths.len(),
-            "srtm_files": sources.srtm.cells().count(),
+            "srtm_files": sources.srtm.cells().len(),
         }))
         .into_response(),
         Err(error) => (
@@ -294,7 +298,9 @@ async fn ready(State(state): State<AppState>) -> Response {
 async fn metrics(State(state): State<AppState>) -> impl IntoResponse {
     (
         [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
-        state.metrics.render_text(state.pool_gauges()),
+        state
+            .metrics
+            .render_text(state.pool_gauges(), &state.fetcher.stats),
     )
 }
 

@@ -199,10 +199,12 @@ pub async fn check_sources(
     tracing::info!(files = ?changed, "sources changed; loading them again");
     let config = config.clone();
     let zoom = state.zoom;
-    let loaded = tokio::task::spawn_blocking(move || crate::source::Sources::load(&config, zoom))
-        .await
-        .map_err(|e| e.to_string())?
-        .map_err(|e| e.to_string())?;
+    let fetcher = state.fetcher.clone();
+    let loaded =
+        tokio::task::spawn_blocking(move || crate::source::Sources::load(&config, zoom, fetcher))
+            .await
+            .map_err(|e| e.to_string())?
+            .map_err(|e| e.to_string())?;
     state.set_sources(loaded);
     let queued = queue_stored(state, TileFilter::All, true).await?;
     tracing::info!(

@@ -17,7 +17,7 @@ use crate::cache::encoding::{Accepted, Encoding};
 use crate::cache::{CacheError, Format, Origin, Provenance, Served, TileKey};
 use crate::output::quantized_mesh::Extensions;
 use crate::render::Deadline;
-use crate::source::Sources;
+use crate::source::{MissingSrtm, Sources};
 use crate::tile::{TileId, TileIdError};
 
 /// Parses `z`, `x` and `y.ext` into a tile and a format; `accept` chooses quantized-mesh
@@ -84,6 +84,18 @@ pub async fn tile(
     let sources = state.sources()?;
     if !overview {
         // Overview tiles cover whatever they cover: sea level where there is no data.
+        if sources.check_coverage(tile).is_err() && sources.can_fetch_srtm() {
+            let fetching = sources.clone();
+            tokio::task::spawn_blocking(move || fetching.fetch_missing_srtm(tile))
+                .await
+                .map_err(|e| ApiError::internal(e.to_string()))?
+                .map_err(|e| match e {
+                    MissingSrtm::NotFound { .. } => ApiError::not_found(e.to_string()),
+                    MissingSrtm::Failed { .. } => {
+                        ApiError::new(StatusCode::BAD_GATEWAY, e.to_string())
+                    }
+                })?;
+        }
         sources
             .check_coverage(tile)
             .map_err(|e| ApiError::not_found(e.to_string()))?;

@@ -1,11 +1,14 @@
-//! Getting data: OSM extracts and SRTM files, opened and checked once at start, and the
-//! per-tile view of them that rendering needs.
+//! Getting data: OSM extracts and SRTM files, local or downloaded ([`fetch`]), opened and
+//! checked once at start, and the per-tile view of them that rendering needs.
 
+pub mod fetch;
 pub mod osm_pbf;
 pub mod srtm;
 
 use std::path::PathBuf;
 use std::sync::Arc;
+
+use fetch::{Download, FetchError, Fetcher};
 
 use crate::osm::index::Selection;
 use crate::osm::OsmIndex;
@@ -30,6 +33,21 @@ pub enum SourceError {
     Osm(#[from] osm_pbf::OsmReadError),
     #[error(transparent)]
     Srtm(#[from] SrtmError),
+    #[error(transparent)]
+    Fetch(#[from] FetchError),
+    #[error("OSM source {0} is a URL whose last path segment is not a file name")]
+    UrlWithoutName(String),
+}
+
+/// Why the SRTM files a tile lacks could not be had.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum MissingSrtm {
+    /// The configured source has no such file (the sea, or outside its coverage).
+    #[error("no SRTM data for tile {tile}: {reason}")]
+    NotFound { tile: TileId, reason: String },
+    /// The download failed, or the file it brought is unusable.
+    #[error("SRTM data for tile {tile} could not be had: {reason}")]
+    Failed { tile: TileId, reason: String },
 }
 
 /// Why a tile cannot be rendered from the data the server has.
@@ -55,18 +73,62 @@ pub struct Sources {
     pub osm_versions: Vec<String>,
     /// Each extract's size and modification time when it was read.
     osm_files: Vec<String>,
+    /// The URLs of the extracts that came from one.
+    osm_urls: Vec<String>,
+    /// Directories of SRTM files besides the main one (downloads).
+    srtm_extra: Vec<PathBuf>,
+    /// The URL template of missing SRTM files, with the fetcher that brings them.
+    srtm_url: Option<String>,
+    fetcher: Option<Arc<Fetcher>>,
 }
 
 impl Sources {
-    /// Opens the sources a configuration names.
-    pub fn load(config: &crate::config::SourcesConfig, zoom: u8) -> Result<Sources, SourceError> {
-        Sources::open(&config.osm, &config.srtm, zoom)
+    /// Opens the sources a configuration names, downloading the extracts given by URL that
+    /// the data directory does not have yet.
+    pub fn load(
+        config: &crate::config::SourcesConfig,
+        zoom: u8,
+        fetcher: Arc<Fetcher>,
+    ) -> Result<Sources, SourceError> {
+        let mut osm_paths = Vec::new();
+        let mut osm_urls = Vec::new();
+        for entry in &config.osm {
+            let text = entry.to_string_lossy();
+            if fetch::is_url(&text) {
+                let name = fetch::file_name_of(&text)
+                    .ok_or_else(|| SourceError::UrlWithoutName(text.to_string()))?;
+                let path = fetcher.fetch(&Download {
+                    url: &text,
+                    name: &name,
+                    source_name: "OSM",
+                })?;
+                osm_urls.push(text.to_string());
+                osm_paths.push(path);
+            } else {
+                osm_paths.push(entry.clone());
+            }
+        }
+        let srtm_extra = vec![config.downloads.clone()];
+        let mut sources = Sources::open_with(&osm_paths, &config.srtm, &srtm_extra, zoom)?;
+        sources.osm_urls = osm_urls;
+        sources.srtm_url = (!config.srtm_url.is_empty()).then(|| config.srtm_url.clone());
+        sources.fetcher = Some(fetcher);
+        Ok(sources)
     }
 
     /// Reads the extracts, indexes them at `zoom`, and checks the SRTM directory.
     pub fn open(
         osm_paths: &[PathBuf],
         srtm_dir: &std::path::Path,
+        zoom: u8,
+    ) -> Result<Sources, SourceError> {
+        Sources::open_with(osm_paths, srtm_dir, &[], zoom)
+    }
+
+    fn open_with(
+        osm_paths: &[PathBuf],
+        srtm_dir: &std::path::Path,
+        srtm_extra: &[PathBuf],
         zoom: u8,
     ) -> Result<Sources, SourceError> {
         let data = osm_pbf::read_extracts(osm_paths)?;
@@ -78,7 +140,7 @@ impl Sources {
             .iter()
             .map(|path| srtm::file_version(path).unwrap_or_default())
             .collect();
-        let srtm = SrtmDirectory::open(srtm_dir)?;
+        let srtm = SrtmDirectory::open_all(srtm_dir, srtm_extra)?;
         Ok(Sources {
             osm: OsmIndex::new(data, zoom, crate::features::structures::classify)
                 .with_joints(crate::features::roads::joins)
@@ -87,22 +149,101 @@ impl Sources {
             osm_paths: osm_paths.to_vec(),
             osm_versions,
             osm_files,
+            osm_urls: Vec::new(),
+            srtm_extra: srtm_extra.to_vec(),
+            srtm_url: None,
+            fetcher: None,
         })
+    }
+
+    /// Whether SRTM files a tile lacks can be downloaded.
+    pub fn can_fetch_srtm(&self) -> bool {
+        self.srtm_url.is_some() && self.fetcher.is_some()
+    }
+
+    /// Downloads the SRTM files the tile's mosaic reads that the directories lack. A file for
+    /// the tile's own cells that cannot be had is an error; one only its margin reaches is
+    /// left out (the terrain there comes from the files there are).
+    pub fn fetch_missing_srtm(&self, tile: TileId) -> Result<(), MissingSrtm> {
+        let (Some(template), Some(fetcher)) = (&self.srtm_url, &self.fetcher) else {
+            return Ok(());
+        };
+        let own = Self::cells_for(tile);
+        for cell in Self::mosaic_cells(tile).filter(|c| !self.srtm.has(*c)) {
+            let (url, name) = fetch::srtm_download(template, &cell.name());
+            let fetched = fetcher
+                .fetch(&Download {
+                    url: &url,
+                    name: &name,
+                    source_name: "SRTM",
+                })
+                .map_err(|e| {
+                    if e.is_not_found() {
+                        MissingSrtm::NotFound {
+                            tile,
+                            reason: e.to_string(),
+                        }
+                    } else {
+                        MissingSrtm::Failed {
+                            tile,
+                            reason: e.to_string(),
+                        }
+                    }
+                })
+                .and_then(|path| {
+                    self.srtm.insert(cell, &path).map_err(|e| {
+                        // An unusable file is not kept: the next try downloads it again.
+                        let _ = std::fs::remove_file(&path);
+                        MissingSrtm::Failed {
+                            tile,
+                            reason: e.to_string(),
+                        }
+                    })
+                });
+            match fetched {
+                Ok(()) => {}
+                Err(error) if own.contains(&cell) => return Err(error),
+                Err(error) => {
+                    tracing::info!(%tile, %error, "an SRTM file only the tile's margin reaches is not available");
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The source files that changed on disk since they were read: an extract rewritten or
     /// replaced, an SRTM file added, removed or rewritten.
     pub fn changed_files(&self) -> Vec<String> {
         let mut changed = Vec::new();
+        if let Some(fetcher) = &self.fetcher {
+            for url in &self.osm_urls {
+                let Some(name) = fetch::file_name_of(url) else {
+                    continue;
+                };
+                let download = Download {
+                    url,
+                    name: &name,
+                    source_name: "OSM",
+                };
+                // A new version replaces the file; the check below sees that it changed.
+                match fetcher.refresh(&download) {
+                    Ok(true) => tracing::info!(url, "a new version of an extract was downloaded"),
+                    Ok(false) => {}
+                    Err(error) => {
+                        tracing::warn!(%error, "checking an extract for a new version failed")
+                    }
+                }
+            }
+        }
         for (path, version) in self.osm_paths.iter().zip(&self.osm_files) {
             if srtm::file_version(path).ok().as_ref() != Some(version) {
                 changed.push(path.display().to_string());
             }
         }
-        match SrtmDirectory::open(self.srtm.root()) {
+        match SrtmDirectory::open_all(self.srtm.root(), &self.srtm_extra) {
             Ok(now) => {
                 let cells: std::collections::BTreeSet<CellId> =
-                    now.cells().chain(self.srtm.cells()).collect();
+                    now.cells().into_iter().chain(self.srtm.cells()).collect();
                 for cell in cells {
                     if now.version(cell) != self.srtm.version(cell) {
                         changed.push(format!("{}.hgt", cell.name()));
@@ -131,7 +272,13 @@ impl Sources {
         }
         for cell in Self::mosaic_cells(tile) {
             digest.update(cell.name().as_bytes());
-            digest.update(self.srtm.version(cell).unwrap_or("none").as_bytes());
+            digest.update(
+                self.srtm
+                    .version(cell)
+                    .as_deref()
+                    .unwrap_or("none")
+                    .as_bytes(),
+            );
             digest.update(b";");
         }
         digest.finalize()[..8]

@@ -329,12 +329,18 @@ pub fn file_version(path: &Path) -> Result<String, SrtmError> {
     Ok(format!("{}-{modified}", metadata.len()))
 }
 
-/// The SRTM files of one directory, checked at start and decoded on demand.
+/// A cell's file and its version (size and modification time).
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct CellFile {
+    path: PathBuf,
+    version: String,
+}
+
+/// The SRTM files of one directory (and of the directory downloads go to), checked at start,
+/// added to as files are downloaded, and decoded on demand.
 pub struct SrtmDirectory {
     root: PathBuf,
-    files: BTreeMap<CellId, PathBuf>,
-    /// Each file's version: its size and modification time.
-    versions: BTreeMap<CellId, String>,
+    files: std::sync::RwLock<BTreeMap<CellId, CellFile>>,
     decoded: moka::sync::Cache<CellId, Arc<SrtmTile>>,
 }
 
@@ -342,7 +348,7 @@ impl std::fmt::Debug for SrtmDirectory {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("SrtmDirectory")
             .field("root", &self.root)
-            .field("files", &self.files.len())
+            .field("files", &self.read().len())
             .finish()
     }
 }
@@ -351,71 +357,112 @@ impl SrtmDirectory {
     /// Indexes `root` (not recursively) and checks the size of every `.hgt`/`.hgt.zip` in it.
     /// When both forms of a cell exist, the plain `.hgt` is used.
     pub fn open(root: &Path) -> Result<SrtmDirectory, SrtmError> {
-        let entries = fs::read_dir(root).map_err(|source| SrtmError::Directory {
-            path: root.to_path_buf(),
-            source,
-        })?;
-        let mut files: BTreeMap<CellId, PathBuf> = BTreeMap::new();
-        let mut versions = BTreeMap::new();
-        for entry in entries {
-            let entry = entry.map_err(|source| SrtmError::Directory {
-                path: root.to_path_buf(),
-                source,
-            })?;
-            let path = entry.path();
-            let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
-                continue;
-            };
-            let lower = name.to_ascii_lowercase();
-            let stem = lower
-                .strip_suffix(".hgt.zip")
-                .or_else(|| lower.strip_suffix(".hgt"));
-            let Some(cell) = stem.and_then(CellId::from_name) else {
-                continue;
-            };
-            let len = hgt_len(&path)?;
-            if side_for_len(len).is_none() {
-                return Err(SrtmError::BadSize { path, actual: len });
-            }
-            let plain_exists = files.get(&cell).is_some_and(|p| !is_zip(p));
-            if !plain_exists {
-                versions.insert(cell, file_version(&path)?);
-                files.insert(cell, path);
+        SrtmDirectory::open_all(root, &[])
+    }
+
+    /// Indexes `root`, then each of `more` for the cells `root` lacks (downloads).
+    pub fn open_all(root: &Path, more: &[PathBuf]) -> Result<SrtmDirectory, SrtmError> {
+        let mut files = index_directory(root)?;
+        for extra in more.iter().filter(|d| d.is_dir()) {
+            for (cell, file) in index_directory(extra)? {
+                files.entry(cell).or_insert(file);
             }
         }
         Ok(SrtmDirectory {
             root: root.to_path_buf(),
-            files,
-            versions,
+            files: std::sync::RwLock::new(files),
             decoded: moka::sync::Cache::new(DECODED_FILES_CACHED),
         })
     }
 
+    fn read(&self) -> std::sync::RwLockReadGuard<'_, BTreeMap<CellId, CellFile>> {
+        self.files.read().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Adds a file (a download) for a cell, after checking its size.
+    pub fn insert(&self, cell: CellId, path: &Path) -> Result<(), SrtmError> {
+        let len = hgt_len(path)?;
+        if side_for_len(len).is_none() {
+            return Err(SrtmError::BadSize {
+                path: path.to_path_buf(),
+                actual: len,
+            });
+        }
+        let file = CellFile {
+            path: path.to_path_buf(),
+            version: file_version(path)?,
+        };
+        self.files
+            .write()
+            .unwrap_or_else(|p| p.into_inner())
+            .insert(cell, file);
+        self.decoded.invalidate(&cell);
+        Ok(())
+    }
+}
+
+/// The SRTM files of a directory, by cell.
+fn index_directory(root: &Path) -> Result<BTreeMap<CellId, CellFile>, SrtmError> {
+    let entries = fs::read_dir(root).map_err(|source| SrtmError::Directory {
+        path: root.to_path_buf(),
+        source,
+    })?;
+    let mut files: BTreeMap<CellId, CellFile> = BTreeMap::new();
+    for entry in entries {
+        let entry = entry.map_err(|source| SrtmError::Directory {
+            path: root.to_path_buf(),
+            source,
+        })?;
+        let path = entry.path();
+        let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
+            continue;
+        };
+        let lower = name.to_ascii_lowercase();
+        let stem = lower
+            .strip_suffix(".hgt.zip")
+            .or_else(|| lower.strip_suffix(".hgt"));
+        let Some(cell) = stem.and_then(CellId::from_name) else {
+            continue;
+        };
+        let len = hgt_len(&path)?;
+        if side_for_len(len).is_none() {
+            return Err(SrtmError::BadSize { path, actual: len });
+        }
+        let plain_exists = files.get(&cell).is_some_and(|f| !is_zip(&f.path));
+        if !plain_exists {
+            let version = file_version(&path)?;
+            files.insert(cell, CellFile { path, version });
+        }
+    }
+    Ok(files)
+}
+
+impl SrtmDirectory {
     pub fn root(&self) -> &Path {
         &self.root
     }
 
     /// The cells with a file.
-    pub fn cells(&self) -> impl Iterator<Item = CellId> + '_ {
-        self.files.keys().copied()
+    pub fn cells(&self) -> Vec<CellId> {
+        self.read().keys().copied().collect()
     }
 
     /// The version of a cell's file (its size and modification time), if there is one.
-    pub fn version(&self, cell: CellId) -> Option<&str> {
-        self.versions.get(&cell).map(String::as_str)
+    pub fn version(&self, cell: CellId) -> Option<String> {
+        self.read().get(&cell).map(|f| f.version.clone())
     }
 
     pub fn has(&self, cell: CellId) -> bool {
-        self.files.contains_key(&cell)
+        self.read().contains_key(&cell)
     }
 
     /// The decoded file of a cell, `None` if the directory has no file for it.
     pub fn tile(&self, cell: CellId) -> Result<Option<Arc<SrtmTile>>, SrtmError> {
-        let Some(path) = self.files.get(&cell) else {
+        let Some(path) = self.read().get(&cell).map(|f| f.path.clone()) else {
             return Ok(None);
         };
         self.decoded
-            .try_get_with(cell, || SrtmTile::read(cell, path).map(Arc::new))
+            .try_get_with(cell, || SrtmTile::read(cell, &path).map(Arc::new))
             .map(Some)
             .map_err(|error| match Arc::try_unwrap(error) {
                 Ok(error) => error,
@@ -504,7 +551,7 @@ mod tests {
 
         let directory = SrtmDirectory::open(dir.path()).unwrap();
         let cell = CellId { lat: 43, lon: 7 };
-        assert_eq!(directory.cells().collect::<Vec<_>>(), vec![cell]);
+        assert_eq!(directory.cells(), vec![cell]);
         let tile = directory.tile(cell).unwrap().unwrap();
         assert_eq!(tile.sample(0, 0), 100.0);
         assert!(

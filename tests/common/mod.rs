@@ -95,11 +95,21 @@ impl TestServer {
         sources: Sources,
         server_config: &ServerConfig,
     ) -> TestServer {
+        let state = TestServer::state(cache, server_config);
+        state.set_sources(sources);
+        TestServer::start_state(state).await
+    }
+
+    /// A server's state with its cache in `cache`, without sources yet.
+    pub fn state(cache: &Path, server_config: &ServerConfig) -> AppState {
         let config = Config::default();
         let store = SqliteStore::open(cache, None).expect("cache opens");
         let tile_cache = TileCache::new(std::sync::Arc::new(store), 64 << 20);
-        let state = AppState::new(tile_cache, config.render.clone(), server_config);
-        state.set_sources(sources);
+        AppState::new(tile_cache, config.render.clone(), server_config)
+    }
+
+    /// Starts a server with this state.
+    pub async fn start_state(state: AppState) -> TestServer {
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
             .await
             .expect("bind");
