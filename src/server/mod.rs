@@ -179,14 +179,19 @@ pub fn router(state: AppState) -> Router {
     };
     router
         .layer(
-            tower_http::trace::TraceLayer::new_for_http().make_span_with(|request: &Request| {
-                let id = request
-                    .headers()
-                    .get(REQUEST_ID)
-                    .and_then(|v| v.to_str().ok())
-                    .unwrap_or("");
-                tracing::info_span!("request", id = %id, method = %request.method(), uri = %request.uri())
-            }),
+            tower_http::trace::TraceLayer::new_for_http()
+                .make_span_with(|request: &Request| {
+                    let id = request
+                        .headers()
+                        .get(REQUEST_ID)
+                        .and_then(|v| v.to_str().ok())
+                        .unwrap_or("");
+                    tracing::info_span!("request", id = %id, method = %request.method(), uri = %request.uri())
+                })
+                // One line per answered request, with its status and latency.
+                .on_response(
+                    tower_http::trace::DefaultOnResponse::new().level(tracing::Level::INFO),
+                ),
         )
         .layer(tower_http::request_id::PropagateRequestIdLayer::new(
             header::HeaderName::from_static(REQUEST_ID),

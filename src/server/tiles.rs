@@ -278,7 +278,10 @@ pub fn render_job(
     priority: Priority,
 ) -> impl FnOnce() -> Result<Vec<u8>, RenderFailure> + Send + 'static {
     let state = state.clone();
+    // The render's log lines carry the request's span (and id) onto the blocking pool.
+    let span = tracing::Span::current();
     move || {
+        let _entered = span.enter();
         let pool = state.pool.clone();
         let _slot = match priority {
             Priority::Request => pool.acquire()?,

@@ -1,0 +1,289 @@
+//! `terrastitch seed` and `export`, run as the operator runs them, and `serve`'s logs and
+//! shutdown as a process: a seed split into shards, resumed after it was killed, and exported
+//! to MBTiles and to a directory.
+
+mod common;
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use common::terrastitch;
+use terrastitch::cache::{etag_of, SqliteStore, TileFilter, TileStore};
+use terrastitch::tile::{LonLatBounds, TileRange};
+use terrastitch::TileId;
+
+/// A box just inside the tiles x0..=x1, y0..=y1 at zoom 14.
+fn bbox(x0: u32, x1: u32, y0: u32, y1: u32) -> String {
+    let nw = TileId {
+        z: 14,
+        x: x0,
+        y: y0,
+    }
+    .bounds();
+    let se = TileId {
+        z: 14,
+        x: x1,
+        y: y1,
+    }
+    .bounds();
+    let inset = 1e-5;
+    format!(
+        "{},{},{},{}",
+        nw.west + inset,
+        se.south + inset,
+        se.east - inset,
+        nw.north - inset
+    )
+}
+
+fn run(args: &[&str], cache: &Path) -> (bool, String) {
+    let output = terrastitch()
+        .args(args)
+        .arg("--cache")
+        .arg(cache)
+        .output()
+        .unwrap();
+    (
+        output.status.success(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    )
+}
+
+/// The plan line's numbers: to make, already cached.
+fn planned(stderr: &str) -> (usize, usize) {
+    let line = stderr
+        .lines()
+        .find(|l| l.contains("to make"))
+        .unwrap_or_else(|| panic!("no plan line in:\n{stderr}"));
+    let number = |before: &str| -> usize {
+        let head = &line[..line.find(before).unwrap()];
+        head.split_whitespace().last().unwrap().parse().unwrap()
+    };
+    (number(" to make"), number(" already"))
+}
+
+/// Every stored tile is whole: its bytes have the digest stored with them and are a glb of the
+/// length its header gives.
+fn check_cache(cache: &Path) -> usize {
+    let store = SqliteStore::open(cache, None).unwrap();
+    store.check_integrity().unwrap();
+    let entries = store.list(&TileFilter::All).unwrap();
+    for entry in &entries {
+        let tile = store.get(&entry.key).unwrap().unwrap();
+        let data = &tile.bodies.identity;
+        assert_eq!(tile.etag, etag_of(data), "{}", entry.key.tile);
+        assert_eq!(&data[..4], b"glTF");
+        let length = u32::from_le_bytes(data[8..12].try_into().unwrap()) as usize;
+        assert_eq!(length, data.len(), "{}", entry.key.tile);
+    }
+    entries.len()
+}
+
+#[test]
+fn shards_split_a_seed_and_a_second_run_makes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache.sqlite");
+    let area = bbox(8527, 8528, 5974, 5975);
+    let mut made = 0;
+    for shard in ["1/2", "2/2"] {
+        let (ok, stderr) = run(
+            &["seed", "--bbox", &area, "--shard", shard, "--threads", "2"],
+            &cache,
+        );
+        assert!(ok, "{stderr}");
+        assert!(stderr.contains("4 tiles in the box"), "{stderr}");
+        let (to_make, already) = planned(&stderr);
+        assert_eq!((to_make, already), (2, 0), "{stderr}");
+        assert!(stderr.contains("tiles/s"), "{stderr}");
+        made += to_make;
+    }
+    assert_eq!(made, 4);
+    assert_eq!(check_cache(&cache), 4, "the shards did not overlap");
+    let (ok, stderr) = run(&["seed", "--bbox", &area], &cache);
+    assert!(ok, "{stderr}");
+    assert_eq!(planned(&stderr), (0, 4));
+    // A box outside the data is refused by the parser, not by the renderer.
+    let (ok, stderr) = run(&["seed", "--bbox", "7.44,43.72,7.40,43.75"], &cache);
+    assert!(!ok);
+    assert!(stderr.contains("empty"), "{stderr}");
+}
+
+#[test]
+fn a_seed_killed_midway_leaves_a_sound_cache_and_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache.sqlite");
+    let area = bbox(8528, 8530, 5973, 5974);
+    let mut child = terrastitch()
+        .args(["seed", "--bbox", &area, "--threads", "1", "--cache"])
+        .arg(&cache)
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // Kill it once it has stored a tile or two.
+    let deadline = Instant::now() + Duration::from_secs(120);
+    loop {
+        let stored = rusqlite::Connection::open_with_flags(
+            &cache,
+            rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY,
+        )
+        .and_then(|c| c.query_row("SELECT count(*) FROM tiles", [], |r| r.get::<_, i64>(0)))
+        .unwrap_or(0);
+        if stored >= 1 {
+            break;
+        }
+        assert!(Instant::now() < deadline, "the seed stored nothing");
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the seed ended before it was killed"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let before = check_cache(&cache);
+    assert!((1..6).contains(&before), "{before}");
+
+    let (ok, stderr) = run(&["seed", "--bbox", &area], &cache);
+    assert!(ok, "{stderr}");
+    let (to_make, already) = planned(&stderr);
+    assert_eq!(already, before, "{stderr}");
+    assert_eq!(to_make + already, 6, "{stderr}");
+    assert_eq!(check_cache(&cache), 6);
+}
+
+#[test]
+fn export_writes_mbtiles_and_a_directory_of_the_tiles() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache.sqlite");
+    let area = bbox(8527, 8528, 5974, 5974);
+    let file = dir.path().join("monaco.mbtiles");
+    let (ok, stderr) = run(
+        &["export", "--bbox", &area, "-o", file.to_str().unwrap()],
+        &cache,
+    );
+    assert!(ok, "{stderr}");
+    assert!(stderr.contains("exported 2 tiles"), "{stderr}");
+
+    let store = SqliteStore::open(&cache, None).unwrap();
+    let bounds: LonLatBounds = area.parse().unwrap();
+    let range = TileRange::covering(14, &bounds);
+    let mbtiles = rusqlite::Connection::open(&file).unwrap();
+    let meta = |name: &str| -> String {
+        mbtiles
+            .query_row("SELECT value FROM metadata WHERE name = ?1", [name], |r| {
+                r.get(0)
+            })
+            .unwrap()
+    };
+    assert_eq!(meta("format"), "glb");
+    assert!(meta("attribution").contains("© OpenStreetMap contributors"));
+    assert_eq!(meta("minzoom"), "14");
+    assert_eq!(meta("bounds").split(',').count(), 4);
+    let count: i64 = mbtiles
+        .query_row("SELECT count(*) FROM tiles", [], |r| r.get(0))
+        .unwrap();
+    assert_eq!(count, 2);
+    for tile in range.tiles() {
+        let key = terrastitch::cache::TileKey {
+            tile,
+            format: terrastitch::cache::Format::Glb,
+        };
+        let stored = store.get(&key).unwrap().unwrap();
+        // MBTiles rows count from the south.
+        let row = (1i64 << 14) - 1 - i64::from(tile.y);
+        let data: Vec<u8> = mbtiles
+            .query_row(
+                "SELECT tile_data FROM tiles WHERE zoom_level = 14 AND tile_column = ?1 AND tile_row = ?2",
+                [i64::from(tile.x), row],
+                |r| r.get(0),
+            )
+            .unwrap();
+        assert_eq!(data, stored.bodies.identity.to_vec(), "{tile}");
+    }
+
+    let out = dir.path().join("tiles");
+    let target = format!("{}/", out.display());
+    let (ok, stderr) = run(&["export", "--bbox", &area, "-o", &target], &cache);
+    assert!(ok, "{stderr}");
+    // Everything was in the cache already.
+    assert_eq!(planned(&stderr), (0, 2));
+    for tile in range.tiles() {
+        let path = out.join(format!("14/{}/{}.glb", tile.x, tile.y));
+        let data = std::fs::read(&path).unwrap();
+        assert_eq!(&data[..4], b"glTF", "{}", path.display());
+    }
+    assert!(!dir.path().join("monaco.mbtiles.partial").exists());
+}
+
+/// With JSON logs, every line is one JSON object, and a request's lines carry its id; SIGTERM
+/// stops the server cleanly.
+#[test]
+fn json_logs_carry_the_request_id_and_sigterm_stops_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = terrastitch()
+        .args(["serve", "--listen", "127.0.0.1:0", "--cache"])
+        .arg(dir.path().join("cache.sqlite"))
+        .env("TERRASTITCH_LOG__FORMAT", "json")
+        .env("RUST_LOG", "info")
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let (lines_tx, lines_rx) = std::sync::mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if lines_tx.send(line).is_err() {
+                return;
+            }
+        }
+    });
+    let mut lines = Vec::new();
+    let address = loop {
+        let line = lines_rx
+            .recv_timeout(Duration::from_secs(60))
+            .expect("the server starts");
+        if let Some(address) = line.strip_prefix("listening on http://") {
+            break address.to_string();
+        }
+        lines.push(line);
+    };
+    let mut stream = std::net::TcpStream::connect(&address).unwrap();
+    write!(
+        stream,
+        "GET /health HTTP/1.1\r\nHost: {address}\r\nX-Request-Id: json-log-test-7\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut response = String::new();
+    stream.read_to_string(&mut response).unwrap();
+    assert!(response.starts_with("HTTP/1.1 200"), "{response}");
+    assert!(response
+        .to_lowercase()
+        .contains("x-request-id: json-log-test-7"));
+
+    let status = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let exit = child.wait().unwrap();
+    assert!(exit.success(), "{exit:?}");
+    lines.extend(lines_rx.try_iter());
+    let mut with_id = 0;
+    for line in &lines {
+        let json: serde_json::Value =
+            serde_json::from_str(line).unwrap_or_else(|_| panic!("not JSON: {line}"));
+        assert!(json["level"].is_string(), "{line}");
+        if line.contains("json-log-test-7") {
+            assert_eq!(json["span"]["id"], "json-log-test-7", "{line}");
+            with_id += 1;
+        }
+    }
+    assert!(
+        with_id >= 1,
+        "no line carries the request id:\n{}",
+        lines.join("\n")
+    );
+    assert!(lines.iter().any(|l| l.contains("shutting down")));
+}

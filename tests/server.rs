@@ -1,0 +1,435 @@
+//! How the server behaves as an HTTP service: content codings, the bounded render queue and
+//! time limit, stale tiles, the admin routes, readiness, metrics and request ids, shutdown.
+
+mod common;
+
+use std::io::Read;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use common::{sample_osm, sample_srtm, TestServer};
+use terrastitch::cache::encoding::Bodies;
+use terrastitch::cache::{
+    etag_of, Format, Provenance, SqliteStore, StoredTile, TileFilter, TileKey, TileStore,
+};
+use terrastitch::config::ServerConfig;
+use terrastitch::source::Sources;
+use terrastitch::TileId;
+
+fn sources() -> Sources {
+    Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data loads")
+}
+
+async fn start(dir: &std::path::Path, config: ServerConfig) -> TestServer {
+    TestServer::start_with(&dir.join("cache.sqlite"), sources(), &config).await
+}
+
+fn two_threads() -> ServerConfig {
+    ServerConfig {
+        render_threads: 2,
+        ..ServerConfig::default()
+    }
+}
+
+async fn get_with(server: &TestServer, path: &str, headers: &[(&str, &str)]) -> reqwest::Response {
+    let mut request = reqwest::Client::new().get(server.url(path));
+    for (name, value) in headers {
+        request = request.header(*name, *value);
+    }
+    request.send().await.expect("request reaches the server")
+}
+
+async fn wait_for_metric(server: &TestServer, name: &str, at_least: f64) {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while server.metric(name).await < at_least {
+        assert!(Instant::now() < deadline, "{name} never reached {at_least}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// Every client gets the smallest coding it accepts, each coding with its own strong validator,
+/// all decoding to the same tile; a validator of any coding makes a `304`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn codings_are_negotiated_and_each_has_its_own_validator() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = start(dir.path(), two_threads()).await;
+    let path = "/tiles/14/8527/5974.glb";
+    let mut bodies = Vec::new();
+    let mut etags = Vec::new();
+    for accept in ["", "gzip", "br", "gzip, deflate, br", "br;q=0, gzip"] {
+        let response = get_with(&server, path, &[("accept-encoding", accept)]).await;
+        assert_eq!(response.status(), 200);
+        let headers = response.headers().clone();
+        let vary = headers["vary"].to_str().unwrap().to_lowercase();
+        assert!(vary.contains("accept-encoding"), "{vary}");
+        let coding = headers
+            .get("content-encoding")
+            .map(|v| v.to_str().unwrap().to_string());
+        let expected = match accept {
+            "" => None,
+            "gzip" | "br;q=0, gzip" => Some("gzip"),
+            _ => Some("br"),
+        };
+        assert_eq!(coding.as_deref(), expected, "Accept-Encoding: {accept}");
+        let raw = response.bytes().await.unwrap().to_vec();
+        let decoded = match coding.as_deref() {
+            Some("gzip") => {
+                let mut out = Vec::new();
+                flate2::read::GzDecoder::new(&raw[..])
+                    .read_to_end(&mut out)
+                    .unwrap();
+                out
+            }
+            Some("br") => {
+                let mut out = Vec::new();
+                brotli::Decompressor::new(&raw[..], 4096)
+                    .read_to_end(&mut out)
+                    .unwrap();
+                out
+            }
+            _ => raw.clone(),
+        };
+        assert_eq!(&decoded[..4], b"glTF");
+        bodies.push((coding, raw.len(), decoded));
+        etags.push(headers["etag"].to_str().unwrap().to_string());
+    }
+    let identity = &bodies[0].2;
+    assert!(bodies.iter().all(|(_, _, decoded)| decoded == identity));
+    let (gzip_len, br_len) = (bodies[1].1, bodies[2].1);
+    assert!(
+        br_len < gzip_len && gzip_len < identity.len() / 2,
+        "{br_len} {gzip_len} {}",
+        identity.len()
+    );
+    assert_eq!(
+        etags[0],
+        etag_of(identity),
+        "the identity validator is the content's digest"
+    );
+    let distinct: std::collections::BTreeSet<&String> = etags[..3].iter().collect();
+    assert_eq!(distinct.len(), 3, "{etags:?}");
+    for etag in &etags[..3] {
+        for accept in ["", "gzip, br"] {
+            let response = get_with(
+                &server,
+                path,
+                &[("if-none-match", etag), ("accept-encoding", accept)],
+            )
+            .await;
+            assert_eq!(response.status(), 304, "{etag} / {accept}");
+        }
+    }
+    server.stop().await;
+}
+
+/// With one render slot and no queue, a second cold tile is refused at once with `503` and
+/// `Retry-After`, while a cached tile is served whatever the renders do.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn past_the_queue_a_request_gets_503_and_cached_tiles_still_flow() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = ServerConfig {
+        render_threads: 1,
+        render_queue: 0,
+        ..ServerConfig::default()
+    };
+    let server = start(dir.path(), config).await;
+    let cached = "/tiles/14/8527/5974.glb";
+    assert_eq!(get_with(&server, cached, &[]).await.status(), 200);
+
+    let client = reqwest::Client::new();
+    let cold: Vec<_> = ["8529/5973", "8530/5973", "8529/5974"]
+        .iter()
+        .map(|tile| {
+            let request = client
+                .get(server.url(&format!("/tiles/14/{tile}.glb")))
+                .send();
+            tokio::spawn(async move {
+                let response = request.await.unwrap();
+                let status = response.status().as_u16();
+                let retry = response
+                    .headers()
+                    .get("retry-after")
+                    .map(|v| v.to_str().unwrap().to_string());
+                let body = response.text().await.unwrap_or_default();
+                (status, retry, body)
+            })
+        })
+        .collect();
+    // While those render, the cached tile comes at once.
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let started = Instant::now();
+    let hit = get_with(&server, cached, &[]).await;
+    assert_eq!(hit.status(), 200);
+    assert_eq!(hit.headers()["x-cache"], "hit");
+    assert!(
+        started.elapsed() < Duration::from_millis(500),
+        "{:?}",
+        started.elapsed()
+    );
+
+    let mut refused = 0;
+    for handle in cold {
+        let (status, retry, body) = handle.await.unwrap();
+        match status {
+            200 => {}
+            503 => {
+                refused += 1;
+                assert_eq!(retry.as_deref(), Some("5"));
+                let json: serde_json::Value = serde_json::from_str(&body).unwrap();
+                assert!(
+                    json["error"].as_str().unwrap().contains("render slot"),
+                    "{body}"
+                );
+            }
+            other => panic!("unexpected {other}: {body}"),
+        }
+    }
+    assert!(refused >= 1, "no request was refused");
+    assert_eq!(
+        server.metric("terrastitch_rejected_busy_total").await,
+        f64::from(refused)
+    );
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_render_past_its_time_limit_is_stopped_with_a_503() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = ServerConfig {
+        render_threads: 1,
+        render_timeout_ms: 1,
+        ..ServerConfig::default()
+    };
+    let server = start(dir.path(), config).await;
+    let response = get_with(&server, "/tiles/14/8529/5973.glb", &[]).await;
+    assert_eq!(response.status(), 503);
+    assert!(response.headers().contains_key("retry-after"));
+    let body = response.text().await.unwrap();
+    assert!(body.contains("longer than its limit"), "{body}");
+    assert_eq!(
+        server.metric("terrastitch_render_timeouts_total").await,
+        1.0
+    );
+    assert_eq!(server.state.cache.store().usage().unwrap().tiles, 0);
+    server.stop().await;
+}
+
+/// A stored tile made by another pipeline is served at once, marked stale, and replaced in
+/// the background by a tile made now.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stale_tile_is_served_while_it_is_made_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache.sqlite");
+    let key = TileKey {
+        tile: TileId {
+            z: 14,
+            x: 8527,
+            y: 5974,
+        },
+        format: Format::Glb,
+    };
+    {
+        let store = SqliteStore::open(&cache, None).unwrap();
+        let old = b"a tile from an older pipeline".to_vec();
+        store
+            .put(
+                &key,
+                &StoredTile {
+                    etag: etag_of(&old),
+                    bodies: Bodies::compress(old).unwrap(),
+                    made_by: Provenance {
+                        pipeline: "0.0.0+old".to_string(),
+                        sources: "old".to_string(),
+                    },
+                    created_at: 1,
+                },
+            )
+            .unwrap();
+    }
+    let server = TestServer::start_with(&cache, sources(), &two_threads()).await;
+    let stale = get_with(&server, "/tiles/14/8527/5974.glb", &[]).await;
+    assert_eq!(stale.status(), 200);
+    assert_eq!(stale.headers()["x-cache"], "stale");
+    assert_eq!(
+        stale.bytes().await.unwrap().as_ref(),
+        b"a tile from an older pipeline"
+    );
+    wait_for_metric(&server, "terrastitch_regenerations_total", 1.0).await;
+    let fresh = get_with(&server, "/tiles/14/8527/5974.glb", &[]).await;
+    assert_eq!(fresh.headers()["x-cache"], "hit");
+    assert_eq!(&fresh.bytes().await.unwrap()[..4], b"glTF");
+    let stored = server.state.cache.store().list(&TileFilter::All).unwrap();
+    assert_eq!(stored.len(), 1);
+    assert_eq!(stored[0].made_by.pipeline, *server.state.pipeline);
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn admin_routes_need_the_token_then_purge_and_regenerate() {
+    let dir = tempfile::tempdir().unwrap();
+    // Without a token configured the routes are off.
+    let off = start(dir.path(), two_threads()).await;
+    let response = reqwest::Client::new()
+        .post(off.url("/admin/purge"))
+        .body(r#"{"all": true}"#)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 404);
+    let _ = response.bytes().await;
+    off.stop().await;
+
+    let dir = tempfile::tempdir().unwrap();
+    let config = ServerConfig {
+        admin_token: "s3cret-token".to_string(),
+        ..two_threads()
+    };
+    let server = start(dir.path(), config).await;
+    let client = reqwest::Client::new();
+    let admin = |route: &str, token: Option<&str>, body: &str| {
+        let mut request = client.post(server.url(route)).body(body.to_string());
+        if let Some(token) = token {
+            request = request.header("authorization", format!("Bearer {token}"));
+        }
+        request.send()
+    };
+    for token in [None, Some("wrong")] {
+        let response = admin("/admin/purge", token, r#"{"all": true}"#)
+            .await
+            .unwrap();
+        assert_eq!(response.status(), 401);
+        assert!(response.headers().contains_key("www-authenticate"));
+        let json: serde_json::Value = response.json().await.unwrap();
+        assert!(json["error"].is_string());
+    }
+    let response = admin("/admin/purge", Some("s3cret-token"), r#"{"everything": 1}"#)
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 400);
+    let _ = response.bytes().await;
+
+    for tile in ["8527/5974", "8528/5974"] {
+        let response = get_with(&server, &format!("/tiles/14/{tile}.glb"), &[]).await;
+        assert_eq!(response.headers()["x-cache"], "miss");
+        let _ = response.bytes().await;
+    }
+    // Regeneration makes the tile again in the background.
+    let response = admin(
+        "/admin/regenerate",
+        Some("s3cret-token"),
+        r#"{"tiles": ["14/8527/5974"]}"#,
+    )
+    .await
+    .unwrap();
+    assert_eq!(response.status(), 202);
+    let json: serde_json::Value = response.json().await.unwrap();
+    assert_eq!(json["queued"], 1);
+    wait_for_metric(&server, "terrastitch_regenerations_total", 1.0).await;
+    assert_eq!(server.metric("terrastitch_renders_total").await, 3.0);
+
+    // Purging a box removes its tiles from the store and from memory.
+    let bounds = TileId {
+        z: 14,
+        x: 8527,
+        y: 5974,
+    }
+    .bounds();
+    let inner = format!(
+        r#"{{"bbox": [{}, {}, {}, {}]}}"#,
+        bounds.west + 1e-4,
+        bounds.south + 1e-4,
+        bounds.east - 1e-4,
+        bounds.north - 1e-4
+    );
+    let response = admin("/admin/purge", Some("s3cret-token"), &inner)
+        .await
+        .unwrap();
+    assert_eq!(response.status(), 200);
+    let json: serde_json::Value = response.json().await.unwrap();
+    assert_eq!(json["removed"], 1);
+    let again = get_with(&server, "/tiles/14/8527/5974.glb", &[]).await;
+    assert_eq!(again.headers()["x-cache"], "miss");
+    let kept = get_with(&server, "/tiles/14/8528/5974.glb", &[]).await;
+    assert_eq!(kept.headers()["x-cache"], "hit");
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn not_ready_until_the_sources_are_loaded() {
+    let dir = tempfile::tempdir().unwrap();
+    let state = TestServer::state(&dir.path().join("cache.sqlite"), &two_threads());
+    let server = TestServer::start_state(state).await;
+    assert_eq!(get_with(&server, "/health", &[]).await.status(), 200);
+    let ready = get_with(&server, "/ready", &[]).await;
+    assert_eq!(ready.status(), 503);
+    let json: serde_json::Value = ready.json().await.unwrap();
+    assert_eq!(json["status"], "not ready");
+    let tile = get_with(&server, "/tiles/14/8527/5974.glb", &[]).await;
+    assert_eq!(tile.status(), 503);
+    assert!(tile.headers().contains_key("retry-after"));
+    let _ = tile.bytes().await;
+    server.state.set_sources(sources());
+    let ready = get_with(&server, "/ready", &[]).await;
+    assert_eq!(ready.status(), 200);
+    let json: serde_json::Value = ready.json().await.unwrap();
+    assert_eq!(json["srtm_files"], 1);
+    server.stop().await;
+}
+
+/// `/metrics` counts responses by route and status and times renders by stage; every response
+/// carries a request id, the client's own when it sent one.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn metrics_count_routes_and_stages_and_responses_carry_request_ids() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = start(dir.path(), two_threads()).await;
+    let tile = get_with(&server, "/tiles/14/8527/5974.glb", &[]).await;
+    let generated = tile.headers()["x-request-id"].to_str().unwrap().to_string();
+    assert!(!generated.is_empty());
+    let _ = tile.bytes().await;
+    let echoed = get_with(&server, "/nowhere", &[("x-request-id", "client-chosen-42")]).await;
+    assert_eq!(echoed.status(), 404);
+    assert_eq!(echoed.headers()["x-request-id"], "client-chosen-42");
+    let other = get_with(&server, "/health", &[]).await;
+    assert_ne!(other.headers()["x-request-id"].to_str().unwrap(), generated);
+
+    let text = get_with(&server, "/metrics", &[])
+        .await
+        .text()
+        .await
+        .unwrap();
+    for line in [
+        "terrastitch_http_requests_total{route=\"/tiles/{z}/{x}/{file}\",status=\"200\"} 1",
+        "terrastitch_http_requests_total{route=\"unmatched\",status=\"404\"} 1",
+        "terrastitch_render_stage_seconds_count{stage=\"total\"} 1",
+        "terrastitch_render_stage_seconds_count{stage=\"structures\"} 1",
+        "terrastitch_render_stage_seconds_bucket{stage=\"total\",le=\"+Inf\"} 1",
+        "terrastitch_cache_misses_total 1",
+        "terrastitch_render_queue{state=\"waiting\"} 0",
+        "terrastitch_downloads_total 0",
+    ] {
+        assert!(text.contains(line), "missing {line} in\n{text}");
+    }
+    server.stop().await;
+}
+
+/// Shutting down lets a render in flight finish and its client get the tile.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn shutdown_finishes_the_renders_in_flight() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = start(dir.path(), two_threads()).await;
+    let url = server.url("/tiles/14/8529/5973.glb");
+    let request = tokio::spawn(async move {
+        let response = reqwest::get(url).await.unwrap();
+        (
+            response.status().as_u16(),
+            response.bytes().await.unwrap().len(),
+        )
+    });
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let store: Arc<dyn TileStore> = server.state.cache.store().clone();
+    server.stop().await;
+    let (status, len) = request.await.unwrap();
+    assert_eq!(status, 200);
+    assert!(len > 1000);
+    assert_eq!(store.usage().unwrap().tiles, 1);
+}
