@@ -136,17 +136,16 @@ impl SqliteStore {
         let Some(cap) = self.max_bytes else {
             return Ok(0);
         };
-        let mut total: u64 = connection.query_row("SELECT total(size) FROM tiles", [], |row| {
-            row.get::<_, f64>(0).map(|t| t as u64)
+        let mut total: u64 = connection.query_row("SELECT bytes FROM usage", [], |row| {
+            row.get::<_, i64>(0).map(|t| t.max(0) as u64)
         })?;
         if total <= cap {
             return Ok(0);
         }
         let target = (cap as f64 * EVICT_TO) as u64;
         let mut evicted = 0;
-        let mut oldest = connection.prepare(
-            "SELECT z, x, y, format, size FROM tiles ORDER BY accessed_at ASC, created_at ASC",
-        )?;
+        let mut oldest = connection
+            .prepare("SELECT z, x, y, format, size FROM tiles ORDER BY accessed_at ASC")?;
         let mut rows = oldest.query([])?;
         let mut doomed = Vec::new();
         while total > target {
@@ -259,12 +258,19 @@ impl TileStore for SqliteStore {
         let (coding, primary) = tile.bodies.primary();
         let mut connection = self.connection();
         let transaction = connection.transaction().map_err(|e| self.error(e))?;
+        // An upsert, not a replace: the usage triggers see one update, not a delete and an
+        // insert.
         transaction
             .execute(
-                "INSERT OR REPLACE INTO tiles
+                "INSERT INTO tiles
                    (z, x, y, format, pipeline, data, etag, created_at,
                     encoding, data_br, sources, size, accessed_at)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?8)",
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?8)
+                 ON CONFLICT (z, x, y, format) DO UPDATE SET
+                   pipeline = excluded.pipeline, data = excluded.data, etag = excluded.etag,
+                   created_at = excluded.created_at, encoding = excluded.encoding,
+                   data_br = excluded.data_br, sources = excluded.sources,
+                   size = excluded.size, accessed_at = excluded.accessed_at",
                 params![
                     key.tile.z,
                     key.tile.x,
@@ -379,10 +385,10 @@ impl TileStore for SqliteStore {
 
     fn usage(&self) -> Result<Usage, StoreError> {
         self.connection()
-            .query_row("SELECT count(*), total(size) FROM tiles", [], |row| {
+            .query_row("SELECT tiles, bytes FROM usage", [], |row| {
                 Ok(Usage {
                     tiles: row.get::<_, i64>(0)?.max(0) as u64,
-                    bytes: row.get::<_, f64>(1)? as u64,
+                    bytes: row.get::<_, i64>(1)?.max(0) as u64,
                 })
             })
             .map_err(|e| self.error(e))
@@ -515,5 +521,28 @@ mod tests {
         let listed = TileFilter::Tiles(vec![key(4).tile, key(9).tile]);
         assert_eq!(store.remove(&listed).unwrap(), vec![key(4)]);
         assert_eq!(store.usage().unwrap().tiles, 3);
+    }
+
+    #[test]
+    fn the_usage_kept_by_triggers_matches_a_count_of_the_rows() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = SqliteStore::open(&dir.path().join("t.sqlite"), None).unwrap();
+        for round in 0..3u8 {
+            for x in 0..5 {
+                // Replacing a tile with one of another size.
+                let data = vec![round; 1000 * (usize::from(round) + 1) + x as usize];
+                store.put(&key(x), &tile(data, "v", 1)).unwrap();
+            }
+        }
+        store.remove(&TileFilter::Tiles(vec![key(2).tile])).unwrap();
+        let scanned: (i64, i64) = store
+            .connection()
+            .query_row("SELECT count(*), sum(size) FROM tiles", [], |r| {
+                Ok((r.get(0)?, r.get(1)?))
+            })
+            .unwrap();
+        let usage = store.usage().unwrap();
+        assert_eq!((usage.tiles as i64, usage.bytes as i64), scanned);
+        assert_eq!(usage.tiles, 4);
     }
 }
