@@ -27,8 +27,9 @@ tests/py/.venv/.installed: tests/py/requirements.txt
 	tests/py/.venv/bin/python -m pip install --quiet --disable-pip-version-check -r tests/py/requirements.txt
 	touch $@
 
-# Figures for tile 14/8529/5973: stage times, peak memory, triangles, size; then warm
-# requests per second on loopback (needs `oha` or `wrk` on the PATH for that part).
+# Server figures: one tile's cold render; cached requests per second and latency on loopback;
+# a cold burst of 200 requests over 20 tiles; seeding and exporting the sample's area
+# (needs `wrk` on the PATH).
 bench:
 	$(CARGO) build --release
 	scripts/bench.sh

@@ -1,28 +1,73 @@
 #!/usr/bin/env bash
-# Prints the figures of one tile's cold render and of warm requests per second.
-# Usage: scripts/bench.sh [Z/X/Y]   (run from the repository root after a release build)
+# Prints the server's figures, all on loopback with the load generator on the same machine:
+#   1. one tile's cold render: stage times, peak memory, size;
+#   2. cached requests per second and latency percentiles (wrk), for a dense tile as sent to a
+#      browser (brotli) and uncompressed, and for a small tile;
+#   3. a cold burst: 200 concurrent requests over 20 tiles never rendered, its completion time,
+#      the answers, and the server's peak memory;
+#   4. seeding the whole area of the bundled extract: tiles per second;
+#   5. exporting it to MBTiles: the file's size.
+# Usage: scripts/bench.sh   (from the repository root, after a release build; needs wrk)
 set -euo pipefail
-tile=${1:-14/8529/5973}
 bin=target/release/terrastitch
+tile=14/8529/5973
+port=18080
 out=$(mktemp -d)
-trap 'kill $server 2>/dev/null || true; rm -rf "$out"' EXIT
+server=
+trap '[ -n "$server" ] && kill $server 2>/dev/null; rm -rf "$out"' EXIT
 
-echo "== cold render of $tile (render command, release build)"
+echo "== 1. cold render of $tile (render command)"
 /usr/bin/time -v "$bin" render "$tile" -o "$out/tile.glb" --timings 2> "$out/render.txt" || { cat "$out/render.txt"; exit 1; }
 grep -E '^(load|features|structures|roads|triangulation|terrain|elevation|glb|total|triangles|elevation LP:|of which ground roads:) ' "$out/render.txt"
 grep -E 'Maximum resident set size|Elapsed \(wall' "$out/render.txt"
 ls -l "$out/tile.glb" | awk '{print "glb bytes", $5}'
 
-echo "== warm requests per second (cached tile, loopback)"
-"$bin" serve --listen 127.0.0.1:18080 --cache "$out/cache.sqlite" 2> "$out/serve.txt" &
-server=$!
-for _ in $(seq 1 100); do grep -q listening "$out/serve.txt" && break; sleep 0.1; done
-url="http://127.0.0.1:18080/tiles/$tile.glb"
-curl -fsS -o /dev/null "$url"
-if command -v oha >/dev/null; then
-  oha -z 10s -c 32 --no-tui "$url"
-elif command -v wrk >/dev/null; then
-  wrk -t2 -c32 -d10s --latency "$url"
-else
-  echo "neither oha nor wrk is installed (apt-get install wrk)"
-fi
+start_server() {
+  "$bin" serve --listen 127.0.0.1:$port --cache "$out/cache-$1.sqlite" 2> "$out/serve-$1.txt" &
+  server=$!
+  for _ in $(seq 1 300); do
+    curl -fsS -o /dev/null "http://127.0.0.1:$port/ready" 2>/dev/null && return 0
+    sleep 0.1
+  done
+  echo "the server did not become ready"; cat "$out/serve-$1.txt"; exit 1
+}
+stop_server() { kill -TERM $server; wait $server 2>/dev/null || true; server=; }
+peak_kib() { awk '/VmHWM/ {print $2}' /proc/$server/status; }
+
+start_server warm
+command -v wrk >/dev/null || { echo "wrk is not installed (apt-get install wrk)"; exit 1; }
+for case in "$tile br" "$tile identity" "14/8527/5975 identity"; do
+  set -- $case
+  url="http://127.0.0.1:$port/tiles/$1.glb"
+  curl -fsS -o "$out/body" -H "Accept-Encoding: $2" "$url"
+  echo "== 2. cached $1 ($2, $(stat -c %s "$out/body") bytes a response): wrk -t2 -c32 -d10s"
+  wrk -t2 -c32 -d10s --latency -H "Accept-Encoding: $2" "$url" \
+    | grep -E 'Requests/sec|Transfer/sec|^ +(50|90|99)%|Non-2xx|Socket errors'
+done
+stop_server
+
+echo "== 3. cold burst: 200 concurrent requests over 20 tiles never rendered"
+start_server cold
+tiles=()
+for y in 5972 5973 5974 5975; do for x in 8526 8527 8528 8529 8530; do tiles+=("14/$x/$y"); done; done
+rss_before=$(peak_kib)
+started=$(date +%s.%N)
+for i in $(seq 0 199); do
+  t=${tiles[$((i % 20))]}
+  curl -s -o /dev/null -w '%{http_code}\n' -H 'Accept-Encoding: br' "http://127.0.0.1:$port/tiles/$t.glb" &
+done > "$out/codes.txt"
+wait $(jobs -p | grep -v "^$server$") 2>/dev/null || true
+ended=$(date +%s.%N)
+echo "completed in $(awk "BEGIN {printf \"%.2f\", $ended - $started}") s; answers: $(sort "$out/codes.txt" | uniq -c | tr '\n' ' ')"
+echo "server peak memory: $(peak_kib) KiB (before the burst: $rss_before KiB)"
+curl -fsS "http://127.0.0.1:$port/metrics" | grep -E '^terrastitch_(renders_total|cache_misses_total|rejected_busy_total) '
+bounds=$(curl -fsS "http://127.0.0.1:$port/tiles.json" | python3 -c 'import json,sys; print(",".join(str(v) for v in json.load(sys.stdin)["bounds"]))')
+stop_server
+
+echo "== 4. seed of the extract's area ($bounds)"
+"$bin" seed --bbox "$bounds" --cache "$out/seed.sqlite" 2>&1 | grep -E 'tiles in the box|made [0-9]+ tiles'
+
+echo "== 5. export of that area to MBTiles"
+"$bin" export --bbox "$bounds" --cache "$out/seed.sqlite" -o "$out/area.mbtiles" 2>&1 | grep -E '^exported'
+ls -l "$out/area.mbtiles" | awk '{print "MBTiles bytes", $5}'
+ls -l "$out/seed.sqlite" | awk '{print "cache bytes (compressed tiles)", $5}'
