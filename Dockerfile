@@ -1,6 +1,10 @@
-# terrastitch in a container: a plain mirror of `make run`, listening on 0.0.0.0:8080.
+# terrastitch in a container: a plain mirror of `make run`, listening on 0.0.0.0:8080, run as
+# an unprivileged user, with the data directory (sources and their downloads) and the tile
+# cache on volumes. SIGTERM (docker stop) lets the renders in flight finish.
 # Build: docker build -t terrastitch .
-# Run:   docker run -p 8080:8080 -v terrastitch-cache:/var/cache/terrastitch terrastitch
+# Run:   docker run -p 8080:8080 -v terrastitch-data:/srv/terrastitch/data \
+#          -v terrastitch-cache:/var/cache/terrastitch terrastitch
+# Seed:  docker run -v ... terrastitch terrastitch seed --bbox 7.40,43.72,7.44,43.75
 
 FROM rust:1-bookworm AS build
 WORKDIR /src
@@ -16,11 +20,12 @@ RUN apt-get update \
  && rm -rf /var/lib/apt/lists/* \
  && useradd --system --home /srv/terrastitch terrastitch \
  && mkdir -p /srv/terrastitch /var/cache/terrastitch /srv/terrastitch/data \
- && chown terrastitch /var/cache/terrastitch
+ && chown terrastitch /var/cache/terrastitch /srv/terrastitch/data
 WORKDIR /srv/terrastitch
 COPY --from=build /src/target/release/terrastitch /usr/local/bin/terrastitch
 COPY config ./config
-COPY data ./data
+# The sample; downloads (sources.downloads = data/downloads) go into the same volume.
+COPY --chown=terrastitch data ./data
 ENV TERRASTITCH_SERVER__LISTEN=0.0.0.0:8080 \
     TERRASTITCH_CACHE__PATH=/var/cache/terrastitch/tiles.sqlite
 VOLUME ["/srv/terrastitch/data", "/var/cache/terrastitch"]
