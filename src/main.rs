@@ -143,7 +143,25 @@ fn open_sources(config: &Config, fetcher: Arc<Fetcher>) -> Result<Sources> {
     Ok(sources)
 }
 
+/// Caps glibc's malloc arenas at two per core (unless `MALLOC_ARENA_MAX` says otherwise). By
+/// default glibc gives up to eight per core, and each keeps the peak of the renders that ran in
+/// it: under a burst of cold tiles the server's memory doubled (650 MB against 390 MB for 20
+/// dense tiles on two cores), for no gain in speed.
+fn limit_malloc_arenas() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    if std::env::var_os("MALLOC_ARENA_MAX").is_none() {
+        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+        let arenas = i32::try_from(2 * cores).unwrap_or(i32::MAX);
+        // SAFETY: mallopt only sets a tuning parameter of the allocator; it is called before
+        // any other thread exists.
+        unsafe {
+            libc::mallopt(libc::M_ARENA_MAX, arenas);
+        }
+    }
+}
+
 fn main() -> Result<()> {
+    limit_malloc_arenas();
     let cli = Cli::parse();
     let sources = match &cli.command {
         Command::Serve(args) => &args.sources,
