@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 
-use terrastitch::cache::{Format, SqliteStore, TileCache};
+use terrastitch::cache::{Format, MbtilesStore, SqliteStore, TileCache};
 use terrastitch::config::{Config, LogFormat};
 use terrastitch::offline::{export, seed};
 use terrastitch::server::{self, AppState};
@@ -63,6 +63,9 @@ struct ServeArgs {
     /// SQLite file of the tile cache [default: cache/tiles.sqlite]
     #[arg(long, value_name = "FILE")]
     cache: Option<PathBuf>,
+    /// Serve the tiles of an MBTiles file made by `export`, read-only, without sources
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["cache", "osm", "srtm"])]
+    mbtiles: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -205,6 +208,9 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
     if let Some(cache) = args.cache {
         config.cache.path = cache;
     }
+    if let Some(file) = args.mbtiles {
+        return serve_archive(&file, config);
+    }
     let store = open_store(&config)?;
     let cache = TileCache::new(Arc::new(store), config.cache.memory_mib * 1024 * 1024);
     let mut state = AppState::new(cache, config.render.clone(), &config.server);
@@ -256,6 +262,34 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
             Some(error) => Err(error),
             None => Ok(()),
         }
+    })
+}
+
+/// Serves an exported MBTiles file as it is.
+fn serve_archive(file: &std::path::Path, config: Config) -> Result<()> {
+    let store = MbtilesStore::open(file)?;
+    let mut server = config.server.clone();
+    if let Some(zoom) = store.zoom() {
+        server.zoom = zoom;
+    }
+    let archive = server::Archive {
+        path: file.to_path_buf(),
+        format: store.format(),
+        bounds: store.bounds(),
+    };
+    let cache = TileCache::new(Arc::new(store), config.cache.memory_mib * 1024 * 1024);
+    let mut state = AppState::new(cache, config.render.clone(), &server);
+    state.archive = Some(Arc::new(archive));
+    let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
+    runtime.block_on(async move {
+        let listener = tokio::net::TcpListener::bind(&server.listen)
+            .await
+            .with_context(|| format!("cannot listen on {}", server.listen))?;
+        let address = listener.local_addr()?;
+        tracing::info!(file = %file.display(), "serving an exported file on http://{address}/");
+        eprintln!("listening on http://{address}");
+        server::serve(listener, state, shutdown_signal()).await?;
+        Ok(())
     })
 }
 

@@ -215,21 +215,50 @@ fn export_writes_mbtiles_and_a_directory_of_the_tiles() {
         assert_eq!(&data[..4], b"glTF", "{}", path.display());
     }
     assert!(!dir.path().join("monaco.mbtiles.partial").exists());
+
+    // Another terrastitch serves the file as it is, without any source data.
+    let (mut child, address, _lines) = spawn_server(&["--mbtiles", file.to_str().unwrap()], &[]);
+    for tile in range.tiles() {
+        let (status, body) = http_get(&address, &format!("/tiles/14/{}/{}.glb", tile.x, tile.y));
+        assert_eq!(status, 200, "{tile}");
+        let exported = std::fs::read(out.join(format!("14/{}/{}.glb", tile.x, tile.y))).unwrap();
+        assert_eq!(body, exported, "{tile}");
+    }
+    let (status, body) = http_get(&address, "/tiles/14/8529/5973.glb");
+    assert_eq!(status, 404);
+    assert!(
+        String::from_utf8_lossy(&body).contains("is not in"),
+        "{}",
+        String::from_utf8_lossy(&body)
+    );
+    assert_eq!(http_get(&address, "/ready").0, 200);
+    let (status, body) = http_get(&address, "/tiles.json");
+    assert_eq!(status, 200);
+    let json: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    let west = json["bounds"][0].as_f64().unwrap();
+    assert!((west - bounds.west).abs() < 1e-9, "{json}");
+    child.kill().unwrap();
+    child.wait().unwrap();
 }
 
-/// With JSON logs, every line is one JSON object, and a request's lines carry its id; SIGTERM
-/// stops the server cleanly.
-#[test]
-fn json_logs_carry_the_request_id_and_sigterm_stops_cleanly() {
-    let dir = tempfile::tempdir().unwrap();
-    let mut child = terrastitch()
-        .args(["serve", "--listen", "127.0.0.1:0", "--cache"])
-        .arg(dir.path().join("cache.sqlite"))
-        .env("TERRASTITCH_LOG__FORMAT", "json")
-        .env("RUST_LOG", "info")
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+/// Starts `serve` on a free port with extra arguments and environment; returns the child, its
+/// address, and a channel of its stderr lines after the one that gives the address.
+fn spawn_server(
+    args: &[&str],
+    env: &[(&str, &str)],
+) -> (
+    std::process::Child,
+    String,
+    std::sync::mpsc::Receiver<String>,
+) {
+    let mut command = terrastitch();
+    command
+        .args(["serve", "--listen", "127.0.0.1:0"])
+        .args(args);
+    for (name, value) in env {
+        command.env(name, value);
+    }
+    let mut child = command.stderr(Stdio::piped()).spawn().unwrap();
     let stderr = child.stderr.take().unwrap();
     let (lines_tx, lines_rx) = std::sync::mpsc::channel::<String>();
     std::thread::spawn(move || {
@@ -239,28 +268,76 @@ fn json_logs_carry_the_request_id_and_sigterm_stops_cleanly() {
             }
         }
     });
-    let mut lines = Vec::new();
-    let address = loop {
-        let line = lines_rx
-            .recv_timeout(Duration::from_secs(60))
-            .expect("the server starts");
-        if let Some(address) = line.strip_prefix("listening on http://") {
-            break address.to_string();
+    let (address_tx, address_rx) = std::sync::mpsc::channel::<String>();
+    let (rest_tx, rest_rx) = std::sync::mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        let mut sent = false;
+        for line in lines_rx {
+            match line.strip_prefix("listening on http://") {
+                Some(address) if !sent => {
+                    sent = true;
+                    let _ = address_tx.send(address.to_string());
+                }
+                _ => {
+                    if rest_tx.send(line).is_err() {
+                        return;
+                    }
+                }
+            }
         }
-        lines.push(line);
-    };
-    let mut stream = std::net::TcpStream::connect(&address).unwrap();
+    });
+    let address = address_rx
+        .recv_timeout(Duration::from_secs(60))
+        .expect("the server starts");
+    (child, address, rest_rx)
+}
+
+/// A GET over a plain socket: the status and the body.
+fn http_get(address: &str, path: &str) -> (u16, Vec<u8>) {
+    let (status, _, body) = request(address, path, &[]);
+    (status, body)
+}
+
+/// A GET over a plain socket with extra headers: the status, the header block and the body.
+fn request(address: &str, path: &str, headers: &[(&str, &str)]) -> (u16, String, Vec<u8>) {
+    let mut stream = std::net::TcpStream::connect(address).unwrap();
+    let extra: String = headers
+        .iter()
+        .map(|(name, value)| format!("{name}: {value}\r\n"))
+        .collect();
     write!(
         stream,
-        "GET /health HTTP/1.1\r\nHost: {address}\r\nX-Request-Id: json-log-test-7\r\nConnection: close\r\n\r\n"
+        "GET {path} HTTP/1.1\r\nHost: {address}\r\n{extra}Connection: close\r\n\r\n"
     )
     .unwrap();
-    let mut response = String::new();
-    stream.read_to_string(&mut response).unwrap();
-    assert!(response.starts_with("HTTP/1.1 200"), "{response}");
-    assert!(response
-        .to_lowercase()
-        .contains("x-request-id: json-log-test-7"));
+    let mut response = Vec::new();
+    stream.read_to_end(&mut response).unwrap();
+    let split = response
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .expect("a header block");
+    let head = String::from_utf8_lossy(&response[..split]).to_string();
+    let status = head.split_whitespace().nth(1).unwrap().parse().unwrap();
+    (status, head, response[split + 4..].to_vec())
+}
+
+/// With JSON logs, every line is one JSON object, and a request's lines carry its id; SIGTERM
+/// stops the server cleanly.
+#[test]
+fn json_logs_carry_the_request_id_and_sigterm_stops_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache.sqlite");
+    let (mut child, address, lines_rx) = spawn_server(
+        &["--cache", cache.to_str().unwrap()],
+        &[("TERRASTITCH_LOG__FORMAT", "json"), ("RUST_LOG", "info")],
+    );
+    let (status, head, _) = request(&address, "/health", &[("X-Request-Id", "json-log-test-7")]);
+    assert_eq!(status, 200);
+    assert!(
+        head.to_lowercase()
+            .contains("x-request-id: json-log-test-7"),
+        "{head}"
+    );
 
     let status = Command::new("kill")
         .args(["-TERM", &child.id().to_string()])
@@ -269,7 +346,8 @@ fn json_logs_carry_the_request_id_and_sigterm_stops_cleanly() {
     assert!(status.success());
     let exit = child.wait().unwrap();
     assert!(exit.success(), "{exit:?}");
-    lines.extend(lines_rx.try_iter());
+    // The reader ends with the process's stderr.
+    let lines: Vec<String> = lines_rx.iter().collect();
     let mut with_id = 0;
     for line in &lines {
         let json: serde_json::Value =

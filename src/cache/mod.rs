@@ -9,6 +9,7 @@
 //! makes its replacement and swaps it in whole.
 
 pub mod encoding;
+pub mod mbtiles;
 pub mod sqlite;
 pub mod store;
 
@@ -20,6 +21,7 @@ use sha2::Digest;
 use crate::output::quantized_mesh::Extensions;
 use crate::tile::TileId;
 use encoding::Bodies;
+pub use mbtiles::MbtilesStore;
 pub use sqlite::SqliteStore;
 pub use store::{
     unix_now, Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage,
@@ -171,13 +173,13 @@ impl TileCache {
     }
 
     /// The tile from memory, the store or `render` (run on the blocking pool), with where it
-    /// came from and whether it is stale against `wanted`. Concurrent calls for one key run one
-    /// lookup and at most one render. A stale tile is returned as it is: call
-    /// [`TileCache::remake`] to replace it.
+    /// came from and whether it is stale against `wanted` (never, without one). Concurrent calls
+    /// for one key run one lookup and at most one render. A stale tile is returned as it is:
+    /// call [`TileCache::remake`] to replace it.
     pub async fn get_or_render<F, E>(
         &self,
         key: TileKey,
-        wanted: &Provenance,
+        wanted: Option<&Provenance>,
         render: F,
     ) -> Result<Served, Arc<CacheError<E>>>
     where
@@ -185,7 +187,7 @@ impl TileCache {
         E: std::error::Error + Send + Sync + 'static,
     {
         let store = self.store.clone();
-        let made_by = wanted.clone();
+        let made_by = wanted.cloned().unwrap_or_default();
         let init = async move {
             let lookup = {
                 let store = store.clone();
@@ -225,7 +227,7 @@ impl TileCache {
         };
         let tile = entry.into_value();
         Ok(Served {
-            stale: tile.made_by != *wanted,
+            stale: wanted.is_some_and(|wanted| tile.made_by != *wanted),
             tile,
             origin,
         })

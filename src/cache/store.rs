@@ -31,6 +31,8 @@ pub enum StoreError {
     Damaged { path: PathBuf, report: String },
     #[error(transparent)]
     Coding(#[from] CodingError),
+    #[error("{path} is read-only: tiles are served from it, never written to it")]
+    ReadOnly { path: PathBuf },
 }
 
 /// What a tile was made from: the rendering pipeline and the versions of the sources.

@@ -68,6 +68,16 @@ pub struct AppState {
     pub source_config: Option<Arc<SourcesConfig>>,
     /// Downloads source files; shared by every load of the sources.
     pub fetcher: Arc<Fetcher>,
+    /// When the server serves an exported file instead of rendering: what it holds.
+    pub archive: Option<Arc<Archive>>,
+}
+
+/// An exported MBTiles file served as it is, without sources.
+#[derive(Debug, Clone)]
+pub struct Archive {
+    pub path: std::path::PathBuf,
+    pub format: crate::cache::Format,
+    pub bounds: Option<crate::tile::LonLatBounds>,
 }
 
 impl AppState {
@@ -110,11 +120,18 @@ impl AppState {
             background_workers: server.background_renders.max(1),
             source_config: None,
             fetcher: Arc::new(Fetcher::new(SourcesConfig::default().fetch_settings())),
+            archive: None,
         }
     }
 
     /// The loaded sources, or a `503` while they load (a `500` if loading failed).
     pub fn sources(&self) -> Result<Arc<Sources>, ApiError> {
+        if let Some(archive) = &self.archive {
+            return Err(ApiError::not_found(format!(
+                "this server serves the exported file {} and has no sources",
+                archive.path.display()
+            )));
+        }
         match &*self.sources.read().unwrap_or_else(|p| p.into_inner()) {
             SourceState::Ready(sources) => Ok(sources.clone()),
             SourceState::Loading => Err(ApiError::unavailable(
@@ -283,8 +300,16 @@ async fn health() -> impl IntoResponse {
     axum::Json(serde_json::json!({ "status": "ok" }))
 }
 
-/// Ready when the sources are loaded: `200`, else `503` saying what is missing.
+/// Ready when the sources are loaded (or an archive is served): `200`, else `503` saying what
+/// is missing.
 async fn ready(State(state): State<AppState>) -> Response {
+    if let Some(archive) = &state.archive {
+        return axum::Json(serde_json::json!({
+            "status": "ready",
+            "archive": archive.path.display().to_string(),
+        }))
+        .into_response();
+    }
     match state.sources() {
         Ok(sources) => axum::Json(serde_json::json!({
             "status": "ready",

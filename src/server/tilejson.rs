@@ -35,11 +35,12 @@ pub async fn tilejson(
         }
         None => String::new(),
     };
-    let bounds = state
-        .sources()?
-        .osm
-        .data()
-        .coverage
+    let coverage = match (&state.archive, state.sources()) {
+        (_, Ok(sources)) => sources.osm.data().coverage.clone(),
+        (Some(archive), Err(_)) => archive.bounds.into_iter().collect(),
+        (None, Err(error)) => return Err(error),
+    };
+    let bounds = coverage
         .iter()
         .map(|b| [b.west, b.south, b.east, b.north])
         .reduce(|a, b| {

@@ -81,6 +81,9 @@ pub async fn tile(
             ),
         }));
     }
+    if let Some(archive) = &state.archive {
+        return from_archive(&state, archive, tile, format, &request_headers).await;
+    }
     let sources = state.sources()?;
     if !overview {
         // Overview tiles cover whatever they cover: sea level where there is no data.
@@ -106,7 +109,7 @@ pub async fn tile(
     let render = render_job(&state, sources.clone(), key, Priority::Request);
     let served = state
         .cache
-        .get_or_render(key, &wanted, render)
+        .get_or_render(key, Some(&wanted), render)
         .await
         .map_err(|e| failure_response(&state, tile, &e))?;
     match served.origin {
@@ -119,6 +122,38 @@ pub async fn tile(
         state.regenerator.stale(key);
     }
     Ok(respond(&state, key, &served, &request_headers))
+}
+
+/// A tile of the served archive; one it lacks is a `404`.
+async fn from_archive(
+    state: &AppState,
+    archive: &super::Archive,
+    tile: TileId,
+    format: Format,
+    request_headers: &HeaderMap,
+) -> Result<Response, ApiError> {
+    let format = match (format, archive.format) {
+        (Format::Terrain(_), Format::Terrain(held)) => Format::Terrain(held),
+        (asked, _) => asked,
+    };
+    let key = TileKey { tile, format };
+    let path = archive.path.display().to_string();
+    let missing = move || -> Result<Vec<u8>, RenderFailure> {
+        Err(RenderFailure::NotInArchive(format!(
+            "tile {tile} ({}) is not in {path}",
+            format.as_str()
+        )))
+    };
+    let served = state
+        .cache
+        .get_or_render(key, None, missing)
+        .await
+        .map_err(|e| failure_response(state, tile, &e))?;
+    match served.origin {
+        Origin::Memory => Metrics::count(&state.metrics.hits_memory),
+        _ => Metrics::count(&state.metrics.hits_store),
+    }
+    Ok(respond(state, key, &served, request_headers))
 }
 
 /// What a tile made now from these sources is made from.
@@ -245,6 +280,9 @@ pub enum RenderFailure {
     TimedOut(String),
     #[error("{0}")]
     Failed(String),
+    /// A server of an archive was asked for a tile the archive lacks.
+    #[error("{0}")]
+    NotInArchive(String),
 }
 
 /// The error response for a tile that could not be made.
@@ -257,6 +295,9 @@ fn failure_response(state: &AppState, tile: TileId, error: &CacheError<RenderFai
                 format!("tile {tile} cannot be rendered now: {refused}; retry shortly"),
                 RETRY_AFTER_S,
             )
+        }
+        CacheError::Render(RenderFailure::NotInArchive(message)) => {
+            ApiError::not_found(message.clone())
         }
         CacheError::Render(RenderFailure::TimedOut(message)) => {
             tracing::error!(%tile, %message, "render stopped at its time limit");

@@ -1,0 +1,211 @@
+//! An MBTiles file (as `terrastitch export` writes it) as a read-only tile store, so a server
+//! without any source data can serve an exported area: `terrastitch serve --mbtiles FILE`.
+//!
+//! A tile enters memory compressed once, like a rendered one; the file is never written.
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use rusqlite::{Connection, OpenFlags, OptionalExtension};
+
+use super::encoding::Bodies;
+use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
+use super::{etag_of, Format, TileKey};
+use crate::tile::{LonLatBounds, TileId};
+
+pub struct MbtilesStore {
+    path: PathBuf,
+    connection: Mutex<Connection>,
+    format: Format,
+    bounds: Option<LonLatBounds>,
+    zoom: Option<u8>,
+}
+
+impl std::fmt::Debug for MbtilesStore {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MbtilesStore")
+            .field("path", &self.path)
+            .field("format", &self.format)
+            .finish()
+    }
+}
+
+impl MbtilesStore {
+    /// Opens the file read-only and reads its metadata; a file without the MBTiles tables, or
+    /// of a format other than glb or terrain, is an error naming it.
+    pub fn open(path: &Path) -> Result<MbtilesStore, StoreError> {
+        let sqlite = |source| StoreError::Sqlite {
+            path: path.to_path_buf(),
+            source,
+        };
+        let connection =
+            Connection::open_with_flags(path, OpenFlags::SQLITE_OPEN_READ_ONLY).map_err(sqlite)?;
+        let meta = |name: &str| -> Result<Option<String>, StoreError> {
+            connection
+                .query_row(
+                    "SELECT value FROM metadata WHERE name = ?1",
+                    [name],
+                    |row| row.get(0),
+                )
+                .optional()
+                .map_err(sqlite)
+        };
+        let format = match meta("format")?.as_deref() {
+            Some("glb") => Format::Glb,
+            Some("terrain") => Format::Terrain(crate::output::quantized_mesh::Extensions {
+                normals: true,
+                watermask: true,
+            }),
+            other => {
+                return Err(StoreError::Damaged {
+                    path: path.to_path_buf(),
+                    report: format!("its format is {other:?}, not glb or terrain"),
+                })
+            }
+        };
+        let bounds = meta("bounds")?.and_then(|b| b.parse::<LonLatBounds>().ok());
+        let zoom = meta("maxzoom")?.and_then(|z| z.parse::<u8>().ok());
+        Ok(MbtilesStore {
+            path: path.to_path_buf(),
+            connection: Mutex::new(connection),
+            format,
+            bounds,
+            zoom,
+        })
+    }
+
+    pub fn format(&self) -> Format {
+        self.format
+    }
+
+    /// The area the file says it covers.
+    pub fn bounds(&self) -> Option<LonLatBounds> {
+        self.bounds
+    }
+
+    /// The zoom of its tiles.
+    pub fn zoom(&self) -> Option<u8> {
+        self.zoom
+    }
+
+    fn connection(&self) -> std::sync::MutexGuard<'_, Connection> {
+        self.connection.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn error(&self, source: rusqlite::Error) -> StoreError {
+        StoreError::Sqlite {
+            path: self.path.clone(),
+            source,
+        }
+    }
+
+    fn read_only(&self) -> StoreError {
+        StoreError::ReadOnly {
+            path: self.path.clone(),
+        }
+    }
+
+    /// What every tile of the file was made from, as far as a server that only reads it knows.
+    pub fn provenance(&self) -> Provenance {
+        Provenance {
+            pipeline: "mbtiles".to_string(),
+            sources: self.path.display().to_string(),
+        }
+    }
+}
+
+/// MBTiles rows count from the south.
+fn tms_row(tile: TileId) -> i64 {
+    (1i64 << tile.z) - 1 - i64::from(tile.y)
+}
+
+impl TileStore for MbtilesStore {
+    fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError> {
+        if key.format != self.format {
+            return Ok(None);
+        }
+        let data: Option<Vec<u8>> = self
+            .connection()
+            .query_row(
+                "SELECT tile_data FROM tiles
+                 WHERE zoom_level = ?1 AND tile_column = ?2 AND tile_row = ?3",
+                rusqlite::params![key.tile.z, key.tile.x, tms_row(key.tile)],
+                |row| row.get(0),
+            )
+            .optional()
+            .map_err(|e| self.error(e))?;
+        let Some(data) = data else {
+            return Ok(None);
+        };
+        Ok(Some(StoredTile {
+            etag: etag_of(&data),
+            bodies: Bodies::compress(data)?,
+            made_by: self.provenance(),
+            created_at: 0,
+        }))
+    }
+
+    fn put(&self, _key: &TileKey, _tile: &StoredTile) -> Result<(), StoreError> {
+        Err(self.read_only())
+    }
+
+    fn touch(&self, _keys: &[TileKey], _at: i64) -> Result<(), StoreError> {
+        Ok(())
+    }
+
+    fn remove(&self, _filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
+        Err(self.read_only())
+    }
+
+    fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
+        let connection = self.connection();
+        let mut statement = connection
+            .prepare("SELECT zoom_level, tile_column, tile_row, length(tile_data) FROM tiles")
+            .map_err(|e| self.error(e))?;
+        let rows = statement
+            .query_map([], |row| {
+                Ok((
+                    row.get::<_, u8>(0)?,
+                    row.get::<_, u32>(1)?,
+                    row.get::<_, i64>(2)?,
+                    row.get::<_, i64>(3)?,
+                ))
+            })
+            .map_err(|e| self.error(e))?;
+        let mut entries = Vec::new();
+        for row in rows {
+            let (z, x, row, size) = row.map_err(|e| self.error(e))?;
+            let Ok(y) = u32::try_from((1i64 << z) - 1 - row) else {
+                continue;
+            };
+            let tile = TileId { z, x, y };
+            if filter.matches(tile) {
+                entries.push(StoredEntry {
+                    key: TileKey {
+                        tile,
+                        format: self.format,
+                    },
+                    made_by: self.provenance(),
+                    size: size.max(0) as u64,
+                    accessed_at: 0,
+                });
+            }
+        }
+        Ok(entries)
+    }
+
+    fn usage(&self) -> Result<Usage, StoreError> {
+        self.connection()
+            .query_row(
+                "SELECT count(*), coalesce(sum(length(tile_data)), 0) FROM tiles",
+                [],
+                |row| {
+                    Ok(Usage {
+                        tiles: row.get::<_, i64>(0)?.max(0) as u64,
+                        bytes: row.get::<_, i64>(1)?.max(0) as u64,
+                    })
+                },
+            )
+            .map_err(|e| self.error(e))
+    }
+}
