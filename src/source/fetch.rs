@@ -20,6 +20,9 @@ use std::time::{Duration, Instant};
 
 use sha2::Digest;
 
+/// The longest wait between two attempts.
+const MAX_BACKOFF: Duration = Duration::from_secs(30);
+
 /// How downloads behave.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FetchSettings {
@@ -196,10 +199,7 @@ impl Fetcher {
                 message: "the server answered 304 to a request without validators".to_string(),
             }),
             Err(error) => {
-                self.failures
-                    .lock()
-                    .unwrap_or_else(|p| p.into_inner())
-                    .insert(download.name.to_string(), (Instant::now(), error.clone()));
+                self.remember_failure(download.name, error.clone());
                 Err(error)
             }
         }
@@ -211,12 +211,20 @@ impl Fetcher {
         let lock = self.lock_for(download.name);
         let _one_at_a_time = lock.lock().unwrap_or_else(|p| p.into_inner());
         let path = self.path_of(download.name);
-        let validators = read_validators(&path);
+        let validators = read_validators(&path).unwrap_or_default();
         let before = file_digest(&path);
-        match self.download(download, validators.as_ref())? {
-            None => Ok(false),
-            Some(path) => Ok(file_digest(&path) != before),
-        }
+        Ok(self
+            .download(download, Some((&validators, before.as_deref())))?
+            .is_some())
+    }
+
+    /// Remembers that a file could not be had (a download that arrived whole but turned out
+    /// unusable), so it is not asked for again before the failure memory runs out.
+    pub fn remember_failure(&self, name: &str, error: FetchError) {
+        self.failures
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .insert(name.to_string(), (Instant::now(), error));
     }
 
     fn remembered_failure(&self, name: &str) -> Option<FetchError> {
@@ -231,21 +239,23 @@ impl Fetcher {
         }
     }
 
-    /// Downloads with retries; `None` when the server says the file did not change.
+    /// Downloads with retries; `None` when the server says the file did not change, or sends
+    /// the same bytes again. `current` holds the validators and digest of the file held.
     fn download(
         &self,
         download: &Download<'_>,
-        validators: Option<&Validators>,
+        current: Option<(&Validators, Option<&[u8]>)>,
     ) -> Result<Option<PathBuf>, FetchError> {
         let attempts = self.settings.retries + 1;
         let mut last = String::new();
         for attempt in 0..attempts {
             if attempt > 0 {
-                let wait = self.settings.backoff * 2u32.saturating_pow(attempt - 1);
+                let wait =
+                    (self.settings.backoff * 2u32.saturating_pow(attempt - 1)).min(MAX_BACKOFF);
                 tracing::info!(name = download.name, attempt, error = %last, ?wait, "download failed; retrying");
                 std::thread::sleep(wait);
             }
-            match self.attempt(download, validators) {
+            match self.attempt(download, current) {
                 Attempt::Done(path) => {
                     self.stats.downloads.fetch_add(1, Ordering::Relaxed);
                     tracing::info!(name = download.name, url = download.url, "downloaded");
@@ -272,10 +282,14 @@ impl Fetcher {
         Err(error)
     }
 
-    fn attempt(&self, download: &Download<'_>, validators: Option<&Validators>) -> Attempt {
+    fn attempt(
+        &self,
+        download: &Download<'_>,
+        current: Option<(&Validators, Option<&[u8]>)>,
+    ) -> Attempt {
         self.stats.requests.fetch_add(1, Ordering::Relaxed);
         let mut request = self.agent.get(download.url);
-        if let Some(v) = validators {
+        if let Some((v, _)) = current {
             if let Some(etag) = &v.etag {
                 request = request.header("If-None-Match", etag);
             }
@@ -288,7 +302,7 @@ impl Fetcher {
             Err(error) => return Attempt::Retry(error.to_string()),
         };
         let status = response.status().as_u16();
-        if status == 304 && validators.is_some() {
+        if status == 304 && current.is_some() {
             return Attempt::Unchanged;
         }
         if status == 429 || status >= 500 {
@@ -356,11 +370,14 @@ impl Fetcher {
                 "the body ended after {received} of {announced} bytes"
             ));
         }
-        let actual: String = digest
-            .finalize()
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect();
+        let digest = digest.finalize();
+        if current.is_some_and(|(_, held)| held == Some(&digest[..])) {
+            // The same bytes again: the file held stays as it is.
+            let _ = std::fs::remove_file(&partial);
+            write_validators(&path, &fresh);
+            return Attempt::Unchanged;
+        }
+        let actual: String = digest.iter().map(|b| format!("{b:02x}")).collect();
         if let Some(expected) = self.settings.checksums.get(download.name) {
             if !expected.eq_ignore_ascii_case(&actual) {
                 let _ = std::fs::remove_file(&partial);
@@ -448,13 +465,17 @@ pub fn is_url(text: &str) -> bool {
 
 /// The URL and file name of an SRTM cell from a template with `{lat}` (`N43`), `{lon}`
 /// (`E007`) or `{name}` (`N43E007`), e.g. `https://example.org/srtm/{lat}{lon}.hgt.zip`.
+/// The file is named after the cell, whatever the URL calls it (`N43E007.SRTMGL1.hgt.zip`,
+/// `…/N43/E007.hgt`): `N43E007.hgt.zip` when the URL names a zip file, else `N43E007.hgt`.
 pub fn srtm_download(template: &str, cell_name: &str) -> (String, String) {
     let (lat, lon) = cell_name.split_at(3.min(cell_name.len()));
     let url = template
         .replace("{name}", cell_name)
         .replace("{lat}", lat)
         .replace("{lon}", lon);
-    let name = file_name_of(&url).unwrap_or_else(|| format!("{cell_name}.hgt"));
+    let path = url.split(['?', '#']).next().unwrap_or("");
+    let zipped = path.to_ascii_lowercase().ends_with(".zip");
+    let name = format!("{cell_name}.hgt{}", if zipped { ".zip" } else { "" });
     (url, name)
 }
 
@@ -472,6 +493,11 @@ mod tests {
         assert_eq!(file_name_of("https://a.org/x/.."), None);
         let (url, name) = srtm_download("http://h/srtm/{lat}/{lat}{lon}.hgt.zip", "N43E007");
         assert_eq!(url, "http://h/srtm/N43/N43E007.hgt.zip");
+        assert_eq!(name, "N43E007.hgt.zip");
+        // Named after the cell, whatever the URL calls the file.
+        let (_, name) = srtm_download("http://h/{lat}/{lon}.hgt", "S12W071");
+        assert_eq!(name, "S12W071.hgt");
+        let (_, name) = srtm_download("http://h/{name}.SRTMGL1.hgt.ZIP?x=1", "N43E007");
         assert_eq!(name, "N43E007.hgt.zip");
     }
 }

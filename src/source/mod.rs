@@ -37,6 +37,8 @@ pub enum SourceError {
     Fetch(#[from] FetchError),
     #[error("OSM source {0} is a URL whose last path segment is not a file name")]
     UrlWithoutName(String),
+    #[error("two OSM source URLs end in the same file name {0}; downloads are kept by that name")]
+    SameFileName(String),
 }
 
 /// Why the SRTM files a tile lacks could not be had.
@@ -92,11 +94,15 @@ impl Sources {
     ) -> Result<Sources, SourceError> {
         let mut osm_paths = Vec::new();
         let mut osm_urls = Vec::new();
+        let mut osm_names = std::collections::HashMap::new();
         for entry in &config.osm {
             let text = entry.to_string_lossy();
             if fetch::is_url(&text) {
                 let name = fetch::file_name_of(&text)
                     .ok_or_else(|| SourceError::UrlWithoutName(text.to_string()))?;
+                if osm_names.insert(name.clone(), text.to_string()).is_some() {
+                    return Err(SourceError::SameFileName(name));
+                }
                 let path = fetcher.fetch(&Download {
                     url: &text,
                     name: &name,
@@ -192,8 +198,16 @@ impl Sources {
                 })
                 .and_then(|path| {
                     self.srtm.insert(cell, &path).map_err(|e| {
-                        // An unusable file is not kept: the next try downloads it again.
+                        // An unusable file is not kept, and not asked for again before the
+                        // failure memory runs out.
                         let _ = std::fs::remove_file(&path);
+                        fetcher.remember_failure(
+                            &name,
+                            FetchError::Io {
+                                path: path.clone(),
+                                message: e.to_string(),
+                            },
+                        );
                         MissingSrtm::Failed {
                             tile,
                             reason: e.to_string(),
@@ -270,15 +284,14 @@ impl Sources {
                 digest.update(b";");
             }
         }
-        for cell in Self::mosaic_cells(tile) {
+        // The files there are in the mosaic's cells (a coarse tile spans many cells, few with a
+        // file: the directory is walked, not the cells).
+        let b = tile.bounds().expanded(MOSAIC_MARGIN_DEG);
+        let lats = b.south.floor() as i32..=b.north.floor() as i32;
+        let lons = b.west.floor() as i32..=b.east.floor() as i32;
+        for (cell, version) in self.srtm.versions_in(lats, lons) {
             digest.update(cell.name().as_bytes());
-            digest.update(
-                self.srtm
-                    .version(cell)
-                    .as_deref()
-                    .unwrap_or("none")
-                    .as_bytes(),
-            );
+            digest.update(version.as_bytes());
             digest.update(b";");
         }
         digest.finalize()[..8]

@@ -452,6 +452,33 @@ impl SrtmDirectory {
         self.read().get(&cell).map(|f| f.version.clone())
     }
 
+    /// The cells with a file whose latitude and longitude are in the ranges, with the files'
+    /// versions, in order.
+    pub fn versions_in(
+        &self,
+        lats: std::ops::RangeInclusive<i32>,
+        lons: std::ops::RangeInclusive<i32>,
+    ) -> Vec<(CellId, String)> {
+        let (first, last) = (
+            CellId {
+                lat: *lats.start(),
+                lon: i32::MIN,
+            },
+            CellId {
+                lat: *lats.end(),
+                lon: i32::MAX,
+            },
+        );
+        if first > last {
+            return Vec::new();
+        }
+        self.read()
+            .range(first..=last)
+            .filter(|(cell, _)| lons.contains(&cell.lon))
+            .map(|(cell, file)| (*cell, file.version.clone()))
+            .collect()
+    }
+
     pub fn has(&self, cell: CellId) -> bool {
         self.read().contains_key(&cell)
     }
