@@ -150,7 +150,10 @@ impl Accepted {
             let mut parts = item.split(';');
             let name = parts.next().unwrap_or("").trim().to_ascii_lowercase();
             let quality = parts
-                .filter_map(|p| p.trim().strip_prefix("q="))
+                .filter_map(|p| {
+                    let (name, value) = p.split_once('=')?;
+                    name.trim().eq_ignore_ascii_case("q").then_some(value)
+                })
                 .find_map(|q| q.trim().parse::<f64>().ok())
                 .unwrap_or(1.0);
             let allowed = quality > 0.0;
@@ -227,6 +230,8 @@ mod tests {
         assert!(!none.allows(Encoding::Gzip) && !none.allows(Encoding::Brotli));
         let refused = Accepted::parse(["br;q=0, *"]);
         assert!(refused.allows(Encoding::Gzip) && !refused.allows(Encoding::Brotli));
+        let upper = Accepted::parse(["gzip;Q=0, br"]);
+        assert!(!upper.allows(Encoding::Gzip) && upper.allows(Encoding::Brotli));
         let split = Accepted::parse(["deflate", "GZIP;q=0.5"]);
         assert!(split.allows(Encoding::Gzip) && !split.allows(Encoding::Brotli));
         assert!(Accepted::parse(["identity"]).allows(Encoding::Identity));

@@ -175,6 +175,9 @@ impl TileStore for MbtilesStore {
         let mut entries = Vec::new();
         for row in rows {
             let (z, x, row, size) = row.map_err(|e| self.error(e))?;
+            if z > crate::tile::MAX_ZOOM {
+                continue;
+            }
             let Ok(y) = u32::try_from((1i64 << z) - 1 - row) else {
                 continue;
             };

@@ -188,7 +188,7 @@ impl TileCache {
     {
         let store = self.store.clone();
         let made_by = wanted.cloned().unwrap_or_default();
-        let init = async move {
+        let lookup_or_render = async move {
             let lookup = {
                 let store = store.clone();
                 tokio::task::spawn_blocking(move || {
@@ -214,6 +214,13 @@ impl TileCache {
                 loaded_from: Origin::Rendered,
                 ..made
             }))
+        };
+        // Detached: when the request that started it goes away, the render it paid a slot for
+        // still ends in the store.
+        let init = async move {
+            tokio::spawn(lookup_or_render)
+                .await
+                .map_err(|e| CacheError::Panicked(panic_message(e)))?
         };
         let entry = self.memory.entry(key).or_try_insert_with(init).await?;
         let origin = if entry.is_fresh() {

@@ -176,11 +176,15 @@ impl SqliteStore {
     }
 }
 
-/// The SQL condition and parameters that select a filter's tiles.
-fn filter_sql(filter: &TileFilter) -> (String, Vec<i64>) {
+/// Tiles named in one SQL condition; a longer list is split, to stay far from SQLite's limits
+/// on expression depth and parameters.
+const TILES_PER_CONDITION: usize = 200;
+
+/// SQL conditions, with their parameters, that together select a filter's tiles.
+fn filter_sql(filter: &TileFilter) -> Vec<(String, Vec<i64>)> {
     match filter {
-        TileFilter::All => ("1".to_string(), Vec::new()),
-        TileFilter::Range(range) => (
+        TileFilter::All => vec![("1".to_string(), Vec::new())],
+        TileFilter::Range(range) => vec![(
             "z = ? AND x BETWEEN ? AND ? AND y BETWEEN ? AND ?".to_string(),
             vec![
                 i64::from(range.z),
@@ -189,16 +193,18 @@ fn filter_sql(filter: &TileFilter) -> (String, Vec<i64>) {
                 i64::from(range.min_y),
                 i64::from(range.max_y),
             ],
-        ),
-        TileFilter::Tiles(tiles) if tiles.is_empty() => ("0".to_string(), Vec::new()),
-        TileFilter::Tiles(tiles) => {
-            let condition = vec!["(z = ? AND x = ? AND y = ?)"; tiles.len()].join(" OR ");
-            let values = tiles
-                .iter()
-                .flat_map(|t| [i64::from(t.z), i64::from(t.x), i64::from(t.y)])
-                .collect();
-            (condition, values)
-        }
+        )],
+        TileFilter::Tiles(tiles) => tiles
+            .chunks(TILES_PER_CONDITION)
+            .map(|chunk| {
+                let condition = vec!["(z = ? AND x = ? AND y = ?)"; chunk.len()].join(" OR ");
+                let values = chunk
+                    .iter()
+                    .flat_map(|t| [i64::from(t.z), i64::from(t.x), i64::from(t.y)])
+                    .collect();
+                (condition, values)
+            })
+            .collect(),
     }
 }
 
@@ -242,7 +248,12 @@ impl TileStore for SqliteStore {
             Err(error) => {
                 // A damaged row is dropped and made again rather than served.
                 tracing::warn!(tile = %key.tile, format = key.format.as_str(), %error, "dropping a damaged cached tile");
-                self.remove(&TileFilter::Tiles(vec![key.tile]))?;
+                self.connection()
+                    .execute(
+                        "DELETE FROM tiles WHERE z = ?1 AND x = ?2 AND y = ?3 AND format = ?4",
+                        params![key.tile.z, key.tile.x, key.tile.y, key.format.as_str()],
+                    )
+                    .map_err(|e| self.error(e))?;
                 return Ok(None);
             }
         };
@@ -259,7 +270,7 @@ impl TileStore for SqliteStore {
         let mut connection = self.connection();
         let transaction = connection.transaction().map_err(|e| self.error(e))?;
         // An upsert, not a replace: the usage triggers see one update, not a delete and an
-        // insert.
+        // insert. A tile made again keeps the time it was last served.
         transaction
             .execute(
                 "INSERT INTO tiles
@@ -270,7 +281,7 @@ impl TileStore for SqliteStore {
                    pipeline = excluded.pipeline, data = excluded.data, etag = excluded.etag,
                    created_at = excluded.created_at, encoding = excluded.encoding,
                    data_br = excluded.data_br, sources = excluded.sources,
-                   size = excluded.size, accessed_at = excluded.accessed_at",
+                   size = excluded.size",
                 params![
                     key.tile.z,
                     key.tile.x,
@@ -325,61 +336,82 @@ impl TileStore for SqliteStore {
     }
 
     fn remove(&self, filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
-        let removed: Vec<TileKey> = self
-            .list(filter)?
-            .into_iter()
-            .map(|entry| entry.key)
-            .collect();
-        let (condition, values) = filter_sql(filter);
-        self.connection()
-            .execute(
-                &format!("DELETE FROM tiles WHERE {condition}"),
-                rusqlite::params_from_iter(values),
-            )
-            .map_err(|e| self.error(e))?;
+        let mut connection = self.connection();
+        let transaction = connection.transaction().map_err(|e| self.error(e))?;
+        let mut removed = Vec::new();
+        for (condition, values) in filter_sql(filter) {
+            let mut statement = transaction
+                .prepare(&format!(
+                    "DELETE FROM tiles WHERE {condition} RETURNING z, x, y, format"
+                ))
+                .map_err(|e| self.error(e))?;
+            let rows = statement
+                .query_map(rusqlite::params_from_iter(values), |row| {
+                    Ok((
+                        TileId {
+                            z: row.get(0)?,
+                            x: row.get(1)?,
+                            y: row.get(2)?,
+                        },
+                        row.get::<_, String>(3)?,
+                    ))
+                })
+                .map_err(|e| self.error(e))?;
+            for row in rows {
+                let (tile, format) = row.map_err(|e| self.error(e))?;
+                if let Some(format) = Format::from_name(&format) {
+                    removed.push(TileKey { tile, format });
+                }
+            }
+        }
+        transaction.commit().map_err(|e| self.error(e))?;
+        removed.sort();
         Ok(removed)
     }
 
     fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
-        let (condition, values) = filter_sql(filter);
         let connection = self.connection();
-        let mut statement = connection
-            .prepare(&format!(
-                "SELECT z, x, y, format, pipeline, sources, size, accessed_at FROM tiles
-                 WHERE {condition} ORDER BY accessed_at DESC, z, x, y"
-            ))
-            .map_err(|e| self.error(e))?;
-        let rows = statement
-            .query_map(rusqlite::params_from_iter(values), |row| {
-                Ok((
-                    TileId {
-                        z: row.get(0)?,
-                        x: row.get(1)?,
-                        y: row.get(2)?,
-                    },
-                    row.get::<_, String>(3)?,
-                    Provenance {
-                        pipeline: row.get(4)?,
-                        sources: row.get(5)?,
-                    },
-                    row.get::<_, i64>(6)?,
-                    row.get::<_, i64>(7)?,
-                ))
-            })
-            .map_err(|e| self.error(e))?;
         let mut entries = Vec::new();
-        for row in rows {
-            let (tile, format, made_by, size, accessed_at) = row.map_err(|e| self.error(e))?;
-            // Rows of a format this program does not know are left alone.
-            if let Some(format) = Format::from_name(&format) {
-                entries.push(StoredEntry {
-                    key: TileKey { tile, format },
-                    made_by,
-                    size: size.max(0) as u64,
-                    accessed_at,
-                });
+        for (condition, values) in filter_sql(filter) {
+            let mut statement = connection
+                .prepare(&format!(
+                    "SELECT z, x, y, format, pipeline, sources, size, accessed_at FROM tiles
+                     WHERE {condition}"
+                ))
+                .map_err(|e| self.error(e))?;
+            let rows = statement
+                .query_map(rusqlite::params_from_iter(values), |row| {
+                    Ok((
+                        TileId {
+                            z: row.get(0)?,
+                            x: row.get(1)?,
+                            y: row.get(2)?,
+                        },
+                        row.get::<_, String>(3)?,
+                        Provenance {
+                            pipeline: row.get(4)?,
+                            sources: row.get(5)?,
+                        },
+                        row.get::<_, i64>(6)?,
+                        row.get::<_, i64>(7)?,
+                    ))
+                })
+                .map_err(|e| self.error(e))?;
+            for row in rows {
+                let (tile, format, made_by, size, accessed_at) = row.map_err(|e| self.error(e))?;
+                // Rows of a format this program does not know are left alone.
+                if let Some(format) = Format::from_name(&format) {
+                    entries.push(StoredEntry {
+                        key: TileKey { tile, format },
+                        made_by,
+                        size: size.max(0) as u64,
+                        accessed_at,
+                    });
+                }
             }
         }
+        // Most recently served first.
+        entries.sort_by(|a, b| b.accessed_at.cmp(&a.accessed_at).then(a.key.cmp(&b.key)));
         Ok(entries)
     }
 
@@ -521,6 +553,34 @@ mod tests {
         let listed = TileFilter::Tiles(vec![key(4).tile, key(9).tile]);
         assert_eq!(store.remove(&listed).unwrap(), vec![key(4)]);
         assert_eq!(store.usage().unwrap().tiles, 3);
+    }
+
+    #[test]
+    fn a_long_list_of_tiles_is_listed_and_removed_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = SqliteStore::open(&dir.path().join("t.sqlite"), None).unwrap();
+        for x in 0..1500 {
+            store.put(&key(x), &tile(vec![1; 10], "v", 1)).unwrap();
+        }
+        let every: Vec<TileId> = (0..1500).map(|x| key(x).tile).collect();
+        assert_eq!(
+            store.list(&TileFilter::Tiles(every.clone())).unwrap().len(),
+            1500
+        );
+        assert_eq!(store.remove(&TileFilter::Tiles(every)).unwrap().len(), 1500);
+        assert_eq!(store.usage().unwrap().tiles, 0);
+    }
+
+    #[test]
+    fn a_tile_made_again_keeps_the_time_it_was_last_served() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = SqliteStore::open(&dir.path().join("t.sqlite"), None).unwrap();
+        store.put(&key(1), &tile(vec![1; 10], "v1", 100)).unwrap();
+        store.touch(&[key(1)], 150).unwrap();
+        store.put(&key(1), &tile(vec![2; 10], "v2", 900)).unwrap();
+        let entry = &store.list(&TileFilter::All).unwrap()[0];
+        assert_eq!(entry.accessed_at, 150);
+        assert_eq!(entry.made_by.pipeline, "v2");
     }
 
     #[test]
