@@ -48,7 +48,8 @@ async fn wait_for_metric(server: &TestServer, name: &str, at_least: f64) {
 }
 
 /// Every client gets the smallest coding it accepts, each coding with its own strong validator,
-/// all decoding to the same tile; a validator of any coding makes a `304`.
+/// all decoding to the same tile; the validator of the coding a request would get makes a `304`,
+/// another coding's does not.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn codings_are_negotiated_and_each_has_its_own_validator() {
     let dir = tempfile::tempdir().unwrap();
@@ -108,15 +109,20 @@ async fn codings_are_negotiated_and_each_has_its_own_validator() {
     );
     let distinct: std::collections::BTreeSet<&String> = etags[..3].iter().collect();
     assert_eq!(distinct.len(), 3, "{etags:?}");
-    for etag in &etags[..3] {
-        for accept in ["", "gzip, br"] {
+    for (held, etag) in etags[..3].iter().enumerate() {
+        for (asked, accept) in ["", "gzip", "br"].iter().enumerate() {
             let response = get_with(
                 &server,
                 path,
                 &[("if-none-match", etag), ("accept-encoding", accept)],
             )
             .await;
-            assert_eq!(response.status(), 304, "{etag} / {accept}");
+            let expected = if held == asked { 304 } else { 200 };
+            assert_eq!(response.status(), expected, "{etag} / {accept}");
+            if expected == 304 {
+                assert_eq!(response.headers()["etag"], etag.as_str());
+            }
+            let _ = response.bytes().await;
         }
     }
     server.stop().await;
@@ -211,6 +217,15 @@ async fn a_render_past_its_time_limit_is_stopped_with_a_503() {
         1.0
     );
     assert_eq!(server.state.cache.store().usage().unwrap().tiles, 0);
+    // Asked again, the tile is not tried again: the same error, at once.
+    let again = get_with(&server, "/tiles/14/8529/5973.glb", &[]).await;
+    assert_eq!(again.status(), 503);
+    let body = again.text().await.unwrap();
+    assert!(
+        body.contains("longer than its limit") && body.contains("not tried again"),
+        "{body}"
+    );
+    assert_eq!(server.metric("terrastitch_renders_total").await, 1.0);
     server.stop().await;
 }
 

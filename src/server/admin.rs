@@ -107,6 +107,8 @@ pub async fn regenerate(
 ) -> Result<(StatusCode, Json<Value>), ApiError> {
     authorize(&state, &headers)?;
     let filter = selection(&body)?.filter(state.zoom)?;
+    // Tiles that failed lately may be tried again at once.
+    state.failed_renders.invalidate_all();
     let queued = queue_stored(&state, filter, false)
         .await
         .map_err(ApiError::internal)?;
@@ -124,6 +126,8 @@ pub async fn purge(
 ) -> Result<Json<Value>, ApiError> {
     authorize(&state, &headers)?;
     let filter = selection(&body)?.filter(state.zoom)?;
+    let unqueued = state.regenerator.forget(&filter);
+    state.failed_renders.invalidate_all();
     let store = state.cache.store().clone();
     let all = filter == TileFilter::All;
     let removed = tokio::task::spawn_blocking(move || store.remove(&filter))
@@ -135,7 +139,7 @@ pub async fn purge(
     } else {
         state.cache.forget(&removed).await;
     }
-    tracing::info!(removed = removed.len(), "tiles purged");
+    tracing::info!(removed = removed.len(), unqueued, "tiles purged");
     Ok(Json(json!({ "removed": removed.len() })))
 }
 

@@ -70,7 +70,19 @@ pub struct AppState {
     pub fetcher: Arc<Fetcher>,
     /// When the server serves an exported file instead of rendering: what it holds.
     pub archive: Option<Arc<Archive>>,
+    /// Requests that may wait at once for a source download on a blocking thread; the others
+    /// wait for a turn without holding one.
+    pub download_waits: Arc<tokio::sync::Semaphore>,
+    /// Tiles whose render failed or ran out of time lately, with the error (status, message).
+    pub failed_renders: moka::sync::Cache<crate::cache::TileKey, (StatusCode, Arc<str>)>,
 }
+
+/// Requests that may wait at once for a source download.
+const DOWNLOAD_WAITS: usize = 32;
+
+/// How long a tile whose render failed or ran out of time is answered with that error before
+/// it is tried again, so retries of one bad tile cannot hold the render slots.
+pub const FAILED_RENDER_MEMORY: Duration = Duration::from_secs(600);
 
 /// An exported MBTiles file served as it is, without sources.
 #[derive(Debug, Clone)]
@@ -121,6 +133,11 @@ impl AppState {
             source_config: None,
             fetcher: Arc::new(Fetcher::new(SourcesConfig::default().fetch_settings())),
             archive: None,
+            download_waits: Arc::new(tokio::sync::Semaphore::new(DOWNLOAD_WAITS)),
+            failed_renders: moka::sync::Cache::builder()
+                .max_capacity(100_000)
+                .time_to_live(FAILED_RENDER_MEMORY)
+                .build(),
         }
     }
 

@@ -100,6 +100,11 @@ impl RenderPool {
         }
         slots.free -= 1;
         slots.running += 1;
+        if slots.free > 0 {
+            // A background waiter woken with this request found it waiting and slept again;
+            // a slot is still free for it.
+            self.freed.notify_all();
+        }
         Ok(Slot {
             pool: self,
             background: false,

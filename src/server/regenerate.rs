@@ -67,6 +67,22 @@ impl Regenerator {
         added
     }
 
+    /// Takes the tiles `filter` selects out of the line (those being made finish, but are not
+    /// stored if they were removed meanwhile); returns how many.
+    pub fn forget(&self, filter: &TileFilter) -> usize {
+        let mut queue = self.lock();
+        let before = queue.order.len();
+        let Queue { order, held } = &mut *queue;
+        order.retain(|job| {
+            let keep = !filter.matches(job.key.tile);
+            if !keep {
+                held.remove(&job.key);
+            }
+            keep
+        });
+        before - queue.order.len()
+    }
+
     /// Tiles in line or being made.
     pub fn len(&self) -> usize {
         self.lock().held.len()
@@ -117,6 +133,17 @@ async fn remake(state: &AppState, job: Job) {
                 return;
             }
         }
+    }
+    // A tile purged since it was queued is not brought back.
+    let store = state.cache.store().clone();
+    let still_stored = tokio::task::spawn_blocking(move || {
+        store
+            .list(&TileFilter::Tiles(vec![key.tile]))
+            .map(|entries| entries.iter().any(|e| e.key == key))
+    })
+    .await;
+    if !matches!(still_stored, Ok(Ok(true))) {
+        return;
     }
     let render = render_job(state, sources, key, Priority::Background);
     match state.cache.remake(key, wanted, render).await {

@@ -88,16 +88,25 @@ pub async fn tile(
     if !overview {
         // Overview tiles cover whatever they cover: sea level where there is no data.
         if sources.check_coverage(tile).is_err() && sources.can_fetch_srtm() {
-            let fetching = sources.clone();
-            tokio::task::spawn_blocking(move || fetching.fetch_missing_srtm(tile))
+            // Waiting for a download holds a blocking thread: only so many wait there; the
+            // others wait here, on the executor, holding nothing.
+            let permit = state
+                .download_waits
+                .clone()
+                .acquire_owned()
                 .await
-                .map_err(|e| ApiError::internal(e.to_string()))?
-                .map_err(|e| match e {
-                    MissingSrtm::NotFound { .. } => ApiError::not_found(e.to_string()),
-                    MissingSrtm::Failed { .. } => {
-                        ApiError::new(StatusCode::BAD_GATEWAY, e.to_string())
-                    }
-                })?;
+                .map_err(|_| ApiError::unavailable("the server is shutting down", RETRY_AFTER_S))?;
+            let fetching = sources.clone();
+            tokio::task::spawn_blocking(move || {
+                let _permit = permit;
+                fetching.fetch_missing_srtm(tile)
+            })
+            .await
+            .map_err(|e| ApiError::internal(e.to_string()))?
+            .map_err(|e| match e {
+                MissingSrtm::NotFound { .. } => ApiError::not_found(e.to_string()),
+                MissingSrtm::Failed { .. } => ApiError::new(StatusCode::BAD_GATEWAY, e.to_string()),
+            })?;
         }
         sources
             .check_coverage(tile)
@@ -105,13 +114,33 @@ pub async fn tile(
     }
 
     let key = TileKey { tile, format };
+    if let Some((status, message)) = state.failed_renders.get(&key) {
+        return Err(ApiError {
+            retry_after: Some(super::FAILED_RENDER_MEMORY.as_secs()),
+            ..ApiError::new(
+                status,
+                format!("{message} (not tried again for a while after it failed)"),
+            )
+        });
+    }
     let wanted = provenance(&state, &sources, tile);
     let render = render_job(&state, sources.clone(), key, Priority::Request);
     let served = state
         .cache
         .get_or_render(key, Some(&wanted), render)
         .await
-        .map_err(|e| failure_response(&state, tile, &e))?;
+        .map_err(|e| {
+            let error = failure_response(&state, tile, &e);
+            if matches!(
+                &*e,
+                CacheError::Render(RenderFailure::TimedOut(_) | RenderFailure::Failed(_))
+            ) {
+                state
+                    .failed_renders
+                    .insert(key, (error.status, error.message.as_str().into()));
+            }
+            error
+        })?;
     match served.origin {
         Origin::Memory => Metrics::count(&state.metrics.hits_memory),
         Origin::Store => Metrics::count(&state.metrics.hits_store),
@@ -202,12 +231,13 @@ fn respond(state: &AppState, key: TileKey, served: &Served, request: &HeaderMap)
     if let Some(cache_control) = &state.cache_control {
         headers.insert(header::CACHE_CONTROL, cache_control.clone());
     }
-    // A client that holds this tile, in any coding, gets a `304` without the body.
+    // A client that holds this tile in the coding it would get now receives a `304` without
+    // the body (with the validator it holds, as RFC 9111 §4.3.4 needs to match it).
     if request
         .get_all(header::IF_NONE_MATCH)
         .iter()
         .filter_map(|v| v.to_str().ok())
-        .any(|v| matches_etag(v, &tile.etag))
+        .any(|v| matches_etag(v, &etag))
     {
         return (StatusCode::NOT_MODIFIED, headers).into_response();
     }
@@ -251,15 +281,13 @@ fn coded_etag(etag: &str, coding: Encoding) -> String {
     }
 }
 
-/// True when an `If-None-Match` value names the tile whose identity validator is `etag`, in
-/// any coding (or is `*`): a comma-separated list of entity tags, compared weakly as RFC 9110
-/// asks (a `W/` prefix is ignored).
+/// True when an `If-None-Match` value names `etag` (or is `*`): a comma-separated list of
+/// entity tags, compared weakly as RFC 9110 asks (a `W/` prefix is ignored).
 fn matches_etag(if_none_match: &str, etag: &str) -> bool {
     let bare = |tag: &str| tag.trim().trim_start_matches("W/").to_string();
-    let forms = [Encoding::Identity, Encoding::Gzip, Encoding::Brotli].map(|c| coded_etag(etag, c));
     if_none_match
         .split(',')
-        .any(|tag| tag.trim() == "*" || forms.iter().any(|form| bare(tag) == *form))
+        .any(|tag| tag.trim() == "*" || bare(tag) == etag)
 }
 
 /// Who a render is for.
