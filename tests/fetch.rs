@@ -410,3 +410,46 @@ async fn an_extract_published_anew_at_its_url_is_fetched_and_its_tiles_made_agai
     assert_ne!(fresh.bytes().await.unwrap(), first);
     server.stop().await;
 }
+
+/// The source check notices local files that changed: a new SRTM file far away reloads the
+/// sources but leaves the tile fresh; its own SRTM file rewritten makes it stale.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn a_changed_local_file_makes_stale_only_the_tiles_it_reaches() {
+    let dir = tempfile::tempdir().unwrap();
+    let srtm = dir.path().join("srtm");
+    std::fs::create_dir_all(&srtm).unwrap();
+    std::fs::copy(repo().join("data/N43E007.hgt"), srtm.join("N43E007.hgt")).unwrap();
+    let mut sources = config(dir.path(), String::new());
+    sources.srtm = srtm.clone();
+    let server = server(dir.path(), sources.clone()).await;
+    let first = reqwest::get(server.url(TILE)).await.unwrap();
+    assert_eq!(first.headers()["x-cache"], "miss");
+    let _ = first.bytes().await;
+    let check = || terrastitch::server::regenerate::check_sources(&server.state, &sources);
+    assert_eq!(check().await.unwrap(), 0);
+
+    std::fs::copy(
+        repo().join("tests/data/N48E009.hgt"),
+        srtm.join("N48E009.hgt"),
+    )
+    .unwrap();
+    assert_eq!(
+        check().await.unwrap(),
+        0,
+        "a file far from the tile stales nothing"
+    );
+    assert_eq!(server.state.sources().unwrap().srtm.cells().len(), 2);
+    let fresh = reqwest::get(server.url(TILE)).await.unwrap();
+    assert_eq!(fresh.headers()["x-cache"], "hit");
+    let _ = fresh.bytes().await;
+
+    let bytes = std::fs::read(srtm.join("N43E007.hgt")).unwrap();
+    std::fs::remove_file(srtm.join("N43E007.hgt")).unwrap();
+    tokio::time::sleep(Duration::from_millis(20)).await;
+    std::fs::write(srtm.join("N43E007.hgt"), bytes).unwrap();
+    assert_eq!(check().await.unwrap(), 1);
+    let stale = reqwest::get(server.url(TILE)).await.unwrap();
+    assert_eq!(stale.headers()["x-cache"], "stale");
+    let _ = stale.bytes().await;
+    server.stop().await;
+}
