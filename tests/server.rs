@@ -401,6 +401,14 @@ async fn metrics_count_routes_and_stages_and_responses_carry_request_ids() {
     let generated = tile.headers()["x-request-id"].to_str().unwrap().to_string();
     assert!(!generated.is_empty());
     let _ = tile.bytes().await;
+    let wrong_method = reqwest::Client::new()
+        .delete(server.url("/tiles/14/8527/5974.glb"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(wrong_method.status(), 405);
+    let json: serde_json::Value = wrong_method.json().await.unwrap();
+    assert!(json["error"].as_str().unwrap().contains("DELETE"), "{json}");
     let echoed = get_with(&server, "/nowhere", &[("x-request-id", "client-chosen-42")]).await;
     assert_eq!(echoed.status(), 404);
     assert_eq!(echoed.headers()["x-request-id"], "client-chosen-42");

@@ -202,6 +202,7 @@ pub fn router(state: AppState) -> Router {
         .route("/admin/regenerate", post(admin::regenerate))
         .route("/admin/purge", post(admin::purge))
         .fallback(not_found)
+        .method_not_allowed_fallback(method_not_allowed)
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),
             count_response,
@@ -348,6 +349,13 @@ async fn metrics(State(state): State<AppState>) -> impl IntoResponse {
         state
             .metrics
             .render_text(state.pool_gauges(), &state.fetcher.stats),
+    )
+}
+
+async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) -> ApiError {
+    ApiError::new(
+        StatusCode::METHOD_NOT_ALLOWED,
+        format!("{method} is not allowed on {}", uri.path()),
     )
 }
 
