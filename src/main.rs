@@ -456,54 +456,33 @@ fn seed_area(
     Ok(report)
 }
 
-fn with_cache(mut config: Config, cache: &Option<PathBuf>) -> Config {
-    if let Some(cache) = cache {
+/// Opens the sources and the store (the cache named on the command line, if one is) and makes
+/// this shard of the area's tiles the store lacks; an error if any could not be made.
+fn seed_into_store(
+    mut config: Config,
+    area: &AreaArgs,
+    shard: seed::Shard,
+) -> Result<(Config, Sources, SqliteStore)> {
+    if let Some(cache) = &area.cache {
         config.cache.path = cache.clone();
     }
-    config
-}
-
-fn seed(args: SeedArgs, config: Config) -> Result<()> {
-    let config = with_cache(config, &args.area.cache);
-    let sources = open_sources(
-        &config,
-        Arc::new(Fetcher::new(config.sources.fetch_settings())),
-    )?;
+    let fetcher = Arc::new(Fetcher::new(config.sources.fetch_settings()));
+    let sources = open_sources(&config, fetcher)?;
     let store = open_store(&config)?;
-    let report = seed_area(
-        &args.area,
-        &config,
-        &sources,
-        &store,
-        args.shard.unwrap_or_default(),
-    )?;
+    let report = seed_area(area, &config, &sources, &store, shard)?;
     if !report.failed.is_empty() {
         anyhow::bail!("{} tiles could not be made", report.failed.len());
     }
-    Ok(())
+    Ok((config, sources, store))
+}
+
+fn seed(args: SeedArgs, config: Config) -> Result<()> {
+    seed_into_store(config, &args.area, args.shard.unwrap_or_default()).map(|_| ())
 }
 
 fn export(args: ExportArgs, config: Config) -> Result<()> {
-    let config = with_cache(config, &args.area.cache);
-    let sources = open_sources(
-        &config,
-        Arc::new(Fetcher::new(config.sources.fetch_settings())),
-    )?;
-    let store = open_store(&config)?;
-    // Whatever the cache lacks is made first.
-    let report = seed_area(
-        &args.area,
-        &config,
-        &sources,
-        &store,
-        seed::Shard::default(),
-    )?;
-    if !report.failed.is_empty() {
-        anyhow::bail!(
-            "{} tiles could not be made; nothing exported",
-            report.failed.len()
-        );
-    }
+    // Whatever the cache lacks is made first; nothing is exported if a tile fails.
+    let (config, sources, store) = seed_into_store(config, &args.area, seed::Shard::default())?;
     let range = TileRange::covering(config.server.zoom, &args.area.bbox);
     let formats = formats(&args.area.formats)?;
     let keys: Vec<_> = range

@@ -208,6 +208,15 @@ fn filter_sql(filter: &TileFilter) -> Vec<(String, Vec<i64>)> {
     }
 }
 
+/// The tile of a row whose first three columns are `z`, `x`, `y`.
+fn tile_of(row: &rusqlite::Row<'_>) -> rusqlite::Result<TileId> {
+    Ok(TileId {
+        z: row.get(0)?,
+        x: row.get(1)?,
+        y: row.get(2)?,
+    })
+}
+
 impl TileStore for SqliteStore {
     fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError> {
         type Row = (
@@ -347,14 +356,7 @@ impl TileStore for SqliteStore {
                 .map_err(|e| self.error(e))?;
             let rows = statement
                 .query_map(rusqlite::params_from_iter(values), |row| {
-                    Ok((
-                        TileId {
-                            z: row.get(0)?,
-                            x: row.get(1)?,
-                            y: row.get(2)?,
-                        },
-                        row.get::<_, String>(3)?,
-                    ))
+                    Ok((tile_of(row)?, row.get::<_, String>(3)?))
                 })
                 .map_err(|e| self.error(e))?;
             for row in rows {
@@ -382,11 +384,7 @@ impl TileStore for SqliteStore {
             let rows = statement
                 .query_map(rusqlite::params_from_iter(values), |row| {
                     Ok((
-                        TileId {
-                            z: row.get(0)?,
-                            x: row.get(1)?,
-                            y: row.get(2)?,
-                        },
+                        tile_of(row)?,
                         row.get::<_, String>(3)?,
                         Provenance {
                             pipeline: row.get(4)?,
