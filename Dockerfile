@@ -14,6 +14,12 @@ COPY migrations ./migrations
 COPY config ./config
 RUN cargo build --release --locked
 
+# The viewer's libraries, from npm with the lock file (what `make run` copies into static/vendor).
+FROM node:20-bookworm-slim AS viewer
+WORKDIR /viewer
+COPY viewer/package.json viewer/package-lock.json ./
+RUN npm ci --no-audit --no-fund
+
 FROM debian:bookworm-slim
 RUN apt-get update \
  && apt-get install -y --no-install-recommends ca-certificates curl \
@@ -24,6 +30,10 @@ RUN apt-get update \
 WORKDIR /srv/terrastitch
 COPY --from=build /src/target/release/terrastitch /usr/local/bin/terrastitch
 COPY config ./config
+COPY static ./static
+COPY --from=viewer /viewer/node_modules/three/build ./static/vendor/three/build
+COPY --from=viewer /viewer/node_modules/three/examples/jsm ./static/vendor/three/examples/jsm
+COPY --from=viewer /viewer/node_modules/three/LICENSE ./static/vendor/three/LICENSE
 # The sample; downloads (sources.downloads = data/downloads) go into the same volume.
 COPY --chown=terrastitch data ./data
 ENV TERRASTITCH_SERVER__LISTEN=0.0.0.0:8080 \

@@ -6,10 +6,25 @@ NPM ?= npm
 
 .PHONY: run test lint bench bench-terrain bench-roofs bench-elevation clean-cache
 
-run:
+run: static/vendor/.installed
 	$(CARGO) run --release -- serve
 
-test: tests/js/node_modules/.installed tests/py/.venv/.installed lint
+# The viewer's libraries (three.js), pinned by the lock file and copied next to the page:
+# nothing is fetched from a CDN when the page loads.
+static/vendor/.installed: viewer/package.json viewer/package-lock.json
+	cd viewer && $(NPM) ci --no-audit --no-fund
+	rm -rf static/vendor && mkdir -p static/vendor/three/examples
+	cp -r viewer/node_modules/three/build static/vendor/three/build
+	cp -r viewer/node_modules/three/examples/jsm static/vendor/three/examples/jsm
+	cp viewer/node_modules/three/LICENSE static/vendor/three/LICENSE
+	touch $@
+
+# Chromium for the tests in a real browser (Debian's package), unless one is installed.
+tests/.chromium:
+	command -v chromium >/dev/null || (apt-get update && apt-get install -y --no-install-recommends chromium)
+	touch $@
+
+test: tests/js/node_modules/.installed tests/py/.venv/.installed static/vendor/.installed tests/.chromium lint
 	TERRASTITCH_PYTHON=$(CURDIR)/tests/py/.venv/bin/python $(CARGO) test --release
 
 lint:

@@ -49,6 +49,8 @@ pub struct ServerConfig {
     pub background_renders: usize,
     /// Seconds between checks of the sources for new versions (0: never).
     pub check_interval_s: u64,
+    /// Directory of the viewer's files, served at `/`.
+    pub static_dir: PathBuf,
 }
 
 impl Default for ServerConfig {
@@ -64,6 +66,7 @@ impl Default for ServerConfig {
             admin_token: String::new(),
             background_renders: 1,
             check_interval_s: 300,
+            static_dir: PathBuf::from("static"),
         }
     }
 }

@@ -73,6 +73,8 @@ pub struct AppState {
     /// Requests that may wait at once for a source download on a blocking thread; the others
     /// wait for a turn without holding one.
     pub download_waits: Arc<tokio::sync::Semaphore>,
+    /// The viewer's files, served at `/`.
+    pub static_dir: std::path::PathBuf,
     /// Tiles whose render failed or ran out of time lately, with the error (status, message).
     pub failed_renders: moka::sync::Cache<crate::cache::TileKey, (StatusCode, Arc<str>)>,
 }
@@ -134,6 +136,7 @@ impl AppState {
             fetcher: Arc::new(Fetcher::new(SourcesConfig::default().fetch_settings())),
             archive: None,
             download_waits: Arc::new(tokio::sync::Semaphore::new(DOWNLOAD_WAITS)),
+            static_dir: server.static_dir.clone(),
             failed_renders: moka::sync::Cache::builder()
                 .max_capacity(100_000)
                 .time_to_live(FAILED_RENDER_MEMORY)
@@ -201,7 +204,14 @@ pub fn router(state: AppState) -> Router {
         .route("/metrics", get(metrics))
         .route("/admin/regenerate", post(admin::regenerate))
         .route("/admin/purge", post(admin::purge))
-        .fallback(not_found)
+        // Anything else is a file of the viewer, or a JSON 404.
+        .fallback_service(
+            tower_http::services::ServeDir::new(&state.static_dir)
+                .append_index_html_on_directories(true)
+                .not_found_service(axum::handler::HandlerWithoutStateExt::into_service(
+                    not_found,
+                )),
+        )
         .method_not_allowed_fallback(method_not_allowed)
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),

@@ -1,0 +1,624 @@
+// The terrastitch viewer: streams the zoom-14 glb tiles around the camera and places each by
+// translation in one shared Web Mercator frame, where neighbours meet exactly.
+//
+// World frame: x east and z south in Web Mercator metres from the north-west corner of the
+// origin tile, y up (elevation times the Mercator scale factor, as in the tiles).
+
+import * as THREE from 'three';
+import { MapControls } from 'three/addons/controls/MapControls.js';
+import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
+import { Sky } from 'three/addons/objects/Sky.js';
+
+const ZOOM = 14;
+const EARTH_CIRCUMFERENCE_M = 40075016.68557849;
+const TILE_M = EARTH_CIRCUMFERENCE_M / 2 ** ZOOM;
+const TILES_PER_AXIS = 2 ** ZOOM;
+/** Monte-Carlo, in the bundled sample. */
+const START = { lat: 43.7396, lon: 7.4255, distance: 1800, heading: 20, tilt: 50 };
+/** Tiles kept loaded; the least recently wanted beyond this are dropped and their GPU memory freed. */
+const MAX_LOADED = 36;
+/** Tile requests in flight at once. */
+const MAX_FETCHES = 4;
+
+// ---------------------------------------------------------------------------------------
+// Coordinates
+
+function lonLatToUV(lon, lat) {
+  const phi = (lat * Math.PI) / 180;
+  const u = ((lon + 180) / 360) * TILES_PER_AXIS;
+  const v = ((1 - Math.log(Math.tan(phi) + 1 / Math.cos(phi)) / Math.PI) / 2) * TILES_PER_AXIS;
+  return [u, v];
+}
+
+function uvToLonLat(u, v) {
+  const lon = (u / TILES_PER_AXIS) * 360 - 180;
+  const n = Math.PI - (2 * Math.PI * v) / TILES_PER_AXIS;
+  const lat = (180 / Math.PI) * Math.atan(Math.sinh(n));
+  return [lon, lat];
+}
+
+/** The origin tile: the world frame's (0, 0) is its north-west corner. */
+const origin = (() => {
+  const view = parseHash() || START;
+  const [u, v] = lonLatToUV(view.lon, view.lat);
+  return { x: Math.floor(u), y: Math.floor(v) };
+})();
+
+function worldFromLonLat(lon, lat, elevation = 0) {
+  const [u, v] = lonLatToUV(lon, lat);
+  const scale = 1 / Math.cos((lat * Math.PI) / 180);
+  return new THREE.Vector3((u - origin.x) * TILE_M, elevation * scale, (v - origin.y) * TILE_M);
+}
+
+function lonLatFromWorld(p) {
+  return uvToLonLat(p.x / TILE_M + origin.x, p.z / TILE_M + origin.y);
+}
+
+// ---------------------------------------------------------------------------------------
+// Scene
+
+const container = document.getElementById('map');
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+renderer.setSize(container.clientWidth, container.clientHeight);
+renderer.toneMapping = THREE.ACESFilmicToneMapping;
+renderer.toneMappingExposure = 0.6;
+container.appendChild(renderer.domElement);
+
+const scene = new THREE.Scene();
+scene.fog = new THREE.Fog(0xc9d6e3, 6000, 16000);
+const camera = new THREE.PerspectiveCamera(45, container.clientWidth / container.clientHeight, 2, 60000);
+
+const sunDirection = new THREE.Vector3();
+{
+  const elevation = THREE.MathUtils.degToRad(40);
+  const azimuth = THREE.MathUtils.degToRad(210);
+  sunDirection.setFromSphericalCoords(1, Math.PI / 2 - elevation, azimuth);
+  const sky = new Sky();
+  sky.scale.setScalar(100000);
+  const uniforms = sky.material.uniforms;
+  uniforms.turbidity.value = 6;
+  uniforms.rayleigh.value = 1.2;
+  uniforms.sunPosition.value.copy(sunDirection);
+  scene.add(sky);
+  const sun = new THREE.DirectionalLight(0xfff4e0, 2.4);
+  sun.position.copy(sunDirection).multiplyScalar(1000);
+  scene.add(sun);
+  scene.add(new THREE.HemisphereLight(0xbfd6ff, 0x6b5e4a, 1.1));
+}
+
+const controls = new MapControls(camera, renderer.domElement);
+controls.enableDamping = true;
+controls.dampingFactor = 0.12;
+controls.screenSpacePanning = false;
+controls.maxPolarAngle = THREE.MathUtils.degToRad(85);
+controls.minDistance = 30;
+controls.maxDistance = 12000;
+
+function setView(view) {
+  const target = worldFromLonLat(view.lon, view.lat, view.elevation ?? 60);
+  const tilt = THREE.MathUtils.degToRad(view.tilt);
+  const heading = THREE.MathUtils.degToRad(view.heading);
+  const offset = new THREE.Vector3(
+    Math.sin(tilt) * Math.sin(heading),
+    Math.cos(tilt),
+    Math.sin(tilt) * Math.cos(heading),
+  ).multiplyScalar(view.distance);
+  controls.target.copy(target);
+  camera.position.copy(target).add(offset);
+  controls.update();
+}
+
+function currentView() {
+  const [lon, lat] = lonLatFromWorld(controls.target);
+  const offset = camera.position.clone().sub(controls.target);
+  const distance = offset.length();
+  return {
+    lat,
+    lon,
+    distance,
+    heading: THREE.MathUtils.radToDeg(Math.atan2(offset.x, offset.z)),
+    tilt: THREE.MathUtils.radToDeg(Math.acos(THREE.MathUtils.clamp(offset.y / distance, -1, 1))),
+  };
+}
+
+// ---------------------------------------------------------------------------------------
+// The location in the URL: #lat,lon,distance,heading,tilt
+
+function parseHash() {
+  const parts = location.hash.replace(/^#/, '').split(',').map(Number);
+  if (parts.length < 2 || parts.slice(0, 2).some((n) => !Number.isFinite(n))) return null;
+  const [lat, lon, distance, heading, tilt] = parts;
+  if (Math.abs(lat) > 85 || Math.abs(lon) > 180) return null;
+  return {
+    lat,
+    lon,
+    distance: Number.isFinite(distance) ? distance : START.distance,
+    heading: Number.isFinite(heading) ? heading : START.heading,
+    tilt: Number.isFinite(tilt) ? tilt : START.tilt,
+  };
+}
+
+let hashTimer = null;
+function writeHash() {
+  clearTimeout(hashTimer);
+  hashTimer = setTimeout(() => {
+    const v = currentView();
+    const hash = `#${v.lat.toFixed(5)},${v.lon.toFixed(5)},${Math.round(v.distance)},${Math.round(v.heading)},${Math.round(v.tilt)}`;
+    if (hash !== location.hash) history.replaceState(null, '', hash);
+  }, 300);
+}
+
+window.addEventListener('hashchange', () => {
+  const view = parseHash();
+  if (view) jumpTo(view);
+});
+
+function jumpTo(view) {
+  const far = lonLatToUV(view.lon, view.lat).some((t, i) => Math.abs(t - [origin.x, origin.y][i]) > 200);
+  if (far) {
+    // Far from the origin, floats lose precision: start again there.
+    location.hash = `#${view.lat},${view.lon},${view.distance},${view.heading},${view.tilt}`;
+    location.reload();
+    return;
+  }
+  setView(view);
+  scheduleTiles();
+}
+
+// ---------------------------------------------------------------------------------------
+// Tiles
+
+const loader = new GLTFLoader();
+loader.setMeshoptDecoder(MeshoptDecoder);
+
+/** key "x/y" → { x, y, state: 'loading' | 'loaded' | 'failed', group, table, wanted } */
+const tiles = new Map();
+let fetching = 0;
+let wantedStamp = 0;
+
+/** What the tests (and a curious person in the console) can read. */
+const stats = { requested: [], loaded: [], failed: [], frames: 0, firstFullView: null };
+const started = performance.now();
+
+const statusBox = document.getElementById('status');
+const errorBox = document.getElementById('errors');
+
+function showStatus() {
+  const loading = [...tiles.values()].filter((t) => t.state === 'loading').length;
+  statusBox.textContent = loading ? `Loading ${loading} tile${loading > 1 ? 's' : ''}…` : '';
+}
+
+function showError(message) {
+  errorBox.textContent = message;
+  clearTimeout(showError.timer);
+  showError.timer = setTimeout(() => { errorBox.textContent = ''; }, 8000);
+}
+
+/** The tiles around the camera's target, nearest first. */
+function wantedTiles() {
+  const [u, v] = [controls.target.x / TILE_M + origin.x, controls.target.z / TILE_M + origin.y];
+  const distance = camera.position.distanceTo(controls.target);
+  const radius = THREE.MathUtils.clamp(Math.ceil(distance / TILE_M), 1, 3);
+  const cx = Math.floor(u);
+  const cy = Math.floor(v);
+  const wanted = [];
+  for (let y = cy - radius; y <= cy + radius; y++) {
+    for (let x = cx - radius; x <= cx + radius; x++) {
+      if (x < 0 || y < 0 || x >= TILES_PER_AXIS || y >= TILES_PER_AXIS) continue;
+      const d = Math.hypot(x + 0.5 - u, y + 0.5 - v);
+      wanted.push({ x, y, d });
+    }
+  }
+  return wanted.sort((a, b) => a.d - b.d);
+}
+
+function scheduleTiles() {
+  wantedStamp++;
+  const wanted = wantedTiles();
+  for (const { x, y } of wanted) {
+    const key = `${x}/${y}`;
+    let tile = tiles.get(key);
+    if (!tile) {
+      tile = { x, y, state: 'queued', group: null, table: null };
+      tiles.set(key, tile);
+    }
+    tile.wanted = wantedStamp;
+  }
+  for (const { x, y } of wanted) {
+    if (fetching >= MAX_FETCHES) break;
+    const tile = tiles.get(`${x}/${y}`);
+    if (tile.state === 'queued') loadTile(tile);
+  }
+  evict();
+  showStatus();
+}
+
+async function loadTile(tile) {
+  tile.state = 'loading';
+  fetching++;
+  const url = `tiles/${ZOOM}/${tile.x}/${tile.y}.glb`;
+  stats.requested.push(`${tile.x}/${tile.y}`);
+  showStatus();
+  try {
+    const response = await fetch(url);
+    if (!response.ok) {
+      let message = response.statusText;
+      try {
+        message = (await response.json()).error || message;
+      } catch (_) {
+        // Not JSON: keep the status text.
+      }
+      throw new Error(`tile ${ZOOM}/${tile.x}/${tile.y}: ${response.status} ${message}`);
+    }
+    const gltf = await loader.parseAsync(await response.arrayBuffer(), '');
+    const group = gltf.scene;
+    group.position.set((tile.x - origin.x) * TILE_M, 0, (tile.y - origin.y) * TILE_M);
+    group.userData.tile = tile;
+    tile.table = await propertyTable(gltf.parser);
+    if (!tiles.has(`${tile.x}/${tile.y}`)) {
+      dispose(group);
+      return;
+    }
+    tile.group = group;
+    tile.state = 'loaded';
+    registerClasses(group);
+    applyToggles(group);
+    scene.add(group);
+    stats.loaded.push(`${tile.x}/${tile.y}`);
+    if (layers.debug) addDebug(tile);
+    checkFirstView();
+  } catch (error) {
+    tile.state = 'failed';
+    stats.failed.push({ tile: `${tile.x}/${tile.y}`, error: String(error.message || error) });
+    showError(String(error.message || error));
+  } finally {
+    fetching--;
+    scheduleTiles();
+  }
+}
+
+/** Drops the least recently wanted tiles beyond MAX_LOADED, freeing their GPU memory. */
+function evict() {
+  const held = [...tiles.entries()].filter(([, t]) => t.state === 'loaded' || t.state === 'failed');
+  if (held.length <= MAX_LOADED) {
+    // Queued tiles no longer wanted are forgotten at once.
+    for (const [key, t] of tiles) if (t.state === 'queued' && t.wanted !== wantedStamp) tiles.delete(key);
+    return;
+  }
+  held.sort((a, b) => a[1].wanted - b[1].wanted);
+  for (const [key, tile] of held.slice(0, held.length - MAX_LOADED)) {
+    if (tile.wanted === wantedStamp) break;
+    if (tile.group) {
+      scene.remove(tile.group);
+      dispose(tile.group);
+    }
+    if (tile.debug) {
+      scene.remove(tile.debug);
+      dispose(tile.debug);
+    }
+    tiles.delete(key);
+  }
+}
+
+function dispose(object) {
+  object.traverse((o) => {
+    if (o.geometry) o.geometry.dispose();
+    const materials = Array.isArray(o.material) ? o.material : o.material ? [o.material] : [];
+    for (const m of materials) {
+      for (const value of Object.values(m)) if (value && value.isTexture) value.dispose();
+      m.dispose();
+    }
+  });
+}
+
+function checkFirstView() {
+  if (stats.firstFullView !== null) return;
+  const start = wantedTiles().filter((t) => t.d < 1.6).slice(0, 9);
+  if (start.every(({ x, y }) => tiles.get(`${x}/${y}`)?.state === 'loaded')) {
+    stats.firstFullView = performance.now() - started;
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// The feature table (EXT_structural_metadata) of a tile, read lazily row by row
+
+async function propertyTable(parser) {
+  const metadata = parser.json.extensions?.EXT_structural_metadata;
+  const table = metadata?.propertyTables?.[0];
+  if (!table) return null;
+  const views = {};
+  const view = async (index) => {
+    if (!(index in views)) views[index] = await parser.getDependency('bufferView', index);
+    return views[index];
+  };
+  const columns = {};
+  for (const [name, property] of Object.entries(table.properties)) {
+    const values = await view(property.values);
+    if (property.stringOffsets !== undefined) {
+      const offsets = new Uint32Array(await view(property.stringOffsets));
+      const bytes = new Uint8Array(values);
+      const decoder = new TextDecoder();
+      columns[name] = (i) => decoder.decode(bytes.subarray(offsets[i], offsets[i + 1]));
+    } else {
+      const numbers = new BigInt64Array(values);
+      columns[name] = (i) => numbers[i].toString();
+    }
+  }
+  return {
+    count: table.count,
+    /** The rows of an OSM id. */
+    rowsOf(osmId) {
+      const rows = new Set();
+      for (let i = 0; i < table.count; i++) if (columns.osm_id(i) === String(osmId)) rows.add(i);
+      return rows;
+    },
+    row(i) {
+      if (!(i >= 0 && i < table.count)) return null;
+      const row = {};
+      for (const [name, read] of Object.entries(columns)) row[name] = read(i);
+      return row;
+    },
+  };
+}
+
+// ---------------------------------------------------------------------------------------
+// Picking
+
+const raycaster = new THREE.Raycaster();
+const pointer = new THREE.Vector2();
+let pressedAt = null;
+
+renderer.domElement.addEventListener('pointerdown', (e) => { pressedAt = [e.clientX, e.clientY]; });
+renderer.domElement.addEventListener('pointerup', (e) => {
+  if (!pressedAt || Math.hypot(e.clientX - pressedAt[0], e.clientY - pressedAt[1]) > 5) return;
+  pick(e.clientX, e.clientY);
+});
+
+function pick(clientX, clientY) {
+  const rect = renderer.domElement.getBoundingClientRect();
+  pointer.set(((clientX - rect.left) / rect.width) * 2 - 1, -((clientY - rect.top) / rect.height) * 2 + 1);
+  raycaster.setFromCamera(pointer, camera);
+  const groups = [...tiles.values()].filter((t) => t.group).map((t) => t.group);
+  for (const hit of raycaster.intersectObjects(groups, true)) {
+    if (!hit.object.visible || hit.object.isInstancedMesh || !hit.face) continue;
+    const ids = hit.object.geometry.getAttribute('_feature_id_0');
+    let group = hit.object;
+    while (group && !group.userData.tile) group = group.parent;
+    const table = group?.userData.tile.table;
+    if (!ids || !table) continue;
+    const row = table.row(ids.getX(hit.face.a));
+    if (row) {
+      showFeature(row);
+      return row;
+    }
+  }
+  hideFeature();
+  return null;
+}
+
+const featureBox = document.getElementById('feature');
+const featureBody = document.getElementById('feature-body');
+document.getElementById('feature-close').addEventListener('click', hideFeature);
+
+function showFeature(row) {
+  featureBody.replaceChildren();
+  const title = document.createElement('h3');
+  title.textContent = row.name || row.class;
+  featureBody.append(title);
+  const table = document.createElement('table');
+  const line = (key, value) => {
+    const tr = table.insertRow();
+    tr.insertCell().textContent = key;
+    const cell = tr.insertCell();
+    if (value instanceof Node) cell.append(value);
+    else cell.textContent = value;
+  };
+  line('class', row.class);
+  if (row.osm_type !== 'none') {
+    const link = document.createElement('a');
+    link.href = `https://www.openstreetmap.org/${row.osm_type}/${row.osm_id}`;
+    link.target = '_blank';
+    link.rel = 'noopener';
+    link.textContent = `${row.osm_type} ${row.osm_id}`;
+    link.dataset.osmId = row.osm_id;
+    line('OSM', link);
+  }
+  let tags = {};
+  try {
+    tags = JSON.parse(row.tags || '{}');
+  } catch (_) {
+    // A broken tag column shows no tags.
+  }
+  for (const [key, value] of Object.entries(tags).sort()) line(key, value);
+  featureBody.append(table);
+  featureBox.hidden = false;
+}
+
+function hideFeature() {
+  featureBox.hidden = true;
+}
+
+// ---------------------------------------------------------------------------------------
+// Layers
+
+const layers = { wireframe: false, 'terrain-only': false, debug: false };
+const classes = new Map();
+const classBox = document.getElementById('classes');
+
+function classOf(node) {
+  if (/crown|trunk|tree/.test(node.name)) return 'trees';
+  return node.name.replace(/_\d+$/, '');
+}
+
+function registerClasses(group) {
+  for (const node of group.children) {
+    const name = classOf(node);
+    if (!name || classes.has(name)) continue;
+    classes.set(name, true);
+    const label = document.createElement('label');
+    const box = document.createElement('input');
+    box.type = 'checkbox';
+    box.checked = true;
+    box.addEventListener('change', () => {
+      classes.set(name, box.checked);
+      for (const t of tiles.values()) if (t.group) applyToggles(t.group);
+    });
+    label.append(box, ` ${name}`);
+    classBox.append(label);
+  }
+}
+
+function applyToggles(group) {
+  for (const node of group.children) {
+    const name = classOf(node);
+    node.visible = layers['terrain-only'] ? name === 'terrain' : classes.get(name) !== false;
+  }
+  group.traverse((o) => {
+    const materials = Array.isArray(o.material) ? o.material : o.material ? [o.material] : [];
+    for (const m of materials) m.wireframe = layers.wireframe;
+  });
+}
+
+for (const box of document.querySelectorAll('[data-toggle]')) {
+  box.addEventListener('change', () => {
+    layers[box.dataset.toggle] = box.checked;
+    for (const t of tiles.values()) {
+      if (!t.group) continue;
+      applyToggles(t.group);
+      if (box.dataset.toggle === 'debug') {
+        if (box.checked) addDebug(t);
+        else if (t.debug) {
+          scene.remove(t.debug);
+          dispose(t.debug);
+          t.debug = null;
+        }
+      }
+    }
+  });
+}
+
+/** The elevation debug view of a tile: bridges, tunnels and ground roads as settled. */
+async function addDebug(tile) {
+  if (tile.debug) return;
+  try {
+    const response = await fetch(`debug/tiles/${ZOOM}/${tile.x}/${tile.y}.geojson`);
+    if (!response.ok) return;
+    const collection = await response.json();
+    const colours = { bridge: 0xff8800, tunnel: 0x8844ff, road_profile: 0x00bcd4 };
+    const group = new THREE.Group();
+    for (const feature of collection.features) {
+      const p = feature.properties;
+      const coordinates = feature.geometry.coordinates;
+      if (feature.geometry.type === 'LineString' && Array.isArray(p.elevations_m)) {
+        const points = coordinates.map(([lon, lat], i) => worldFromLonLat(lon, lat, p.elevations_m[i] + 0.5));
+        const colour = colours[p.layer] ?? colours[p.kind] ?? 0xffffff;
+        group.add(new THREE.Line(new THREE.BufferGeometry().setFromPoints(points),
+          new THREE.LineBasicMaterial({ color: colour, depthTest: false })));
+      } else if (feature.geometry.type === 'Point' && p.satisfied === false) {
+        const [lon, lat] = coordinates;
+        const marker = new THREE.Mesh(new THREE.SphereGeometry(2, 8, 6),
+          new THREE.MeshBasicMaterial({ color: 0xff0000, depthTest: false }));
+        marker.position.copy(worldFromLonLat(lon, lat, (p.elevation_m ?? 0) + 1));
+        group.add(marker);
+      }
+    }
+    group.renderOrder = 10;
+    tile.debug = group;
+    scene.add(group);
+  } catch (error) {
+    showError(`debug view of ${tile.x}/${tile.y}: ${error.message || error}`);
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// The place box: "lat, lon"
+
+document.getElementById('place').addEventListener('submit', (e) => {
+  e.preventDefault();
+  const text = document.getElementById('place-input').value.trim();
+  const match = text.match(/^(-?\d+(?:\.\d+)?)\s*[,\s]\s*(-?\d+(?:\.\d+)?)$/);
+  if (!match) {
+    showError(`"${text}" is not "lat, lon" (e.g. 43.7396, 7.4255)`);
+    return;
+  }
+  const [lat, lon] = [Number(match[1]), Number(match[2])];
+  if (Math.abs(lat) > 85 || Math.abs(lon) > 180) {
+    showError(`${lat}, ${lon} is outside the map`);
+    return;
+  }
+  const view = currentView();
+  jumpTo({ ...view, lat, lon });
+});
+
+// ---------------------------------------------------------------------------------------
+// Loop
+
+function resize() {
+  camera.aspect = container.clientWidth / container.clientHeight;
+  camera.updateProjectionMatrix();
+  renderer.setSize(container.clientWidth, container.clientHeight);
+}
+window.addEventListener('resize', resize);
+
+let lastSchedule = 0;
+controls.addEventListener('change', () => {
+  writeHash();
+  const now = performance.now();
+  if (now - lastSchedule > 250) {
+    lastSchedule = now;
+    scheduleTiles();
+  }
+});
+
+setView(parseHash() || START);
+scheduleTiles();
+renderer.setAnimationLoop(() => {
+  controls.update();
+  renderer.render(scene, camera);
+  stats.frames++;
+});
+
+/** Where a feature of the loaded tiles shows on screen, for tests: its first vertex in view. */
+function locate(osmId) {
+  for (const tile of tiles.values()) {
+    if (!tile.group || !tile.table) continue;
+    const rows = tile.table.rowsOf(osmId);
+    if (rows.size === 0) continue;
+    let found = null;
+    let tries = 0;
+    tile.group.traverse((o) => {
+      if (found || !o.isMesh || o.isInstancedMesh || !o.visible) return;
+      const ids = o.geometry.getAttribute('_feature_id_0');
+      const index = o.geometry.index;
+      if (!ids || !index) return;
+      for (let i = 0; i < index.count && tries < 200; i += 3) {
+        if (!rows.has(ids.getX(index.getX(i)))) continue;
+        tries++;
+        // The centre of the triangle, on screen.
+        const centre = new THREE.Vector3();
+        for (let k = 0; k < 3; k++) {
+          centre.add(new THREE.Vector3().fromBufferAttribute(o.geometry.attributes.position, index.getX(i + k)));
+        }
+        centre.divideScalar(3).applyMatrix4(o.matrixWorld);
+        const ndc = centre.clone().project(camera);
+        if (Math.abs(ndc.x) > 0.9 || Math.abs(ndc.y) > 0.9 || ndc.z > 1) continue;
+        // Only where nothing else is in front of it.
+        raycaster.setFromCamera(new THREE.Vector2(ndc.x, ndc.y), camera);
+        const hit = raycaster.intersectObject(tile.group, true).find((h) => h.object.visible);
+        if (!hit || hit.object !== o || ids.getX(hit.face.a) !== ids.getX(index.getX(i))) continue;
+        const rect = renderer.domElement.getBoundingClientRect();
+        found = {
+          x: rect.left + ((ndc.x + 1) / 2) * rect.width,
+          y: rect.top + ((1 - ndc.y) / 2) * rect.height,
+        };
+        return;
+      }
+    });
+    if (found) return found;
+  }
+  return null;
+}
+
+window.terrastitchViewer = { stats, locate, pick, currentView, setView: jumpTo, tiles };

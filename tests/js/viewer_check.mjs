@@ -1,0 +1,130 @@
+// Drives the viewer in headless Chromium and prints what it saw as one JSON object.
+// Usage: node viewer_check.mjs BASE_URL OUT_DIR OSM_ID
+//   BASE_URL  the server, e.g. http://127.0.0.1:8080/
+//   OUT_DIR   where the screenshots go
+//   OSM_ID    a building near the start view to click on
+import { chromium } from 'playwright-core';
+import { writeFileSync } from 'node:fs';
+import { join } from 'node:path';
+
+const [base, outDir, osmId] = process.argv.slice(2);
+const result = {
+  consoleErrors: [],
+  pageErrors: [],
+  failedRequests: [],
+  steps: {},
+};
+
+const browser = await chromium.launch({
+  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+  args: [
+    '--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
+    '--disable-component-update', '--disable-sync', '--no-first-run', '--use-angle=swiftshader',
+    '--enable-unsafe-swiftshader',
+  ],
+});
+try {
+  const page = await browser.newPage({ viewport: { width: 1024, height: 768 } });
+  page.on('console', (message) => {
+    if (message.type() === 'error') result.consoleErrors.push(message.text());
+  });
+  page.on('pageerror', (error) => result.pageErrors.push(String(error)));
+  page.on('requestfailed', (request) => {
+    result.failedRequests.push(`${request.url()}: ${request.failure()?.errorText}`);
+  });
+  const stats = () => page.evaluate(() => {
+    const s = window.terrastitchViewer.stats;
+    return { requested: [...s.requested], loaded: [...s.loaded], failed: [...s.failed],
+      frames: s.frames, firstFullView: s.firstFullView };
+  });
+
+  const loadStarted = Date.now();
+  await page.goto(base, { waitUntil: 'load' });
+  await page.waitForFunction(() => window.terrastitchViewer?.stats.firstFullView !== null,
+    null, { timeout: 240000, polling: 200 });
+  result.steps.firstFullViewMs = Date.now() - loadStarted;
+  result.steps.firstFullViewInPageMs = (await stats()).firstFullView;
+  result.start = await stats();
+  result.glRenderer = await page.evaluate(() => {
+    const gl = document.createElement('canvas').getContext('webgl2');
+    const info = gl && gl.getExtension('WEBGL_debug_renderer_info');
+    return info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : null;
+  });
+  // A few frames more, so what loaded is drawn.
+  await page.waitForTimeout(1500);
+  await page.screenshot({ path: join(outDir, 'viewer-start.png') });
+
+  // Is anything drawn? Pixels of the canvas, read through a 2D canvas.
+  result.pixels = await page.evaluate(() => {
+    const source = document.querySelector('#map canvas');
+    const canvas = document.createElement('canvas');
+    canvas.width = 256;
+    canvas.height = 192;
+    const context = canvas.getContext('2d');
+    context.drawImage(source, 0, 0, canvas.width, canvas.height);
+    const data = context.getImageData(0, 0, canvas.width, canvas.height).data;
+    const colours = new Set();
+    let dark = 0;
+    for (let i = 0; i < data.length; i += 4) {
+      colours.add((data[i] >> 3) << 10 | (data[i + 1] >> 3) << 5 | (data[i + 2] >> 3));
+      if (data[i] + data[i + 1] + data[i + 2] < 30) dark++;
+    }
+    return { distinctColours: colours.size, darkFraction: dark / (data.length / 4) };
+  });
+
+  // Click on a known building and read the panel.
+  const spot = await page.evaluate((id) => window.terrastitchViewer.locate(id), osmId);
+  result.click = { spot };
+  if (spot) {
+    await page.mouse.click(spot.x, spot.y);
+    await page.waitForTimeout(300);
+    result.click.panelVisible = await page.evaluate(() => !document.getElementById('feature').hidden);
+    result.click.osmIds = await page.evaluate(() => [...document.querySelectorAll('#feature [data-osm-id]')]
+      .map((a) => a.dataset.osmId));
+    result.click.text = await page.evaluate(() => document.getElementById('feature').innerText);
+    await page.screenshot({ path: join(outDir, 'viewer-click.png') });
+  }
+
+  // Frame rate while the camera turns.
+  const framesBefore = (await stats()).frames;
+  const turnStarted = Date.now();
+  await page.evaluate(() => new Promise((resolve) => {
+    const v = window.terrastitchViewer.currentView();
+    let step = 0;
+    const turn = () => {
+      window.terrastitchViewer.setView({ ...v, heading: v.heading + step * 2 });
+      step++;
+      if (step < 60) requestAnimationFrame(turn);
+      else resolve();
+    };
+    turn();
+  }));
+  result.steps.framesPerSecond = ((await stats()).frames - framesBefore) / ((Date.now() - turnStarted) / 1000);
+
+  // Move two kilometres east: tiles not asked for before are asked for and shown.
+  const before = new Set((await stats()).requested);
+  await page.evaluate(() => {
+    const v = window.terrastitchViewer.currentView();
+    window.terrastitchViewer.setView({ ...v, lon: v.lon + 0.03 });
+  });
+  await page.waitForFunction((asked) => {
+    const s = window.terrastitchViewer.stats;
+    const fresh = s.loaded.filter((t) => !asked.includes(t));
+    return fresh.length >= 3;
+  }, [...before], { timeout: 240000, polling: 200 });
+  const after = await stats();
+  result.moved = {
+    newlyRequested: after.requested.filter((t) => !before.has(t)),
+    newlyLoaded: after.loaded.filter((t) => !before.has(t)),
+    hash: await page.evaluate(() => location.hash),
+  };
+  await page.waitForTimeout(1000);
+  await page.screenshot({ path: join(outDir, 'viewer-moved.png') });
+  result.end = await stats();
+} catch (error) {
+  result.error = String(error.stack || error);
+} finally {
+  await browser.close();
+}
+writeFileSync(join(outDir, 'viewer-report.json'), JSON.stringify(result, null, 2));
+console.log(JSON.stringify(result));

@@ -1,0 +1,103 @@
+//! The viewer at `/`, in a real browser: headless Chromium (software WebGL) driven by
+//! playwright-core (`tests/js/viewer_check.mjs`). It must show the nine tiles around the start
+//! without console errors, draw something, show a clicked building's OSM id, and load new tiles
+//! when the camera moves. Screenshots and the report go to `tests/artifacts/viewer/`.
+
+mod common;
+
+use std::process::Command;
+
+use common::{repo, TestServer};
+
+/// Hôtel de Paris, next to the start view in Monte-Carlo.
+const KNOWN_BUILDING: &str = "157719657";
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_viewer_streams_tiles_and_shows_what_is_clicked() {
+    assert!(
+        repo()
+            .join("static/vendor/three/build/three.module.js")
+            .exists(),
+        "three.js is not in static/vendor: run `make test` (it copies it from viewer/)"
+    );
+    assert!(
+        repo()
+            .join("tests/js/node_modules/playwright-core")
+            .exists(),
+        "playwright-core is not installed: run `make test` (it runs npm ci in tests/js)"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    let artifacts = repo().join("tests/artifacts/viewer");
+    std::fs::create_dir_all(&artifacts).unwrap();
+    let base = server.url("/");
+    let out = artifacts.clone();
+    let output = tokio::task::spawn_blocking(move || {
+        Command::new("node")
+            .arg(repo().join("tests/js/viewer_check.mjs"))
+            .arg(&base)
+            .arg(&out)
+            .arg(KNOWN_BUILDING)
+            .output()
+            .expect("node runs")
+    })
+    .await
+    .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let report: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap_or_else(|_| {
+        panic!(
+            "no report:\n{stdout}\n{}",
+            String::from_utf8_lossy(&output.stderr)
+        )
+    });
+    let text = serde_json::to_string_pretty(&report).unwrap();
+    assert!(report["error"].is_null(), "{text}");
+    assert_eq!(report["consoleErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["pageErrors"], serde_json::json!([]), "{text}");
+
+    // The nine tiles around the start, loaded, none failed.
+    let loaded = report["start"]["loaded"].as_array().unwrap();
+    assert!(loaded.len() >= 9, "{text}");
+    for x in 8528..=8530 {
+        for y in 5972..=5974 {
+            let key = serde_json::json!(format!("{x}/{y}"));
+            assert!(loaded.contains(&key), "{x}/{y} not loaded: {text}");
+        }
+    }
+    assert_eq!(report["end"]["failed"], serde_json::json!([]), "{text}");
+    // Something is drawn: many colours, not a black canvas.
+    assert!(
+        report["pixels"]["distinctColours"].as_u64().unwrap() > 50,
+        "{text}"
+    );
+    assert!(
+        report["pixels"]["darkFraction"].as_f64().unwrap() < 0.5,
+        "{text}"
+    );
+    // The click on the known building shows it.
+    assert_eq!(report["click"]["panelVisible"], true, "{text}");
+    assert_eq!(
+        report["click"]["osmIds"],
+        serde_json::json!([KNOWN_BUILDING]),
+        "{text}"
+    );
+    // Moving the camera loads tiles not asked for before, and the view is in the URL.
+    assert!(
+        report["moved"]["newlyLoaded"].as_array().unwrap().len() >= 3,
+        "{text}"
+    );
+    assert!(
+        report["moved"]["hash"]
+            .as_str()
+            .unwrap()
+            .starts_with("#43.7"),
+        "{text}"
+    );
+    println!(
+        "first full view {} ms, {:.2} frames/s while turning ({})",
+        report["steps"]["firstFullViewMs"],
+        report["steps"]["framesPerSecond"],
+        report["glRenderer"]
+    );
+    server.stop().await;
+}
