@@ -3,31 +3,22 @@
 //!
 //! A tile enters memory compressed once, like a rendered one; the file is never written.
 
-use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::path::Path;
 
 use rusqlite::{Connection, OpenFlags, OptionalExtension};
 
 use super::encoding::Bodies;
+use super::sqlite::Database;
 use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
 use super::{etag_of, Format, TileKey};
 use crate::tile::{LonLatBounds, TileId};
 
+#[derive(Debug)]
 pub struct MbtilesStore {
-    path: PathBuf,
-    connection: Mutex<Connection>,
+    db: Database,
     format: Format,
     bounds: Option<LonLatBounds>,
     zoom: Option<u8>,
-}
-
-impl std::fmt::Debug for MbtilesStore {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("MbtilesStore")
-            .field("path", &self.path)
-            .field("format", &self.format)
-            .finish()
-    }
 }
 
 impl MbtilesStore {
@@ -66,8 +57,7 @@ impl MbtilesStore {
         let bounds = meta("bounds")?.and_then(|b| b.parse::<LonLatBounds>().ok());
         let zoom = meta("maxzoom")?.and_then(|z| z.parse::<u8>().ok());
         Ok(MbtilesStore {
-            path: path.to_path_buf(),
-            connection: Mutex::new(connection),
+            db: Database::new(path, connection),
             format,
             bounds,
             zoom,
@@ -89,19 +79,16 @@ impl MbtilesStore {
     }
 
     fn connection(&self) -> std::sync::MutexGuard<'_, Connection> {
-        self.connection.lock().unwrap_or_else(|p| p.into_inner())
+        self.db.lock()
     }
 
     fn error(&self, source: rusqlite::Error) -> StoreError {
-        StoreError::Sqlite {
-            path: self.path.clone(),
-            source,
-        }
+        self.db.error(source)
     }
 
     fn read_only(&self) -> StoreError {
         StoreError::ReadOnly {
-            path: self.path.clone(),
+            path: self.db.path().to_path_buf(),
         }
     }
 
@@ -109,7 +96,7 @@ impl MbtilesStore {
     pub fn provenance(&self) -> Provenance {
         Provenance {
             pipeline: "mbtiles".to_string(),
-            sources: self.path.display().to_string(),
+            sources: self.db.path().display().to_string(),
         }
     }
 }

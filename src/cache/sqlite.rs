@@ -27,20 +27,52 @@ const MIGRATIONS: &[(&str, &str)] = &[
 /// Eviction brings the store down to this share of its cap, so it does not run on every put.
 const EVICT_TO: f64 = 0.9;
 
-pub struct SqliteStore {
+/// One SQLite connection behind a lock, with the file it is on for its errors.
+pub(super) struct Database {
     path: PathBuf,
     connection: Mutex<Connection>,
-    /// Largest total of stored bytes, if capped.
-    max_bytes: Option<u64>,
 }
 
-impl std::fmt::Debug for SqliteStore {
+impl std::fmt::Debug for Database {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SqliteStore")
+        f.debug_struct("Database")
             .field("path", &self.path)
-            .field("max_bytes", &self.max_bytes)
             .finish()
     }
+}
+
+impl Database {
+    pub(super) fn new(path: &Path, connection: Connection) -> Database {
+        Database {
+            path: path.to_path_buf(),
+            connection: Mutex::new(connection),
+        }
+    }
+
+    pub(super) fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub(super) fn lock(&self) -> std::sync::MutexGuard<'_, Connection> {
+        // A panic while holding the lock cannot leave SQLite inconsistent (each statement is
+        // atomic), so a poisoned lock is still usable.
+        self.connection.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// A SQLite error, naming the file.
+    pub(super) fn error(&self, source: rusqlite::Error) -> StoreError {
+        StoreError::Sqlite {
+            path: self.path.clone(),
+            source,
+        }
+    }
+}
+
+#[derive(Debug)]
+pub struct SqliteStore {
+    db: Database,
+    /// Largest total of stored bytes, if capped.
+    max_bytes: Option<u64>,
 }
 
 impl SqliteStore {
@@ -86,27 +118,21 @@ impl SqliteStore {
             transaction.commit().map_err(sqlite)?;
         }
         Ok(SqliteStore {
-            path: path.to_path_buf(),
-            connection: Mutex::new(connection),
+            db: Database::new(path, connection),
             max_bytes,
         })
     }
 
     pub fn path(&self) -> &Path {
-        &self.path
+        self.db.path()
     }
 
     fn connection(&self) -> std::sync::MutexGuard<'_, Connection> {
-        // A panic while holding the lock cannot leave SQLite inconsistent (each statement is
-        // atomic), so a poisoned lock is still usable.
-        self.connection.lock().unwrap_or_else(|p| p.into_inner())
+        self.db.lock()
     }
 
     fn error(&self, source: rusqlite::Error) -> StoreError {
-        StoreError::Sqlite {
-            path: self.path.clone(),
-            source,
-        }
+        self.db.error(source)
     }
 
     /// `PRAGMA integrity_check`: an error naming the damage if the file is not sound.
@@ -124,7 +150,7 @@ impl SqliteStore {
             Ok(())
         } else {
             Err(StoreError::Damaged {
-                path: self.path.clone(),
+                path: self.db.path().to_path_buf(),
                 report: lines.join("; "),
             })
         }
