@@ -192,11 +192,7 @@ fn names(dir: &Path) -> Vec<String> {
 async fn a_burst_of_requests_for_a_missing_srtm_file_downloads_it_once() {
     let dir = tempfile::tempdir().unwrap();
     let upstream = Upstream::start(repo().join("data")).await;
-    let server = server(
-        dir.path(),
-        config(dir.path(), upstream.url("ok", "{lat}{lon}.hgt")),
-    )
-    .await;
+    let server = server_on(dir.path(), &upstream, "ok").await;
     // A hundred requests over five tiles of the same SRTM cell, all at once.
     let paths: Vec<String> = (0..100)
         .map(|i| format!("/tiles/14/{}/5973.terrain", 8527 + i % 5))

@@ -67,8 +67,9 @@ impl Regenerator {
         added
     }
 
-    /// Takes the tiles `filter` selects out of the line (those being made finish, but are not
-    /// stored if they were removed meanwhile); returns how many.
+    /// Takes the tiles `filter` selects out of the line; returns how many. A tile already being
+    /// made finishes and is stored (a remake checks that its tile is still stored only before
+    /// it starts).
     pub fn forget(&self, filter: &TileFilter) -> usize {
         let mut queue = self.lock();
         let before = queue.order.len();
