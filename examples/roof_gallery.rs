@@ -154,7 +154,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         size_m: frame.size_m,
         generator: "roof_gallery".to_string(),
     };
-    let bytes = glb::write(&description, &parts, &BTreeMap::new(), &features);
+    let bytes = glb::write(
+        &description,
+        &parts,
+        &BTreeMap::new(),
+        &features,
+        glb::Variant::default(),
+    );
     std::fs::write(&out, bytes)?;
     println!(
         "{out}: {} shapes × {} footprints",

@@ -80,6 +80,10 @@ struct RenderArgs {
     /// Print the time of each stage to stderr
     #[arg(long)]
     timings: bool,
+    /// glb variant: glb (flat frame), glb-meshopt (compressed), glb-enu (east-north-up, the
+    /// 3D Tiles content), glb-enu-meshopt
+    #[arg(long, value_name = "VARIANT", default_value = "glb")]
+    variant: String,
 }
 
 /// The tiles of a box, for `seed` and `export`.
@@ -317,6 +321,13 @@ async fn shutdown_signal() {
 
 fn render(args: RenderArgs, config: Config) -> Result<()> {
     let tile: TileId = args.tile.parse()?;
+    let variant =
+        terrastitch::output::glb::Variant::from_name(&args.variant).with_context(|| {
+            format!(
+                "unknown variant '{}'; expected glb, glb-meshopt, glb-enu or glb-enu-meshopt",
+                args.variant
+            )
+        })?;
     let started = Instant::now();
     let sources = open_sources(
         &config,
@@ -331,7 +342,14 @@ fn render(args: RenderArgs, config: Config) -> Result<()> {
     let mosaic = sources.mosaic(tile)?;
     let selection = sources.selection(tile);
     let load = started.elapsed();
-    let rendered = terrastitch::render_tile(tile, &selection, &mosaic, &config.render)?;
+    let rendered = terrastitch::render::render_within(
+        tile,
+        &selection,
+        &mosaic,
+        &config.render,
+        variant,
+        terrastitch::render::Deadline::none(),
+    )?;
     std::fs::write(&args.output, &rendered.glb)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     if args.timings {
@@ -385,12 +403,17 @@ fn formats(names: &[String]) -> Result<Vec<Format>> {
     let mut formats = Vec::new();
     for name in names.iter().flat_map(|n| n.split(',')) {
         let format = match name.trim() {
-            "glb" => Format::Glb,
             "terrain" => Format::Terrain(terrastitch::output::quantized_mesh::Extensions {
                 normals: true,
                 watermask: true,
             }),
-            other => anyhow::bail!("unknown format '{other}'; expected glb or terrain"),
+            other => match terrastitch::output::glb::Variant::from_name(other) {
+                Some(variant) => Format::Glb(variant),
+                None => anyhow::bail!(
+                    "unknown format '{other}'; expected glb, glb-meshopt, glb-enu, \
+                     glb-enu-meshopt or terrain"
+                ),
+            },
         };
         if !formats.contains(&format) {
             formats.push(format);

@@ -44,10 +44,11 @@ pub fn make(
     let tile = key.tile;
     let mosaic = sources.mosaic(tile)?;
     match key.format {
-        Format::Glb => {
+        Format::Glb(variant) => {
             let selection = sources.selection(tile);
-            let rendered =
-                crate::render::render_within(tile, &selection, &mosaic, settings, deadline)?;
+            let rendered = crate::render::render_within(
+                tile, &selection, &mosaic, settings, variant, deadline,
+            )?;
             Ok(Made {
                 triangles: rendered.stats.triangles,
                 lp_components: rendered.stats.lp_components,

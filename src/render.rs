@@ -440,25 +440,39 @@ pub fn render(
     mosaic: &Mosaic,
     settings: &RenderSettings,
 ) -> Result<RenderedTile, RenderError> {
-    render_within(tile, selection, mosaic, settings, Deadline::none())
+    render_within(
+        tile,
+        selection,
+        mosaic,
+        settings,
+        glb::Variant::default(),
+        Deadline::none(),
+    )
 }
 
-/// [`render`], giving up with [`RenderError::TimedOut`] once `deadline` has passed.
+/// [`render`] as `variant`, giving up with [`RenderError::TimedOut`] once `deadline` has
+/// passed.
 pub fn render_within(
     tile: TileId,
     selection: &Selection<'_>,
     mosaic: &Mosaic,
     settings: &RenderSettings,
+    variant: glb::Variant,
     deadline: Deadline,
 ) -> Result<RenderedTile, RenderError> {
     guarded(tile, || {
         let mut timings = StageTimings::default();
         let prepared = prepare(tile, selection, mosaic, settings, &mut timings, deadline)?;
-        Ok(render_glb(tile, &prepared, timings))
+        Ok(render_glb(tile, &prepared, variant, timings))
     })
 }
 
-fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) -> RenderedTile {
+fn render_glb(
+    tile: TileId,
+    prepared: &Prepared<'_>,
+    variant: glb::Variant,
+    mut timings: StageTimings,
+) -> RenderedTile {
     let Prepared {
         frame,
         terrain,
@@ -591,7 +605,13 @@ fn render_glb(tile: TileId, prepared: &Prepared<'_>, mut timings: StageTimings) 
         size_m: frame.size_m,
         generator: format!("terrastitch {}", env!("CARGO_PKG_VERSION")),
     };
-    let bytes = glb::write(&description, &parts, &instanced, &feature_set.features);
+    let bytes = glb::write(
+        &description,
+        &parts,
+        &instanced,
+        &feature_set.features,
+        variant,
+    );
     timings.glb = started.elapsed();
 
     let stats = RenderStats {

@@ -188,7 +188,7 @@ fn export_writes_mbtiles_and_a_directory_of_the_tiles() {
     for tile in range.tiles() {
         let key = terrastitch::cache::TileKey {
             tile,
-            format: terrastitch::cache::Format::Glb,
+            format: terrastitch::cache::Format::GLB,
         };
         let stored = store.get(&key).unwrap().unwrap();
         // MBTiles rows count from the south.

@@ -241,7 +241,7 @@ async fn a_stale_tile_is_served_while_it_is_made_again() {
             x: 8527,
             y: 5974,
         },
-        format: Format::Glb,
+        format: Format::GLB,
     };
     {
         let store = SqliteStore::open(&cache, None).unwrap();

@@ -42,7 +42,9 @@ impl MbtilesStore {
                 .map_err(sqlite)
         };
         let format = match meta("format")?.as_deref() {
-            Some("glb") => Format::Glb,
+            Some(name) if crate::output::glb::Variant::from_name(name).is_some() => {
+                Format::from_name(name).unwrap_or(Format::GLB)
+            }
             Some("terrain") => Format::Terrain(crate::output::quantized_mesh::Extensions {
                 normals: true,
                 watermask: true,

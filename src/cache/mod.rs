@@ -18,6 +18,7 @@ use std::sync::{Arc, Mutex};
 
 use sha2::Digest;
 
+use crate::output::glb::{Frame, Variant};
 use crate::output::quantized_mesh::Extensions;
 use crate::tile::TileId;
 use encoding::Bodies;
@@ -30,23 +31,30 @@ pub use store::{
 /// The formats tiles are made in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Format {
-    Glb,
+    /// glTF binary in one of its frames and compressions.
+    Glb(Variant),
     /// quantized-mesh-1.0 with the extensions asked for.
     Terrain(Extensions),
 }
 
 impl Format {
+    /// Plain glb in the flat frame: what `/tiles/{z}/{x}/{y}.glb` serves by default.
+    pub const GLB: Format = Format::Glb(Variant {
+        frame: Frame::WebMercator,
+        meshopt: false,
+    });
+
     pub fn as_str(self) -> &'static str {
         match self {
-            Format::Glb => "glb",
+            Format::Glb(variant) => variant.name(),
             Format::Terrain(extensions) => extensions.key(),
         }
     }
 
     /// The format a stored name stands for.
     pub fn from_name(name: &str) -> Option<Format> {
-        if name == "glb" {
-            return Some(Format::Glb);
+        if let Some(variant) = Variant::from_name(name) {
+            return Some(Format::Glb(variant));
         }
         [false, true]
             .into_iter()
@@ -58,7 +66,7 @@ impl Format {
     /// The file extension in URLs.
     pub fn extension(self) -> &'static str {
         match self {
-            Format::Glb => "glb",
+            Format::Glb(_) => "glb",
             Format::Terrain(_) => "terrain",
         }
     }

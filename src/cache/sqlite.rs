@@ -460,7 +460,7 @@ mod tests {
     fn key(x: u32) -> TileKey {
         TileKey {
             tile: TileId { z: 14, x, y: 2 },
-            format: Format::Glb,
+            format: Format::GLB,
         }
     }
 

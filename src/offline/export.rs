@@ -108,7 +108,11 @@ fn export_mbtiles(
                                      PRIMARY KEY (zoom_level, tile_column, tile_row));",
             )
             .map_err(sqlite)?;
-        let format = keys.first().map_or("glb", |k| k.format.extension());
+        // glb archives name their variant (the MBTiles reader of this server reads it back).
+        let format = keys.first().map_or("glb", |k| match k.format {
+            Format::Glb(variant) => variant.name(),
+            Format::Terrain(_) => "terrain",
+        });
         let center_lon = (bounds.west + bounds.east) / 2.0;
         let center_lat = (bounds.south + bounds.north) / 2.0;
         let metadata = [
@@ -171,10 +175,7 @@ fn export_directory(
     let mut report = ExportReport::default();
     for key in keys {
         let data = body(store, key)?;
-        let extension = match key.format {
-            Format::Glb => "glb",
-            Format::Terrain(_) => "terrain",
-        };
+        let extension = key.format.extension();
         let directory = root
             .join(key.tile.z.to_string())
             .join(key.tile.x.to_string());

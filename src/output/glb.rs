@@ -7,6 +7,15 @@
 //! of class `osm_feature` with the OSM type, id, class, name and all tags (as a JSON object) of
 //! each feature. The frame is described in `asset.extras.terrastitch`.
 //!
+//! A [`Variant`] chooses the frame (the flat Web Mercator frame, or east-north-up on the
+//! ellipsoid for globe viewers, see [`super::enu`]) and whether the geometry is compressed:
+//! `EXT_meshopt_compression` over `KHR_mesh_quantization`. Compressed positions of the flat
+//! frame lie on a grid shared by every tile of the zoom (a step of 1/32768 of the tile's side,
+//! counted from the tile's north-west corner; see [`Grid`]), so neighbours still share their
+//! edge vertices exactly; normals become bytes; each primitive's triangles and vertices are
+//! reordered for the vertex cache and fetch before meshoptimizer encodes them. The compressed
+//! views decode into a fallback buffer that holds no bytes; the property table stays plain.
+//!
 //! The container is written here (gltf-json writes only the JSON): a 12-byte header, the JSON
 //! chunk padded with spaces and the binary chunk padded with zeros, both to 4 bytes.
 
@@ -21,6 +30,7 @@ use crate::features::{FeatureClass, FeatureInfo};
 use crate::mesh::instances::Instances;
 use crate::mesh::models::Model;
 use crate::mesh::{MeshBuffers, Part};
+use crate::output::enu::EastNorthUp;
 use crate::tile::{LonLatBounds, TileId};
 
 /// Credit shown wherever tiles are shown.
@@ -35,13 +45,199 @@ pub struct TileDescription {
     pub generator: String,
 }
 
+/// The frame a tile's coordinates are written in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+pub enum Frame {
+    /// The flat frame tiles are made in, placed by translation (see `asset.extras`).
+    #[default]
+    WebMercator,
+    /// East-north-up at the tile's centre on WGS 84, placed by a 3D Tiles transform.
+    EastNorthUp,
+}
+
+/// How a tile's glb is written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
+pub struct Variant {
+    pub frame: Frame,
+    /// `EXT_meshopt_compression` over `KHR_mesh_quantization`.
+    pub meshopt: bool,
+}
+
+impl Variant {
+    pub const ALL: [Variant; 4] = [
+        Variant {
+            frame: Frame::WebMercator,
+            meshopt: false,
+        },
+        Variant {
+            frame: Frame::WebMercator,
+            meshopt: true,
+        },
+        Variant {
+            frame: Frame::EastNorthUp,
+            meshopt: false,
+        },
+        Variant {
+            frame: Frame::EastNorthUp,
+            meshopt: true,
+        },
+    ];
+
+    /// The variant's name where tiles are stored and listed.
+    pub fn name(self) -> &'static str {
+        match (self.frame, self.meshopt) {
+            (Frame::WebMercator, false) => "glb",
+            (Frame::WebMercator, true) => "glb-meshopt",
+            (Frame::EastNorthUp, false) => "glb-enu",
+            (Frame::EastNorthUp, true) => "glb-enu-meshopt",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Variant> {
+        Variant::ALL.into_iter().find(|v| v.name() == name)
+    }
+}
+
+/// Steps of the shared position grid along a tile's side.
+pub const GRID_STEPS_PER_TILE: f64 = 32768.0;
+
+/// Compressed positions of one node: whole steps of the shared grid, stored as offsets from
+/// `base` (in steps from the tile's north-west corner and from zero height) in 16 bits; the
+/// node's translation and scale turn them back into metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grid {
+    pub step: f64,
+    pub base: [i64; 3],
+}
+
+impl Grid {
+    /// The grid for these positions, if they span at most 65,535 steps on every axis.
+    fn over<'a>(size_m: f64, positions: impl Iterator<Item = &'a [f32; 3]>) -> Option<Grid> {
+        let step = size_m / GRID_STEPS_PER_TILE;
+        let mut min = [i64::MAX; 3];
+        let mut max = [i64::MIN; 3];
+        for p in positions {
+            for axis in 0..3 {
+                let q = (f64::from(p[axis]) / step).round() as i64;
+                min[axis] = min[axis].min(q);
+                max[axis] = max[axis].max(q);
+            }
+        }
+        (0..3)
+            .all(|axis| min[axis] <= max[axis] && max[axis] - min[axis] <= i64::from(u16::MAX))
+            .then_some(Grid { step, base: min })
+    }
+
+    fn quantize(&self, p: [f32; 3]) -> [u16; 3] {
+        std::array::from_fn(|axis| {
+            let q = (f64::from(p[axis]) / self.step).round() as i64 - self.base[axis];
+            q.clamp(0, i64::from(u16::MAX)) as u16
+        })
+    }
+}
+
 /// Accumulates the binary chunk and the buffer views that point into it.
 struct BinaryBuilder {
     bytes: Vec<u8>,
     root: json::Root,
+    /// With meshopt: the length of the fallback buffer the compressed views decode into.
+    fallback: Option<usize>,
 }
 
 impl BinaryBuilder {
+    /// A view of vertex data, `stride` bytes an element: meshopt-compressed when the tile is.
+    fn vertex_view(&mut self, data: &[u8], stride: usize) -> json::Index<json::buffer::View> {
+        let target = Some(json::buffer::Target::ArrayBuffer);
+        if self.fallback.is_none() {
+            return self.view(data, 4, target);
+        }
+        let encoded = encode_vertices(data, stride);
+        self.compressed(
+            &encoded,
+            data.len(),
+            stride,
+            data.len() / stride,
+            "ATTRIBUTES",
+            target,
+        )
+    }
+
+    /// A view of triangle indices, 16 or 32 bits each.
+    fn index_view(
+        &mut self,
+        indices: &[u32],
+        vertex_count: usize,
+        wide: bool,
+    ) -> json::Index<json::buffer::View> {
+        let bytes: Vec<u8> = if wide {
+            indices.iter().flat_map(|&i| i.to_le_bytes()).collect()
+        } else {
+            indices
+                .iter()
+                .flat_map(|&i| (i as u16).to_le_bytes())
+                .collect()
+        };
+        let target = Some(json::buffer::Target::ElementArrayBuffer);
+        if self.fallback.is_none() {
+            return self.view(&bytes, 4, target);
+        }
+        let encoded = meshopt::encode_index_buffer(indices, vertex_count)
+            .expect("meshoptimizer encodes any triangle list");
+        let stride = if wide { 4 } else { 2 };
+        self.compressed(
+            &encoded,
+            bytes.len(),
+            stride,
+            indices.len(),
+            "TRIANGLES",
+            target,
+        )
+    }
+
+    /// Appends meshoptimizer's bytes to the binary chunk and a view of the fallback buffer
+    /// that they decode into.
+    fn compressed(
+        &mut self,
+        encoded: &[u8],
+        decoded_length: usize,
+        stride: usize,
+        count: usize,
+        mode: &str,
+        target: Option<json::buffer::Target>,
+    ) -> json::Index<json::buffer::View> {
+        while self.bytes.len() % 4 != 0 {
+            self.bytes.push(0);
+        }
+        let offset = self.bytes.len();
+        self.bytes.extend_from_slice(encoded);
+        let fallback = self.fallback.get_or_insert(0);
+        *fallback = fallback.next_multiple_of(4);
+        let decoded_offset = *fallback;
+        *fallback += decoded_length;
+        let extension = value!({
+            "buffer": 0,
+            "byteOffset": offset,
+            "byteLength": encoded.len(),
+            "byteStride": stride,
+            "count": count,
+            "mode": mode,
+        });
+        self.root.push(json::buffer::View {
+            buffer: json::Index::new(1),
+            byte_length: USize64::from(decoded_length),
+            byte_offset: Some(USize64::from(decoded_offset)),
+            byte_stride: None,
+            name: None,
+            target: target.map(Valid),
+            extensions: Some(json::extensions::buffer::View {
+                others: [("EXT_meshopt_compression".to_string(), extension)]
+                    .into_iter()
+                    .collect(),
+            }),
+            extras: Default::default(),
+        })
+    }
+
     /// Appends `data` as a buffer view aligned to `align` bytes.
     fn view(
         &mut self,
@@ -108,6 +304,57 @@ fn floats_to_bytes(values: impl Iterator<Item = f32>) -> Vec<u8> {
     values.flat_map(f32::to_le_bytes).collect()
 }
 
+/// meshoptimizer's vertex codec (version 0, the one `EXT_meshopt_compression` reads) over
+/// elements of `stride` bytes.
+fn encode_vertices(data: &[u8], stride: usize) -> Vec<u8> {
+    fn typed<const N: usize>(data: &[u8]) -> Vec<u8> {
+        let elements: Vec<[u8; N]> = data
+            .chunks_exact(N)
+            .map(|c| {
+                let mut element = [0; N];
+                element.copy_from_slice(c);
+                element
+            })
+            .collect();
+        meshopt::encode_vertex_buffer_level(&elements, 2, Some(0))
+            .expect("meshoptimizer encodes any vertex data")
+    }
+    match stride {
+        4 => typed::<4>(data),
+        8 => typed::<8>(data),
+        12 => typed::<12>(data),
+        16 => typed::<16>(data),
+        other => unreachable!("no vertex stream of {other} bytes is written"),
+    }
+}
+
+/// The buffers with their triangles ordered for the vertex cache and their vertices in the
+/// order the triangles first use them (what meshoptimizer's codecs compress best); vertices no
+/// triangle uses are dropped.
+fn reordered(buffers: &MeshBuffers) -> MeshBuffers {
+    let count = buffers.positions.len();
+    let mut indices = meshopt::optimize_vertex_cache(&buffers.indices, count);
+    let mut remap = vec![u32::MAX; count];
+    let mut order: Vec<usize> = Vec::with_capacity(count);
+    for index in &mut indices {
+        let old = *index as usize;
+        if remap[old] == u32::MAX {
+            remap[old] = order.len() as u32;
+            order.push(old);
+        }
+        *index = remap[old];
+    }
+    let mut out = MeshBuffers::default();
+    out.positions = order.iter().map(|&i| buffers.positions[i]).collect();
+    out.normals = order.iter().map(|&i| buffers.normals[i]).collect();
+    out.feature_ids = order.iter().map(|&i| buffers.feature_ids[i]).collect();
+    out.indices = indices;
+    if buffers.colours.len() == count {
+        out.colours = order.iter().map(|&i| buffers.colours[i]).collect();
+    }
+    out
+}
+
 /// Base colour, roughness per part.
 fn material_of(part: Part) -> ([f32; 4], f32) {
     match part {
@@ -138,29 +385,57 @@ fn material_of(part: Part) -> ([f32; 4], f32) {
     }
 }
 
-/// Writes a tile's parts and feature table as glb bytes.
+/// Writes a tile's parts and feature table as glb bytes, in the frame and with the
+/// compression `variant` asks for.
 pub fn write(
     description: &TileDescription,
     parts: &BTreeMap<Part, MeshBuffers>,
     instanced: &BTreeMap<Model, Instances>,
     features: &[FeatureInfo],
+    variant: Variant,
 ) -> Vec<u8> {
+    let enu = (variant.frame == Frame::EastNorthUp).then(|| EastNorthUp::new(description.tile));
+    let carried;
+    let (parts, instanced) = match &enu {
+        Some(enu) => {
+            let mut moved = (parts.clone(), instanced.clone());
+            enu.carry(&mut moved.0, &mut moved.1);
+            carried = moved;
+            (&carried.0, &carried.1)
+        }
+        None => (parts, instanced),
+    };
     let mut builder = BinaryBuilder {
         bytes: Vec::new(),
         root: json::Root::default(),
+        fallback: variant.meshopt.then_some(0),
     };
 
-    let mut class_nodes: BTreeMap<FeatureClass, Vec<json::mesh::Primitive>> = BTreeMap::new();
+    let mut class_parts: BTreeMap<FeatureClass, Vec<(Part, &MeshBuffers)>> = BTreeMap::new();
     for (&part, buffers) in parts {
-        if buffers.is_empty() {
-            continue;
+        if !buffers.is_empty() {
+            class_parts
+                .entry(part.class())
+                .or_default()
+                .push((part, buffers));
         }
-        let primitive = write_primitive(&mut builder, part, buffers);
-        class_nodes.entry(part.class()).or_default().push(primitive);
     }
 
     let mut nodes = Vec::new();
-    for (class, primitives) in class_nodes {
+    for (class, class_parts) in class_parts {
+        // Positions on the shared grid where the node's extent allows it.
+        let grid = if variant.meshopt && variant.frame == Frame::WebMercator {
+            Grid::over(
+                description.size_m,
+                class_parts.iter().flat_map(|(_, b)| b.positions.iter()),
+            )
+        } else {
+            None
+        };
+        let primitives = class_parts
+            .iter()
+            .map(|&(part, buffers)| write_primitive(&mut builder, part, buffers, grid.as_ref()))
+            .collect();
         let mesh = builder.root.push(json::Mesh {
             extensions: None,
             extras: Default::default(),
@@ -168,9 +443,18 @@ pub fn write(
             primitives,
             weights: None,
         });
+        let (translation, scale) = match grid {
+            Some(grid) => (
+                Some(grid.base.map(|b| (b as f64 * grid.step) as f32)),
+                Some([grid.step as f32; 3]),
+            ),
+            None => (None, None),
+        };
         nodes.push(builder.root.push(json::Node {
             mesh: Some(mesh),
             name: Some(class.as_str().to_string()),
+            translation,
+            scale,
             ..Default::default()
         }));
     }
@@ -208,6 +492,13 @@ pub fn write(
             "EXT_instance_features".to_string(),
         ]);
     }
+    if variant.meshopt {
+        // Normals are bytes in every compressed tile, positions too where a grid fits.
+        for extension in ["KHR_mesh_quantization", "EXT_meshopt_compression"] {
+            builder.root.extensions_used.push(extension.to_string());
+            builder.root.extensions_required.push(extension.to_string());
+        }
+    }
 
     while builder.bytes.len() % 4 != 0 {
         builder.bytes.push(0);
@@ -219,7 +510,24 @@ pub fn write(
         extensions: None,
         extras: Default::default(),
     }];
-    builder.root.asset = asset(description);
+    if let Some(fallback) = builder.fallback.filter(|&length| length > 0) {
+        // What the compressed views decode into: no bytes of its own.
+        builder.root.buffers.push(json::Buffer {
+            byte_length: USize64::from(fallback.next_multiple_of(4)),
+            name: None,
+            uri: None,
+            extensions: Some(json::extensions::buffer::Buffer {
+                others: [(
+                    "EXT_meshopt_compression".to_string(),
+                    value!({ "fallback": true }),
+                )]
+                .into_iter()
+                .collect(),
+            }),
+            extras: Default::default(),
+        });
+    }
+    builder.root.asset = asset(description, enu.as_ref());
 
     let json_bytes = serde_json::to_vec(&builder.root).expect("glTF JSON serializes");
     container(&json_bytes, &builder.bytes)
@@ -236,7 +544,7 @@ fn write_instanced(
     let primitives = model
         .parts()
         .iter()
-        .map(|(part, buffers)| write_primitive(builder, *part, buffers))
+        .map(|(part, buffers)| write_primitive(builder, *part, buffers, None))
         .collect();
     let mesh = builder.root.push(json::Mesh {
         extensions: None,
@@ -246,9 +554,9 @@ fn write_instanced(
         weights: None,
     });
     let count = instances.len();
-    let array = Some(json::buffer::Target::ArrayBuffer);
     let mut vector = |values: Vec<f32>, type_: json::accessor::Type| {
-        let view = builder.view(&floats_to_bytes(values.into_iter()), 4, array);
+        let stride = 4 * type_.multiplicity();
+        let view = builder.vertex_view(&floats_to_bytes(values.into_iter()), stride);
         // Instance attributes are not vertex attributes: no target on their views.
         builder.root.buffer_views[view.value()].target = None;
         builder.accessor(view, count, json::accessor::ComponentType::F32, type_, None)
@@ -301,41 +609,102 @@ fn write_primitive(
     builder: &mut BinaryBuilder,
     part: Part,
     buffers: &MeshBuffers,
+    grid: Option<&Grid>,
 ) -> json::mesh::Primitive {
+    let compressed = builder.fallback.is_some();
+    let reordered_buffers;
+    let buffers = if compressed {
+        reordered_buffers = reordered(buffers);
+        &reordered_buffers
+    } else {
+        buffers
+    };
     let count = buffers.positions.len();
-    let mut min = [f32::INFINITY; 3];
-    let mut max = [f32::NEG_INFINITY; 3];
-    for p in &buffers.positions {
-        for axis in 0..3 {
-            min[axis] = min[axis].min(p[axis]);
-            max[axis] = max[axis].max(p[axis]);
+    let positions = match grid {
+        Some(grid) => {
+            // Whole grid steps, 16 bits each, padded to 8 bytes a vertex.
+            let quantized: Vec<[u16; 3]> = buffers
+                .positions
+                .iter()
+                .map(|&p| grid.quantize(p))
+                .collect();
+            let mut min = [u16::MAX; 3];
+            let mut max = [0u16; 3];
+            for q in &quantized {
+                for axis in 0..3 {
+                    min[axis] = min[axis].min(q[axis]);
+                    max[axis] = max[axis].max(q[axis]);
+                }
+            }
+            let bytes: Vec<u8> = quantized
+                .iter()
+                .flat_map(|q| {
+                    let [a, b, c] = q.map(u16::to_le_bytes);
+                    [a[0], a[1], b[0], b[1], c[0], c[1], 0, 0]
+                })
+                .collect();
+            let view = builder.vertex_view(&bytes, 8);
+            builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(8));
+            builder.accessor(
+                view,
+                count,
+                json::accessor::ComponentType::U16,
+                json::accessor::Type::Vec3,
+                Some((value!(min), value!(max))),
+            )
         }
-    }
-    let array = Some(json::buffer::Target::ArrayBuffer);
-    let positions = builder.view(
-        &floats_to_bytes(buffers.positions.iter().flatten().copied()),
-        4,
-        array,
-    );
-    let positions = builder.accessor(
-        positions,
-        count,
-        json::accessor::ComponentType::F32,
-        json::accessor::Type::Vec3,
-        Some((value!(min), value!(max))),
-    );
-    let normals = builder.view(
-        &floats_to_bytes(buffers.normals.iter().flatten().copied()),
-        4,
-        array,
-    );
-    let normals = builder.accessor(
-        normals,
-        count,
-        json::accessor::ComponentType::F32,
-        json::accessor::Type::Vec3,
-        None,
-    );
+        None => {
+            let mut min = [f32::INFINITY; 3];
+            let mut max = [f32::NEG_INFINITY; 3];
+            for p in &buffers.positions {
+                for axis in 0..3 {
+                    min[axis] = min[axis].min(p[axis]);
+                    max[axis] = max[axis].max(p[axis]);
+                }
+            }
+            let bytes = floats_to_bytes(buffers.positions.iter().flatten().copied());
+            let view = builder.vertex_view(&bytes, 12);
+            builder.accessor(
+                view,
+                count,
+                json::accessor::ComponentType::F32,
+                json::accessor::Type::Vec3,
+                Some((value!(min), value!(max))),
+            )
+        }
+    };
+    let normals = if compressed {
+        // Signed normalized bytes, padded to 4 a vertex.
+        let bytes: Vec<u8> = buffers
+            .normals
+            .iter()
+            .flat_map(|n| {
+                let [a, b, c] = n.map(|v| (v.clamp(-1.0, 1.0) * 127.0).round() as i8 as u8);
+                [a, b, c, 0]
+            })
+            .collect();
+        let view = builder.vertex_view(&bytes, 4);
+        builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(4));
+        let accessor = builder.accessor(
+            view,
+            count,
+            json::accessor::ComponentType::I8,
+            json::accessor::Type::Vec3,
+            None,
+        );
+        builder.root.accessors[accessor.value()].normalized = true;
+        accessor
+    } else {
+        let bytes = floats_to_bytes(buffers.normals.iter().flatten().copied());
+        let view = builder.vertex_view(&bytes, 12);
+        builder.accessor(
+            view,
+            count,
+            json::accessor::ComponentType::F32,
+            json::accessor::Type::Vec3,
+            None,
+        )
+    };
 
     // Feature ids: 16-bit where they fit (vertex attributes may not be 32-bit integers), each
     // element padded to the 4-byte alignment vertex attributes need.
@@ -349,54 +718,37 @@ fn write_primitive(
                 [a, b, 0, 0]
             })
             .collect();
-        let view = builder.view(&padded, 4, array);
+        let view = builder.vertex_view(&padded, 4);
         builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(4));
         (view, json::accessor::ComponentType::U16)
     } else {
         let bytes = floats_to_bytes(buffers.feature_ids.iter().map(|&id| id as f32));
         (
-            builder.view(&bytes, 4, array),
+            builder.vertex_view(&bytes, 4),
             json::accessor::ComponentType::F32,
         )
     };
     let feature_ids = builder.accessor(id_view, count, id_type, json::accessor::Type::Scalar, None);
 
-    let element = Some(json::buffer::Target::ElementArrayBuffer);
-    let indices = if count <= usize::from(u16::MAX) {
-        let bytes: Vec<u8> = buffers
-            .indices
-            .iter()
-            .flat_map(|&i| (i as u16).to_le_bytes())
-            .collect();
-        let view = builder.view(&bytes, 4, element);
-        builder.accessor(
-            view,
-            buffers.indices.len(),
-            json::accessor::ComponentType::U16,
-            json::accessor::Type::Scalar,
-            None,
-        )
-    } else {
-        let bytes: Vec<u8> = buffers
-            .indices
-            .iter()
-            .flat_map(|&i| i.to_le_bytes())
-            .collect();
-        let view = builder.view(&bytes, 4, element);
-        builder.accessor(
-            view,
-            buffers.indices.len(),
-            json::accessor::ComponentType::U32,
-            json::accessor::Type::Scalar,
-            None,
-        )
-    };
+    let wide = count > usize::from(u16::MAX);
+    let indices = builder.index_view(&buffers.indices, count, wide);
+    let indices = builder.accessor(
+        indices,
+        buffers.indices.len(),
+        if wide {
+            json::accessor::ComponentType::U32
+        } else {
+            json::accessor::ComponentType::U16
+        },
+        json::accessor::Type::Scalar,
+        None,
+    );
 
     let (mut colour, roughness) = material_of(part);
     let painted = !buffers.colours.is_empty() && buffers.colours.len() == count;
     let colours = painted.then(|| {
         let bytes: Vec<u8> = buffers.colours.iter().flatten().copied().collect();
-        let view = builder.view(&bytes, 4, array);
+        let view = builder.vertex_view(&bytes, 4);
         builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(4));
         let accessor = builder.accessor(
             view,
@@ -556,9 +908,9 @@ fn write_property_table(builder: &mut BinaryBuilder, features: &[FeatureInfo]) -
     })
 }
 
-fn asset(description: &TileDescription) -> json::Asset {
+fn asset(description: &TileDescription, enu: Option<&EastNorthUp>) -> json::Asset {
     let b = description.bounds;
-    let extras = value!({
+    let mut extras = value!({
         "terrastitch": {
             "tile": {"z": description.tile.z, "x": description.tile.x, "y": description.tile.y},
             "bounds": {"west": b.west, "south": b.south, "east": b.east, "north": b.north},
@@ -568,6 +920,11 @@ fn asset(description: &TileDescription) -> json::Asset {
             "attribution": ATTRIBUTION
         }
     });
+    if let Some(enu) = enu {
+        extras["terrastitch"]["frame"] = value!("glTF Y-up in metres, east-north-up at the centre of the tile on the WGS 84 ellipsoid: x east, y up, z south. Heights are SRTM heights (above the EGM96 geoid) taken as heights above the ellipsoid. Turned Z-up (x, -z, y), `transform` (column-major) carries a point to Earth-centred, Earth-fixed metres, as a 3D Tiles tile transform does.");
+        extras["terrastitch"]["vertical_scale"] = value!("none");
+        extras["terrastitch"]["transform"] = value!(enu.transform());
+    }
     json::Asset {
         copyright: Some(ATTRIBUTION.to_string()),
         extensions: None,
@@ -609,4 +966,63 @@ pub fn container(json_bytes: &[u8], binary: &[u8]) -> Vec<u8> {
         out.extend_from_slice(&binary_chunk);
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A corner as the bits of its position and normal, and its feature.
+    type Corner = ([u32; 3], [u32; 3], u32);
+
+    /// Triangles as their corners, from the first corner in order.
+    fn triangles(b: &MeshBuffers) -> Vec<[Corner; 3]> {
+        let mut out: Vec<_> = b
+            .indices
+            .chunks_exact(3)
+            .map(|t| {
+                let mut corners = [0, 1, 2].map(|k| {
+                    let v = t[k] as usize;
+                    (
+                        b.positions[v].map(f32::to_bits),
+                        b.normals[v].map(f32::to_bits),
+                        b.feature_ids[v],
+                    )
+                });
+                let first = (0..3).min_by_key(|&k| corners[k]).unwrap_or(0);
+                corners.rotate_left(first);
+                corners
+            })
+            .collect();
+        out.sort();
+        out
+    }
+
+    fn fan(unused: usize) -> MeshBuffers {
+        let mut b = MeshBuffers::default();
+        for _ in 0..unused {
+            b.push_vertex([9.0, 9.0, 9.0], [0.0, 1.0, 0.0], 7);
+        }
+        let centre = b.push_vertex([0.0, 0.32, 0.0], [0.0, -1.0, 0.0], 1);
+        let ring: Vec<u32> = (0..12)
+            .map(|i| {
+                let a = f64::from(i) * std::f64::consts::TAU / 12.0;
+                b.push_vertex([a.cos(), 0.4, a.sin()], [a.cos(), -0.5, a.sin()], i % 3)
+            })
+            .collect();
+        for i in 0..12 {
+            b.indices.extend([centre, ring[i], ring[(i + 1) % 12]]);
+        }
+        b
+    }
+
+    #[test]
+    fn reordering_keeps_every_triangle_and_drops_unused_vertices() {
+        for unused in [0, 3] {
+            let b = fan(unused);
+            let r = reordered(&b);
+            assert_eq!(triangles(&b), triangles(&r));
+            assert_eq!(r.positions.len(), 13);
+        }
+    }
 }

@@ -1,5 +1,6 @@
 //! Writers of the formats tiles are served in.
 
 pub mod debug;
+pub mod enu;
 pub mod glb;
 pub mod quantized_mesh;

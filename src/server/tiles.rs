@@ -5,7 +5,7 @@
 
 use std::sync::Arc;
 
-use axum::extract::{Path, State};
+use axum::extract::{Path, RawQuery, State};
 use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 
@@ -15,18 +15,42 @@ use super::pool::Refused;
 use super::{AppState, RETRY_AFTER_S};
 use crate::cache::encoding::{Accepted, Encoding};
 use crate::cache::{CacheError, Format, Origin, Provenance, Served, TileKey};
+use crate::output::glb::{Frame, Variant};
 use crate::output::quantized_mesh::Extensions;
 use crate::render::Deadline;
 use crate::source::{MissingSrtm, Sources};
 use crate::tile::{TileId, TileIdError};
 
+/// Whether the query asks for compressed glb: `compress=meshopt` (`EXT_meshopt_compression`
+/// over `KHR_mesh_quantization`) or `compress=none` (the default). Other parameters are left
+/// alone (a cache-busting one, say); a `compress` of anything else is refused.
+pub fn wants_meshopt(query: Option<&str>) -> Result<bool, ApiError> {
+    let mut meshopt = false;
+    for pair in query.unwrap_or("").split('&') {
+        let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
+        if key == "compress" {
+            meshopt = match value {
+                "meshopt" => true,
+                "none" | "" => false,
+                other => {
+                    return Err(ApiError::bad_request(format!(
+                        "compress={other} is not offered; use compress=meshopt or compress=none"
+                    )))
+                }
+            };
+        }
+    }
+    Ok(meshopt)
+}
+
 /// Parses `z`, `x` and `y.ext` into a tile and a format; `accept` chooses quantized-mesh
-/// extensions.
+/// extensions, `glb` the frame and compression of a glb.
 pub fn parse_tile_path(
     z: &str,
     x: &str,
     file: &str,
     accept: &str,
+    glb: Variant,
 ) -> Result<(TileId, Format), ApiError> {
     let (y, extension) = file.rsplit_once('.').ok_or_else(|| {
         ApiError::bad_request(format!(
@@ -34,12 +58,19 @@ pub fn parse_tile_path(
         ))
     })?;
     let format = match extension {
-        "glb" => Format::Glb,
-        "terrain" => Format::Terrain(Extensions::from_accept(accept)),
+        "glb" => Format::Glb(glb),
+        "terrain" if glb.frame == Frame::WebMercator => {
+            Format::Terrain(Extensions::from_accept(accept))
+        }
         other => {
-            return Err(ApiError::bad_request(format!(
-                "unknown tile format '.{other}'; expected .glb or .terrain"
-            )))
+            return Err(ApiError::bad_request(match glb.frame {
+                Frame::WebMercator => {
+                    format!("unknown tile format '.{other}'; expected .glb or .terrain")
+                }
+                Frame::EastNorthUp => {
+                    format!("unknown 3D Tiles file '.{other}'; expected .glb or .json")
+                }
+            }))
         }
     };
     let number = |name: &str, text: &str| {
@@ -57,9 +88,11 @@ pub fn parse_tile_path(
     Ok((tile, format))
 }
 
+/// `GET /tiles/{z}/{x}/{y}.glb|.terrain`: the flat frame.
 pub async fn tile(
     State(state): State<AppState>,
     Path((z, x, file)): Path<(String, String, String)>,
+    RawQuery(query): RawQuery,
     request_headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     Metrics::count(&state.metrics.tile_requests);
@@ -67,11 +100,25 @@ pub async fn tile(
         .get(header::ACCEPT)
         .and_then(|v| v.to_str().ok())
         .unwrap_or("");
-    let (tile, format) = parse_tile_path(&z, &x, &file, accept)?;
+    let variant = Variant {
+        frame: Frame::WebMercator,
+        meshopt: wants_meshopt(query.as_deref())?,
+    };
+    let (tile, format) = parse_tile_path(&z, &x, &file, accept, variant)?;
+    serve(state, tile, format, request_headers).await
+}
+
+/// A tile in `format`: from memory, the store, or made now.
+pub async fn serve(
+    state: AppState,
+    tile: TileId,
+    format: Format,
+    request_headers: HeaderMap,
+) -> Result<Response, ApiError> {
     let overview = matches!(format, Format::Terrain(_)) && tile.z < state.zoom;
     if tile.z != state.zoom && !overview {
         return Err(ApiError::not_found(match format {
-            Format::Glb => format!(
+            Format::Glb(_) => format!(
                 "zoom {} is not served; this server serves glb tiles at zoom {}",
                 tile.z, state.zoom
             ),
@@ -207,7 +254,7 @@ fn respond(state: &AppState, key: TileKey, served: &Served, request: &HeaderMap)
     let etag = coded_etag(&tile.etag, coding);
     let mut headers = HeaderMap::new();
     match key.format {
-        Format::Glb => {
+        Format::Glb(_) => {
             headers.insert(
                 header::CONTENT_TYPE,
                 HeaderValue::from_static("model/gltf-binary"),
@@ -408,7 +455,8 @@ mod tests {
 
     #[test]
     fn parses_good_paths_and_rejects_bad_ones() {
-        let (tile, format) = parse_tile_path("14", "8529", "5973.glb", "").unwrap();
+        let plain = Variant::default();
+        let (tile, format) = parse_tile_path("14", "8529", "5973.glb", "", plain).unwrap();
         assert_eq!(
             tile,
             TileId {
@@ -417,9 +465,9 @@ mod tests {
                 y: 5973
             }
         );
-        assert_eq!(format, Format::Glb);
+        assert_eq!(format, Format::GLB);
         let accept = "application/vnd.quantized-mesh;extensions=watermask";
-        let (_, format) = parse_tile_path("14", "8529", "5973.terrain", accept).unwrap();
+        let (_, format) = parse_tile_path("14", "8529", "5973.terrain", accept, plain).unwrap();
         let watermask = Extensions {
             normals: false,
             watermask: true,
@@ -432,8 +480,27 @@ mod tests {
             ("14", "1", "1"),
             ("-1", "0", "0.glb"),
         ] {
-            let error = parse_tile_path(z, x, file, "").unwrap_err();
+            let error = parse_tile_path(z, x, file, "", plain).unwrap_err();
             assert_eq!(error.status, StatusCode::BAD_REQUEST, "{z}/{x}/{file}");
         }
+        // 3D Tiles content is glb in the east-north-up frame; it has no terrain form.
+        let enu = Variant {
+            frame: Frame::EastNorthUp,
+            meshopt: true,
+        };
+        let (_, format) = parse_tile_path("14", "8529", "5973.glb", "", enu).unwrap();
+        assert_eq!(format, Format::Glb(enu));
+        assert!(parse_tile_path("14", "8529", "5973.terrain", "", enu).is_err());
+    }
+
+    #[test]
+    fn compression_is_asked_for_in_the_query() {
+        assert!(!wants_meshopt(None).unwrap());
+        assert!(wants_meshopt(Some("compress=meshopt")).unwrap());
+        assert!(wants_meshopt(Some("v=3&compress=meshopt")).unwrap());
+        assert!(!wants_meshopt(Some("compress=none&x")).unwrap());
+        let error = wants_meshopt(Some("compress=draco")).unwrap_err();
+        assert_eq!(error.status, StatusCode::BAD_REQUEST);
+        assert!(error.message.contains("draco"), "{}", error.message);
     }
 }

@@ -3,6 +3,8 @@
 //! locator over the ground triangles.
 #![allow(dead_code)]
 
+pub mod compressed;
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -273,6 +275,20 @@ pub fn decode(bytes: &[u8]) -> DecodedTile {
 
     let root: serde_json::Value =
         serde_json::to_value(gltf.document.clone().into_json()).expect("json");
+    let features = read_features(&root, &view_bytes);
+    DecodedTile {
+        nodes,
+        instanced,
+        features,
+        asset_extras: root["asset"]["extras"].clone(),
+    }
+}
+
+/// The rows of a tile's `EXT_structural_metadata` property table.
+pub fn read_features<'a>(
+    root: &serde_json::Value,
+    view_bytes: &dyn Fn(usize) -> &'a [u8],
+) -> Vec<Feature> {
     let table = &root["extensions"]["EXT_structural_metadata"]["propertyTables"][0];
     let count = table["count"].as_u64().expect("count") as usize;
     let strings = |property: &str| -> Vec<String> {
@@ -296,7 +312,7 @@ pub fn decode(bytes: &[u8]) -> DecodedTile {
         strings("name"),
         strings("tags"),
     );
-    let features = (0..count)
+    (0..count)
         .map(|i| Feature {
             osm_type: osm_type[i].clone(),
             osm_id: i64::from_le_bytes(ids[i * 8..i * 8 + 8].try_into().unwrap()),
@@ -304,13 +320,7 @@ pub fn decode(bytes: &[u8]) -> DecodedTile {
             name: name[i].clone(),
             tags: serde_json::from_str(&tags[i]).expect("tags are a JSON object"),
         })
-        .collect();
-    DecodedTile {
-        nodes,
-        instanced,
-        features,
-        asset_extras: root["asset"]["extras"].clone(),
-    }
+        .collect()
 }
 
 /// What the Khronos validator says of one file.
