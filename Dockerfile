@@ -34,6 +34,8 @@ COPY static ./static
 COPY --from=viewer /viewer/node_modules/three/build ./static/vendor/three/build
 COPY --from=viewer /viewer/node_modules/three/examples/jsm ./static/vendor/three/examples/jsm
 COPY --from=viewer /viewer/node_modules/three/LICENSE ./static/vendor/three/LICENSE
+COPY --from=viewer /viewer/node_modules/cesium/Build/Cesium ./static/vendor/cesium
+COPY --from=viewer /viewer/node_modules/cesium/LICENSE.md ./static/vendor/cesium/LICENSE.md
 # The sample; downloads (sources.downloads = data/downloads) go into the same volume.
 COPY --chown=terrastitch data ./data
 ENV TERRASTITCH_SERVER__LISTEN=0.0.0.0:8080 \

@@ -9,7 +9,8 @@ NPM ?= npm
 run: static/vendor/.installed
 	$(CARGO) run --release -- serve
 
-# The viewer's libraries (three.js), pinned by the lock file and copied next to the page:
+# The viewers' libraries (three.js for the flat viewer, CesiumJS for the globe), pinned by the
+# lock file and copied next to the pages:
 # nothing is fetched from a CDN when the page loads.
 static/vendor/.installed: viewer/package.json viewer/package-lock.json
 	cd viewer && $(NPM) ci --no-audit --no-fund
@@ -17,6 +18,8 @@ static/vendor/.installed: viewer/package.json viewer/package-lock.json
 	cp -r viewer/node_modules/three/build static/vendor/three/build
 	cp -r viewer/node_modules/three/examples/jsm static/vendor/three/examples/jsm
 	cp viewer/node_modules/three/LICENSE static/vendor/three/LICENSE
+	cp -r viewer/node_modules/cesium/Build/Cesium static/vendor/cesium
+	cp viewer/node_modules/cesium/LICENSE.md static/vendor/cesium/LICENSE.md
 	touch $@
 
 # Chromium for the tests in a real browser (Debian's package), unless one is installed.

@@ -6,7 +6,9 @@
 #   3. a cold burst: 200 concurrent requests over 20 tiles never rendered, its completion time,
 #      the answers, and the server's peak memory;
 #   4. seeding the whole area of the bundled extract: tiles per second;
-#   5. exporting it to MBTiles: the file's size.
+#   5. exporting it to MBTiles: the file's size;
+#   6. the bytes of three tiles in every glb variant (flat or east-north-up, plain or meshopt)
+#      as sent uncompressed, gzip and brotli, and each variant's render time.
 # Usage: scripts/bench.sh   (from the repository root, after a release build; needs wrk)
 set -euo pipefail
 bin=target/release/terrastitch
@@ -71,3 +73,18 @@ echo "== 5. export of that area to MBTiles"
 "$bin" export --bbox "$bounds" --cache "$out/seed.sqlite" -o "$out/area.mbtiles" 2>&1 | grep -E '^exported'
 ls -l "$out/area.mbtiles" | awk '{print "MBTiles bytes", $5}'
 ls -l "$out/seed.sqlite" | awk '{print "cache bytes (compressed tiles)", $5}'
+
+echo "== 6. tile sizes by variant (bytes sent: identity / gzip / br) and render time"
+start_server sizes
+for t in 14/8529/5973 14/8530/5973 14/8527/5975; do
+  for path in "tiles/$t.glb" "tiles/$t.glb?compress=meshopt" "3dtiles/$t.glb" "3dtiles/$t.glb?compress=meshopt"; do
+    url="http://127.0.0.1:$port/$path"
+    first=$(curl -fsS -o /dev/null -w '%{time_total}' "$url")
+    sizes=""
+    for coding in identity gzip br; do
+      sizes="$sizes $(curl -fsS -o /dev/null -w '%{size_download}' -H "Accept-Encoding: $coding" "$url")"
+    done
+    printf '%-45s %9s %9s %9s  first request %.2f s\n' "$path" $sizes "$first"
+  done
+done
+stop_server

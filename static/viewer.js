@@ -170,6 +170,10 @@ function jumpTo(view) {
 // ---------------------------------------------------------------------------------------
 // Tiles
 
+// Tiles come compressed (EXT_meshopt_compression over KHR_mesh_quantization, about a quarter
+// of the bytes) unless the page's query says `?compress=none`.
+const COMPRESS = new URLSearchParams(window.location.search).get('compress') === 'none'
+  ? 'none' : 'meshopt';
 const loader = new GLTFLoader();
 loader.setMeshoptDecoder(MeshoptDecoder);
 
@@ -238,7 +242,7 @@ function scheduleTiles() {
 async function loadTile(tile) {
   tile.state = 'loading';
   fetching++;
-  const url = `tiles/${ZOOM}/${tile.x}/${tile.y}.glb`;
+  const url = `tiles/${ZOOM}/${tile.x}/${tile.y}.glb?compress=${COMPRESS}`;
   stats.requested.push(`${tile.x}/${tile.y}`);
   showStatus();
   try {

@@ -4,3 +4,4 @@ pub mod debug;
 pub mod enu;
 pub mod glb;
 pub mod quantized_mesh;
+pub mod tileset;

@@ -9,6 +9,7 @@ pub mod pool;
 pub mod regenerate;
 pub mod tilejson;
 pub mod tiles;
+pub mod tileset;
 
 use std::sync::{Arc, RwLock};
 use std::time::{Duration, Instant};
@@ -199,6 +200,8 @@ pub fn router(state: AppState) -> Router {
         .route("/debug/tiles/{z}/{x}/{file}", get(debug::elevations))
         .route("/layer.json", get(layer::layer))
         .route("/tiles.json", get(tilejson::tilejson))
+        .route("/tileset.json", get(tileset::root))
+        .route("/3dtiles/{z}/{x}/{file}", get(tileset::file))
         .route("/health", get(health))
         .route("/ready", get(ready))
         .route("/metrics", get(metrics))

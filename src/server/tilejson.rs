@@ -67,5 +67,6 @@ pub async fn tilejson(
         "tiles": [format!("{base}/tiles/{{z}}/{{x}}/{{y}}.glb")],
         "terrain": [format!("{base}/tiles/{{z}}/{{x}}/{{y}}.terrain")],
         "terrain_layer": format!("{base}/layer.json"),
+        "tileset_3d": format!("{base}/tileset.json"),
     })))
 }

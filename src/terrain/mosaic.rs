@@ -99,6 +99,50 @@ impl Mosaic {
         None
     }
 
+    /// The lowest and highest SRTM samples inside a box, reading at most about `budget`
+    /// samples (every k-th row and column of a large box: its extremes may be missed by the
+    /// height of the ground between read samples); `None` where no file covers the box.
+    pub fn height_range(
+        &self,
+        west: f64,
+        south: f64,
+        east: f64,
+        north: f64,
+        budget: usize,
+    ) -> Option<(f64, f64)> {
+        let mut range: Option<(f64, f64)> = None;
+        for tile in self.tiles.values() {
+            let steps = (tile.size - 1) as f64;
+            let last = tile.size as f64 - 1.0;
+            let r0 = ((f64::from(tile.cell.lat) + 1.0 - north) * steps)
+                .floor()
+                .max(0.0);
+            let r1 = ((f64::from(tile.cell.lat) + 1.0 - south) * steps)
+                .ceil()
+                .min(last);
+            let c0 = ((west - f64::from(tile.cell.lon)) * steps).floor().max(0.0);
+            let c1 = ((east - f64::from(tile.cell.lon)) * steps).ceil().min(last);
+            if r0 > r1 || c0 > c1 {
+                continue;
+            }
+            let (rows, columns) = ((r1 - r0 + 1.0) as usize, (c1 - c0 + 1.0) as usize);
+            let stride = ((rows * columns) as f64 / budget.max(1) as f64)
+                .sqrt()
+                .ceil()
+                .max(1.0) as usize;
+            for row in (r0 as usize..=r1 as usize).step_by(stride) {
+                for column in (c0 as usize..=c1 as usize).step_by(stride) {
+                    let h = f64::from(tile.sample(row, column));
+                    range = Some(match range {
+                        Some((low, high)) => (low.min(h), high.max(h)),
+                        None => (h, h),
+                    });
+                }
+            }
+        }
+        range
+    }
+
     /// The SRTM samples that lie inside a box, with their positions (used for minima over areas).
     pub fn samples_in(&self, west: f64, south: f64, east: f64, north: f64) -> Vec<(f64, f64, f64)> {
         let mut out = Vec::new();

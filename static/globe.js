@@ -1,0 +1,150 @@
+// The served tiles on a CesiumJS globe, loaded as a 3D Tiles 1.1 tileset (`/tileset.json`):
+// content in east-north-up frames placed by each tile's transform, features picked from the
+// tile's EXT_structural_metadata table. No imagery or terrain service is asked for: the globe is
+// the bare WGS 84 ellipsoid, on which SRTM heights stand at sea level as in the flat viewer.
+//
+// Query: ?compress=none for uncompressed content (meshopt by default); the URL hash
+// `#lat,lon,height` sets where the camera looks from.
+/* global Cesium */
+
+const params = new URLSearchParams(window.location.search);
+const compress = params.get('compress') ?? 'meshopt';
+const status = document.getElementById('status');
+
+const stats = {
+  loaded: [],
+  failed: [],
+  allLoaded: false,
+  firstAllLoaded: null,
+};
+const started = performance.now();
+
+const viewer = new Cesium.Viewer('globe', {
+  baseLayer: false,
+  baseLayerPicker: false,
+  geocoder: false,
+  timeline: false,
+  animation: false,
+  homeButton: false,
+  sceneModePicker: false,
+  navigationHelpButton: false,
+  fullscreenButton: false,
+  infoBox: false,
+  selectionIndicator: false,
+  terrainProvider: new Cesium.EllipsoidTerrainProvider(),
+});
+viewer.scene.globe.baseColor = Cesium.Color.fromCssColorString('#28435f');
+viewer.scene.globe.depthTestAgainstTerrain = false;
+
+function showError(message) {
+  status.textContent = message;
+  status.className = 'error';
+}
+
+function viewFromHash() {
+  const parts = window.location.hash.slice(1).split(',').map(Number);
+  if (parts.length >= 2 && parts.every(Number.isFinite)) {
+    return { lat: parts[0], lon: parts[1], height: parts[2] ?? 1500 };
+  }
+  return null;
+}
+
+/** Looks at a point from the south, `height` metres up. */
+function lookAt(lat, lon, height, pitchDegrees = -45) {
+  const pitch = Cesium.Math.toRadians(pitchDegrees);
+  const back = pitchDegrees <= -89 ? 0 : height / Math.tan(-pitch);
+  const metresPerDegree = 111320;
+  viewer.camera.setView({
+    destination: Cesium.Cartesian3.fromDegrees(lon, lat - back / metresPerDegree, height),
+    orientation: { heading: 0, pitch, roll: 0 },
+  });
+}
+
+function escapeHtml(text) {
+  return String(text).replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
+}
+
+function showFeature(feature) {
+  const panel = document.getElementById('feature');
+  const type = String(feature.getProperty('osm_type') ?? '');
+  const id = String(feature.getProperty('osm_id') ?? '');
+  let tags = {};
+  try {
+    tags = JSON.parse(feature.getProperty('tags') ?? '{}');
+  } catch (error) {
+    tags = {};
+  }
+  const rows = Object.entries(tags)
+    .map(([k, v]) => `<tr><td>${escapeHtml(k)}</td><td>${escapeHtml(v)}</td></tr>`)
+    .join('');
+  const link = type === 'none'
+    ? ''
+    : `<a href="https://www.openstreetmap.org/${escapeHtml(type)}/${escapeHtml(id)}" target="_blank" rel="noopener">openstreetmap.org</a>`;
+  document.getElementById('feature-body').innerHTML = `
+    <div><strong>${escapeHtml(feature.getProperty('class') ?? '')}</strong>
+      ${escapeHtml(feature.getProperty('name') ?? '')}</div>
+    <div class="osm-id" data-osm-type="${escapeHtml(type)}" data-osm-id="${escapeHtml(id)}">${escapeHtml(type)} ${escapeHtml(id)} ${link}</div>
+    <table>${rows}</table>`;
+  panel.hidden = false;
+}
+
+document.getElementById('feature-close').addEventListener('click', () => {
+  document.getElementById('feature').hidden = true;
+});
+
+/** The feature drawn at a canvas position, if any. */
+function pick(x, y) {
+  const picked = viewer.scene.pick(new Cesium.Cartesian2(x, y));
+  return picked instanceof Cesium.Cesium3DTileFeature ? picked : null;
+}
+
+viewer.screenSpaceEventHandler.setInputAction((click) => {
+  const feature = pick(click.position.x, click.position.y);
+  if (feature) showFeature(feature);
+}, Cesium.ScreenSpaceEventType.LEFT_CLICK);
+
+let tileset = null;
+try {
+  tileset = await Cesium.Cesium3DTileset.fromUrl(`tileset.json?compress=${encodeURIComponent(compress)}`);
+  viewer.scene.primitives.add(tileset);
+  tileset.tileLoad.addEventListener((tile) => {
+    stats.loaded.push(tile.content.url.replace(/^.*3dtiles\//, ''));
+  });
+  tileset.tileFailed.addEventListener((error) => {
+    stats.failed.push(`${error.url}: ${error.message}`);
+    showError(`A tile failed: ${error.url}: ${error.message}`);
+  });
+  tileset.loadProgress.addEventListener((pending, processing) => {
+    if (!status.classList.contains('error')) {
+      status.textContent = pending + processing > 0 ? `loading ${pending + processing} tiles…` : '';
+    }
+  });
+  tileset.allTilesLoaded.addEventListener(() => {
+    stats.allLoaded = true;
+    if (stats.firstAllLoaded === null) stats.firstAllLoaded = performance.now() - started;
+  });
+} catch (error) {
+  showError(`The tileset could not be loaded: ${error.message ?? error}`);
+}
+
+const start = viewFromHash() ?? { lat: 43.7384, lon: 7.4246, height: 1500 };
+lookAt(start.lat, start.lon, start.height);
+
+window.terrastitchGlobe = {
+  viewer,
+  tileset,
+  stats,
+  lookAt,
+  /** The OSM type and id of the feature at the canvas's centre, or null. */
+  pickCentre() {
+    const canvas = viewer.scene.canvas;
+    const feature = pick(canvas.clientWidth / 2, canvas.clientHeight / 2);
+    if (!feature) return null;
+    showFeature(feature);
+    return {
+      osmType: String(feature.getProperty('osm_type')),
+      osmId: String(feature.getProperty('osm_id')),
+      class: String(feature.getProperty('class')),
+    };
+  },
+};

@@ -1,0 +1,137 @@
+//! The 3D Tiles tileset in CesiumJS, in a real browser: the globe page (`static/globe.html`)
+//! loads `/tileset.json` in headless Chromium (software WebGL), driven by playwright-core
+//! (`tests/js/globe_check.mjs`). Tiles must load without errors and draw; then, looking
+//! straight down from 400 m on a building's centre (worked out here from the flat glb), the
+//! feature CesiumJS picks at the centre of the view must be that building: the content sits on
+//! the globe where its longitude and latitude say, and its metadata is readable. Screenshots and
+//! the report go to `tests/artifacts/globe/`.
+
+mod common;
+
+use std::process::Command;
+
+use common::{decode, repo, TestServer};
+use terrastitch::TileId;
+
+/// Hôtel de Paris, in Monte-Carlo.
+const KNOWN_BUILDING: i64 = 157_719_657;
+
+/// The building's centre (longitude, latitude) from its walls and roofs in the flat tile of
+/// `tiles` that draws it.
+async fn building_centre(server: &TestServer, tiles: &[TileId]) -> (f64, f64) {
+    for &tile in tiles {
+        if let Some(centre) = centre_in(server, tile).await {
+            return centre;
+        }
+    }
+    panic!("no tile of {tiles:?} draws the building");
+}
+
+async fn centre_in(server: &TestServer, tile: TileId) -> Option<(f64, f64)> {
+    let url = server.url(&format!("/tiles/{}/{}/{}.glb", tile.z, tile.x, tile.y));
+    let bytes = reqwest::get(&url).await.unwrap().bytes().await.unwrap();
+    let decoded = decode(&bytes);
+    let feature = decoded
+        .features
+        .iter()
+        .position(|f| f.osm_id == KNOWN_BUILDING)? as u32;
+    let (mut x, mut z, mut n) = (0.0, 0.0, 0.0);
+    for primitive in decoded.primitives("building") {
+        for (p, &id) in primitive.positions.iter().zip(&primitive.feature_ids) {
+            if id == feature {
+                x += f64::from(p[0]);
+                z += f64::from(p[2]);
+                n += 1.0;
+            }
+        }
+    }
+    (n > 0.0).then(|| tile.frame().to_lon_lat(x / n, z / n))
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cesium_loads_the_tileset_and_picks_a_building_where_it_stands() {
+    assert!(
+        repo().join("static/vendor/cesium/Cesium.js").exists(),
+        "CesiumJS is not in static/vendor: run `make test` (it copies it from viewer/)"
+    );
+    assert!(
+        repo()
+            .join("tests/js/node_modules/playwright-core")
+            .exists(),
+        "playwright-core is not installed: run `make test` (it runs npm ci in tests/js)"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    let near: Vec<TileId> = [(8530, 5973), (8529, 5974), (8529, 5973)]
+        .into_iter()
+        .map(|(x, y)| TileId::new(14, x, y).unwrap())
+        .collect();
+    let (lon, lat) = building_centre(&server, &near).await;
+
+    let artifacts = repo().join("tests/artifacts/globe");
+    std::fs::create_dir_all(&artifacts).unwrap();
+    let base = server.url("/");
+    let out = artifacts.clone();
+    let output = tokio::task::spawn_blocking(move || {
+        Command::new("node")
+            .arg(repo().join("tests/js/globe_check.mjs"))
+            .arg(&base)
+            .arg(&out)
+            .arg(lat.to_string())
+            .arg(lon.to_string())
+            .output()
+            .expect("node runs")
+    })
+    .await
+    .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let report: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap_or_else(|_| {
+        panic!(
+            "no report:\n{stdout}\n{}",
+            String::from_utf8_lossy(&output.stderr)
+        )
+    });
+    std::fs::write(
+        artifacts.join("report.json"),
+        serde_json::to_string_pretty(&report).unwrap(),
+    )
+    .unwrap();
+    let text = serde_json::to_string_pretty(&report).unwrap();
+    assert!(report["error"].is_null(), "{text}");
+    assert_eq!(report["consoleErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["pageErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["failedRequests"], serde_json::json!([]), "{text}");
+    assert_eq!(report["end"]["failed"], serde_json::json!([]), "{text}");
+
+    // The tileset files and compressed content tiles came, and something was drawn.
+    assert!(
+        report["requests"]["tilesets"].as_u64().unwrap() >= 2,
+        "{text}"
+    );
+    let content = report["requests"]["content"].as_array().unwrap();
+    assert!(content.len() >= 4, "{text}");
+    assert!(
+        content
+            .iter()
+            .all(|u| u.as_str().unwrap().ends_with(".glb?compress=meshopt")),
+        "{text}"
+    );
+    assert!(
+        report["pixels"]["distinctColours"].as_u64().unwrap() > 50,
+        "{text}"
+    );
+    // Straight down on the building's centre, CesiumJS picks the building.
+    assert_eq!(
+        report["picked"]["osmId"],
+        serde_json::json!(KNOWN_BUILDING.to_string()),
+        "{text}"
+    );
+    assert_eq!(report["picked"]["osmType"], "way", "{text}");
+    assert_eq!(report["panel"]["visible"], true, "{text}");
+    println!(
+        "globe: first settled view {} ms, {} content tiles",
+        report["steps"]["firstAllLoadedMs"],
+        content.len()
+    );
+    server.stop().await;
+}

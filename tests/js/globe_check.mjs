@@ -1,0 +1,87 @@
+// Drives the globe page (CesiumJS over /tileset.json) in headless Chromium and prints what it
+// saw as one JSON object.
+// Usage: node globe_check.mjs BASE_URL OUT_DIR LAT LON
+//   BASE_URL  the server, e.g. http://127.0.0.1:8080/
+//   OUT_DIR   where the screenshots go
+//   LAT LON   a building's centre: the camera looks straight down on it and picks what is there
+import { chromium } from 'playwright-core';
+import { join } from 'node:path';
+
+const [base, outDir, lat, lon] = process.argv.slice(2);
+const result = { consoleErrors: [], pageErrors: [], failedRequests: [], steps: {} };
+
+const browser = await chromium.launch({
+  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+  args: [
+    '--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
+    '--disable-component-update', '--disable-sync', '--no-first-run', '--use-angle=swiftshader',
+    '--enable-unsafe-swiftshader',
+  ],
+});
+try {
+  const page = await browser.newPage({ viewport: { width: 1024, height: 768 } });
+  page.on('console', (message) => {
+    if (message.type() === 'error') result.consoleErrors.push(message.text());
+  });
+  page.on('pageerror', (error) => result.pageErrors.push(String(error)));
+  page.on('crash', () => result.pageErrors.push('the page crashed'));
+  page.on('requestfailed', (request) => {
+    result.failedRequests.push(`${request.url()}: ${request.failure()?.errorText}`);
+  });
+  const requested = [];
+  page.on('request', (request) => requested.push(request.url().replace(base, '/')));
+
+  const loadStarted = Date.now();
+  await page.goto(`${base}globe.html`, { waitUntil: 'load' });
+  // Settled: the tileset says every tile the view needs is loaded, and content has come.
+  await page.waitForFunction(() => {
+    const globe = window.terrastitchGlobe;
+    return globe?.tileset?.tilesLoaded
+      && globe.stats.loaded.filter((u) => u.includes('.glb')).length >= 4;
+  }, null, { timeout: 300000, polling: 250 });
+  result.steps.firstAllLoadedMs = Date.now() - loadStarted;
+  await page.waitForTimeout(1500);
+  await page.screenshot({ path: join(outDir, 'globe-start.png') });
+  result.start = await page.evaluate(() => ({ ...window.terrastitchGlobe.stats }));
+  result.pixels = await page.evaluate(() => {
+    const viewer = window.terrastitchGlobe.viewer;
+    viewer.render();
+    const source = viewer.scene.canvas;
+    const canvas = document.createElement('canvas');
+    canvas.width = 256;
+    canvas.height = 192;
+    const context = canvas.getContext('2d');
+    context.drawImage(source, 0, 0, canvas.width, canvas.height);
+    const { data } = context.getImageData(0, 0, canvas.width, canvas.height);
+    const colours = new Set();
+    for (let i = 0; i < data.length; i += 4) {
+      colours.add((data[i] >> 3) << 10 | (data[i + 1] >> 3) << 5 | (data[i + 2] >> 3));
+    }
+    return { distinctColours: colours.size };
+  });
+
+  // Straight down on the building: the feature at the centre must be it.
+  await page.evaluate(([la, lo]) => window.terrastitchGlobe.lookAt(la, lo, 400, -90),
+    [Number(lat), Number(lon)]);
+  await page.waitForTimeout(500);
+  await page.waitForFunction(() => window.terrastitchGlobe.tileset.tilesLoaded,
+    null, { timeout: 300000, polling: 250 });
+  await page.waitForTimeout(1500);
+  result.picked = await page.evaluate(() => window.terrastitchGlobe.pickCentre());
+  result.panel = await page.evaluate(() => {
+    const panel = document.getElementById('feature');
+    const id = panel.querySelector('.osm-id');
+    return { visible: !panel.hidden, osmId: id?.dataset.osmId ?? null };
+  });
+  await page.screenshot({ path: join(outDir, 'globe-picked.png') });
+  result.end = await page.evaluate(() => ({ ...window.terrastitchGlobe.stats }));
+  result.requests = {
+    tilesets: requested.filter((u) => u.includes('.json')).length,
+    content: requested.filter((u) => u.includes('.glb')),
+  };
+} catch (error) {
+  result.error = String(error.stack ?? error);
+} finally {
+  await browser.close();
+}
+console.log(JSON.stringify(result));
