@@ -9,10 +9,31 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use common::compressed::{decode_compressed, CompressedTile};
-use common::{decode, render_in_process, DecodedTile, GROUND_NODES};
+use common::{decode, render_in_process, validate, DecodedTile, GROUND_NODES};
 use terrastitch::output::enu::ecef;
 use terrastitch::output::glb::GRID_STEPS_PER_TILE;
 use terrastitch::TileId;
+
+/// The Khronos validator finds neither errors nor warnings in the files a variant wrote (it
+/// checks the quantized accessors; it cannot decode meshopt views, so the decoding is checked
+/// by the reader in `common::compressed`).
+fn assert_valid(out: &Path, variant: &str) {
+    let files: Vec<std::path::PathBuf> = std::fs::read_dir(out.join(variant))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    let paths: Vec<&Path> = files.iter().map(|p| p.as_path()).collect();
+    assert!(!paths.is_empty());
+    for report in validate(&paths) {
+        assert_eq!(
+            (report.errors, report.warnings),
+            (0, 0),
+            "{}: {:?}",
+            report.file,
+            report.messages
+        );
+    }
+}
 
 fn render(tile: (u32, u32), variant: &str, out: &Path) -> Vec<u8> {
     let dir = out.join(variant);
@@ -79,6 +100,8 @@ fn compressed_tiles_keep_the_geometry_and_share_their_edges() {
         compressed.insert(tile, packed);
         plains.insert(tile, plain);
     }
+
+    assert_valid(out.path(), "glb-meshopt");
 
     // Every ground class lies on the shared grid, and the edge vertices neighbours share
     // (exactly, in the plain tiles) are the same grid points in both compressed tiles. A vertex
@@ -282,6 +305,8 @@ fn east_north_up_tiles_sit_where_their_coordinates_say() {
         }
     }
     println!("{checked} vertices placed on the globe, worst {worst:.4} m off");
+    assert_valid(out.path(), "glb-enu");
+    assert_valid(out.path(), "glb-enu-meshopt");
     assert!(checked > 10_000, "{checked}");
     assert!(worst < 0.01, "{worst} m");
     // Up is up: the terrain's normals point away from the Earth's centre.

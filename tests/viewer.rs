@@ -74,6 +74,11 @@ async fn the_viewer_streams_tiles_and_shows_what_is_clicked() {
         report["pixels"]["darkFraction"].as_f64().unwrap() < 0.5,
         "{text}"
     );
+    // Shadows start off on software WebGL and, turned on, darken the view.
+    assert_eq!(report["shadows"]["defaultOn"], false, "{text}");
+    let without = report["shadows"]["brightnessWithout"].as_f64().unwrap();
+    let with = report["shadows"]["brightnessWith"].as_f64().unwrap();
+    assert!(with < without - 0.005, "{text}");
     // The click on the known building shows it.
     assert_eq!(report["click"]["panelVisible"], true, "{text}");
     assert_eq!(

@@ -72,6 +72,28 @@ try {
     return { distinctColours: colours.size, darkFraction: dark / (data.length / 4) };
   });
 
+  // Sun shadows: off on software WebGL; turned on, they darken the ground behind buildings.
+  const brightness = () => page.evaluate(() => {
+    const source = document.querySelector('#map canvas');
+    const canvas = document.createElement('canvas');
+    canvas.width = 256;
+    canvas.height = 192;
+    const context = canvas.getContext('2d');
+    context.drawImage(source, 0, 0, canvas.width, canvas.height);
+    const data = context.getImageData(0, 0, canvas.width, canvas.height).data;
+    let sum = 0;
+    for (let i = 0; i < data.length; i += 4) sum += data[i] + data[i + 1] + data[i + 2];
+    return sum / (data.length / 4) / 765;
+  });
+  result.shadows = { defaultOn: await page.isChecked('[data-toggle="shadows"]') };
+  result.shadows.brightnessWithout = await brightness();
+  await page.click('[data-toggle="shadows"]');
+  await page.waitForTimeout(4000);
+  result.shadows.brightnessWith = await brightness();
+  await page.screenshot({ path: join(outDir, 'viewer-shadows.png') });
+  await page.click('[data-toggle="shadows"]');
+  await page.waitForTimeout(1500);
+
   // Click on a known building and read the panel.
   const spot = await page.evaluate((id) => window.terrastitchViewer.locate(id), osmId);
   result.click = { spot };
