@@ -212,9 +212,19 @@ function jumpTo(view) {
 // Tiles
 
 // Tiles come compressed (EXT_meshopt_compression over KHR_mesh_quantization, about a quarter
-// of the bytes) unless the page's query says `?compress=none`.
-const COMPRESS = new URLSearchParams(window.location.search).get('compress') === 'none'
-  ? 'none' : 'meshopt';
+// of the bytes) unless the page's query says `?compress=none`, or the server does not offer
+// it (a server of an archive offers the compression the archive holds).
+const COMPRESS = await (async () => {
+  const wanted = new URLSearchParams(window.location.search).get('compress') === 'none'
+    ? 'none' : 'meshopt';
+  try {
+    const offered = (await (await fetch('tiles.json')).json()).glb_compressions;
+    if (Array.isArray(offered) && offered.length > 0 && !offered.includes(wanted)) return offered[0];
+  } catch (error) {
+    // No description: ask for what the page wants.
+  }
+  return wanted;
+})();
 const loader = new GLTFLoader();
 loader.setMeshoptDecoder(MeshoptDecoder);
 

@@ -120,6 +120,11 @@ async fn cesium_loads_the_tileset_and_picks_a_building_where_it_stands() {
         report["pixels"]["distinctColours"].as_u64().unwrap() > 50,
         "{text}"
     );
+    // The tiles cover the ground in view: most of the lower half changes without them.
+    assert!(
+        report["pixels"]["contentFraction"].as_f64().unwrap() > 0.5,
+        "{text}"
+    );
     // Straight down on the building's centre, CesiumJS picks the building.
     assert_eq!(
         report["picked"]["osmId"],

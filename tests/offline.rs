@@ -237,6 +237,69 @@ fn export_writes_mbtiles_and_a_directory_of_the_tiles() {
     let json: serde_json::Value = serde_json::from_slice(&body).unwrap();
     let west = json["bounds"][0].as_f64().unwrap();
     assert!((west - bounds.west).abs() < 1e-9, "{json}");
+    // The archive holds plain flat glb: that is the compression offered (the viewer follows
+    // it), and there is no 3D Tiles tileset to serve from it.
+    assert_eq!(
+        json["glb_compressions"],
+        serde_json::json!(["none"]),
+        "{json}"
+    );
+    let (status, body) = http_get(&address, "/tileset.json");
+    assert_eq!(status, 404);
+    assert!(
+        String::from_utf8_lossy(&body).contains("glb-enu"),
+        "{}",
+        String::from_utf8_lossy(&body)
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+}
+
+#[test]
+fn an_archive_of_east_north_up_tiles_is_served_as_a_3d_tileset() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache.sqlite");
+    let area = bbox(8527, 8527, 5975, 5975);
+    let file = dir.path().join("enu.mbtiles");
+    let (ok, stderr) = run(
+        &[
+            "export",
+            "--bbox",
+            &area,
+            "--format",
+            "glb-enu-meshopt",
+            "-o",
+            file.to_str().unwrap(),
+        ],
+        &cache,
+    );
+    assert!(ok, "{stderr}");
+    let (mut child, address, _lines) = spawn_server(&["--mbtiles", file.to_str().unwrap()], &[]);
+    let get_json = |path: &str| {
+        let (status, body) = http_get(&address, path);
+        assert_eq!(status, 200, "{path}: {}", String::from_utf8_lossy(&body));
+        serde_json::from_slice::<serde_json::Value>(&body).unwrap()
+    };
+    // The tileset names the archive's compression; its files lead to the tile, which comes.
+    let root = get_json("/tileset.json");
+    let child_uri = root["root"]["children"][0]["content"]["uri"]
+        .as_str()
+        .unwrap();
+    assert!(child_uri.ends_with(".json?compress=meshopt"), "{root}");
+    let subtree = get_json(&format!("/{child_uri}"));
+    let leaf = subtree["root"]["children"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["content"]["uri"].as_str().unwrap().to_string())
+        .find(|u| u.contains("14/8527/5975.glb"))
+        .expect("the exported tile is listed");
+    let (status, body) = http_get(
+        &address,
+        &format!("/3dtiles/{}", leaf.trim_start_matches("../../")),
+    );
+    assert_eq!(status, 200);
+    assert_eq!(&body[0..4], b"glTF");
     child.kill().unwrap();
     child.wait().unwrap();
 }

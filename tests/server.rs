@@ -456,3 +456,75 @@ async fn shutdown_finishes_the_renders_in_flight() {
     assert!(len > 1000);
     assert_eq!(store.usage().unwrap().tiles, 1);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_3d_tiles_routes_walk_down_to_content_and_refuse_what_is_not_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = start(dir.path(), two_threads()).await;
+    let json = |response: reqwest::Response| async move {
+        let status = response.status().as_u16();
+        let body: serde_json::Value = response.json().await.expect("a JSON body");
+        (status, body)
+    };
+
+    // The root, then a child tileset, then a content tile it names, all as the URIs say.
+    let (status, root) = json(get_with(&server, "/tileset.json?compress=meshopt", &[]).await).await;
+    assert_eq!(status, 200, "{root}");
+    assert_eq!(root["asset"]["version"], "1.1");
+    let child = root["root"]["children"][0]["content"]["uri"]
+        .as_str()
+        .expect("a child tileset")
+        .to_string();
+    assert!(child.starts_with("3dtiles/") && child.ends_with(".json?compress=meshopt"));
+    let (status, subtree) = json(get_with(&server, &format!("/{child}"), &[]).await).await;
+    assert_eq!(status, 200, "{subtree}");
+    let leaves = subtree["root"]["children"].as_array().unwrap();
+    assert!(!leaves.is_empty());
+    // Every leaf is a tile the server can make: its SRTM file is there.
+    let sources = sources();
+    let outer = subtree["root"]["boundingVolume"]["region"]
+        .as_array()
+        .unwrap();
+    for leaf in leaves {
+        let uri = leaf["content"]["uri"].as_str().unwrap();
+        let path = uri.trim_start_matches("../../").split('?').next().unwrap();
+        let parts: Vec<u64> = path
+            .trim_end_matches(".glb")
+            .split('/')
+            .map(|p| p.parse().unwrap())
+            .collect();
+        let tile = TileId::new(parts[0] as u32, parts[1], parts[2]).unwrap();
+        assert!(sources.check_coverage(tile).is_ok(), "{tile} listed");
+        let region = leaf["boundingVolume"]["region"].as_array().unwrap();
+        let v = |r: &Vec<serde_json::Value>, i: usize| r[i].as_f64().unwrap();
+        assert!(
+            v(region, 4) >= v(outer, 4) && v(region, 5) <= v(outer, 5),
+            "{leaf}"
+        );
+    }
+    let uri = leaves[0]["content"]["uri"].as_str().unwrap();
+    let content = format!("/3dtiles/{}", uri.trim_start_matches("../../"));
+    let response = get_with(&server, &content, &[]).await;
+    assert_eq!(response.status(), 200);
+    assert_eq!(
+        response.headers()["content-type"].to_str().unwrap(),
+        "model/gltf-binary"
+    );
+    let body = response.bytes().await.unwrap();
+    assert_eq!(&body[0..4], b"glTF");
+
+    // What is not there is a JSON error.
+    for (path, expected) in [
+        ("/3dtiles/13/4265/2986.json", 404),
+        ("/3dtiles/12/0/0.json", 404),
+        ("/3dtiles/14/8529/5973.terrain", 400),
+        ("/3dtiles/14/abc/5973.glb", 400),
+        ("/tileset.json?compress=draco", 400),
+        ("/3dtiles/14/8529/5973.glb?compress=zstd", 400),
+    ] {
+        let (status, body) = json(get_with(&server, path, &[]).await).await;
+        assert_eq!(status, expected, "{path}: {body}");
+        assert!(body["error"].is_string(), "{path}: {body}");
+    }
+    server.stop().await;
+}

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use rusqlite::{params, Connection};
 
 use crate::cache::{Format, StoreError, TileKey, TileStore};
-use crate::output::glb::ATTRIBUTION;
+use crate::output::glb::{Variant, ATTRIBUTION};
 use crate::tile::LonLatBounds;
 
 /// Where an export goes.
@@ -167,6 +167,20 @@ fn export_mbtiles(
     Ok(report)
 }
 
+/// The file name of a tile in a directory export: `{y}.glb`, `{y}.terrain`, and for the other
+/// glb variants `{y}.meshopt.glb`, `{y}.enu.glb`, `{y}.enu-meshopt.glb`, so that several
+/// variants can go to one directory.
+fn file_name(key: &TileKey) -> String {
+    let y = key.tile.y;
+    match key.format {
+        Format::Glb(variant) if variant != Variant::default() => {
+            let name = variant.name().trim_start_matches("glb-");
+            format!("{y}.{name}.glb")
+        }
+        format => format!("{y}.{}", format.extension()),
+    }
+}
+
 fn export_directory(
     store: &dyn TileStore,
     keys: &[TileKey],
@@ -175,11 +189,10 @@ fn export_directory(
     let mut report = ExportReport::default();
     for key in keys {
         let data = body(store, key)?;
-        let extension = key.format.extension();
         let directory = root
             .join(key.tile.z.to_string())
             .join(key.tile.x.to_string());
-        let path = directory.join(format!("{}.{extension}", key.tile.y));
+        let path = directory.join(file_name(key));
         let io = |source| ExportError::Io {
             path: path.clone(),
             source,
@@ -199,4 +212,38 @@ fn partial_path(path: &Path) -> PathBuf {
     let mut name = path.file_name().unwrap_or_default().to_os_string();
     name.push(".partial");
     path.with_file_name(name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::output::glb::Frame;
+    use crate::output::quantized_mesh::Extensions;
+    use crate::tile::TileId;
+
+    #[test]
+    fn every_format_has_a_file_name_of_its_own() {
+        let tile = TileId::new(14, 8529, 5973).unwrap();
+        let mut names: Vec<String> = Variant::ALL
+            .into_iter()
+            .map(Format::Glb)
+            .chain([Format::Terrain(Extensions {
+                normals: true,
+                watermask: true,
+            })])
+            .map(|format| file_name(&TileKey { tile, format }))
+            .collect();
+        assert_eq!(names[0], "5973.glb");
+        let enu = Format::Glb(Variant {
+            frame: Frame::EastNorthUp,
+            meshopt: true,
+        });
+        assert_eq!(
+            file_name(&TileKey { tile, format: enu }),
+            "5973.enu-meshopt.glb"
+        );
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), 5);
+    }
 }

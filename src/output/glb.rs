@@ -492,7 +492,7 @@ pub fn write(
             "EXT_instance_features".to_string(),
         ]);
     }
-    if variant.meshopt {
+    if builder.fallback.is_some_and(|length| length > 0) {
         // Normals are bytes in every compressed tile, positions too where a grid fits.
         for extension in ["KHR_mesh_quantization", "EXT_meshopt_compression"] {
             builder.root.extensions_used.push(extension.to_string());

@@ -4,14 +4,17 @@
 //! describe them: the hierarchy is explicit. Tileset files stand at every second zoom below the
 //! content zoom (12, 10, 8, … for content at 14); each lists the sixteen tiles two zooms down
 //! that meet the data's coverage, as external tilesets, and the last level lists the content
-//! tiles themselves. The root tileset lists the coarsest level at which the coverage takes
-//! [`ROOT_CHILDREN`] tiles or fewer. Parents hold no content of their own (`REPLACE`
+//! tiles themselves. The root tileset lists the finest level (from 12 up) at which the coverage
+//! takes [`ROOT_CHILDREN`] tiles or fewer. Parents hold no content of their own (`REPLACE`
 //! refinement over empty parents): the content appears when the camera is near enough for the
 //! parent's geometric error to matter.
 //!
 //! Every bounding volume is a region (radians, heights in metres): the SRTM heights under the
-//! tile widened by [`BELOW_GROUND_M`] and [`ABOVE_GROUND_M`] for tunnels, water and buildings. A
-//! content tile carries the transform of its east-north-up frame (see [`super::enu`]); a region
+//! tile widened by [`BELOW_GROUND_M`] and [`ABOVE_GROUND_M`] for tunnels, water and buildings
+//! (for a content tile, the samples inside it; for a parent, the whole SRTM files it overlaps,
+//! which hold its children's, and a parent's region is widened to its children's anyway). A
+//! tile whose ground is unknown (its SRTM files missing) is left out, unless the server fetches
+//! them when asked ([`Plan::list_unknown`]). A content tile carries the transform of its east-north-up frame (see [`super::enu`]); a region
 //! is not transformed by it.
 
 use serde_json::{json, Value};
@@ -35,6 +38,9 @@ pub struct Plan {
     pub coverage: Vec<LonLatBounds>,
     /// Appended to every URI (`?compress=meshopt`), empty for none.
     pub query: String,
+    /// List tiles whose ground is unknown, with a wide height range (SRTM files are fetched
+    /// when a tile is asked for, or an archive is served without sources).
+    pub list_unknown: bool,
 }
 
 /// Lowest and highest ground under a tile, metres; `None` where no elevation is known.
@@ -53,12 +59,18 @@ impl Plan {
             .map(|d| self.content_zoom - d)
     }
 
-    /// The zoom the root lists.
+    /// The zoom the root lists: the finest level whose tiles over the coverage number
+    /// [`ROOT_CHILDREN`] or fewer (counted from the boxes' tile ranges, without listing them).
     pub fn top_zoom(&self) -> u8 {
         let mut top = self.content_zoom;
         for z in self.levels() {
             top = z;
-            if self.covered_at(z).len() as u64 <= ROOT_CHILDREN {
+            let count: u64 = self
+                .coverage
+                .iter()
+                .map(|c| TileRange::covering(z, c).len())
+                .sum();
+            if count <= ROOT_CHILDREN {
                 break;
             }
         }
@@ -113,33 +125,38 @@ impl Plan {
         ground / 12.0
     }
 
-    fn region(tile: TileId, heights: Heights<'_>) -> Value {
+    /// The tile's region, or `None` when its ground is unknown and such tiles are not listed.
+    fn region(&self, tile: TileId, heights: Heights<'_>) -> Option<[f64; 6]> {
         let b = tile.bounds();
-        let (low, high) = heights(tile).unwrap_or(UNKNOWN_HEIGHTS);
-        json!({
-            "region": [
-                b.west.to_radians(),
-                b.south.to_radians(),
-                b.east.to_radians(),
-                b.north.to_radians(),
-                low - BELOW_GROUND_M,
-                high + ABOVE_GROUND_M
-            ]
-        })
+        let (low, high) = match heights(tile) {
+            Some(range) => range,
+            None if self.list_unknown => UNKNOWN_HEIGHTS,
+            None => return None,
+        };
+        Some([
+            b.west.to_radians(),
+            b.south.to_radians(),
+            b.east.to_radians(),
+            b.north.to_radians(),
+            low - BELOW_GROUND_M,
+            high + ABOVE_GROUND_M,
+        ])
     }
 
     /// A tile entry: content tiles with their content and transform, others pointing at their
-    /// own tileset file (`from_level` is the zoom of the file that lists it).
-    fn entry(&self, tile: TileId, from_level: Option<u8>, heights: Heights<'_>) -> Value {
+    /// own tileset file (`from_level` is the zoom of the file that lists it); `None` for a tile
+    /// not listed.
+    fn entry(&self, tile: TileId, from_level: Option<u8>, heights: Heights<'_>) -> Option<Value> {
+        let region = self.region(tile, heights)?;
         let up = match from_level {
             // From `3dtiles/{z}/{x}/{y}.json` back to `3dtiles/`.
             Some(_) => "../../",
             // From `/tileset.json`.
             None => "3dtiles/",
         };
-        if tile.z == self.content_zoom {
+        Some(if tile.z == self.content_zoom {
             json!({
-                "boundingVolume": Self::region(tile, heights),
+                "boundingVolume": {"region": region},
                 "geometricError": 0.0,
                 "refine": "REPLACE",
                 "transform": EastNorthUp::new(tile).transform(),
@@ -149,14 +166,14 @@ impl Plan {
             })
         } else {
             json!({
-                "boundingVolume": Self::region(tile, heights),
+                "boundingVolume": {"region": region},
                 "geometricError": self.geometric_error(tile.z + LEVEL_STEP, tile),
                 "refine": "REPLACE",
                 "content": {
                     "uri": format!("{up}{}/{}/{}.json{}", tile.z, tile.x, tile.y, self.query)
                 }
             })
-        }
+        })
     }
 
     fn asset() -> Value {
@@ -172,31 +189,9 @@ impl Plan {
         let tiles = self.covered_at(top);
         let children: Vec<Value> = tiles
             .iter()
-            .map(|&t| self.entry(t, None, heights))
+            .filter_map(|&t| self.entry(t, None, heights))
             .collect();
-        let mut region = [
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ];
-        let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
-        for child in &children {
-            let r = &child["boundingVolume"]["region"];
-            let at = |i: usize| r[i].as_f64().unwrap_or(0.0);
-            region = [
-                region[0].min(at(0)),
-                region[1].min(at(1)),
-                region[2].max(at(2)),
-                region[3].max(at(3)),
-            ];
-            low = low.min(at(4));
-            high = high.max(at(5));
-        }
-        if children.is_empty() {
-            region = [0.0; 4];
-            (low, high) = (0.0, 0.0);
-        }
+        let region = enclosing(None, &children).unwrap_or([0.0; 6]);
         let error = tiles
             .first()
             .map_or(0.0, |&t| 4.0 * self.geometric_error(top + LEVEL_STEP, t));
@@ -204,9 +199,7 @@ impl Plan {
             "asset": Self::asset(),
             "geometricError": error,
             "root": {
-                "boundingVolume": {
-                    "region": [region[0], region[1], region[2], region[3], low, high]
-                },
+                "boundingVolume": {"region": region},
                 "geometricError": error,
                 "refine": "REPLACE",
                 "children": children
@@ -220,19 +213,52 @@ impl Plan {
         let children: Vec<Value> = self
             .children(tile)
             .into_iter()
-            .map(|t| self.entry(t, Some(tile.z), heights))
+            .filter_map(|t| self.entry(t, Some(tile.z), heights))
             .collect();
+        let b = tile.bounds();
+        let own = self.region(tile, heights).unwrap_or([
+            b.west.to_radians(),
+            b.south.to_radians(),
+            b.east.to_radians(),
+            b.north.to_radians(),
+            UNKNOWN_HEIGHTS.0 - BELOW_GROUND_M,
+            UNKNOWN_HEIGHTS.1 + ABOVE_GROUND_M,
+        ]);
+        let region = enclosing(Some(own), &children).unwrap_or(own);
         json!({
             "asset": Self::asset(),
             "geometricError": error,
             "root": {
-                "boundingVolume": Self::region(tile, heights),
+                "boundingVolume": {"region": region},
                 "geometricError": error,
                 "refine": "REPLACE",
                 "children": children
             }
         })
     }
+}
+
+/// The smallest region holding `start` and the regions of `children`.
+fn enclosing(start: Option<[f64; 6]>, children: &[Value]) -> Option<[f64; 6]> {
+    let mut out = start;
+    for child in children {
+        let r = &child["boundingVolume"]["region"];
+        let Some(r) = (0..6).map(|i| r[i].as_f64()).collect::<Option<Vec<f64>>>() else {
+            continue;
+        };
+        out = Some(match out {
+            None => [r[0], r[1], r[2], r[3], r[4], r[5]],
+            Some(o) => [
+                o[0].min(r[0]),
+                o[1].min(r[1]),
+                o[2].max(r[2]),
+                o[3].max(r[3]),
+                o[4].min(r[4]),
+                o[5].max(r[5]),
+            ],
+        });
+    }
+    out
 }
 
 #[cfg(test)]
@@ -244,6 +270,7 @@ mod tests {
             content_zoom: 14,
             coverage: vec!["7.40,43.72,7.44,43.75".parse().unwrap()],
             query: String::new(),
+            list_unknown: false,
         }
     }
 
@@ -325,11 +352,49 @@ mod tests {
     }
 
     #[test]
+    fn tiles_of_unknown_ground_are_left_out_and_parents_hold_their_children() {
+        let mut plan = monaco();
+        let parent = TileId {
+            z: 12,
+            x: 2132,
+            y: 1493,
+        };
+        let missing = TileId {
+            z: 14,
+            x: 8529,
+            y: 5973,
+        };
+        // The parent's own range says less than a child's: its region still holds the child.
+        let heights = |t: TileId| match (t.z, t == missing) {
+            (_, true) => None,
+            (14, false) => Some((-5.0, 900.0)),
+            _ => Some((0.0, 100.0)),
+        };
+        let subtree = plan.subtree(parent, &heights);
+        let children = subtree["root"]["children"].as_array().unwrap();
+        let uris: Vec<&str> = children
+            .iter()
+            .map(|c| c["content"]["uri"].as_str().unwrap())
+            .collect();
+        assert!(!uris.iter().any(|u| u.contains("8529/5973")), "{uris:?}");
+        assert_eq!(uris.len(), plan.children(parent).len() - 1);
+        let region = &subtree["root"]["boundingVolume"]["region"];
+        assert_eq!(region[4], -5.0 - BELOW_GROUND_M);
+        assert_eq!(region[5], 900.0 + ABOVE_GROUND_M);
+        // Where SRTM files are fetched on demand, the tile is listed with a wide range.
+        plan.list_unknown = true;
+        let subtree = plan.subtree(parent, &heights);
+        let children = subtree["root"]["children"].as_array().unwrap();
+        assert_eq!(children.len(), plan.children(parent).len());
+    }
+
+    #[test]
     fn a_large_coverage_starts_further_up() {
         let plan = Plan {
             content_zoom: 14,
             coverage: vec!["5.0,43.0,8.0,45.0".parse().unwrap()],
             query: "?compress=meshopt".to_string(),
+            list_unknown: false,
         };
         let top = plan.top_zoom();
         assert!(top < 12 && (14 - top) % LEVEL_STEP == 0, "{top}");

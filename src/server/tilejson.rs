@@ -13,7 +13,8 @@ use serde_json::{json, Value};
 
 use super::error::ApiError;
 use super::AppState;
-use crate::output::glb::ATTRIBUTION;
+use crate::cache::Format;
+use crate::output::glb::{Frame, ATTRIBUTION};
 
 pub async fn tilejson(
     State(state): State<AppState>,
@@ -52,6 +53,16 @@ pub async fn tilejson(
             ]
         })
         .unwrap_or([-180.0, -85.051_128_78, 180.0, 85.051_128_78]);
+    // The compressions of glb asked for with `?compress=`: an archive has the one it holds.
+    let compressions: Vec<&str> = match &state.archive {
+        Some(archive) => match archive.format {
+            Format::Glb(v) if v.frame == Frame::WebMercator => {
+                vec![if v.meshopt { "meshopt" } else { "none" }]
+            }
+            _ => Vec::new(),
+        },
+        None => vec!["none", "meshopt"],
+    };
     let z = state.zoom;
     Ok(Json(json!({
         "tilejson": "3.0.0",
@@ -68,5 +79,6 @@ pub async fn tilejson(
         "terrain": [format!("{base}/tiles/{{z}}/{{x}}/{{y}}.terrain")],
         "terrain_layer": format!("{base}/layer.json"),
         "tileset_3d": format!("{base}/tileset.json"),
+        "glb_compressions": compressions,
     })))
 }

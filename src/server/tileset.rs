@@ -3,7 +3,10 @@
 //! meshopt` on the root is carried to every file and content tile below it.
 //!
 //! Bounding volumes need the ground's height under each tile: read from the SRTM files on the
-//! blocking pool (a sample budget per tile, see [`Mosaic::height_range`]).
+//! blocking pool ([`Sources::ground_range`]: a content tile's samples, at most
+//! [`HEIGHT_SAMPLES`] of them; a parent's whole files, whose ranges are kept once read). A
+//! server of an MBTiles archive serves the tileset when the archive holds east-north-up glb,
+//! with the archive's compression and without heights.
 
 use axum::extract::{Path, RawQuery, State};
 use axum::http::{header, HeaderMap, HeaderValue};
@@ -11,47 +14,59 @@ use axum::response::{IntoResponse, Response};
 use serde_json::Value;
 
 use super::error::ApiError;
+use super::metrics::Metrics;
 use super::tiles::{parse_tile_path, serve, wants_meshopt};
 use super::AppState;
+use crate::cache::Format;
 use crate::output::glb::{Frame, Variant};
 use crate::output::tileset::Plan;
 use crate::source::Sources;
-use crate::tile::{LonLatBounds, TileId};
+use crate::tile::TileId;
 
 /// Samples read per tile for its heights.
 const HEIGHT_SAMPLES: usize = 40_000;
 
 /// The plan of the served data: its coverage and the query to carry.
 fn plan(state: &AppState, meshopt: bool) -> Result<Plan, ApiError> {
-    let coverage: Vec<LonLatBounds> = match (&state.archive, state.sources()) {
-        (_, Ok(sources)) => sources.osm.data().coverage.clone(),
-        (Some(archive), Err(_)) => archive.bounds.into_iter().collect(),
-        (None, Err(error)) => return Err(error),
+    let query = |meshopt: bool| match meshopt {
+        true => "?compress=meshopt".to_string(),
+        false => String::new(),
     };
+    if let Some(archive) = &state.archive {
+        return match archive.format {
+            Format::Glb(variant) if variant.frame == Frame::EastNorthUp => Ok(Plan {
+                content_zoom: state.zoom,
+                coverage: archive.bounds.into_iter().collect(),
+                query: query(variant.meshopt),
+                list_unknown: true,
+            }),
+            other => Err(ApiError::not_found(format!(
+                "this archive holds {} tiles; a 3D Tiles tileset needs glb-enu or \
+                 glb-enu-meshopt (export with --format glb-enu-meshopt)",
+                other.as_str()
+            ))),
+        };
+    }
+    let sources = state.sources()?;
     Ok(Plan {
         content_zoom: state.zoom,
-        coverage,
-        query: if meshopt {
-            "?compress=meshopt".to_string()
-        } else {
-            String::new()
-        },
+        coverage: sources.osm.data().coverage.clone(),
+        query: query(meshopt),
+        list_unknown: sources.can_fetch_srtm(),
     })
 }
 
-/// Lowest and highest SRTM ground under a tile, from the opened sources.
-fn heights(sources: Option<&Sources>, tile: TileId) -> Option<(f64, f64)> {
-    let sources = sources?;
-    sources.check_coverage(tile).ok()?;
-    let mosaic = match sources.mosaic(tile) {
-        Ok(mosaic) => mosaic,
+/// Lowest and highest SRTM ground under a tile, from the opened sources: sampled for a content
+/// tile, whole files for a parent.
+fn heights(sources: Option<&Sources>, content_zoom: u8, tile: TileId) -> Option<(f64, f64)> {
+    let sampled = tile.z == content_zoom;
+    match sources?.ground_range(tile, sampled, HEIGHT_SAMPLES) {
+        Ok(range) => range,
         Err(error) => {
             tracing::warn!(%tile, %error, "no heights for the tile's bounding volume");
-            return None;
+            None
         }
-    };
-    let b = tile.bounds();
-    mosaic.height_range(b.west, b.south, b.east, b.north, HEIGHT_SAMPLES)
+    }
 }
 
 /// Builds a tileset document on the blocking pool.
@@ -60,9 +75,10 @@ async fn document(
     build: impl FnOnce(&Plan, &dyn Fn(TileId) -> Option<(f64, f64)>) -> Value + Send + 'static,
     plan: Plan,
 ) -> Result<Response, ApiError> {
-    let sources = state.sources().ok();
+    let sources = state.sources().ok().filter(|_| state.archive.is_none());
     let value = tokio::task::spawn_blocking(move || {
-        let heights = |tile: TileId| heights(sources.as_deref(), tile);
+        let zoom = plan.content_zoom;
+        let heights = |tile: TileId| heights(sources.as_deref(), zoom, tile);
         build(&plan, &heights)
     })
     .await
@@ -112,6 +128,7 @@ pub async fn file(
         )
         .await;
     }
+    Metrics::count(&state.metrics.tile_requests);
     let variant = Variant {
         frame: Frame::EastNorthUp,
         meshopt,

@@ -348,6 +348,34 @@ impl Sources {
         })
     }
 
+    /// Lowest and highest SRTM ground under a tile, metres: read from the samples inside it
+    /// (at most `budget` of them) when `sampled`, else the range of the whole files it
+    /// overlaps, which holds the range of any tile inside it however read. `None` where the
+    /// files it needs are missing (or, whole files, where none is there).
+    pub fn ground_range(
+        &self,
+        tile: TileId,
+        sampled: bool,
+        budget: usize,
+    ) -> Result<Option<(f64, f64)>, SrtmError> {
+        if sampled {
+            if self.check_coverage(tile).is_err() {
+                return Ok(None);
+            }
+            let b = tile.bounds();
+            let mosaic = self.mosaic(tile)?;
+            return Ok(mosaic.height_range(b.west, b.south, b.east, b.north, budget));
+        }
+        let mut range: Option<(f64, f64)> = None;
+        for cell in Self::cells_for(tile) {
+            if let Some((low, high)) = self.srtm.height_range(cell)? {
+                let (low, high) = (f64::from(low), f64::from(high));
+                range = Some(range.map_or((low, high), |(l, h)| (l.min(low), h.max(high))));
+            }
+        }
+        Ok(range)
+    }
+
     /// The SRTM files around a tile (its own cells and any its margin reaches).
     pub fn mosaic(&self, tile: TileId) -> Result<Mosaic, SrtmError> {
         let mut tiles: Vec<Arc<srtm::SrtmTile>> = Vec::new();

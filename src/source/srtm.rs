@@ -342,6 +342,9 @@ pub struct SrtmDirectory {
     root: PathBuf,
     files: std::sync::RwLock<BTreeMap<CellId, CellFile>>,
     decoded: moka::sync::Cache<CellId, Arc<SrtmTile>>,
+    /// Lowest and highest sample of each file decoded so far (kept when the decoded samples are
+    /// dropped).
+    ranges: std::sync::Mutex<BTreeMap<CellId, (f32, f32)>>,
 }
 
 impl std::fmt::Debug for SrtmDirectory {
@@ -372,6 +375,7 @@ impl SrtmDirectory {
             root: root.to_path_buf(),
             files: std::sync::RwLock::new(files),
             decoded: moka::sync::Cache::new(DECODED_FILES_CACHED),
+            ranges: Default::default(),
         })
     }
 
@@ -397,7 +401,39 @@ impl SrtmDirectory {
             .unwrap_or_else(|p| p.into_inner())
             .insert(cell, file);
         self.decoded.invalidate(&cell);
+        self.ranges
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .remove(&cell);
         Ok(())
+    }
+
+    /// The lowest and highest sample of a cell's file (decoding it the first time), or `None`
+    /// when the directory has no file for the cell.
+    pub fn height_range(&self, cell: CellId) -> Result<Option<(f32, f32)>, SrtmError> {
+        let known = self
+            .ranges
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .get(&cell)
+            .copied();
+        if known.is_some() {
+            return Ok(known);
+        }
+        let Some(tile) = self.tile(cell)? else {
+            return Ok(None);
+        };
+        let range = tile
+            .heights
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(low, high), &h| {
+                (low.min(h), high.max(h))
+            });
+        self.ranges
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .insert(cell, range);
+        Ok(Some(range))
     }
 }
 

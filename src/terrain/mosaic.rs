@@ -100,8 +100,9 @@ impl Mosaic {
     }
 
     /// The lowest and highest SRTM samples inside a box, reading at most about `budget`
-    /// samples (every k-th row and column of a large box: its extremes may be missed by the
-    /// height of the ground between read samples); `None` where no file covers the box.
+    /// samples over all the files it spans (every k-th row and column of a large box: its
+    /// extremes may then be missed by the height of the ground between read samples); `None`
+    /// where no file covers the box.
     pub fn height_range(
         &self,
         west: f64,
@@ -110,28 +111,33 @@ impl Mosaic {
         north: f64,
         budget: usize,
     ) -> Option<(f64, f64)> {
+        // The rows and columns of each file inside the box.
+        let windows: Vec<(&SrtmTile, [usize; 4])> = self
+            .tiles
+            .values()
+            .filter_map(|tile| {
+                let steps = (tile.size - 1) as f64;
+                let last = tile.size as f64 - 1.0;
+                let r0 = ((f64::from(tile.cell.lat) + 1.0 - north) * steps)
+                    .floor()
+                    .max(0.0);
+                let r1 = ((f64::from(tile.cell.lat) + 1.0 - south) * steps)
+                    .ceil()
+                    .min(last);
+                let c0 = ((west - f64::from(tile.cell.lon)) * steps).floor().max(0.0);
+                let c1 = ((east - f64::from(tile.cell.lon)) * steps).ceil().min(last);
+                (r0 <= r1 && c0 <= c1).then_some((&**tile, [r0, r1, c0, c1].map(|v| v as usize)))
+            })
+            .collect();
+        let total: usize = windows
+            .iter()
+            .map(|(_, [r0, r1, c0, c1])| (r1 - r0 + 1) * (c1 - c0 + 1))
+            .sum();
+        let stride = (total as f64 / budget.max(1) as f64).sqrt().ceil().max(1.0) as usize;
         let mut range: Option<(f64, f64)> = None;
-        for tile in self.tiles.values() {
-            let steps = (tile.size - 1) as f64;
-            let last = tile.size as f64 - 1.0;
-            let r0 = ((f64::from(tile.cell.lat) + 1.0 - north) * steps)
-                .floor()
-                .max(0.0);
-            let r1 = ((f64::from(tile.cell.lat) + 1.0 - south) * steps)
-                .ceil()
-                .min(last);
-            let c0 = ((west - f64::from(tile.cell.lon)) * steps).floor().max(0.0);
-            let c1 = ((east - f64::from(tile.cell.lon)) * steps).ceil().min(last);
-            if r0 > r1 || c0 > c1 {
-                continue;
-            }
-            let (rows, columns) = ((r1 - r0 + 1.0) as usize, (c1 - c0 + 1.0) as usize);
-            let stride = ((rows * columns) as f64 / budget.max(1) as f64)
-                .sqrt()
-                .ceil()
-                .max(1.0) as usize;
-            for row in (r0 as usize..=r1 as usize).step_by(stride) {
-                for column in (c0 as usize..=c1 as usize).step_by(stride) {
+        for (tile, [r0, r1, c0, c1]) in windows {
+            for row in (r0..=r1).step_by(stride) {
+                for column in (c0..=c1).step_by(stride) {
                     let h = f64::from(tile.sample(row, column));
                     range = Some(match range {
                         Some((low, high)) => (low.min(h), high.max(h)),

@@ -63,6 +63,17 @@ fn views(root: &Value, bin: &[u8]) -> Vec<Vec<u8>> {
             let offset = number(meshopt, "byteOffset");
             let source = &bin[offset..offset + number(meshopt, "byteLength")];
             let (count, stride) = (number(meshopt, "count"), number(meshopt, "byteStride"));
+            if view.get("byteStride").is_some() {
+                assert_eq!(
+                    number(view, "byteStride"),
+                    stride,
+                    "the view's stride is the codec's"
+                );
+            }
+            if meshopt["mode"] == "TRIANGLES" {
+                // Index codec version 1, the one the extension reads.
+                assert_eq!(source.first(), Some(&0xe1), "index codec header");
+            }
             let decoded: Vec<u8> = match (meshopt["mode"].as_str(), stride) {
                 (Some("ATTRIBUTES"), 4) => attributes::<4>(source, count),
                 (Some("ATTRIBUTES"), 8) => attributes::<8>(source, count),

@@ -44,20 +44,35 @@ try {
   await page.screenshot({ path: join(outDir, 'globe-start.png') });
   result.start = await page.evaluate(() => ({ ...window.terrastitchGlobe.stats }));
   result.pixels = await page.evaluate(() => {
-    const viewer = window.terrastitchGlobe.viewer;
+    const { viewer, tileset } = window.terrastitchGlobe;
+    const read = () => {
+      viewer.render();
+      const canvas = document.createElement('canvas');
+      canvas.width = 256;
+      canvas.height = 192;
+      const context = canvas.getContext('2d');
+      context.drawImage(viewer.scene.canvas, 0, 0, canvas.width, canvas.height);
+      return context.getImageData(0, 0, canvas.width, canvas.height).data;
+    };
+    const withTiles = read();
+    // The same view without the tileset: what the tiles change is what they draw.
+    tileset.show = false;
+    const bare = read();
+    tileset.show = true;
     viewer.render();
-    const source = viewer.scene.canvas;
-    const canvas = document.createElement('canvas');
-    canvas.width = 256;
-    canvas.height = 192;
-    const context = canvas.getContext('2d');
-    context.drawImage(source, 0, 0, canvas.width, canvas.height);
-    const { data } = context.getImageData(0, 0, canvas.width, canvas.height);
     const colours = new Set();
-    for (let i = 0; i < data.length; i += 4) {
-      colours.add((data[i] >> 3) << 10 | (data[i + 1] >> 3) << 5 | (data[i + 2] >> 3));
+    let changed = 0;
+    let lower = 0;
+    for (let i = 0; i < withTiles.length; i += 4) {
+      colours.add((withTiles[i] >> 3) << 10 | (withTiles[i + 1] >> 3) << 5 | (withTiles[i + 2] >> 3));
+      if (i / 4 >= (256 * 192) / 2) {
+        lower++;
+        const off = Math.abs(withTiles[i] - bare[i]) + Math.abs(withTiles[i + 1] - bare[i + 1])
+          + Math.abs(withTiles[i + 2] - bare[i + 2]);
+        if (off > 30) changed++;
+      }
     }
-    return { distinctColours: colours.size };
+    return { distinctColours: colours.size, contentFraction: changed / lower };
   });
 
   // Straight down on the building: the feature at the centre must be it.
@@ -76,7 +91,7 @@ try {
   await page.screenshot({ path: join(outDir, 'globe-picked.png') });
   result.end = await page.evaluate(() => ({ ...window.terrastitchGlobe.stats }));
   result.requests = {
-    tilesets: requested.filter((u) => u.includes('.json')).length,
+    tilesets: requested.filter((u) => /\/tileset\.json|\/3dtiles\/.*\.json/.test(u)).length,
     content: requested.filter((u) => u.includes('.glb')),
   };
 } catch (error) {
