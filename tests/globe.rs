@@ -3,8 +3,10 @@
 //! (`tests/js/globe_check.mjs`). Tiles must load without errors and draw; then, looking
 //! straight down from 400 m on a building's centre (worked out here from the flat glb), the
 //! feature CesiumJS picks at the centre of the view must be that building: the content sits on
-//! the globe where its longitude and latitude say, and its metadata is readable. Screenshots and
-//! the report go to `tests/artifacts/globe/`.
+//! the globe where its longitude and latitude say, and its metadata is readable. The same
+//! tileset also loads in NASA-AMMOS 3DTilesRendererJS (`tests/js/tiles3d_check.mjs`), where a
+//! ray straight down on the building's centre must hit a building. Screenshots and the reports
+//! go to `tests/artifacts/globe/`.
 
 mod common;
 
@@ -137,6 +139,81 @@ async fn cesium_loads_the_tileset_and_picks_a_building_where_it_stands() {
         "globe: first settled view {} ms, {} content tiles",
         report["steps"]["firstAllLoadedMs"],
         content.len()
+    );
+    server.stop().await;
+}
+
+/// Runs a checker script with the server's URL, the artefact folder and a point; its report.
+async fn check(script: &str, base: String, lat: f64, lon: f64) -> serde_json::Value {
+    let out = repo().join("tests/artifacts/globe");
+    std::fs::create_dir_all(&out).unwrap();
+    let script = repo().join("tests/js").join(script);
+    let output = tokio::task::spawn_blocking(move || {
+        Command::new("node")
+            .arg(script)
+            .arg(&base)
+            .arg(&out)
+            .arg(lat.to_string())
+            .arg(lon.to_string())
+            .output()
+            .expect("node runs")
+    })
+    .await
+    .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    serde_json::from_str(stdout.trim()).unwrap_or_else(|_| {
+        panic!(
+            "no report:\n{stdout}\n{}",
+            String::from_utf8_lossy(&output.stderr)
+        )
+    })
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn three_d_tiles_renderer_js_loads_the_tileset_and_finds_the_building_in_place() {
+    assert!(
+        repo()
+            .join("tests/js/node_modules/3d-tiles-renderer")
+            .exists(),
+        "3d-tiles-renderer is not installed: run `make test` (it runs npm ci in tests/js)"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    let near: Vec<TileId> = [(8530, 5973), (8529, 5974), (8529, 5973)]
+        .into_iter()
+        .map(|(x, y)| TileId::new(14, x, y).unwrap())
+        .collect();
+    let (lon, lat) = building_centre(&server, &near).await;
+    let report = check("tiles3d_check.mjs", server.url("/"), lat, lon).await;
+    let text = serde_json::to_string_pretty(&report).unwrap();
+    std::fs::write(
+        repo().join("tests/artifacts/globe/tiles3d-report.json"),
+        &text,
+    )
+    .unwrap();
+    assert!(report["error"].is_null(), "{text}");
+    assert_eq!(report["consoleErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["pageErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["state"]["errors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["failedResponses"], serde_json::json!([]), "{text}");
+    let loaded = report["state"]["loaded"].as_array().unwrap();
+    assert!(
+        loaded
+            .iter()
+            .filter(|u| u.as_str().unwrap().contains(".glb?compress=meshopt"))
+            .count()
+            >= 4,
+        "{text}"
+    );
+    // Straight down on the building's centre: a building, standing on Monte-Carlo's ground.
+    let names = report["probe"]["names"].as_array().expect("a hit");
+    assert!(names.iter().any(|n| n == "building"), "{text}");
+    let height = report["probe"]["height"].as_f64().unwrap();
+    assert!((20.0..150.0).contains(&height), "{text}");
+    println!(
+        "3DTilesRendererJS: settled in {} ms, {} content tiles; the ray hit at {height:.1} m",
+        report["settledMs"],
+        loaded.len()
     );
     server.stop().await;
 }

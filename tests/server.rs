@@ -476,6 +476,18 @@ async fn the_3d_tiles_routes_walk_down_to_content_and_refuse_what_is_not_there()
         .expect("a child tileset")
         .to_string();
     assert!(child.starts_with("3dtiles/") && child.ends_with(".json?compress=meshopt"));
+    // The same root in the folder of the files it names: its URIs start there.
+    let (status, in_folder) = json(get_with(&server, "/3dtiles/tileset.json", &[]).await).await;
+    assert_eq!(status, 200, "{in_folder}");
+    assert_eq!(
+        format!(
+            "3dtiles/{}",
+            in_folder["root"]["children"][0]["content"]["uri"]
+                .as_str()
+                .unwrap()
+        ),
+        child.trim_end_matches("?compress=meshopt"),
+    );
     let (status, subtree) = json(get_with(&server, &format!("/{child}"), &[]).await).await;
     assert_eq!(status, 200, "{subtree}");
     let leaves = subtree["root"]["children"].as_array().unwrap();

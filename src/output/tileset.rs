@@ -31,6 +31,16 @@ pub const BELOW_GROUND_M: f64 = 60.0;
 /// Height above the highest terrain a tile's region reaches (buildings, bridges, masts).
 pub const ABOVE_GROUND_M: f64 = 350.0;
 
+/// Where a root tileset file is served.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Root {
+    /// `/tileset.json`.
+    Top,
+    /// `/3dtiles/tileset.json`: clients that take a tileset's folder by cutting its URL at the
+    /// last slash (3DTilesRendererJS) get `//` from a file at a server's root.
+    InFolder,
+}
+
 /// What a tileset is built from: the zoom of the content and the boxes the data covers.
 #[derive(Debug, Clone)]
 pub struct Plan {
@@ -144,16 +154,10 @@ impl Plan {
     }
 
     /// A tile entry: content tiles with their content and transform, others pointing at their
-    /// own tileset file (`from_level` is the zoom of the file that lists it); `None` for a tile
+    /// own tileset file; `up` leads from the file that lists it to `3dtiles/`. `None` for a tile
     /// not listed.
-    fn entry(&self, tile: TileId, from_level: Option<u8>, heights: Heights<'_>) -> Option<Value> {
+    fn entry(&self, tile: TileId, up: &str, heights: Heights<'_>) -> Option<Value> {
         let region = self.region(tile, heights)?;
-        let up = match from_level {
-            // From `3dtiles/{z}/{x}/{y}.json` back to `3dtiles/`.
-            Some(_) => "../../",
-            // From `/tileset.json`.
-            None => "3dtiles/",
-        };
         Some(if tile.z == self.content_zoom {
             json!({
                 "boundingVolume": {"region": region},
@@ -184,12 +188,18 @@ impl Plan {
     }
 
     /// `/tileset.json`: a root over the coverage whose children are the top level's tiles.
-    pub fn root(&self, heights: Heights<'_>) -> Value {
+    /// `at` is where the file is served: [`Root::Top`] (`/tileset.json`) or [`Root::InFolder`]
+    /// (`/3dtiles/tileset.json`, next to the files it names).
+    pub fn root(&self, heights: Heights<'_>, at: Root) -> Value {
+        let up = match at {
+            Root::Top => "3dtiles/",
+            Root::InFolder => "",
+        };
         let top = self.top_zoom();
         let tiles = self.covered_at(top);
         let children: Vec<Value> = tiles
             .iter()
-            .filter_map(|&t| self.entry(t, None, heights))
+            .filter_map(|&t| self.entry(t, up, heights))
             .collect();
         let region = enclosing(None, &children).unwrap_or([0.0; 6]);
         let error = tiles
@@ -213,7 +223,8 @@ impl Plan {
         let children: Vec<Value> = self
             .children(tile)
             .into_iter()
-            .filter_map(|t| self.entry(t, Some(tile.z), heights))
+            // From `3dtiles/{z}/{x}/{y}.json` back to `3dtiles/`.
+            .filter_map(|t| self.entry(t, "../../", heights))
             .collect();
         let b = tile.bounds();
         let own = self.region(tile, heights).unwrap_or([
@@ -282,7 +293,7 @@ mod tests {
     fn the_root_lists_the_parents_of_the_content_and_they_list_the_content() {
         let plan = monaco();
         assert_eq!(plan.top_zoom(), 12);
-        let root = plan.root(&flat);
+        let root = plan.root(&flat, Root::Top);
         assert_eq!(root["asset"]["version"], "1.1");
         let children = root["root"]["children"].as_array().unwrap();
         assert!(!children.is_empty() && children.len() <= 4);
@@ -399,7 +410,7 @@ mod tests {
         let top = plan.top_zoom();
         assert!(top < 12 && (14 - top) % LEVEL_STEP == 0, "{top}");
         assert!(plan.covered_at(top).len() as u64 <= ROOT_CHILDREN);
-        let root = plan.root(&flat);
+        let root = plan.root(&flat, Root::Top);
         let uri = root["root"]["children"][0]["content"]["uri"]
             .as_str()
             .unwrap();

@@ -201,6 +201,7 @@ pub fn router(state: AppState) -> Router {
         .route("/layer.json", get(layer::layer))
         .route("/tiles.json", get(tilejson::tilejson))
         .route("/tileset.json", get(tileset::root))
+        .route("/3dtiles/tileset.json", get(tileset::root_in_folder))
         .route("/3dtiles/{z}/{x}/{file}", get(tileset::file))
         .route("/health", get(health))
         .route("/ready", get(ready))

@@ -1,4 +1,4 @@
-//! 3D Tiles 1.1: `GET /tileset.json`, the tileset files `GET /3dtiles/{z}/{x}/{y}.json`, and the
+//! 3D Tiles 1.1: `GET /tileset.json` (also at `/3dtiles/tileset.json`), the tileset files `GET /3dtiles/{z}/{x}/{y}.json`, and the
 //! content `GET /3dtiles/{z}/{x}/{y}.glb` (the tile in its east-north-up frame). `?compress=
 //! meshopt` on the root is carried to every file and content tile below it.
 //!
@@ -19,7 +19,7 @@ use super::tiles::{parse_tile_path, serve, wants_meshopt};
 use super::AppState;
 use crate::cache::Format;
 use crate::output::glb::{Frame, Variant};
-use crate::output::tileset::Plan;
+use crate::output::tileset::{Plan, Root};
 use crate::source::Sources;
 use crate::tile::TileId;
 
@@ -100,7 +100,21 @@ pub async fn root(
     RawQuery(query): RawQuery,
 ) -> Result<Response, ApiError> {
     let plan = plan(&state, wants_meshopt(query.as_deref())?)?;
-    document(&state, |plan, heights| plan.root(heights), plan).await
+    document(&state, |plan, heights| plan.root(heights, Root::Top), plan).await
+}
+
+/// `GET /3dtiles/tileset.json`: the same root, next to the files it names.
+pub async fn root_in_folder(
+    State(state): State<AppState>,
+    RawQuery(query): RawQuery,
+) -> Result<Response, ApiError> {
+    let plan = plan(&state, wants_meshopt(query.as_deref())?)?;
+    document(
+        &state,
+        |plan, heights| plan.root(heights, Root::InFolder),
+        plan,
+    )
+    .await
 }
 
 /// `GET /3dtiles/{z}/{x}/{y}.json` and `.glb`.
