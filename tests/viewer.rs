@@ -5,9 +5,7 @@
 
 mod common;
 
-use std::process::Command;
-
-use common::{repo, TestServer};
+use common::{browser_check, repo, TestServer};
 
 /// Hôtel de Paris, next to the start view in Monte-Carlo.
 const KNOWN_BUILDING: &str = "157719657";
@@ -20,36 +18,19 @@ async fn the_viewer_streams_tiles_and_shows_what_is_clicked() {
             .exists(),
         "three.js is not in static/vendor: run `make test` (it copies it from viewer/)"
     );
-    assert!(
-        repo()
-            .join("tests/js/node_modules/playwright-core")
-            .exists(),
-        "playwright-core is not installed: run `make test` (it runs npm ci in tests/js)"
-    );
     let dir = tempfile::tempdir().unwrap();
     let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
     let artifacts = repo().join("tests/artifacts/viewer");
-    std::fs::create_dir_all(&artifacts).unwrap();
-    let base = server.url("/");
-    let out = artifacts.clone();
-    let output = tokio::task::spawn_blocking(move || {
-        Command::new("node")
-            .arg(repo().join("tests/js/viewer_check.mjs"))
-            .arg(&base)
-            .arg(&out)
-            .arg(KNOWN_BUILDING)
-            .output()
-            .expect("node runs")
-    })
-    .await
-    .unwrap();
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    let report: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap_or_else(|_| {
-        panic!(
-            "no report:\n{stdout}\n{}",
-            String::from_utf8_lossy(&output.stderr)
-        )
-    });
+    let report = browser_check(
+        "viewer_check.mjs",
+        "viewer",
+        vec![
+            server.url("/"),
+            artifacts.display().to_string(),
+            KNOWN_BUILDING.to_string(),
+        ],
+    )
+    .await;
     let text = serde_json::to_string_pretty(&report).unwrap();
     assert!(report["error"].is_null(), "{text}");
     assert_eq!(report["consoleErrors"], serde_json::json!([]), "{text}");

@@ -162,6 +162,38 @@ impl BinaryBuilder {
         )
     }
 
+    /// A float `VEC3` attribute.
+    fn float_vec3(
+        &mut self,
+        values: &[[f32; 3]],
+        min_max: Option<(Value, Value)>,
+    ) -> json::Index<json::Accessor> {
+        let bytes = floats_to_bytes(values.iter().flatten().copied());
+        let view = self.vertex_view(&bytes, 12);
+        self.accessor(
+            view,
+            values.len(),
+            json::accessor::ComponentType::F32,
+            json::accessor::Type::Vec3,
+            min_max,
+        )
+    }
+
+    /// A normalized attribute of one byte per component, each element padded to 4 bytes.
+    fn byte_attribute(
+        &mut self,
+        padded: &[u8],
+        count: usize,
+        component_type: json::accessor::ComponentType,
+        type_: json::accessor::Type,
+    ) -> json::Index<json::Accessor> {
+        let view = self.vertex_view(padded, 4);
+        self.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(4));
+        let accessor = self.accessor(view, count, component_type, type_, None);
+        self.root.accessors[accessor.value()].normalized = true;
+        accessor
+    }
+
     /// A view of triangle indices, 16 or 32 bits each.
     fn index_view(
         &mut self,
@@ -662,15 +694,7 @@ fn write_primitive(
                     max[axis] = max[axis].max(p[axis]);
                 }
             }
-            let bytes = floats_to_bytes(buffers.positions.iter().flatten().copied());
-            let view = builder.vertex_view(&bytes, 12);
-            builder.accessor(
-                view,
-                count,
-                json::accessor::ComponentType::F32,
-                json::accessor::Type::Vec3,
-                Some((value!(min), value!(max))),
-            )
+            builder.float_vec3(&buffers.positions, Some((value!(min), value!(max))))
         }
     };
     let normals = if compressed {
@@ -683,27 +707,14 @@ fn write_primitive(
                 [a, b, c, 0]
             })
             .collect();
-        let view = builder.vertex_view(&bytes, 4);
-        builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(4));
-        let accessor = builder.accessor(
-            view,
+        builder.byte_attribute(
+            &bytes,
             count,
             json::accessor::ComponentType::I8,
             json::accessor::Type::Vec3,
-            None,
-        );
-        builder.root.accessors[accessor.value()].normalized = true;
-        accessor
-    } else {
-        let bytes = floats_to_bytes(buffers.normals.iter().flatten().copied());
-        let view = builder.vertex_view(&bytes, 12);
-        builder.accessor(
-            view,
-            count,
-            json::accessor::ComponentType::F32,
-            json::accessor::Type::Vec3,
-            None,
         )
+    } else {
+        builder.float_vec3(&buffers.normals, None)
     };
 
     // Feature ids: 16-bit where they fit (vertex attributes may not be 32-bit integers), each
@@ -748,17 +759,12 @@ fn write_primitive(
     let painted = !buffers.colours.is_empty() && buffers.colours.len() == count;
     let colours = painted.then(|| {
         let bytes: Vec<u8> = buffers.colours.iter().flatten().copied().collect();
-        let view = builder.vertex_view(&bytes, 4);
-        builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(4));
-        let accessor = builder.accessor(
-            view,
+        builder.byte_attribute(
+            &bytes,
             count,
             json::accessor::ComponentType::U8,
             json::accessor::Type::Vec4,
-            None,
-        );
-        builder.root.accessors[accessor.value()].normalized = true;
-        accessor
+        )
     });
     if painted {
         // The vertices carry the colour.

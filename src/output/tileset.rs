@@ -137,20 +137,12 @@ impl Plan {
 
     /// The tile's region, or `None` when its ground is unknown and such tiles are not listed.
     fn region(&self, tile: TileId, heights: Heights<'_>) -> Option<[f64; 6]> {
-        let b = tile.bounds();
-        let (low, high) = match heights(tile) {
+        let range = match heights(tile) {
             Some(range) => range,
             None if self.list_unknown => UNKNOWN_HEIGHTS,
             None => return None,
         };
-        Some([
-            b.west.to_radians(),
-            b.south.to_radians(),
-            b.east.to_radians(),
-            b.north.to_radians(),
-            low - BELOW_GROUND_M,
-            high + ABOVE_GROUND_M,
-        ])
+        Some(region_over(tile, range))
     }
 
     /// A tile entry: content tiles with their content and transform, others pointing at their
@@ -205,6 +197,11 @@ impl Plan {
         let error = tiles
             .first()
             .map_or(0.0, |&t| 4.0 * self.geometric_error(top + LEVEL_STEP, t));
+        Self::document(region, error, children)
+    }
+
+    /// A tileset file: a root without content over `children`.
+    fn document(region: [f64; 6], error: f64, children: Vec<Value>) -> Value {
         json!({
             "asset": Self::asset(),
             "geometricError": error,
@@ -226,27 +223,25 @@ impl Plan {
             // From `3dtiles/{z}/{x}/{y}.json` back to `3dtiles/`.
             .filter_map(|t| self.entry(t, "../../", heights))
             .collect();
-        let b = tile.bounds();
-        let own = self.region(tile, heights).unwrap_or([
-            b.west.to_radians(),
-            b.south.to_radians(),
-            b.east.to_radians(),
-            b.north.to_radians(),
-            UNKNOWN_HEIGHTS.0 - BELOW_GROUND_M,
-            UNKNOWN_HEIGHTS.1 + ABOVE_GROUND_M,
-        ]);
+        let own = self
+            .region(tile, heights)
+            .unwrap_or_else(|| region_over(tile, UNKNOWN_HEIGHTS));
         let region = enclosing(Some(own), &children).unwrap_or(own);
-        json!({
-            "asset": Self::asset(),
-            "geometricError": error,
-            "root": {
-                "boundingVolume": {"region": region},
-                "geometricError": error,
-                "refine": "REPLACE",
-                "children": children
-            }
-        })
+        Self::document(region, error, children)
     }
+}
+
+/// The region of a tile over ground from `low` to `high`, widened for what is under and on it.
+fn region_over(tile: TileId, (low, high): (f64, f64)) -> [f64; 6] {
+    let b = tile.bounds();
+    [
+        b.west.to_radians(),
+        b.south.to_radians(),
+        b.east.to_radians(),
+        b.north.to_radians(),
+        low - BELOW_GROUND_M,
+        high + ABOVE_GROUND_M,
+    ]
 }
 
 /// The smallest region holding `start` and the regions of `children`.

@@ -58,6 +58,36 @@ pub const MONACO_TILES: [(u32, u32); 10] = [
 /// The glTF nodes of the ground (every class but buildings).
 pub const GROUND_NODES: [&str; 5] = ["terrain", "road", "railway", "water", "landcover"];
 
+/// Runs a browser check of `tests/js` with Node (`node SCRIPT ARGS…`) off the async executor
+/// and returns the JSON report it prints; the artefacts folder `tests/artifacts/{folder}` is
+/// made first.
+pub async fn browser_check(script: &str, folder: &str, args: Vec<String>) -> serde_json::Value {
+    assert!(
+        repo()
+            .join("tests/js/node_modules/playwright-core")
+            .exists(),
+        "playwright-core is not installed: run `make test` (it runs npm ci in tests/js)"
+    );
+    std::fs::create_dir_all(repo().join("tests/artifacts").join(folder)).unwrap();
+    let script = repo().join("tests/js").join(script);
+    let output = tokio::task::spawn_blocking(move || {
+        Command::new("node")
+            .arg(script)
+            .args(args)
+            .output()
+            .expect("node runs")
+    })
+    .await
+    .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    serde_json::from_str(stdout.trim()).unwrap_or_else(|_| {
+        panic!(
+            "no report:\n{stdout}\n{}",
+            String::from_utf8_lossy(&output.stderr)
+        )
+    })
+}
+
 pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }

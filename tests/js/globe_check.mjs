@@ -4,30 +4,17 @@
 //   BASE_URL  the server, e.g. http://127.0.0.1:8080/
 //   OUT_DIR   where the screenshots go
 //   LAT LON   a building's centre: the camera looks straight down on it and picks what is there
-import { chromium } from 'playwright-core';
+import { addPixelReader, launch, watch } from './browser.mjs';
 import { join } from 'node:path';
 
 const [base, outDir, lat, lon] = process.argv.slice(2);
 const result = { consoleErrors: [], pageErrors: [], failedRequests: [], steps: {} };
 
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  args: [
-    '--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
-    '--disable-component-update', '--disable-sync', '--no-first-run', '--use-angle=swiftshader',
-    '--enable-unsafe-swiftshader',
-  ],
-});
+const browser = await launch();
 try {
   const page = await browser.newPage({ viewport: { width: 1024, height: 768 } });
-  page.on('console', (message) => {
-    if (message.type() === 'error') result.consoleErrors.push(message.text());
-  });
-  page.on('pageerror', (error) => result.pageErrors.push(String(error)));
-  page.on('crash', () => result.pageErrors.push('the page crashed'));
-  page.on('requestfailed', (request) => {
-    result.failedRequests.push(`${request.url()}: ${request.failure()?.errorText}`);
-  });
+  watch(page, result);
+  await addPixelReader(page);
   const requested = [];
   page.on('request', (request) => requested.push(request.url().replace(base, '/')));
 
@@ -47,12 +34,7 @@ try {
     const { viewer, tileset } = window.terrastitchGlobe;
     const read = () => {
       viewer.render();
-      const canvas = document.createElement('canvas');
-      canvas.width = 256;
-      canvas.height = 192;
-      const context = canvas.getContext('2d');
-      context.drawImage(viewer.scene.canvas, 0, 0, canvas.width, canvas.height);
-      return context.getImageData(0, 0, canvas.width, canvas.height).data;
+      return window.canvasPixels(viewer.scene.canvas);
     };
     const withTiles = read();
     // The same view without the tileset: what the tiles change is what they draw.

@@ -6,7 +6,7 @@
 //   BASE_URL  the server, e.g. http://127.0.0.1:8080/
 //   OUT_DIR   where the screenshot goes
 //   LAT LON   a building's centre: a ray straight down there must hit a building
-import { chromium } from 'playwright-core';
+import { launch, watch } from './browser.mjs';
 import { readFile } from 'node:fs/promises';
 import { join, dirname, extname } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -81,14 +81,7 @@ window.check = {
 </script></body></html>`;
 
 const types = { '.js': 'text/javascript', '.mjs': 'text/javascript', '.json': 'application/json' };
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  args: [
-    '--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
-    '--disable-component-update', '--disable-sync', '--no-first-run', '--use-angle=swiftshader',
-    '--enable-unsafe-swiftshader',
-  ],
-});
+const browser = await launch();
 try {
   const context = await browser.newContext({ viewport: { width: 800, height: 600 } });
   await context.route(`${prefix}/**`, async (route) => {
@@ -107,8 +100,7 @@ try {
     }
   });
   const tab = await context.newPage();
-  tab.on('console', (m) => { if (m.type() === 'error') result.consoleErrors.push(m.text()); });
-  tab.on('pageerror', (e) => result.pageErrors.push(String(e)));
+  watch(tab, result);
   result.failedResponses = [];
   tab.on('response', (r) => {
     if (r.status() >= 400) result.failedResponses.push(`${r.status()} ${r.url()}`);

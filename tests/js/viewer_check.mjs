@@ -3,7 +3,7 @@
 //   BASE_URL  the server, e.g. http://127.0.0.1:8080/
 //   OUT_DIR   where the screenshots go
 //   OSM_ID    a building near the start view to click on
-import { chromium } from 'playwright-core';
+import { addPixelReader, launch, watch } from './browser.mjs';
 import { writeFileSync } from 'node:fs';
 import { join } from 'node:path';
 
@@ -15,23 +15,11 @@ const result = {
   steps: {},
 };
 
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-  args: [
-    '--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
-    '--disable-component-update', '--disable-sync', '--no-first-run', '--use-angle=swiftshader',
-    '--enable-unsafe-swiftshader',
-  ],
-});
+const browser = await launch();
 try {
   const page = await browser.newPage({ viewport: { width: 1024, height: 768 } });
-  page.on('console', (message) => {
-    if (message.type() === 'error') result.consoleErrors.push(message.text());
-  });
-  page.on('pageerror', (error) => result.pageErrors.push(String(error)));
-  page.on('requestfailed', (request) => {
-    result.failedRequests.push(`${request.url()}: ${request.failure()?.errorText}`);
-  });
+  watch(page, result);
+  await addPixelReader(page);
   const stats = () => page.evaluate(() => {
     const s = window.terrastitchViewer.stats;
     return { requested: [...s.requested], loaded: [...s.loaded], failed: [...s.failed],
@@ -56,13 +44,7 @@ try {
 
   // Is anything drawn? Pixels of the canvas, read through a 2D canvas.
   result.pixels = await page.evaluate(() => {
-    const source = document.querySelector('#map canvas');
-    const canvas = document.createElement('canvas');
-    canvas.width = 256;
-    canvas.height = 192;
-    const context = canvas.getContext('2d');
-    context.drawImage(source, 0, 0, canvas.width, canvas.height);
-    const data = context.getImageData(0, 0, canvas.width, canvas.height).data;
+    const data = window.canvasPixels(document.querySelector('#map canvas'));
     const colours = new Set();
     let dark = 0;
     for (let i = 0; i < data.length; i += 4) {
@@ -74,13 +56,7 @@ try {
 
   // Sun shadows: off on software WebGL; turned on, they darken the ground behind buildings.
   const brightness = () => page.evaluate(() => {
-    const source = document.querySelector('#map canvas');
-    const canvas = document.createElement('canvas');
-    canvas.width = 256;
-    canvas.height = 192;
-    const context = canvas.getContext('2d');
-    context.drawImage(source, 0, 0, canvas.width, canvas.height);
-    const data = context.getImageData(0, 0, canvas.width, canvas.height).data;
+    const data = window.canvasPixels(document.querySelector('#map canvas'));
     let sum = 0;
     for (let i = 0; i < data.length; i += 4) sum += data[i] + data[i + 1] + data[i + 2];
     return sum / (data.length / 4) / 765;

@@ -1,0 +1,47 @@
+// Debian's Chromium, headless with software WebGL, as every browser check here launches it
+// (the background-networking flags keep it from reaching for Google's hosts).
+import { chromium } from 'playwright-core';
+
+export function launch() {
+  return chromium.launch({
+    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+    args: [
+      '--headless', '--no-sandbox', '--disable-gpu', '--disable-background-networking',
+      '--disable-component-update', '--disable-sync', '--no-first-run', '--use-angle=swiftshader',
+      '--enable-unsafe-swiftshader',
+    ],
+  });
+}
+
+/**
+ * Records into `result` what went wrong on the page: console errors, uncaught exceptions, a
+ * crash, and requests that failed on the network (`consoleErrors`, `pageErrors`,
+ * `failedRequests`).
+ */
+export function watch(page, result) {
+  result.consoleErrors ??= [];
+  result.pageErrors ??= [];
+  result.failedRequests ??= [];
+  page.on('console', (message) => {
+    if (message.type() === 'error') result.consoleErrors.push(message.text());
+  });
+  page.on('pageerror', (error) => result.pageErrors.push(String(error)));
+  page.on('crash', () => result.pageErrors.push('the page crashed'));
+  page.on('requestfailed', (request) => {
+    result.failedRequests.push(`${request.url()}: ${request.failure()?.errorText}`);
+  });
+}
+
+/** Makes `window.canvasPixels(canvas)` on the page: a canvas's pixels at 256×192 (RGBA). */
+export async function addPixelReader(page) {
+  await page.addInitScript(() => {
+    window.canvasPixels = (source) => {
+      const canvas = document.createElement('canvas');
+      canvas.width = 256;
+      canvas.height = 192;
+      const context = canvas.getContext('2d');
+      context.drawImage(source, 0, 0, canvas.width, canvas.height);
+      return context.getImageData(0, 0, canvas.width, canvas.height).data;
+    };
+  });
+}
