@@ -74,13 +74,7 @@ async fn monaco_tiles_are_valid_and_stitched() {
 
     let paths: Vec<&std::path::Path> = files.iter().map(|f| f.1.as_path()).collect();
     for report in validate(&paths) {
-        assert_eq!(
-            (report.errors, report.warnings),
-            (0, 0),
-            "{}: {:?}",
-            report.file,
-            report.messages
-        );
+        report.assert_clean();
         // One draw call per material present: terrain, the road pavings (4), railway, water,
         // walls, roofs, the land covers (18), the barriers (5), power lines, a trunk and a crown
         // per tree model (6) and the object models (6).

@@ -26,13 +26,7 @@ fn assert_valid(out: &Path, variant: &str) {
     let paths: Vec<&Path> = files.iter().map(|p| p.as_path()).collect();
     assert!(!paths.is_empty());
     for report in validate(&paths) {
-        assert_eq!(
-            (report.errors, report.warnings),
-            (0, 0),
-            "{}: {:?}",
-            report.file,
-            report.messages
-        );
+        report.assert_clean();
     }
 }
 

@@ -364,6 +364,19 @@ pub struct Validation {
     pub draw_calls: Option<u64>,
 }
 
+impl Validation {
+    /// Fails the test unless the validator found neither errors nor warnings.
+    pub fn assert_clean(&self) {
+        assert_eq!(
+            (self.errors, self.warnings),
+            (0, 0),
+            "{}: {:?}",
+            self.file,
+            self.messages
+        );
+    }
+}
+
 /// Runs the Khronos glTF validator (installed by `make test` into tests/js).
 pub fn validate(files: &[&Path]) -> Vec<Validation> {
     let script = repo().join("tests/js/validate.mjs");
