@@ -15,8 +15,9 @@
 //! triangle is counter-clockwise, and every edge vertex stays. Vertices are renumbered in order of
 //! first use, as high-water-mark coding requires.
 //!
-//! The horizon occlusion point is written in ECEF metres, as the reference encoder
-//! (quantized-mesh-encoder) and the checker used in the tests expect.
+//! The horizon occlusion point is written in the ellipsoid-scaled frame (ECEF divided by the
+//! WGS84 radii), as the spec says and CesiumJS reads it (`occludeePointInScaledSpace`): its norm
+//! is about 1. The reference encoder (quantized-mesh-encoder) writes ECEF metres, which is wrong.
 
 use std::collections::HashMap;
 
@@ -162,14 +163,35 @@ pub fn encode(tile: &TerrainTile, extensions: Extensions) -> (Vec<u8>, EncodeRep
     };
     let span = max_height - min_height;
 
-    // Header.
-    let ecef_points: Vec<[f64; 3]> = (0..n)
-        .map(|k| {
-            let [lon, lat] = tile.lon_lat[vertex(k)];
-            ecef(lon, lat, heights[k])
+    let hs: Vec<i32> = heights
+        .iter()
+        .map(|&h| {
+            if span > 0.0 {
+                ((h - min_height) / span * MAX).round() as i32
+            } else {
+                0
+            }
         })
         .collect();
+
+    // Header. The bounding sphere and the horizon occlusion point hold both the exact vertices
+    // and the points a client decodes: longitude and latitude linear in `u` and `v` across the
+    // tile's bounds, heights from the quantized values over the range as written (f32).
     let [west, south, east, north] = tile.bounds;
+    let (low, high) = (f64::from(min_height as f32), f64::from(max_height as f32));
+    let exact = (0..n).map(|k| {
+        let [lon, lat] = tile.lon_lat[vertex(k)];
+        ecef(lon, lat, heights[k])
+    });
+    let decoded = (0..n).map(|k| {
+        let (u, v) = quantized[order[k] as usize];
+        ecef(
+            west + f64::from(u) / MAX * (east - west),
+            south + f64::from(v) / MAX * (north - south),
+            low + f64::from(hs[k]) / MAX * (high - low),
+        )
+    });
+    let ecef_points: Vec<[f64; 3]> = exact.chain(decoded).collect();
     let centre = ecef(
         (west + east) / 2.0,
         (south + north) / 2.0,
@@ -202,16 +224,6 @@ pub fn encode(tile: &TerrainTile, extensions: Extensions) -> (Vec<u8>, EncodeRep
         .collect();
     let vs: Vec<i32> = (0..n)
         .map(|k| i32::from(quantized[order[k] as usize].1))
-        .collect();
-    let hs: Vec<i32> = heights
-        .iter()
-        .map(|&h| {
-            if span > 0.0 {
-                ((h - min_height) / span * MAX).round() as i32
-            } else {
-                0
-            }
-        })
         .collect();
     for values in [&us, &vs, &hs] {
         let mut previous = 0i32;
@@ -325,7 +337,8 @@ fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 
 /// The point that is below the horizon only when the whole tile is (Cesium's horizon culling,
-/// computed in ellipsoid-scaled space along the direction of the centre), returned in metres.
+/// computed in ellipsoid-scaled space along the direction of the centre), returned in that
+/// ellipsoid-scaled frame, where the spec puts it.
 fn horizon_occlusion_point(points: &[[f64; 3]], centre: [f64; 3]) -> [f64; 3] {
     let radii = [RADIUS_EQUATOR, RADIUS_EQUATOR, RADIUS_POLE];
     let scale = |p: [f64; 3]| [p[0] / radii[0], p[1] / radii[1], p[2] / radii[2]];
@@ -355,7 +368,7 @@ fn horizon_occlusion_point(points: &[[f64; 3]], centre: [f64; 3]) -> [f64; 3] {
             magnitude = magnitude.max(1.0 / denominator);
         }
     }
-    [0, 1, 2].map(|i| direction[i] * magnitude * radii[i])
+    direction.map(|v| v * magnitude)
 }
 
 /// A normal in (east, north, up) at a place, in ECEF.
@@ -452,6 +465,33 @@ mod tests {
         assert_eq!(us, [0, 0, 16384, 32767, 32767]);
         // Extensions at the end: watermask of one byte (no water).
         assert_eq!(&bytes[bytes.len() - 6..], &[2, 1, 0, 0, 0, 0]);
+    }
+
+    #[test]
+    fn horizon_occlusion_point_is_in_the_ellipsoid_scaled_frame_and_covers_every_vertex() {
+        let (bytes, _) = encode(&square(), Extensions::default());
+        let f64_at = |o: usize| f64::from_le_bytes(bytes[o..o + 8].try_into().unwrap());
+        let point = [f64_at(64), f64_at(72), f64_at(80)];
+        let norm = point.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(norm > 1.0 && norm < 1.001, "norm {norm}");
+        // Every vertex, scaled, sees the point below its horizon only when it is itself hidden:
+        // the point is at least as far along its direction as each vertex requires.
+        let radii = [RADIUS_EQUATOR, RADIUS_EQUATOR, RADIUS_POLE];
+        let direction = point.map(|v| v / norm);
+        for (k, &[lon, lat]) in square().lon_lat.iter().enumerate() {
+            let p = ecef(lon, lat, square().heights[k]);
+            let q = [0, 1, 2].map(|i| p[i] / radii[i]);
+            let length = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let cos_alpha = (0..3).map(|i| q[i] / length * direction[i]).sum::<f64>();
+            let sin_alpha = (1.0 - cos_alpha * cos_alpha).max(0.0).sqrt();
+            let cos_beta = 1.0 / length;
+            let sin_beta = (length * length - 1.0).sqrt() * cos_beta;
+            let needed = 1.0 / (cos_alpha * cos_beta - sin_alpha * sin_beta);
+            assert!(
+                norm >= needed * (1.0 - 1e-9),
+                "vertex {k}: {norm} < {needed}"
+            );
+        }
     }
 
     #[test]
