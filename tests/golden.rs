@@ -1,0 +1,125 @@
+//! The same inputs give the same bytes: the SHA-256 of a fixed set of tiles, made by the command
+//! line from the bundled sample, in every glb variant and as terrain, against the digests recorded
+//! in `tests/golden/digests.txt`.
+//!
+//! A change that leaves the output alone leaves these digests alone. A change meant to alter the
+//! bytes records the new digests in a commit of its own that says why:
+//! `TERRASTITCH_GOLDEN_WRITE=1 cargo test --release --test golden` rewrites the file.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use common::{repo, terrastitch};
+use sha2::{Digest, Sha256};
+use terrastitch::TileId;
+
+/// Monaco's ten densest tiles: the coast, the port, the bridges and tunnels of the centre.
+const COLUMNS: std::ops::RangeInclusive<u32> = 8527..=8531;
+const ROWS: std::ops::RangeInclusive<u32> = 5973..=5974;
+const FORMATS: &str = "glb,glb-meshopt,glb-enu,glb-enu-meshopt,terrain";
+
+fn digests_file() -> std::path::PathBuf {
+    repo().join("tests/golden/digests.txt")
+}
+
+/// A box just inside the golden tiles.
+fn bbox() -> String {
+    let tile = |x, y| TileId { z: 14, x, y }.bounds();
+    let (nw, se) = (
+        tile(*COLUMNS.start(), *ROWS.start()),
+        tile(*COLUMNS.end(), *ROWS.end()),
+    );
+    let inset = 1e-5;
+    format!(
+        "{},{},{},{}",
+        nw.west + inset,
+        se.south + inset,
+        se.east - inset,
+        nw.north - inset
+    )
+}
+
+/// Every file under `dir`, by its path relative to `dir`, with the SHA-256 of its bytes.
+fn digests_under(dir: &Path) -> BTreeMap<String, String> {
+    let mut digests = BTreeMap::new();
+    let mut pending = vec![dir.to_path_buf()];
+    while let Some(folder) = pending.pop() {
+        for entry in std::fs::read_dir(&folder).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                pending.push(path);
+                continue;
+            }
+            let bytes = std::fs::read(&path).unwrap();
+            let relative = path
+                .strip_prefix(dir)
+                .unwrap()
+                .to_string_lossy()
+                .into_owned();
+            let digest: String = Sha256::digest(&bytes)
+                .iter()
+                .map(|b| format!("{b:02x}"))
+                .collect();
+            digests.insert(relative, digest);
+        }
+    }
+    digests
+}
+
+fn recorded() -> BTreeMap<String, String> {
+    let text = std::fs::read_to_string(digests_file()).unwrap_or_default();
+    text.lines()
+        .filter(|line| !line.trim().is_empty() && !line.starts_with('#'))
+        .map(|line| {
+            let (digest, path) = line.split_once("  ").expect("'digest  path' lines");
+            (path.to_string(), digest.to_string())
+        })
+        .collect()
+}
+
+#[test]
+fn golden_tiles_keep_their_bytes() {
+    let work = tempfile::tempdir().unwrap();
+    let out = work.path().join("tiles");
+    let output = terrastitch()
+        .args(["export", "--bbox", &bbox(), "--format", FORMATS])
+        .arg("--cache")
+        .arg(work.path().join("cache.sqlite"))
+        .arg("-o")
+        .arg(format!("{}/", out.display()))
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let made = digests_under(&out);
+    assert_eq!(made.len(), 50, "ten tiles in five formats: {made:#?}");
+    if std::env::var_os("TERRASTITCH_GOLDEN_WRITE").is_some() {
+        let mut text = String::from(
+            "# SHA-256 of the golden tiles (tests/golden.rs); rewrite only in a commit that says \
+             why the bytes change.\n",
+        );
+        for (path, digest) in &made {
+            text.push_str(&format!("{digest}  {path}\n"));
+        }
+        std::fs::create_dir_all(digests_file().parent().unwrap()).unwrap();
+        std::fs::write(digests_file(), text).unwrap();
+        return;
+    }
+    let expected = recorded();
+    let changed: Vec<&String> = made
+        .keys()
+        .chain(expected.keys())
+        .filter(|path| made.get(*path) != expected.get(*path))
+        .collect();
+    assert!(
+        changed.is_empty(),
+        "{} of {} golden tiles changed: {changed:?}",
+        changed.len(),
+        expected.len()
+    );
+}
