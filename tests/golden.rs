@@ -111,7 +111,7 @@ fn golden_tiles_keep_their_bytes() {
         return;
     }
     let expected = recorded();
-    let changed: Vec<&String> = made
+    let changed: std::collections::BTreeSet<&String> = made
         .keys()
         .chain(expected.keys())
         .filter(|path| made.get(*path) != expected.get(*path))
