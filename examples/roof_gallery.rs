@@ -159,7 +159,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &parts,
         &BTreeMap::new(),
         &features,
-        glb::Variant::default(),
+        terrastitch::format::Variant::default(),
     );
     std::fs::write(&out, bytes)?;
     println!(

@@ -7,8 +7,9 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 
-use terrastitch::cache::{Format, MbtilesStore, SqliteStore, TileCache};
+use terrastitch::cache::{MbtilesStore, SqliteStore, TileCache};
 use terrastitch::config::{Config, LogFormat};
+use terrastitch::format::Format;
 use terrastitch::offline::{export, seed};
 use terrastitch::server::{self, AppState};
 use terrastitch::source::fetch::Fetcher;
@@ -321,13 +322,12 @@ async fn shutdown_signal() {
 
 fn render(args: RenderArgs, config: Config) -> Result<()> {
     let tile: TileId = args.tile.parse()?;
-    let variant =
-        terrastitch::output::glb::Variant::from_name(&args.variant).with_context(|| {
-            format!(
-                "unknown variant '{}'; expected glb, glb-meshopt, glb-enu or glb-enu-meshopt",
-                args.variant
-            )
-        })?;
+    let variant = terrastitch::format::Variant::from_name(&args.variant).with_context(|| {
+        format!(
+            "unknown variant '{}'; expected glb, glb-meshopt, glb-enu or glb-enu-meshopt",
+            args.variant
+        )
+    })?;
     let started = Instant::now();
     let sources = open_sources(
         &config,
@@ -403,11 +403,11 @@ fn formats(names: &[String]) -> Result<Vec<Format>> {
     let mut formats = Vec::new();
     for name in names.iter().flat_map(|n| n.split(',')) {
         let format = match name.trim() {
-            "terrain" => Format::Terrain(terrastitch::output::quantized_mesh::Extensions {
+            "terrain" => Format::Terrain(terrastitch::format::Extensions {
                 normals: true,
                 watermask: true,
             }),
-            other => match terrastitch::output::glb::Variant::from_name(other) {
+            other => match terrastitch::format::Variant::from_name(other) {
                 Some(variant) => Format::Glb(variant),
                 None => anyhow::bail!(
                     "unknown format '{other}'; expected glb, glb-meshopt, glb-enu, \
@@ -514,7 +514,7 @@ fn export(args: ExportArgs, config: Config) -> Result<()> {
         .flat_map(|tile| {
             formats
                 .iter()
-                .map(move |&format| terrastitch::cache::TileKey { tile, format })
+                .map(move |&format| terrastitch::format::TileKey { tile, format })
         })
         .collect();
     let target = export::Target::from_path(&args.output);

@@ -2,7 +2,7 @@
 //! and `export` share. Reads the tile's SRTM files and OSM elements from [`Sources`], renders
 //! with [`crate::render`], and returns the uncompressed body with what the render measured.
 
-use crate::cache::{Format, TileKey};
+use crate::format::{Format, TileKey};
 use crate::render::{Deadline, RenderError, RenderSettings, StageTimings};
 use crate::source::srtm::SrtmError;
 use crate::source::Sources;

@@ -158,18 +158,9 @@ fn guarded<T>(tile: TileId, f: impl FnOnce() -> Result<T, RenderError>) -> Resul
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|payload| {
         Err(RenderError::Panicked {
             tile,
-            message: panic_text(payload.as_ref()),
+            message: crate::panics::text(payload.as_ref()),
         })
     })
-}
-
-/// The message a panic carried.
-pub fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
-    payload
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| payload.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "panic".to_string())
 }
 
 /// What both outputs are made from: the features and the ground with its elevations and normals.
@@ -445,7 +436,7 @@ pub fn render(
         selection,
         mosaic,
         settings,
-        glb::Variant::default(),
+        crate::format::Variant::default(),
         Deadline::none(),
     )
 }
@@ -457,7 +448,7 @@ pub fn render_within(
     selection: &Selection<'_>,
     mosaic: &Mosaic,
     settings: &RenderSettings,
-    variant: glb::Variant,
+    variant: crate::format::Variant,
     deadline: Deadline,
 ) -> Result<RenderedTile, RenderError> {
     guarded(tile, || {
@@ -470,7 +461,7 @@ pub fn render_within(
 fn render_glb(
     tile: TileId,
     prepared: &Prepared<'_>,
-    variant: glb::Variant,
+    variant: crate::format::Variant,
     mut timings: StageTimings,
 ) -> RenderedTile {
     let Prepared {
@@ -689,7 +680,7 @@ pub fn render_terrain(
     selection: &Selection<'_>,
     mosaic: &Mosaic,
     settings: &RenderSettings,
-    extensions: quantized_mesh::Extensions,
+    extensions: crate::format::Extensions,
     deadline: Deadline,
 ) -> Result<RenderedTerrain, RenderError> {
     guarded(tile, || {
@@ -708,7 +699,7 @@ pub fn render_overview_terrain(
     mosaic: &Mosaic,
     settings: &RenderSettings,
     served_zoom: u8,
-    extensions: quantized_mesh::Extensions,
+    extensions: crate::format::Extensions,
     deadline: Deadline,
 ) -> Result<RenderedTerrain, RenderError> {
     let levels_above = i32::from(served_zoom) - i32::from(tile.z);
@@ -731,7 +722,7 @@ pub fn render_overview_terrain(
 fn encode_terrain(
     tile: TileId,
     prepared: &Prepared<'_>,
-    extensions: quantized_mesh::Extensions,
+    extensions: crate::format::Extensions,
     mut timings: StageTimings,
 ) -> RenderedTerrain {
     let started = Instant::now();

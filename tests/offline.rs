@@ -186,9 +186,9 @@ fn export_writes_mbtiles_and_a_directory_of_the_tiles() {
         .unwrap();
     assert_eq!(count, 2);
     for tile in range.tiles() {
-        let key = terrastitch::cache::TileKey {
+        let key = terrastitch::format::TileKey {
             tile,
-            format: terrastitch::cache::Format::GLB,
+            format: terrastitch::format::Format::GLB,
         };
         let stored = store.get(&key).unwrap().unwrap();
         // MBTiles rows count from the south.

@@ -9,10 +9,9 @@ use std::time::{Duration, Instant};
 
 use common::{sample_osm, sample_srtm, TestServer};
 use terrastitch::cache::encoding::Bodies;
-use terrastitch::cache::{
-    etag_of, Format, Provenance, SqliteStore, StoredTile, TileFilter, TileKey, TileStore,
-};
+use terrastitch::cache::{etag_of, Provenance, SqliteStore, StoredTile, TileFilter, TileStore};
 use terrastitch::config::ServerConfig;
+use terrastitch::format::{Format, TileKey};
 use terrastitch::source::Sources;
 use terrastitch::TileId;
 

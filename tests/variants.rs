@@ -10,7 +10,7 @@ use std::path::Path;
 
 use common::compressed::{decode_compressed, CompressedTile};
 use common::{decode, render_in_process, validate, DecodedTile, GROUND_NODES};
-use terrastitch::output::enu::ecef;
+use terrastitch::geodesy::ecef;
 use terrastitch::output::glb::GRID_STEPS_PER_TILE;
 use terrastitch::TileId;
 

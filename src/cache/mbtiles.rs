@@ -8,9 +8,10 @@ use std::path::Path;
 use rusqlite::{Connection, OpenFlags, OptionalExtension};
 
 use super::encoding::Bodies;
+use super::etag_of;
 use super::sqlite::Database;
 use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
-use super::{etag_of, Format, TileKey};
+use crate::format::{Format, TileKey};
 use crate::tile::{LonLatBounds, TileId};
 
 #[derive(Debug)]
@@ -42,10 +43,10 @@ impl MbtilesStore {
                 .map_err(sqlite)
         };
         let format = match meta("format")?.as_deref() {
-            Some(name) if crate::output::glb::Variant::from_name(name).is_some() => {
+            Some(name) if crate::format::Variant::from_name(name).is_some() => {
                 Format::from_name(name).unwrap_or(Format::GLB)
             }
-            Some("terrain") => Format::Terrain(crate::output::quantized_mesh::Extensions {
+            Some("terrain") => Format::Terrain(crate::format::Extensions {
                 normals: true,
                 watermask: true,
             }),

@@ -18,65 +18,13 @@ use std::sync::{Arc, Mutex};
 
 use sha2::Digest;
 
-use crate::output::glb::{Frame, Variant};
-use crate::output::quantized_mesh::Extensions;
-use crate::tile::TileId;
+use crate::format::TileKey;
 use encoding::Bodies;
 pub use mbtiles::MbtilesStore;
 pub use sqlite::SqliteStore;
 pub use store::{
     unix_now, Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage,
 };
-
-/// The formats tiles are made in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Format {
-    /// glTF binary in one of its frames and compressions.
-    Glb(Variant),
-    /// quantized-mesh-1.0 with the extensions asked for.
-    Terrain(Extensions),
-}
-
-impl Format {
-    /// Plain glb in the flat frame: what `/tiles/{z}/{x}/{y}.glb` serves by default.
-    pub const GLB: Format = Format::Glb(Variant {
-        frame: Frame::WebMercator,
-        meshopt: false,
-    });
-
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Format::Glb(variant) => variant.name(),
-            Format::Terrain(extensions) => extensions.key(),
-        }
-    }
-
-    /// The format a stored name stands for.
-    pub fn from_name(name: &str) -> Option<Format> {
-        if let Some(variant) = Variant::from_name(name) {
-            return Some(Format::Glb(variant));
-        }
-        [false, true]
-            .into_iter()
-            .flat_map(|normals| [false, true].map(|watermask| Extensions { normals, watermask }))
-            .find(|e| e.key() == name)
-            .map(Format::Terrain)
-    }
-
-    /// The file extension in URLs.
-    pub fn extension(self) -> &'static str {
-        match self {
-            Format::Glb(_) => "glb",
-            Format::Terrain(_) => "terrain",
-        }
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct TileKey {
-    pub tile: TileId,
-    pub format: Format,
-}
 
 /// Where a response came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -328,7 +276,7 @@ where
 
 fn panic_message(error: tokio::task::JoinError) -> String {
     match error.try_into_panic() {
-        Ok(payload) => crate::render::panic_text(payload.as_ref()),
+        Ok(payload) => crate::panics::text(payload.as_ref()),
         Err(error) => error.to_string(),
     }
 }

@@ -9,7 +9,7 @@ use rusqlite::{params, Connection, OptionalExtension};
 
 use super::encoding::{Bodies, Encoding};
 use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
-use super::{Format, TileKey};
+use crate::format::{Format, TileKey};
 use crate::tile::TileId;
 
 /// The migrations, in order; the schema version is the number of migrations applied.

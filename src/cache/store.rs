@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use super::encoding::{Bodies, CodingError};
-use super::TileKey;
+use crate::format::TileKey;
 use crate::tile::{TileId, TileRange};
 
 #[derive(Debug, thiserror::Error)]

@@ -8,8 +8,10 @@ use std::path::{Path, PathBuf};
 
 use rusqlite::{params, Connection};
 
-use crate::cache::{Format, StoreError, TileKey, TileStore};
-use crate::output::glb::{Variant, ATTRIBUTION};
+use crate::cache::{StoreError, TileStore};
+use crate::format::Variant;
+use crate::format::{Format, TileKey};
+use crate::output::glb::ATTRIBUTION;
 use crate::tile::LonLatBounds;
 
 /// Where an export goes.
@@ -217,8 +219,8 @@ fn partial_path(path: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::output::glb::Frame;
-    use crate::output::quantized_mesh::Extensions;
+    use crate::format::Extensions;
+    use crate::format::Frame;
     use crate::tile::TileId;
 
     #[test]

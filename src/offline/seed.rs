@@ -13,9 +13,8 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use crate::cache::encoding::Bodies;
-use crate::cache::{
-    etag_of, unix_now, Format, Provenance, StoreError, StoredTile, TileFilter, TileKey, TileStore,
-};
+use crate::cache::{etag_of, unix_now, Provenance, StoreError, StoredTile, TileFilter, TileStore};
+use crate::format::{Format, TileKey};
 use crate::render::{Deadline, RenderSettings};
 use crate::source::Sources;
 use crate::tile::TileRange;

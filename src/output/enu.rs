@@ -11,42 +11,14 @@
 
 use std::collections::BTreeMap;
 
+use crate::geodesy::{east_north_up, ecef, Vector};
 use crate::mesh::instances::Instances;
 use crate::mesh::models::Model;
 use crate::mesh::{MeshBuffers, Part};
 use crate::tile::{TileFrame, TileId};
 
-/// WGS 84 semi-major axis, metres.
-const A: f64 = 6_378_137.0;
-/// WGS 84 flattening.
-const F: f64 = 1.0 / 298.257_223_563;
-
-type Vector = [f64; 3];
-
 fn dot(a: Vector, b: Vector) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// Earth-centred, Earth-fixed coordinates of a point given in degrees and metres.
-pub fn ecef(lon_deg: f64, lat_deg: f64, height_m: f64) -> Vector {
-    let e2 = F * (2.0 - F);
-    let (lon, lat) = (lon_deg.to_radians(), lat_deg.to_radians());
-    let n = A / (1.0 - e2 * lat.sin().powi(2)).sqrt();
-    [
-        (n + height_m) * lat.cos() * lon.cos(),
-        (n + height_m) * lat.cos() * lon.sin(),
-        (n * (1.0 - e2) + height_m) * lat.sin(),
-    ]
-}
-
-/// The unit east, north and up vectors (Earth-fixed) at a longitude and latitude.
-fn basis(lon_deg: f64, lat_deg: f64) -> [Vector; 3] {
-    let (lon, lat) = (lon_deg.to_radians(), lat_deg.to_radians());
-    [
-        [-lon.sin(), lon.cos(), 0.0],
-        [-lat.sin() * lon.cos(), -lat.sin() * lon.sin(), lat.cos()],
-        [lat.cos() * lon.cos(), lat.cos() * lon.sin(), lat.sin()],
-    ]
 }
 
 /// The east-north-up frame at a tile's centre, on the ellipsoid.
@@ -68,7 +40,7 @@ impl EastNorthUp {
         EastNorthUp {
             frame,
             origin: ecef(lon, lat, 0.0),
-            axes: basis(lon, lat),
+            axes: east_north_up(lon, lat),
             edge_f32: frame.size_m as f32,
         }
     }
@@ -123,7 +95,7 @@ impl EastNorthUp {
     /// this frame.
     pub fn direction(&self, at: [f32; 3], d: [f32; 3]) -> [f32; 3] {
         let (lon, lat, _) = self.geodetic(at);
-        let [e, n, u] = basis(lon, lat);
+        let [e, n, u] = east_north_up(lon, lat);
         let d = d.map(f64::from);
         let world: Vector = std::array::from_fn(|i| d[0] * e[i] + d[1] * u[i] - d[2] * n[i]);
         let [e0, n0, u0] = self.axes;

@@ -27,6 +27,7 @@ use serde_json::{json as value, Value};
 
 use crate::features::vegetation::TreeKind;
 use crate::features::{FeatureClass, FeatureInfo};
+use crate::format::{Frame, Variant};
 use crate::mesh::instances::Instances;
 use crate::mesh::models::Model;
 use crate::mesh::{MeshBuffers, Part};
@@ -43,59 +44,6 @@ pub struct TileDescription {
     pub bounds: LonLatBounds,
     pub size_m: f64,
     pub generator: String,
-}
-
-/// The frame a tile's coordinates are written in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
-pub enum Frame {
-    /// The flat frame tiles are made in, placed by translation (see `asset.extras`).
-    #[default]
-    WebMercator,
-    /// East-north-up at the tile's centre on WGS 84, placed by a 3D Tiles transform.
-    EastNorthUp,
-}
-
-/// How a tile's glb is written.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
-pub struct Variant {
-    pub frame: Frame,
-    /// `EXT_meshopt_compression` over `KHR_mesh_quantization`.
-    pub meshopt: bool,
-}
-
-impl Variant {
-    pub const ALL: [Variant; 4] = [
-        Variant {
-            frame: Frame::WebMercator,
-            meshopt: false,
-        },
-        Variant {
-            frame: Frame::WebMercator,
-            meshopt: true,
-        },
-        Variant {
-            frame: Frame::EastNorthUp,
-            meshopt: false,
-        },
-        Variant {
-            frame: Frame::EastNorthUp,
-            meshopt: true,
-        },
-    ];
-
-    /// The variant's name where tiles are stored and listed.
-    pub fn name(self) -> &'static str {
-        match (self.frame, self.meshopt) {
-            (Frame::WebMercator, false) => "glb",
-            (Frame::WebMercator, true) => "glb-meshopt",
-            (Frame::EastNorthUp, false) => "glb-enu",
-            (Frame::EastNorthUp, true) => "glb-enu-meshopt",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Variant> {
-        Variant::ALL.into_iter().find(|v| v.name() == name)
-    }
 }
 
 /// Steps of the shared position grid along a tile's side.

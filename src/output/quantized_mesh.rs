@@ -21,49 +21,11 @@
 
 use std::collections::HashMap;
 
+use crate::format::Extensions;
+use crate::geodesy::{ecef, enu_to_ecef, scaled};
+
 /// The largest quantized coordinate.
 const MAX: f64 = 32767.0;
-
-/// WGS84 ellipsoid radii (metres).
-const RADIUS_EQUATOR: f64 = 6_378_137.0;
-const RADIUS_POLE: f64 = 6_356_752.314_245_179;
-
-/// Which extensions to append.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct Extensions {
-    pub normals: bool,
-    pub watermask: bool,
-}
-
-impl Extensions {
-    /// Reads the `extensions=` parameter of an `Accept` header
-    /// (`application/vnd.quantized-mesh;extensions=octvertexnormals-watermask`).
-    pub fn from_accept(accept: &str) -> Extensions {
-        let mut extensions = Extensions::default();
-        for parameter in accept.split([';', ',']) {
-            if let Some(list) = parameter.trim().strip_prefix("extensions=") {
-                for name in list.trim_matches('"').split('-') {
-                    match name.trim() {
-                        "octvertexnormals" | "vertexnormals" => extensions.normals = true,
-                        "watermask" => extensions.watermask = true,
-                        _ => {}
-                    }
-                }
-            }
-        }
-        extensions
-    }
-
-    /// A short name for cache keys: `terrain`, `terrain-n`, `terrain-w`, `terrain-nw`.
-    pub fn key(self) -> &'static str {
-        match (self.normals, self.watermask) {
-            (false, false) => "terrain",
-            (true, false) => "terrain-n",
-            (false, true) => "terrain-w",
-            (true, true) => "terrain-nw",
-        }
-    }
-}
 
 /// The terrain of one tile, ready to encode.
 #[derive(Debug, Clone)]
@@ -320,18 +282,6 @@ fn triangulate(points: &[(u16, u16)]) -> Vec<[u32; 3]> {
         .collect()
 }
 
-/// Geodetic to Earth-centred, Earth-fixed (WGS84).
-pub fn ecef(lon: f64, lat: f64, height: f64) -> [f64; 3] {
-    let (lon, lat) = (lon.to_radians(), lat.to_radians());
-    let e2 = 1.0 - (RADIUS_POLE * RADIUS_POLE) / (RADIUS_EQUATOR * RADIUS_EQUATOR);
-    let n = RADIUS_EQUATOR / (1.0 - e2 * lat.sin().powi(2)).sqrt();
-    [
-        (n + height) * lat.cos() * lon.cos(),
-        (n + height) * lat.cos() * lon.sin(),
-        (n * (1.0 - e2) + height) * lat.sin(),
-    ]
-}
-
 fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
@@ -340,8 +290,7 @@ fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
 /// computed in ellipsoid-scaled space along the direction of the centre), returned in that
 /// ellipsoid-scaled frame, where the spec puts it.
 fn horizon_occlusion_point(points: &[[f64; 3]], centre: [f64; 3]) -> [f64; 3] {
-    let radii = [RADIUS_EQUATOR, RADIUS_EQUATOR, RADIUS_POLE];
-    let scale = |p: [f64; 3]| [p[0] / radii[0], p[1] / radii[1], p[2] / radii[2]];
+    let scale = scaled;
     let direction = {
         let c = scale(centre);
         let length = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
@@ -369,15 +318,6 @@ fn horizon_occlusion_point(points: &[[f64; 3]], centre: [f64; 3]) -> [f64; 3] {
         }
     }
     direction.map(|v| v * magnitude)
-}
-
-/// A normal in (east, north, up) at a place, in ECEF.
-fn enu_to_ecef(n: [f64; 3], lon: f64, lat: f64) -> [f64; 3] {
-    let (lon, lat) = (lon.to_radians(), lat.to_radians());
-    let east = [-lon.sin(), lon.cos(), 0.0];
-    let north = [-lat.sin() * lon.cos(), -lat.sin() * lon.sin(), lat.cos()];
-    let up = [lat.cos() * lon.cos(), lat.cos() * lon.sin(), lat.sin()];
-    [0, 1, 2].map(|i| n[0] * east[i] + n[1] * north[i] + n[2] * up[i])
 }
 
 /// Oct encoding of a unit vector into two bytes (Cigolle et al. 2014, as Cesium decodes it).
@@ -476,11 +416,10 @@ mod tests {
         assert!(norm > 1.0 && norm < 1.001, "norm {norm}");
         // Every vertex, scaled, sees the point below its horizon only when it is itself hidden:
         // the point is at least as far along its direction as each vertex requires.
-        let radii = [RADIUS_EQUATOR, RADIUS_EQUATOR, RADIUS_POLE];
         let direction = point.map(|v| v / norm);
         for (k, &[lon, lat]) in square().lon_lat.iter().enumerate() {
             let p = ecef(lon, lat, square().heights[k]);
-            let q = [0, 1, 2].map(|i| p[i] / radii[i]);
+            let q = scaled(p);
             let length = q.iter().map(|v| v * v).sum::<f64>().sqrt();
             let cos_alpha = (0..3).map(|i| q[i] / length * direction[i]).sum::<f64>();
             let sin_alpha = (1.0 - cos_alpha * cos_alpha).max(0.0).sqrt();

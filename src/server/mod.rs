@@ -77,7 +77,7 @@ pub struct AppState {
     /// The viewer's files, served at `/`.
     pub static_dir: std::path::PathBuf,
     /// Tiles whose render failed or ran out of time lately, with the error (status, message).
-    pub failed_renders: moka::sync::Cache<crate::cache::TileKey, (StatusCode, Arc<str>)>,
+    pub failed_renders: moka::sync::Cache<crate::format::TileKey, (StatusCode, Arc<str>)>,
 }
 
 /// Requests that may wait at once for a source download.
@@ -91,7 +91,7 @@ pub const FAILED_RENDER_MEMORY: Duration = Duration::from_secs(600);
 #[derive(Debug, Clone)]
 pub struct Archive {
     pub path: std::path::PathBuf,
-    pub format: crate::cache::Format,
+    pub format: crate::format::Format,
     pub bounds: Option<crate::tile::LonLatBounds>,
 }
 

@@ -11,7 +11,8 @@ use tokio::sync::Notify;
 use super::metrics::Metrics;
 use super::tiles::{provenance, render_job, Priority};
 use super::AppState;
-use crate::cache::{StoredEntry, TileFilter, TileKey};
+use crate::cache::{StoredEntry, TileFilter};
+use crate::format::TileKey;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Job {

@@ -13,8 +13,9 @@ use serde_json::{json, Value};
 
 use super::error::ApiError;
 use super::AppState;
-use crate::cache::Format;
-use crate::output::glb::{Frame, ATTRIBUTION};
+use crate::format::Format;
+use crate::format::Frame;
+use crate::output::glb::ATTRIBUTION;
 
 pub async fn tilejson(
     State(state): State<AppState>,
