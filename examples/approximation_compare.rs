@@ -9,7 +9,8 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
 
-use terrastitch::source::srtm::{CellId, SrtmTile};
+use terrastitch::source::srtm;
+use terrastitch::terrain::cell::CellId;
 use terrastitch::terrain::{Interpolation, Mosaic, TerrainModel};
 use terrastitch::TileId;
 
@@ -24,7 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .and_then(|s| s.to_str())
         .ok_or("bad file name")?;
     let cell = CellId::from_name(&stem[..7]).ok_or("file name is not an SRTM cell")?;
-    let mosaic = Mosaic::new([Arc::new(SrtmTile::read(cell, path)?)]);
+    let mosaic = Mosaic::new([Arc::new(srtm::read(cell, path)?)]);
 
     // The whole cell at 1″, one row of SRTM cells at a time (the models cache per-site work).
     let steps = 3600usize;

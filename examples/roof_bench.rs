@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 
 use terrastitch::features::{self, buildings::RoofShape};
 use terrastitch::mesh::buildings::{self, Fallback};
+use terrastitch::provider::Inputs;
 use terrastitch::render::srtm_step_uv;
-use terrastitch::source::Sources;
 use terrastitch::terrain::{Interpolation, TerrainModel};
 use terrastitch::TileId;
 
@@ -40,7 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &[a, b, c, d] => [a, b, c, d],
         _ => return Err("give all four of X0 X1 Y0 Y1".into()),
     };
-    let sources = Sources::open(std::slice::from_ref(&osm), &srtm, 14)?;
+    let sources = Inputs::open(std::slice::from_ref(&osm), &srtm, 14)?;
     let mut shapes: BTreeMap<RoofShape, usize> = BTreeMap::new();
     let mut fallbacks: BTreeMap<Fallback, usize> = BTreeMap::new();
     let (mut shells, mut spent) = (0usize, Duration::ZERO);

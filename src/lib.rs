@@ -19,7 +19,7 @@ pub mod offline;
 pub mod osm;
 pub mod output;
 pub mod panics;
-pub mod pipeline;
+pub mod provider;
 pub mod render;
 pub mod server;
 pub mod source;

@@ -11,9 +11,9 @@ use terrastitch::cache::{MbtilesStore, SqliteStore, TileCache};
 use terrastitch::config::{Config, LogFormat};
 use terrastitch::format::Format;
 use terrastitch::offline::{export, seed};
+use terrastitch::provider::Inputs;
 use terrastitch::server::{self, AppState};
 use terrastitch::source::fetch::Fetcher;
-use terrastitch::source::Sources;
 use terrastitch::tile::{LonLatBounds, TileRange};
 use terrastitch::TileId;
 
@@ -139,9 +139,9 @@ fn load_config(args: &SourceArgs) -> Result<Config> {
 }
 
 /// Opens (downloading what the data directory lacks) the configured sources.
-fn open_sources(config: &Config, fetcher: Arc<Fetcher>) -> Result<Sources> {
+fn open_sources(config: &Config, fetcher: Arc<Fetcher>) -> Result<Inputs> {
     let started = Instant::now();
-    let sources = Sources::load(&config.sources, config.server.zoom, fetcher)?;
+    let sources = Inputs::load(&config.sources, config.server.zoom, fetcher)?;
     tracing::info!(
         ways = sources.osm.data().ways.len(),
         srtm_files = sources.srtm.cells().len(),
@@ -426,7 +426,7 @@ fn formats(names: &[String]) -> Result<Vec<Format>> {
 fn seed_area(
     area: &AreaArgs,
     config: &Config,
-    sources: &Sources,
+    sources: &Inputs,
     store: &SqliteStore,
     shard: seed::Shard,
 ) -> Result<seed::SeedReport> {
@@ -485,7 +485,7 @@ fn seed_into_store(
     mut config: Config,
     area: &AreaArgs,
     shard: seed::Shard,
-) -> Result<(Config, Sources, SqliteStore)> {
+) -> Result<(Config, Inputs, SqliteStore)> {
     if let Some(cache) = &area.cache {
         config.cache.path = cache.clone();
     }

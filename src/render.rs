@@ -260,7 +260,7 @@ fn prepare<'a>(
         &settled,
     )?;
     let levels: Vec<&elevation::settled::Level> = water.iter().chain(&cuts).collect();
-    elevation::settled::flatten(&mut ground, &levels, &roads, &frame);
+    mesh::flatten::flatten(&mut ground, &levels, &roads, &frame);
     timings.triangulation = started.elapsed();
     deadline.check(tile, "triangulation")?;
 

@@ -8,8 +8,8 @@ use common::{decode, sample_osm, sample_srtm, GROUND_NODES, MONACO_TILES as TILE
 use terrastitch::elevation::settled::Stations;
 use terrastitch::features;
 use terrastitch::features::structures as tags;
+use terrastitch::provider::Inputs;
 use terrastitch::render::RenderSettings;
-use terrastitch::source::Sources;
 use terrastitch::TileId;
 
 /// Every water area (not a waterway drawn at its width) is flat within 1 cm, and the ground
@@ -18,7 +18,7 @@ use terrastitch::TileId;
 #[test]
 fn water_lies_flat_and_meets_its_shore_and_waterways_run_down() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let (mut areas, mut waterways, mut shores) = (0, 0, 0);
     for (x, y) in TILES {
         let name = format!("14/{x}/{y}");
@@ -137,7 +137,7 @@ fn water_lies_flat_and_meets_its_shore_and_waterways_run_down() {
 #[test]
 fn roads_are_level_across_and_junctions_level() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let (mut sections, mut junctions, mut tilted, mut tilted_junctions) = (0, 0, 0, 0);
     for (x, y) in TILES {
         let name = format!("14/{x}/{y}");
@@ -299,7 +299,7 @@ fn roads_are_level_across_and_junctions_level() {
 #[test]
 fn road_grades_keep_to_the_class_maximum_unless_reported() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let settings = RenderSettings::default();
     let (mut segments, mut steep, mut drawn, mut drawn_steep, mut settled_stretches) =
         (0, 0, 0, 0, 0);
@@ -459,7 +459,7 @@ fn road_grades_keep_to_the_class_maximum_unless_reported() {
 #[test]
 fn cliffs_and_retaining_walls_step_the_ground() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let (mut steps, mut pairs) = (0, 0);
     for (x, y) in TILES {
         let name = format!("14/{x}/{y}");

@@ -1,4 +1,4 @@
-//! Sources fetched on demand from a local HTTP server that serves the bundled files, and
+//! Inputs fetched on demand from a local HTTP server that serves the bundled files, and
 //! misbehaves on request: 404s, 500s, a server that fails twice then recovers, truncated
 //! bodies, answers slower than the timeout.
 
@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 
 use common::{repo, sample_osm, TestServer};
 use terrastitch::config::{ServerConfig, SourcesConfig};
+use terrastitch::provider::Inputs;
 use terrastitch::source::fetch::Fetcher;
-use terrastitch::source::Sources;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 /// A tile of the bundled sample; it needs N43E007 alone.
@@ -127,7 +127,7 @@ async fn answer(
     stream.shutdown().await
 }
 
-/// Sources with no SRTM file of their own, fetching them from `srtm_url`.
+/// Inputs with no SRTM file of their own, fetching them from `srtm_url`.
 fn config(dir: &Path, srtm_url: String) -> SourcesConfig {
     let empty = dir.join("srtm");
     std::fs::create_dir_all(&empty).unwrap();
@@ -148,7 +148,7 @@ fn config(dir: &Path, srtm_url: String) -> SourcesConfig {
 async fn server(dir: &Path, config: SourcesConfig) -> TestServer {
     let fetcher = Arc::new(Fetcher::new(config.fetch_settings()));
     let loading = (config.clone(), fetcher.clone());
-    let sources = tokio::task::spawn_blocking(move || Sources::load(&loading.0, 14, loading.1))
+    let sources = tokio::task::spawn_blocking(move || Inputs::load(&loading.0, 14, loading.1))
         .await
         .unwrap()
         .expect("sources load");

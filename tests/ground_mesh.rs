@@ -8,13 +8,13 @@ mod common;
 use common::{sample_osm, sample_srtm, GroundLocator};
 use terrastitch::features;
 use terrastitch::mesh::ground::{self, MeshSettings};
-use terrastitch::source::Sources;
+use terrastitch::provider::Inputs;
 use terrastitch::terrain::{Interpolation, TerrainModel};
 use terrastitch::TileId;
 
 #[test]
 fn every_sample_of_the_steepest_and_densest_tiles_is_within_the_bound() {
-    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let settings = MeshSettings::default();
     for (x, y) in [(8527, 5974), (8529, 5973), (8529, 5974)] {
         let tile = TileId { z: 14, x, y };

@@ -6,11 +6,11 @@ mod common;
 use common::{sample_osm, sample_srtm};
 use terrastitch::features::{self, roads, FeatureClass, FeatureSet, Surface};
 use terrastitch::osm::ElementType;
-use terrastitch::source::Sources;
+use terrastitch::provider::Inputs;
 use terrastitch::TileId;
 
 fn feature_set(x: u32, y: u32) -> FeatureSet {
-    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let tile = TileId { z: 14, x, y };
     features::collect(&sources.selection(tile), tile, &Default::default())
 }
@@ -82,7 +82,7 @@ fn road_surfaces_of_a_dense_tile_barely_overlap() {
 #[test]
 fn a_named_road_is_as_wide_as_its_tags_say() {
     let (x, y) = (8529, 5974);
-    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let tile = TileId { z: 14, x, y };
     let selection = sources.selection(tile);
     let set = features::collect(&selection, tile, &Default::default());

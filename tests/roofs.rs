@@ -10,15 +10,15 @@ use common::{decode, repo, sample_osm, sample_srtm};
 use terrastitch::features::{self, buildings::RoofShape};
 use terrastitch::mesh::buildings::{self, Solid};
 use terrastitch::mesh::skeleton::skeleton;
+use terrastitch::provider::Inputs;
 use terrastitch::render::srtm_step_uv;
-use terrastitch::source::Sources;
 use terrastitch::terrain::{Interpolation, TerrainModel};
 use terrastitch::TileId;
 
 /// The footprints of a tile's buildings in metres (the projection is conformal, so shapes keep
 /// their angles), each around its own first vertex.
 fn footprints(osm: PathBuf, x: u32, y: u32) -> Vec<Vec<Vec<[f64; 2]>>> {
-    let sources = Sources::open(&[osm], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[osm], &sample_srtm(), 14).expect("sample data");
     let tile = TileId { z: 14, x, y };
     let set = features::collect(&sources.selection(tile), tile, &Default::default());
     let metres = tile.frame().size_m;
@@ -162,7 +162,7 @@ fn shell_defect(solid: &Solid) -> Option<String> {
 #[test]
 fn every_building_of_a_tag_rich_tile_is_a_closed_shell_at_its_tagged_height() {
     let tag_rich = repo().join("tests/data/monaco-planetiler-2021.osm.pbf");
-    let sources = Sources::open(&[tag_rich], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[tag_rich], &sample_srtm(), 14).expect("sample data");
     let tile = TileId {
         z: 14,
         x: 8529,

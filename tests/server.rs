@@ -12,11 +12,11 @@ use terrastitch::cache::encoding::Bodies;
 use terrastitch::cache::{etag_of, Provenance, SqliteStore, StoredTile, TileFilter, TileStore};
 use terrastitch::config::ServerConfig;
 use terrastitch::format::{Format, TileKey};
-use terrastitch::source::Sources;
+use terrastitch::provider::Inputs;
 use terrastitch::TileId;
 
-fn sources() -> Sources {
-    Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data loads")
+fn sources() -> Inputs {
+    Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data loads")
 }
 
 async fn start(dir: &std::path::Path, config: ServerConfig) -> TestServer {

@@ -13,12 +13,12 @@ use terrastitch::features::structures as tags;
 use terrastitch::features::{FeatureSettings, Projection};
 use terrastitch::mesh::ground::MeshSettings;
 use terrastitch::osm::structures::{Crossed, StructureKind};
-use terrastitch::source::Sources;
+use terrastitch::provider::Inputs;
 use terrastitch::terrain::{Interpolation, TerrainModel};
 use terrastitch::TileId;
 
 /// Every structure group of the sample settled as the renderer settles it.
-fn settle_all(sources: &Sources) -> Vec<Settled> {
+fn settle_all(sources: &Inputs) -> Vec<Settled> {
     let tile = TileId {
         z: 14,
         x: 8529,
@@ -51,7 +51,7 @@ fn settle_all(sources: &Sources) -> Vec<Settled> {
 #[test]
 fn bridges_clear_what_they_cross_and_tunnels_stay_under_the_ground() {
     let dir = tempfile::tempdir().expect("a temporary directory");
-    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let ways = &sources.osm.data().ways;
     let groups = sources.osm.structures();
     let settled = settle_all(&sources);
@@ -197,7 +197,7 @@ fn bridges_clear_what_they_cross_and_tunnels_stay_under_the_ground() {
 /// a violation of that bound was reported for the way; a summary of what was reported.
 #[test]
 fn grades_keep_to_the_class_maximum_unless_reported() {
-    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let ways = &sources.osm.data().ways;
     let settled = settle_all(&sources);
     let mut by_kind: BTreeMap<ConstraintKind, usize> = BTreeMap::new();
@@ -246,7 +246,7 @@ fn grades_keep_to_the_class_maximum_unless_reported() {
 /// the LP reported that bound violated there.
 #[test]
 fn tunnels_keep_clear_of_the_foundations_over_them() {
-    let sources = Sources::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let ways = &sources.osm.data().ways;
     let groups = sources.osm.structures();
     let settled = settle_all(&sources);

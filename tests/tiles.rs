@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 
 use common::{corners, decode, validate, DecodedTile, GroundLocator, TestServer, GROUND_NODES};
 use terrastitch::osm::index::bounds_of;
-use terrastitch::source::Sources;
+use terrastitch::provider::Inputs;
 use terrastitch::TileId;
 
 /// Tiles with different characters: dense buildings on a 616 m slope; bridges and the
@@ -29,7 +29,7 @@ fn ground_corners(tile: &DecodedTile, except: &str) -> Vec<[[f64; 3]; 3]> {
 }
 
 /// Buildings of the extract whose centroid lies in the tile, and those whose box touches it.
-fn extract_building_range(sources: &Sources, tile: TileId) -> (usize, usize) {
+fn extract_building_range(sources: &Inputs, tile: TileId) -> (usize, usize) {
     let b = tile.bounds();
     let mut centred = 0;
     let mut touching = 0;
@@ -140,7 +140,7 @@ fn check_frame(tile: &DecodedTile, id: TileId) {
     assert!(area > s * s * 0.5, "{id}: ground area {area} is too small");
 }
 
-fn check_feature_table(tile: &DecodedTile, sources: &Sources, id: TileId) {
+fn check_feature_table(tile: &DecodedTile, sources: &Inputs, id: TileId) {
     let features = &tile.features;
     assert_eq!(features[0].class, "terrain");
     // (Instanced nodes carry their features per instance; `tests/features.rs` reads those.)

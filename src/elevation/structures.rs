@@ -892,7 +892,7 @@ pub fn ground_cuts(
                 continue;
             };
             if class == FeatureClass::Road {
-                surface.paving = crate::mesh::structures::paving_of(way);
+                surface.paving = tags::paving_of(way);
             }
             let rule = Rule::Along {
                 stations: Stations::new(&line),

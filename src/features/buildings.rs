@@ -127,7 +127,7 @@ pub(super) fn replace_outlines_by_parts(set: &mut FeatureSet) {
 
 /// A point inside a polygon: the centroid of the first of its triangles.
 fn interior_point(polygon: &crate::geometry::Polygon) -> crate::geometry::Point {
-    crate::mesh::constraints::triangulate_polygon(polygon)
+    crate::geometry::constrained::triangulate_polygon(polygon)
         .first()
         .map(|t| {
             [

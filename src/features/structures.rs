@@ -12,8 +12,9 @@
 
 use crate::osm::structures::StructureKind;
 use crate::osm::units::parse_length_m;
-use crate::osm::Tags;
+use crate::osm::{Tags, Way};
 
+use super::roads::Paving;
 use super::{railways, roads, FeatureSettings};
 
 /// Whether a way is part of a bridge or a tunnel that is drawn as such, with its layer (`1` for
@@ -197,6 +198,14 @@ pub fn incline(tags: &Tags) -> Option<Incline> {
         return None;
     };
     (grade.is_finite() && grade.abs() <= 1.0).then_some(Incline::Grade(grade))
+}
+
+/// The paving a structure's way shows: its road's, or `None` for a railway.
+pub fn paving_of(way: &Way) -> Option<Paving> {
+    way.tags
+        .get("highway")
+        .is_some()
+        .then(|| Paving::from_tags(&way.tags))
 }
 
 #[cfg(test)]

@@ -7,7 +7,6 @@
 //! Walls start [`WALL_SKIRT_M`] below that, so no wall ends above the ground on a slope. An
 //! untagged height is raised where needed so the roof clears the highest ground under it.
 
-use super::constraints::triangulate_polygon;
 use super::roofs::{
     bend, centred_roof, long_axis, profile_roof, skeleton_roof, spread, square_up, CentredRoof,
     RoofEnd, RoofError, RoofMesh, SkeletonRoof,
@@ -15,6 +14,7 @@ use super::roofs::{
 use super::{newell, MeshBuffers};
 use crate::features::buildings::RoofShape;
 use crate::features::BuildingShape;
+use crate::geometry::constrained::triangulate_polygon;
 use crate::geometry::{clip_to_rect, signed_area2, Point, Polygon};
 use crate::terrain::{Elevation, TerrainModel};
 use crate::tile::TileFrame;

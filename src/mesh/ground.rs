@@ -18,8 +18,9 @@
 
 use spade::{Point2, Triangulation};
 
-use super::tin::{refine, Cdt, HeightGrid, RefineLimits};
+use super::tin::{refine, HeightGrid, RefineLimits};
 use crate::features::{FeatureClass, Surface};
+use crate::geometry::constrained::Cdt;
 use crate::geometry::{clip_segment, distance_to_segment, grid_cell, Point, Polygon, Rect};
 use crate::terrain::Elevation;
 use crate::tile::{mercator_scale, v_to_lat, TileFrame};
@@ -343,7 +344,7 @@ pub fn triangulate(
 }
 
 /// Inserts the outline segments into a copy of `seed` as constraint edges
-/// ([`super::constraints::insert`]) and returns it with the number of pieces left out. Segments
+/// ([`crate::geometry::constrained::insert`]) and returns it with the number of pieces left out. Segments
 /// along the tile's border are left out: the edge vertices already lie on them.
 fn insert_constraints(
     seed: &Cdt,
@@ -360,7 +361,7 @@ fn insert_constraints(
         .map(|&(a, b)| (to_local(a), to_local(b)))
         .filter(|s| s.0 != s.1 && !on_border(s))
         .collect();
-    super::constraints::insert(seed, &local)
+    crate::geometry::constrained::insert(seed, &local)
 }
 
 /// Error weights of the samples: `1 + feature_weight · (1 − d / feature_distance)` within
@@ -500,7 +501,7 @@ fn edge_vertices(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::source::srtm::{CellId, SrtmTile};
+    use crate::terrain::cell::{CellId, SrtmTile};
     use crate::terrain::{Interpolation, Mosaic, TerrainModel};
     use crate::tile::TileId;
     use std::sync::Arc;

@@ -3,7 +3,7 @@
 
 pub mod barriers;
 pub mod buildings;
-pub mod constraints;
+pub mod flatten;
 pub mod ground;
 pub mod instances;
 pub mod models;

@@ -10,8 +10,8 @@
 //! Everything here is in the footprint's own plane, metres, with `(x, y)` the plan and the
 //! height third; the caller places it.
 
-use super::constraints::triangulate_polygon;
 use super::skeleton::{skeleton, Skeleton, SkeletonError};
+use crate::geometry::constrained::triangulate_polygon;
 use crate::geometry::{convex_hull, dedup_ring, signed_area2, Point, Polygon};
 
 /// How the end of a wing is finished, where a hipped roof has a triangular hip.

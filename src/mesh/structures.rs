@@ -12,7 +12,6 @@ use std::collections::{BTreeMap, HashMap};
 
 use super::{MeshBuffers, Part};
 use crate::elevation::structures::{plan_tunnel, tube_heights, Profile, Settled, Station};
-use crate::features::roads::Paving;
 use crate::features::structures as tags;
 use crate::features::{FeatureSettings, Projection};
 use crate::geometry::{clip_to_rect, offset_polyline, Point, Rect};
@@ -44,14 +43,6 @@ pub struct Context<'a> {
     pub settings: &'a FeatureSettings,
     /// The mesh's error bound, metres.
     pub surface_margin_m: f64,
-}
-
-/// The paving a structure's way shows: its road's, or `None` for a railway.
-pub fn paving_of(way: &Way) -> Option<Paving> {
-    way.tags
-        .get("highway")
-        .is_some()
-        .then(|| Paving::from_tags(&way.tags))
 }
 
 /// Draws every bridge and tunnel of the settled groups that reaches into the tile.
@@ -158,7 +149,7 @@ impl Drawer<'_, '_> {
         for run in self.runs(&stations) {
             let way = &self.context.ways[run.way as usize];
             let thickness = tags::deck_thickness_m(&way.tags);
-            let deck = Part::BridgeDeck(paving_of(way));
+            let deck = Part::BridgeDeck(tags::paving_of(way));
             let s = &run.stations;
             for k in 0..s.len() - 1 {
                 let (e0, e1) = (s[k].elevation, s[k + 1].elevation);
@@ -278,7 +269,7 @@ impl Drawer<'_, '_> {
             for run in self.runs(&stations) {
                 let way = &self.context.ways[run.way as usize];
                 let height = tags::tunnel_height_m(&way.tags);
-                let floor = Part::TunnelFloor(paving_of(way));
+                let floor = Part::TunnelFloor(tags::paving_of(way));
                 let s = &run.stations;
                 let at = |p: Point, e: f64| [p[0], p[1], e];
                 for k in 0..s.len() - 1 {

@@ -13,9 +13,9 @@
 //! triangles around it (every triangle a flip creates is incident to the new point), so only
 //! those are rescanned; the queue is indexed by face and updated in place.
 
-use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
+use spade::{Point2, Triangulation};
 
-pub type Cdt = ConstrainedDelaunayTriangulation<Point2<f64>>;
+use crate::geometry::constrained::Cdt;
 
 /// Heights sampled on a regular grid: sample `(i, j)` lies at
 /// `(width · i/(columns − 1), depth · j/(rows − 1))`, so the last column lies exactly at `width`.

@@ -15,8 +15,8 @@ use std::time::{Duration, Instant};
 use crate::cache::encoding::Bodies;
 use crate::cache::{etag_of, unix_now, Provenance, StoreError, StoredTile, TileFilter, TileStore};
 use crate::format::{Format, TileKey};
+use crate::provider::Inputs;
 use crate::render::{Deadline, RenderSettings};
-use crate::source::Sources;
 use crate::tile::TileRange;
 
 /// The `i`-th of `n` shares of a box's tiles (`1 ≤ i ≤ n`).
@@ -70,7 +70,7 @@ pub struct Plan {
 
 /// Plans a seed of `range` in `formats`: this shard's tiles that the cache lacks.
 pub fn plan(
-    sources: &Sources,
+    sources: &Inputs,
     store: &dyn TileStore,
     pipeline: &str,
     range: TileRange,
@@ -144,7 +144,7 @@ pub struct Progress {
 /// A tile that fails is reported and the others go on; a store error stops the seed.
 #[allow(clippy::too_many_arguments)]
 pub fn seed(
-    sources: &Sources,
+    sources: &Inputs,
     store: &dyn TileStore,
     settings: &RenderSettings,
     pipeline: &str,
@@ -168,7 +168,7 @@ pub fn seed(
                 let i = next.fetch_add(1, Ordering::Relaxed);
                 let Some(&key) = keys.get(i) else { return };
                 let deadline = render_limit.map_or(Deadline::none(), Deadline::after);
-                let outcome = crate::pipeline::make(sources, key, settings, served_zoom, deadline)
+                let outcome = crate::provider::pipeline::make(sources, key, settings, served_zoom, deadline)
                     .map_err(|e| e.to_string())
                     .and_then(|made| {
                         let tile = StoredTile {

@@ -23,9 +23,9 @@ use axum::Router;
 
 use crate::cache::TileCache;
 use crate::config::{ServerConfig, SourcesConfig};
+use crate::provider::Inputs;
 use crate::render::RenderSettings;
 use crate::source::fetch::Fetcher;
-use crate::source::Sources;
 use error::ApiError;
 use metrics::{Metrics, PoolGauges};
 use pool::RenderPool;
@@ -37,7 +37,7 @@ pub const RETRY_AFTER_S: u64 = 5;
 #[derive(Debug, Clone)]
 enum SourceState {
     Loading,
-    Ready(Arc<Sources>),
+    Ready(Arc<Inputs>),
     Failed(String),
 }
 
@@ -146,7 +146,7 @@ impl AppState {
     }
 
     /// The loaded sources, or a `503` while they load (a `500` if loading failed).
-    pub fn sources(&self) -> Result<Arc<Sources>, ApiError> {
+    pub fn sources(&self) -> Result<Arc<Inputs>, ApiError> {
         if let Some(archive) = &self.archive {
             return Err(ApiError::not_found(format!(
                 "this server serves the exported file {} and has no sources",
@@ -167,7 +167,7 @@ impl AppState {
 
     /// Puts loaded sources in place (replacing any before them: tiles made from the old ones
     /// become stale).
-    pub fn set_sources(&self, sources: Sources) {
+    pub fn set_sources(&self, sources: Inputs) {
         *self.sources.write().unwrap_or_else(|p| p.into_inner()) =
             SourceState::Ready(Arc::new(sources));
     }

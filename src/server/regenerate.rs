@@ -230,7 +230,7 @@ pub async fn check_sources(
     let zoom = state.zoom;
     let fetcher = state.fetcher.clone();
     let loaded =
-        tokio::task::spawn_blocking(move || crate::source::Sources::load(&config, zoom, fetcher))
+        tokio::task::spawn_blocking(move || crate::provider::Inputs::load(&config, zoom, fetcher))
             .await
             .map_err(|e| e.to_string())?
             .map_err(|e| e.to_string())?;

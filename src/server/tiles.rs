@@ -18,8 +18,8 @@ use crate::cache::{CacheError, Origin, Provenance, Served};
 use crate::format::Extensions;
 use crate::format::{Format, TileKey};
 use crate::format::{Frame, Variant};
+use crate::provider::inputs::{Inputs, MissingSrtm};
 use crate::render::Deadline;
-use crate::source::{MissingSrtm, Sources};
 use crate::tile::{TileId, TileIdError};
 
 /// Whether the query asks for compressed glb: `compress=meshopt` (`EXT_meshopt_compression`
@@ -234,7 +234,7 @@ async fn from_archive(
 }
 
 /// What a tile made now from these sources is made from.
-pub fn provenance(state: &AppState, sources: &Sources, tile: TileId) -> Provenance {
+pub fn provenance(state: &AppState, sources: &Inputs, tile: TileId) -> Provenance {
     Provenance {
         pipeline: state.pipeline.to_string(),
         sources: sources.version_for(tile),
@@ -390,7 +390,7 @@ fn failure_response(state: &AppState, tile: TileId, error: &CacheError<RenderFai
 /// first (at `priority`), then renders within the time limit, counting what it did.
 pub fn render_job(
     state: &AppState,
-    sources: Arc<Sources>,
+    sources: Arc<Inputs>,
     key: TileKey,
     priority: Priority,
 ) -> impl FnOnce() -> Result<Vec<u8>, RenderFailure> + Send + 'static {
@@ -421,19 +421,18 @@ pub fn render_job(
 /// pool).
 fn render_format(
     state: &AppState,
-    sources: &Sources,
+    sources: &Inputs,
     key: TileKey,
     deadline: Deadline,
 ) -> Result<Vec<u8>, RenderFailure> {
-    let made = crate::pipeline::make(sources, key, &state.settings, state.zoom, deadline).map_err(
-        |e| {
+    let made = crate::provider::pipeline::make(sources, key, &state.settings, state.zoom, deadline)
+        .map_err(|e| {
             if e.timed_out() {
                 RenderFailure::TimedOut(e.to_string())
             } else {
                 RenderFailure::Failed(e.to_string())
             }
-        },
-    )?;
+        })?;
     let metrics = &state.metrics;
     Metrics::add(&metrics.lp_components, made.lp_components as u64);
     Metrics::add(&metrics.lp_violations, made.lp_violations as u64);

@@ -3,7 +3,7 @@
 //! meshopt` on the root is carried to every file and content tile below it.
 //!
 //! Bounding volumes need the ground's height under each tile: read from the SRTM files on the
-//! blocking pool ([`Sources::ground_range`]: a content tile's samples, at most
+//! blocking pool ([`Inputs::ground_range`]: a content tile's samples, at most
 //! [`HEIGHT_SAMPLES`] of them; a parent's whole files, whose ranges are kept once read). A
 //! server of an MBTiles archive serves the tileset when the archive holds east-north-up glb,
 //! with the archive's compression and without heights.
@@ -20,7 +20,7 @@ use super::AppState;
 use crate::format::Format;
 use crate::format::{Frame, Variant};
 use crate::output::tileset::{Plan, Root};
-use crate::source::Sources;
+use crate::provider::Inputs;
 use crate::tile::TileId;
 
 /// Samples read per tile for its heights.
@@ -58,7 +58,7 @@ fn plan(state: &AppState, meshopt: bool) -> Result<Plan, ApiError> {
 
 /// Lowest and highest SRTM ground under a tile, from the opened sources: sampled for a content
 /// tile, whole files for a parent.
-fn heights(sources: Option<&Sources>, content_zoom: u8, tile: TileId) -> Option<(f64, f64)> {
+fn heights(sources: Option<&Inputs>, content_zoom: u8, tile: TileId) -> Option<(f64, f64)> {
     let sampled = tile.z == content_zoom;
     match sources?.ground_range(tile, sampled, HEIGHT_SAMPLES) {
         Ok(range) => range,

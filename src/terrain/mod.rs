@@ -7,6 +7,7 @@
 //! point's elevation from the sites around it alone, in global coordinates, so the same point
 //! gets the same value whichever tile asks.
 
+pub mod cell;
 pub mod least_squares;
 pub mod mosaic;
 pub mod natural_neighbor;

@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use crate::source::srtm::{CellId, SrtmTile};
+use super::cell::{CellId, SrtmTile};
 
 /// The SRTM files around a tile.
 #[derive(Debug, Clone, Default)]

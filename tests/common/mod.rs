@@ -11,8 +11,8 @@ use std::process::Command;
 
 use terrastitch::cache::{SqliteStore, TileCache};
 use terrastitch::config::{Config, ServerConfig};
+use terrastitch::provider::Inputs;
 use terrastitch::server::{self, AppState};
-use terrastitch::source::Sources;
 
 /// The `terrastitch` binary, run in the repository.
 pub fn terrastitch() -> Command {
@@ -112,7 +112,7 @@ impl TestServer {
     /// Starts a server on the bundled sample with its cache in `cache`.
     pub async fn start(cache: &Path) -> TestServer {
         let config = Config::default();
-        let sources = Sources::open(&[sample_osm()], &sample_srtm(), config.server.zoom)
+        let sources = Inputs::open(&[sample_osm()], &sample_srtm(), config.server.zoom)
             .expect("sample data loads");
         let server_config = terrastitch::config::ServerConfig {
             render_threads: 2,
@@ -124,7 +124,7 @@ impl TestServer {
     /// Starts a server on `sources` with its cache in `cache` and the given settings.
     pub async fn start_with(
         cache: &Path,
-        sources: Sources,
+        sources: Inputs,
         server_config: &ServerConfig,
     ) -> TestServer {
         let state = TestServer::state(cache, server_config);

@@ -3,7 +3,10 @@
 //!
 //! Geometry is held in global tile units (`u`, `v`, see [`crate::tile`]) until it is placed in a
 //! tile, so that a computation that decides a point on a tile edge gives the same bits in both
-//! tiles that share the edge.
+//! tiles that share the edge. [`constrained`] triangulates with constraint edges that may
+//! cross, and polygons with holes.
+
+pub mod constrained;
 
 /// A point `[u, v]` (or `[x, z]` once local).
 pub type Point = [f64; 2];

@@ -8,10 +8,12 @@
 //! crossing by a hair) is left out, and so is a segment on which spade fails an internal
 //! assertion: the triangulation is rebuilt without it. The outcome is deterministic.
 
-use spade::{Point2, Triangulation};
+use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
-use super::tin::Cdt;
-use crate::geometry::{grid_cell, Point, Polygon};
+use super::{grid_cell, Point, Polygon};
+
+/// A constrained Delaunay triangulation of points in the plane.
+pub type Cdt = ConstrainedDelaunayTriangulation<Point2<f64>>;
 
 /// Most segments one triangulation may lose to degenerate geometry before the remaining ones
 /// are given up (each loss costs a rebuild).

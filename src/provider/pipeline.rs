@@ -1,11 +1,11 @@
 //! One tile from the opened sources to its bytes, in a format: the step the server, `seed`
-//! and `export` share. Reads the tile's SRTM files and OSM elements from [`Sources`], renders
+//! and `export` share. Reads the tile's SRTM files and OSM elements from [`Inputs`], renders
 //! with [`crate::render`], and returns the uncompressed body with what the render measured.
 
+use super::Inputs;
 use crate::format::{Format, TileKey};
 use crate::render::{Deadline, RenderError, RenderSettings, StageTimings};
 use crate::source::srtm::SrtmError;
-use crate::source::Sources;
 
 /// A tile made.
 #[derive(Debug, Clone)]
@@ -35,7 +35,7 @@ impl MakeError {
 
 /// Makes `key` from `sources`. Terrain tiles above `served_zoom` are overviews: terrain alone.
 pub fn make(
-    sources: &Sources,
+    sources: &Inputs,
     key: TileKey,
     settings: &RenderSettings,
     served_zoom: u8,

@@ -1,0 +1,392 @@
+//! Getting data: OSM extracts and SRTM files, local or downloaded ([`fetch`]), opened and
+//! checked once at start, and the per-tile view of them that rendering needs.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use crate::source::fetch::{self, Download, FetchError, Fetcher};
+use crate::source::{osm_pbf, srtm};
+
+use crate::osm::index::Selection;
+use crate::osm::OsmIndex;
+use crate::terrain::cell::CellId;
+use crate::terrain::Mosaic;
+use crate::tile::TileId;
+use srtm::{SrtmDirectory, SrtmError};
+
+/// How far around a tile elements are fetched, in degrees (220 m north–south, 160 m east–west at
+/// Monaco's latitude): wide enough for the widest road polygon, for buildings that straddle the
+/// edge, and for every way through a junction whose polygon or cut-back arms can reach the tile
+/// (a junction reaches at most 25 m plus a half width along its arms, and how far an arm is cut
+/// depends on whether the next node along it, up to 55 m on, is a junction too).
+pub const QUERY_MARGIN_DEG: f64 = 0.002;
+
+/// How far around a tile SRTM files are opened, in degrees (about 110 m): the terrain methods
+/// reach a few samples beyond the tile.
+const MOSAIC_MARGIN_DEG: f64 = 0.001;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SourceError {
+    #[error(transparent)]
+    Osm(#[from] osm_pbf::OsmReadError),
+    #[error(transparent)]
+    Srtm(#[from] SrtmError),
+    #[error(transparent)]
+    Fetch(#[from] FetchError),
+    #[error("OSM source {0} is a URL whose last path segment is not a file name")]
+    UrlWithoutName(String),
+    #[error("two OSM source URLs end in the same file name {0}; downloads are kept by that name")]
+    SameFileName(String),
+}
+
+/// Why the SRTM files a tile lacks could not be had.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum MissingSrtm {
+    /// The configured source has no such file (the sea, or outside its coverage).
+    #[error("no SRTM data for tile {tile}: {reason}")]
+    NotFound { tile: TileId, reason: String },
+    /// The download failed, or the file it brought is unusable.
+    #[error("SRTM data for tile {tile} could not be had: {reason}")]
+    Failed { tile: TileId, reason: String },
+}
+
+/// Why a tile cannot be rendered from the data the server has.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum Uncovered {
+    #[error("no data for tile {tile}: no OSM extract covers it and there is no SRTM file {}", .missing.join(", "))]
+    Nothing { tile: TileId, missing: Vec<String> },
+    #[error("no SRTM data for tile {tile}: missing {} in {directory}", .missing.join(", "))]
+    MissingSrtm {
+        tile: TileId,
+        missing: Vec<String>,
+        directory: String,
+    },
+}
+
+/// The opened data sources.
+#[derive(Debug)]
+pub struct Inputs {
+    pub osm: OsmIndex,
+    pub srtm: SrtmDirectory,
+    pub osm_paths: Vec<PathBuf>,
+    /// Each extract's version: a digest of its bytes.
+    pub osm_versions: Vec<String>,
+    /// Each extract's size and modification time when it was read.
+    osm_files: Vec<String>,
+    /// The URLs of the extracts that came from one.
+    osm_urls: Vec<String>,
+    /// Directories of SRTM files besides the main one (downloads).
+    srtm_extra: Vec<PathBuf>,
+    /// The URL template of missing SRTM files, with the fetcher that brings them.
+    srtm_url: Option<String>,
+    fetcher: Option<Arc<Fetcher>>,
+}
+
+impl Inputs {
+    /// Opens the sources a configuration names, downloading the extracts given by URL that
+    /// the data directory does not have yet.
+    pub fn load(
+        config: &crate::config::SourcesConfig,
+        zoom: u8,
+        fetcher: Arc<Fetcher>,
+    ) -> Result<Inputs, SourceError> {
+        let mut osm_paths = Vec::new();
+        let mut osm_urls = Vec::new();
+        let mut osm_names = std::collections::HashMap::new();
+        for entry in &config.osm {
+            let text = entry.to_string_lossy();
+            if fetch::is_url(&text) {
+                let name = fetch::file_name_of(&text)
+                    .ok_or_else(|| SourceError::UrlWithoutName(text.to_string()))?;
+                if osm_names.insert(name.clone(), text.to_string()).is_some() {
+                    return Err(SourceError::SameFileName(name));
+                }
+                let path = fetcher.fetch(&Download {
+                    url: &text,
+                    name: &name,
+                    source_name: "OSM",
+                })?;
+                osm_urls.push(text.to_string());
+                osm_paths.push(path);
+            } else {
+                osm_paths.push(entry.clone());
+            }
+        }
+        let srtm_extra = vec![config.downloads.clone()];
+        let mut sources = Inputs::open_with(&osm_paths, &config.srtm, &srtm_extra, zoom)?;
+        sources.osm_urls = osm_urls;
+        sources.srtm_url = (!config.srtm_url.is_empty()).then(|| config.srtm_url.clone());
+        sources.fetcher = Some(fetcher);
+        Ok(sources)
+    }
+
+    /// Reads the extracts, indexes them at `zoom`, and checks the SRTM directory.
+    pub fn open(
+        osm_paths: &[PathBuf],
+        srtm_dir: &std::path::Path,
+        zoom: u8,
+    ) -> Result<Inputs, SourceError> {
+        Inputs::open_with(osm_paths, srtm_dir, &[], zoom)
+    }
+
+    fn open_with(
+        osm_paths: &[PathBuf],
+        srtm_dir: &std::path::Path,
+        srtm_extra: &[PathBuf],
+        zoom: u8,
+    ) -> Result<Inputs, SourceError> {
+        let data = osm_pbf::read_extracts(osm_paths)?;
+        let osm_versions = osm_paths
+            .iter()
+            .map(|path| osm_pbf::content_digest(path))
+            .collect::<Result<Vec<_>, _>>()?;
+        let osm_files = osm_paths
+            .iter()
+            .map(|path| srtm::file_version(path).unwrap_or_default())
+            .collect();
+        let srtm = SrtmDirectory::open_all(srtm_dir, srtm_extra)?;
+        Ok(Inputs {
+            osm: OsmIndex::new(data, zoom, crate::features::structures::classify)
+                .with_joints(crate::features::roads::joins)
+                .with_foundations(crate::features::structures::foundation_depth_m),
+            srtm,
+            osm_paths: osm_paths.to_vec(),
+            osm_versions,
+            osm_files,
+            osm_urls: Vec::new(),
+            srtm_extra: srtm_extra.to_vec(),
+            srtm_url: None,
+            fetcher: None,
+        })
+    }
+
+    /// Whether SRTM files a tile lacks can be downloaded.
+    pub fn can_fetch_srtm(&self) -> bool {
+        self.srtm_url.is_some() && self.fetcher.is_some()
+    }
+
+    /// Downloads the SRTM files the tile's mosaic reads that the directories lack. A file for
+    /// the tile's own cells that cannot be had is an error; one only its margin reaches is
+    /// left out (the terrain there comes from the files there are).
+    pub fn fetch_missing_srtm(&self, tile: TileId) -> Result<(), MissingSrtm> {
+        let (Some(template), Some(fetcher)) = (&self.srtm_url, &self.fetcher) else {
+            return Ok(());
+        };
+        let own = Self::cells_for(tile);
+        for cell in Self::mosaic_cells(tile).filter(|c| !self.srtm.has(*c)) {
+            let (url, name) = fetch::srtm_download(template, &cell.name());
+            let fetched = fetcher
+                .fetch(&Download {
+                    url: &url,
+                    name: &name,
+                    source_name: "SRTM",
+                })
+                .map_err(|e| {
+                    if e.is_not_found() {
+                        MissingSrtm::NotFound {
+                            tile,
+                            reason: e.to_string(),
+                        }
+                    } else {
+                        MissingSrtm::Failed {
+                            tile,
+                            reason: e.to_string(),
+                        }
+                    }
+                })
+                .and_then(|path| {
+                    self.srtm.insert(cell, &path).map_err(|e| {
+                        // An unusable file is not kept, and not asked for again before the
+                        // failure memory runs out.
+                        let _ = std::fs::remove_file(&path);
+                        fetcher.remember_failure(
+                            &name,
+                            FetchError::Io {
+                                path: path.clone(),
+                                message: e.to_string(),
+                            },
+                        );
+                        MissingSrtm::Failed {
+                            tile,
+                            reason: e.to_string(),
+                        }
+                    })
+                });
+            match fetched {
+                Ok(()) => {}
+                Err(error) if own.contains(&cell) => return Err(error),
+                Err(error) => {
+                    tracing::info!(%tile, %error, "an SRTM file only the tile's margin reaches is not available");
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The source files that changed on disk since they were read: an extract rewritten or
+    /// replaced, an SRTM file added, removed or rewritten.
+    pub fn changed_files(&self) -> Vec<String> {
+        let mut changed = Vec::new();
+        if let Some(fetcher) = &self.fetcher {
+            for url in &self.osm_urls {
+                let Some(name) = fetch::file_name_of(url) else {
+                    continue;
+                };
+                let download = Download {
+                    url,
+                    name: &name,
+                    source_name: "OSM",
+                };
+                // A new version replaces the file; the check below sees that it changed.
+                match fetcher.refresh(&download) {
+                    Ok(true) => tracing::info!(url, "a new version of an extract was downloaded"),
+                    Ok(false) => {}
+                    Err(error) => {
+                        tracing::warn!(%error, "checking an extract for a new version failed")
+                    }
+                }
+            }
+        }
+        for (path, version) in self.osm_paths.iter().zip(&self.osm_files) {
+            if srtm::file_version(path).ok().as_ref() != Some(version) {
+                changed.push(path.display().to_string());
+            }
+        }
+        match SrtmDirectory::open_all(self.srtm.root(), &self.srtm_extra) {
+            Ok(now) => {
+                let cells: std::collections::BTreeSet<CellId> =
+                    now.cells().into_iter().chain(self.srtm.cells()).collect();
+                for cell in cells {
+                    if now.version(cell) != self.srtm.version(cell) {
+                        changed.push(format!("{}.hgt", cell.name()));
+                    }
+                }
+            }
+            Err(error) => changed.push(error.to_string()),
+        }
+        changed
+    }
+
+    /// The version of the sources a tile is made from: a digest of the versions of the
+    /// extracts that reach it and of the SRTM files around it (those its mosaic reads). A tile stored with another
+    /// version is stale.
+    pub fn version_for(&self, tile: TileId) -> String {
+        use sha2::Digest;
+        let mut digest = sha2::Sha256::new();
+        // Only the extracts that reach the tile's query area count.
+        let area = tile.bounds().expanded(QUERY_MARGIN_DEG);
+        let coverage = &self.osm.data().coverage;
+        for (i, version) in self.osm_versions.iter().enumerate() {
+            if coverage.get(i).is_none_or(|c| c.intersects(&area)) {
+                digest.update(version.as_bytes());
+                digest.update(b";");
+            }
+        }
+        // The files there are in the mosaic's cells (a coarse tile spans many cells, few with a
+        // file: the directory is walked, not the cells).
+        let b = tile.bounds().expanded(MOSAIC_MARGIN_DEG);
+        let lats = b.south.floor() as i32..=b.north.floor() as i32;
+        let lons = b.west.floor() as i32..=b.east.floor() as i32;
+        for (cell, version) in self.srtm.versions_in(lats, lons) {
+            digest.update(cell.name().as_bytes());
+            digest.update(version.as_bytes());
+            digest.update(b";");
+        }
+        digest.finalize()[..8]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect()
+    }
+
+    /// The cells whose files the mosaic of a tile reads.
+    fn mosaic_cells(tile: TileId) -> impl Iterator<Item = CellId> {
+        let b = tile.bounds().expanded(MOSAIC_MARGIN_DEG);
+        let (lon0, lon1) = (b.west.floor() as i32, b.east.floor() as i32);
+        (b.south.floor() as i32..=b.north.floor() as i32)
+            .flat_map(move |lat| (lon0..=lon1).map(move |lon| CellId { lat, lon }))
+    }
+
+    /// The SRTM cells a tile needs.
+    fn cells_for(tile: TileId) -> Vec<CellId> {
+        let b = tile.bounds();
+        let mut cells = Vec::new();
+        let (lat0, lat1) = (
+            b.south.floor() as i32,
+            (b.north.ceil() as i32 - 1).max(b.south.floor() as i32),
+        );
+        let (lon0, lon1) = (
+            b.west.floor() as i32,
+            (b.east.ceil() as i32 - 1).max(b.west.floor() as i32),
+        );
+        for lat in lat0..=lat1 {
+            for lon in lon0..=lon1 {
+                cells.push(CellId { lat, lon });
+            }
+        }
+        cells
+    }
+
+    /// Checks that the tile can be rendered: SRTM must cover all of it.
+    pub fn check_coverage(&self, tile: TileId) -> Result<(), Uncovered> {
+        let missing: Vec<String> = Self::cells_for(tile)
+            .into_iter()
+            .filter(|c| !self.srtm.has(*c))
+            .map(|c| format!("{}.hgt", c.name()))
+            .collect();
+        if missing.is_empty() {
+            return Ok(());
+        }
+        if !self.osm.data().covers(&tile.bounds()) {
+            return Err(Uncovered::Nothing { tile, missing });
+        }
+        Err(Uncovered::MissingSrtm {
+            tile,
+            missing,
+            directory: self.srtm.root().display().to_string(),
+        })
+    }
+
+    /// Lowest and highest SRTM ground under a tile, metres: read from the samples inside it
+    /// (at most `budget` of them) when `sampled`, else the range of the whole files it
+    /// overlaps, which holds the range of any tile inside it however read. `None` where the
+    /// files it needs are missing (or, whole files, where none is there).
+    pub fn ground_range(
+        &self,
+        tile: TileId,
+        sampled: bool,
+        budget: usize,
+    ) -> Result<Option<(f64, f64)>, SrtmError> {
+        if sampled {
+            if self.check_coverage(tile).is_err() {
+                return Ok(None);
+            }
+            let b = tile.bounds();
+            let mosaic = self.mosaic(tile)?;
+            return Ok(mosaic.height_range(b.west, b.south, b.east, b.north, budget));
+        }
+        let mut range: Option<(f64, f64)> = None;
+        for cell in Self::cells_for(tile) {
+            if let Some((low, high)) = self.srtm.height_range(cell)? {
+                let (low, high) = (f64::from(low), f64::from(high));
+                range = Some(range.map_or((low, high), |(l, h)| (l.min(low), h.max(high))));
+            }
+        }
+        Ok(range)
+    }
+
+    /// The SRTM files around a tile (its own cells and any its margin reaches).
+    pub fn mosaic(&self, tile: TileId) -> Result<Mosaic, SrtmError> {
+        let mut tiles: Vec<Arc<crate::terrain::cell::SrtmTile>> = Vec::new();
+        for cell in Self::mosaic_cells(tile) {
+            if let Some(t) = self.srtm.tile(cell)? {
+                tiles.push(t);
+            }
+        }
+        Ok(Mosaic::new(tiles))
+    }
+
+    /// The OSM elements near a tile.
+    pub fn selection(&self, tile: TileId) -> Selection<'_> {
+        self.osm.query(tile, QUERY_MARGIN_DEG)
+    }
+}
