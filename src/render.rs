@@ -245,7 +245,7 @@ fn prepare<'a>(
     );
     // Cliffs and retaining walls step the terrain.
     let steps = elevation::steps::Steps::new(&feature_set.steps);
-    let settled = elevation::settled::Ground {
+    let settled = elevation::ground::Ground {
         terrain: &terrain,
         water: &water,
         cuts: &cuts,
@@ -532,7 +532,7 @@ fn render_glb(
     // One primitive per finish of walls and of roofs.
     let mut walls: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
     let mut roofs: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
-    let settled = elevation::settled::Ground {
+    let settled = elevation::ground::Ground {
         terrain,
         water,
         cuts,

@@ -6,7 +6,7 @@ mod common;
 use std::collections::BTreeMap;
 
 use common::{corners, decode, validate, DecodedTile, GroundLocator, TestServer, GROUND_NODES};
-use terrastitch::osm::index::bounds_of;
+use terrastitch::osm::bounds_of;
 use terrastitch::provider::Inputs;
 use terrastitch::TileId;
 

@@ -21,8 +21,8 @@ use std::collections::HashMap;
 
 use super::lp::{self, Constraint, Problem, Relation, Smoothness};
 use super::structures::{ConstraintKind, ConstraintReport, GradeAsked};
+use crate::features::carriageways::road_line;
 use crate::features::road_network::{self, Cut, RoadLine, StretchLine};
-use crate::features::roads::road_line;
 use crate::features::{FeatureSettings, Projection};
 use crate::geometry::{bracket, distance_to_segment, distances_along, interpolate, Point, Rect};
 use crate::osm::{Joints, RoadGraph, Way};

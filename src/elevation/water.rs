@@ -83,7 +83,7 @@ fn shore_minimum(surface: &Surface, terrain: &dyn Elevation, metres_per_unit: f6
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::elevation::settled::Ground;
+    use crate::elevation::ground::Ground;
 
     /// Ground rising eastwards: one metre per hundredth of a unit.
     struct Slope;

@@ -9,6 +9,7 @@
 
 pub mod barriers;
 pub mod buildings;
+pub mod carriageways;
 pub mod coastline;
 pub mod landcover;
 pub mod objects;
@@ -416,7 +417,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     let mut set = FeatureSet::default();
     set.add_feature(None, FeatureClass::Terrain, &Tags::default());
     let areas = areas_of(selection);
-    roads::add_ways(
+    carriageways::add_roads(
         &mut set,
         &selection.ways,
         &selection.nodes,
@@ -424,7 +425,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         settings,
     );
     for way in &selection.ways {
-        railways::add_way(&mut set, way, &projection);
+        carriageways::add_railway(&mut set, way, &projection);
         water::add_waterway(&mut set, way, &projection);
         barriers::add_way(&mut set, way, &projection);
         power::add_way(&mut set, way, selection, &projection);

@@ -1,8 +1,5 @@
 //! Railways as ground surfaces: the track gauge plus ballast on each side.
 
-use super::{widened_surface, FeatureClass, FeatureSet, Projection};
-use crate::osm::units::parse_length_m;
-use crate::osm::{ElementRef, ElementType, Way};
 
 /// Standard gauge, metres.
 const STANDARD_GAUGE_M: f64 = 1.435;
@@ -52,37 +49,6 @@ pub fn width_m(gauge: Option<&str>, embedded: bool) -> f64 {
             } else {
                 BALLAST_M
             }
-}
-
-pub(super) fn add_way(set: &mut FeatureSet, way: &Way, projection: &Projection) {
-    let Some(railway) = way.tags.get("railway") else {
-        return;
-    };
-    if !drawn(railway) || super::roads::is_off_ground(&way.tags) {
-        return;
-    }
-    let width = way
-        .tags
-        .get("width")
-        .and_then(parse_length_m)
-        .filter(|w| (0.5..=30.0).contains(w))
-        .unwrap_or_else(|| width_m(way.tags.get("gauge"), is_embedded(&way.tags)));
-    let line = projection.points(&way.positions);
-    let half_width = projection.metres(width / 2.0, way.positions[0].lat);
-    let element = ElementRef {
-        element_type: ElementType::Way,
-        id: way.id,
-    };
-    let feature = set.add_feature(Some(element), FeatureClass::Railway, &way.tags);
-    match widened_surface(FeatureClass::Railway, feature, &line, half_width) {
-        Some(mut surface) => {
-            surface.embedded = is_embedded(&way.tags);
-            set.surfaces.push(surface);
-        }
-        None => {
-            set.features.pop();
-        }
-    }
 }
 
 #[cfg(test)]

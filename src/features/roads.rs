@@ -3,15 +3,12 @@
 //! Width: the `width` tag, else `lanes` × the lane width, else a default per class. The paper's
 //! default is 5 m for an ordinary road (seed 001 §4.4); the other defaults scale from it with the
 //! usual lane counts of each class. Ways in tunnels are under the ground and not drawn on it.
-//! How the ways join into a network is [`super::road_network`]'s part.
+//! Squares and plazas are drawn here; road ways are drawn by [`super::carriageways`], and how
+//! they join into a network is [`super::road_network`]'s part.
 
-use std::collections::HashMap;
-
-use super::road_network::{self, RoadLine};
-use super::{Area, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface};
-use crate::geometry::{Point, Polygon};
+use super::{Area, FeatureClass, FeatureSet, FeatureSettings, Projection};
 use crate::osm::units::{parse_count, parse_length_m};
-use crate::osm::{ElementRef, ElementType, Node, Tags, Way};
+use crate::osm::Tags;
 
 /// Width when nothing is tagged, by `highway` value; `None` for values that are not drawn as
 /// carriageways (bus stops, proposed roads, indoor corridors…).
@@ -102,130 +99,12 @@ pub fn width_m(tags: &Tags, settings: &FeatureSettings) -> Option<f64> {
     Some(class_default)
 }
 
-/// True for ways drawn below or away from the ground surface (bridges and tunnels are drawn as
-/// structures of their own).
-pub fn is_off_ground(tags: &Tags) -> bool {
-    tags.is_set("tunnel")
-        || super::structures::classify(tags).is_some()
-        || tags.get("indoor").is_some_and(|v| v != "no")
-        || tags.get("location") == Some("underground")
-        || tags.get("area") == Some("yes")
-}
-
 /// True for the ways whose shared nodes are joints of the road network's profiles: drawn
 /// roads, on the ground or not, and railways (a level crossing holds both at one height).
 pub fn joins(tags: &Tags) -> bool {
     tags.get("highway")
         .is_some_and(|h| default_width_m(h).is_some())
         || tags.is_set("railway")
-}
-
-/// The line a ground road way is drawn along, `None` for a way that is not a road on the
-/// ground.
-pub fn road_line(
-    way: &Way,
-    projection: &Projection,
-    settings: &FeatureSettings,
-) -> Option<RoadLine> {
-    if is_off_ground(&way.tags) {
-        return None;
-    }
-    let width = width_m(&way.tags, settings)?;
-    let first = way.positions.first()?;
-    let mut line = RoadLine {
-        nodes: Vec::with_capacity(way.nodes.len()),
-        points: Vec::with_capacity(way.nodes.len()),
-        half_width: projection.metres(width / 2.0, first.lat),
-        metre: projection.metres(1.0, first.lat),
-    };
-    for (&node, &position) in way.nodes.iter().zip(&way.positions) {
-        let point = projection.point(position);
-        if line.points.last() != Some(&point) {
-            line.nodes.push(node);
-            line.points.push(point);
-        }
-    }
-    if line.points.len() < 2 {
-        tracing::debug!(way = way.id, "road of a single point; skipped");
-        return None;
-    }
-    Some(line)
-}
-
-/// Adds the roads among `ways` as one network: a surface per way, split and cut back where
-/// ways meet, and a surface per junction (traced to its OSM node).
-pub(super) fn add_ways(
-    set: &mut FeatureSet,
-    ways: &[&Way],
-    nodes: &[&Node],
-    projection: &Projection,
-    settings: &FeatureSettings,
-) {
-    let mut lines = Vec::new();
-    let mut roads: Vec<(u32, Paving, f64)> = Vec::new();
-    for way in ways {
-        let Some(line) = road_line(way, projection, settings) else {
-            continue;
-        };
-        let Some(width) = width_m(&way.tags, settings) else {
-            continue;
-        };
-        let element = ElementRef {
-            element_type: ElementType::Way,
-            id: way.id,
-        };
-        let feature = set.add_feature(Some(element), FeatureClass::Road, &way.tags);
-        roads.push((feature, Paving::from_tags(&way.tags), width));
-        lines.push(line);
-    }
-    let network = road_network::build(&lines);
-    for ((feature, paving, _), road) in roads.iter().zip(network.roads) {
-        if let Some(mut surface) =
-            Surface::from_parts(FeatureClass::Road, *feature, road.pieces, road.outline)
-        {
-            surface.paving = Some(*paving);
-            surface.piece_lines = road.lines;
-            set.surfaces.push(surface);
-        }
-    }
-    let node_tags: HashMap<i64, &Tags> = nodes.iter().map(|n| (n.id, &n.tags)).collect();
-    let no_tags = Tags::default();
-    for junction in network.junctions {
-        let centre = network_centre(&lines, &junction);
-        let element = ElementRef {
-            element_type: ElementType::Node,
-            id: junction.node,
-        };
-        let tags = node_tags.get(&junction.node).copied().unwrap_or(&no_tags);
-        let feature = set.add_feature(Some(element), FeatureClass::Road, tags);
-        // The junction is paved like the widest road that meets there.
-        let paving = junction
-            .roads
-            .iter()
-            .map(|&r| roads[r])
-            .max_by(|a, b| a.2.total_cmp(&b.2))
-            .map(|r| r.1);
-        let polygon = Polygon {
-            outer: junction.ring,
-            holes: Vec::new(),
-        };
-        if let Some(mut surface) =
-            Surface::from_polygons(FeatureClass::Road, feature, vec![polygon])
-        {
-            surface.paving = paving;
-            surface.junction_at = centre;
-            set.surfaces.push(surface);
-        }
-    }
-}
-
-/// The point of a junction's node.
-fn network_centre(lines: &[RoadLine], junction: &road_network::Junction) -> Option<Point> {
-    junction.roads.iter().find_map(|&r| {
-        let line = &lines[r];
-        let k = line.nodes.iter().position(|&n| n == junction.node)?;
-        Some(line.points[k])
-    })
 }
 
 /// Squares and plazas: `highway=* + area=yes` and `area:highway=*`.

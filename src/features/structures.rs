@@ -208,6 +208,16 @@ pub fn paving_of(way: &Way) -> Option<Paving> {
         .then(|| Paving::from_tags(&way.tags))
 }
 
+/// True for ways drawn below or away from the ground surface (bridges and tunnels are drawn as
+/// structures of their own).
+pub fn is_off_ground(tags: &Tags) -> bool {
+    tags.is_set("tunnel")
+        || classify(tags).is_some()
+        || tags.get("indoor").is_some_and(|v| v != "no")
+        || tags.get("location") == Some("underground")
+        || tags.get("area") == Some("yes")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,7 +9,7 @@
 use std::collections::HashMap;
 
 use super::structures::{self, Classify, Group, StructureKind};
-use super::{Bounds, LonLat, Node, OsmData, Relation, Way};
+use super::{bounds_of, Bounds, LonLat, Node, OsmData, Relation, Way};
 use crate::tile::{lon_lat_to_uv, TileId};
 
 /// The OSM data and its grid.
@@ -368,24 +368,6 @@ fn degrees_to_segment(p: LonLat, a: LonLat, b: LonLat) -> f64 {
 /// Like [`Bounds::intersects`], but a box of zero width (a node, a north–south way) counts.
 fn meets(a: &Bounds, b: &Bounds) -> bool {
     a.west <= b.east && b.west <= a.east && a.south <= b.north && b.south <= a.north
-}
-
-/// The bounding box of some positions.
-pub fn bounds_of(positions: &[LonLat]) -> Option<Bounds> {
-    let first = positions.first()?;
-    let mut bounds = Bounds {
-        west: first.lon,
-        east: first.lon,
-        south: first.lat,
-        north: first.lat,
-    };
-    for p in &positions[1..] {
-        bounds.west = bounds.west.min(p.lon);
-        bounds.east = bounds.east.max(p.lon);
-        bounds.south = bounds.south.min(p.lat);
-        bounds.north = bounds.north.max(p.lat);
-    }
-    Some(bounds)
 }
 
 /// The grid cells a box touches at `n` cells per axis.

@@ -126,6 +126,24 @@ pub struct Relation {
 /// A rectangle in degrees.
 pub use crate::tile::LonLatBounds as Bounds;
 
+/// The bounding box of some positions.
+pub fn bounds_of(positions: &[LonLat]) -> Option<Bounds> {
+    let first = positions.first()?;
+    let mut bounds = Bounds {
+        west: first.lon,
+        east: first.lon,
+        south: first.lat,
+        north: first.lat,
+    };
+    for p in &positions[1..] {
+        bounds.west = bounds.west.min(p.lon);
+        bounds.east = bounds.east.max(p.lon);
+        bounds.south = bounds.south.min(p.lat);
+        bounds.north = bounds.north.max(p.lat);
+    }
+    Some(bounds)
+}
+
 /// Everything read from the OSM extracts.
 #[derive(Debug, Default)]
 pub struct OsmData {

@@ -405,7 +405,7 @@ fn grid_cells(a: [f64; 2], b: [f64; 2]) -> impl Iterator<Item = (u32, u32)> {
 }
 
 fn bounds_of_chain(chain: &Chain) -> Bounds {
-    super::index::bounds_of(&chain.positions).expect("a chain has positions")
+    super::bounds_of(&chain.positions).expect("a chain has positions")
 }
 
 fn union_bounds(a: Bounds, b: Bounds) -> Bounds {

@@ -1,0 +1,59 @@
+//! The ground model the mesher samples: the terrain, with water areas flat at their levels,
+//! the ground reshaped around bridges and tunnels, roads on their profiles, and steps at cliffs
+//! and retaining walls, each settled by its own module.
+
+use super::roads::RoadLevels;
+use super::settled::Level;
+use super::steps::Steps;
+use crate::terrain::Elevation;
+
+/// The ground: the terrain, with water areas flat at their levels, the ground reshaped around
+/// bridges and tunnels, roads on their profiles, and steps at cliffs and retaining walls.
+pub struct Ground<'a> {
+    pub terrain: &'a dyn Elevation,
+    pub water: &'a [Level],
+    /// Where tunnels cut into the ground or run under raised ground.
+    pub cuts: &'a [Level],
+    /// Roads level across and junctions level.
+    pub roads: &'a RoadLevels,
+    /// Cliffs and retaining walls, stepping the terrain around them.
+    pub steps: &'a Steps,
+}
+
+impl Elevation for Ground<'_> {
+    fn elevation_uv(&self, p: [f64; 2]) -> f64 {
+        // Where water areas overlap, the lowest level wins.
+        let water = self
+            .water
+            .iter()
+            .filter(|w| w.covers(p))
+            .map(|w| w.rule.elevation(p))
+            .fold(None, |low: Option<f64>, l| {
+                Some(low.map_or(l, |x| x.min(l)))
+            });
+        if let Some(level) = water {
+            return level;
+        }
+        // Ground raised over a tunnel's roof wins over another way's cut beside it (two
+        // carriageways whose portals are not abreast), so no tube shows through.
+        let mut cut: Option<f64> = None;
+        let mut raised: Option<f64> = None;
+        for level in self.cuts.iter().filter(|c| c.covers(p)) {
+            let h = level.rule.elevation(p);
+            if level.at_least {
+                raised = Some(raised.map_or(h, |r: f64| r.max(h)));
+            } else if cut.is_none() {
+                cut = Some(h);
+            }
+        }
+        let ground = cut.or_else(|| self.roads.elevation(p)).unwrap_or_else(|| {
+            let terrain = self.terrain.elevation_uv(p);
+            if self.steps.is_empty() {
+                terrain
+            } else {
+                self.steps.ground(p, terrain, self.terrain)
+            }
+        });
+        raised.map_or(ground, |raised| raised.max(ground))
+    }
+}

@@ -1,0 +1,158 @@
+//! Roads and railways drawn on the ground: the line a ground road runs along, the roads of a
+//! tile joined into one network of surfaces with a surface per junction
+//! ([`super::road_network`]), and railway beds. Ways on bridges, in tunnels, indoors or
+//! underground are left to their own modules ([`super::structures::is_off_ground`]); what the
+//! tags say of a road or a railway is [`super::roads`]' and [`super::railways`]' part.
+
+use std::collections::HashMap;
+
+use super::road_network::{self, RoadLine};
+use super::roads::{self, Paving};
+use super::structures::is_off_ground;
+use super::{
+    railways, widened_surface, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface,
+};
+use crate::geometry::{Point, Polygon};
+use crate::osm::units::parse_length_m;
+use crate::osm::{ElementRef, ElementType, Node, Tags, Way};
+
+/// The line a ground road way is drawn along, `None` for a way that is not a road on the
+/// ground.
+pub fn road_line(
+    way: &Way,
+    projection: &Projection,
+    settings: &FeatureSettings,
+) -> Option<RoadLine> {
+    if is_off_ground(&way.tags) {
+        return None;
+    }
+    let width = roads::width_m(&way.tags, settings)?;
+    let first = way.positions.first()?;
+    let mut line = RoadLine {
+        nodes: Vec::with_capacity(way.nodes.len()),
+        points: Vec::with_capacity(way.nodes.len()),
+        half_width: projection.metres(width / 2.0, first.lat),
+        metre: projection.metres(1.0, first.lat),
+    };
+    for (&node, &position) in way.nodes.iter().zip(&way.positions) {
+        let point = projection.point(position);
+        if line.points.last() != Some(&point) {
+            line.nodes.push(node);
+            line.points.push(point);
+        }
+    }
+    if line.points.len() < 2 {
+        tracing::debug!(way = way.id, "road of a single point; skipped");
+        return None;
+    }
+    Some(line)
+}
+
+/// Adds the roads among `ways` as one network: a surface per way, split and cut back where
+/// ways meet, and a surface per junction (traced to its OSM node).
+pub(super) fn add_roads(
+    set: &mut FeatureSet,
+    ways: &[&Way],
+    nodes: &[&Node],
+    projection: &Projection,
+    settings: &FeatureSettings,
+) {
+    let mut lines = Vec::new();
+    let mut roads: Vec<(u32, Paving, f64)> = Vec::new();
+    for way in ways {
+        let Some(line) = road_line(way, projection, settings) else {
+            continue;
+        };
+        let Some(width) = roads::width_m(&way.tags, settings) else {
+            continue;
+        };
+        let element = ElementRef {
+            element_type: ElementType::Way,
+            id: way.id,
+        };
+        let feature = set.add_feature(Some(element), FeatureClass::Road, &way.tags);
+        roads.push((feature, Paving::from_tags(&way.tags), width));
+        lines.push(line);
+    }
+    let network = road_network::build(&lines);
+    for ((feature, paving, _), road) in roads.iter().zip(network.roads) {
+        if let Some(mut surface) =
+            Surface::from_parts(FeatureClass::Road, *feature, road.pieces, road.outline)
+        {
+            surface.paving = Some(*paving);
+            surface.piece_lines = road.lines;
+            set.surfaces.push(surface);
+        }
+    }
+    let node_tags: HashMap<i64, &Tags> = nodes.iter().map(|n| (n.id, &n.tags)).collect();
+    let no_tags = Tags::default();
+    for junction in network.junctions {
+        let centre = network_centre(&lines, &junction);
+        let element = ElementRef {
+            element_type: ElementType::Node,
+            id: junction.node,
+        };
+        let tags = node_tags.get(&junction.node).copied().unwrap_or(&no_tags);
+        let feature = set.add_feature(Some(element), FeatureClass::Road, tags);
+        // The junction is paved like the widest road that meets there.
+        let paving = junction
+            .roads
+            .iter()
+            .map(|&r| roads[r])
+            .max_by(|a, b| a.2.total_cmp(&b.2))
+            .map(|r| r.1);
+        let polygon = Polygon {
+            outer: junction.ring,
+            holes: Vec::new(),
+        };
+        if let Some(mut surface) =
+            Surface::from_polygons(FeatureClass::Road, feature, vec![polygon])
+        {
+            surface.paving = paving;
+            surface.junction_at = centre;
+            set.surfaces.push(surface);
+        }
+    }
+}
+
+/// The point of a junction's node.
+fn network_centre(lines: &[RoadLine], junction: &road_network::Junction) -> Option<Point> {
+    junction.roads.iter().find_map(|&r| {
+        let line = &lines[r];
+        let k = line.nodes.iter().position(|&n| n == junction.node)?;
+        Some(line.points[k])
+    })
+}
+
+pub(super) fn add_railway(set: &mut FeatureSet, way: &Way, projection: &Projection) {
+    let Some(railway) = way.tags.get("railway") else {
+        return;
+    };
+    if !railways::drawn(railway) || is_off_ground(&way.tags) {
+        return;
+    }
+    let width = way
+        .tags
+        .get("width")
+        .and_then(parse_length_m)
+        .filter(|w| (0.5..=30.0).contains(w))
+        .unwrap_or_else(|| {
+            railways::width_m(way.tags.get("gauge"), railways::is_embedded(&way.tags))
+        });
+    let line = projection.points(&way.positions);
+    let half_width = projection.metres(width / 2.0, way.positions[0].lat);
+    let element = ElementRef {
+        element_type: ElementType::Way,
+        id: way.id,
+    };
+    let feature = set.add_feature(Some(element), FeatureClass::Railway, &way.tags);
+    match widened_surface(FeatureClass::Railway, feature, &line, half_width) {
+        Some(mut surface) => {
+            surface.embedded = railways::is_embedded(&way.tags);
+            set.surfaces.push(surface);
+        }
+        None => {
+            set.features.pop();
+        }
+    }
+}
