@@ -1,0 +1,421 @@
+//! Imports run one way. Every `crate::…` and `super::…` path in `src/` (tests beside the code
+//! excluded) is read, and each top-level module may name only the modules below it, as
+//! ARCHITECTURE.md states; inside a folder the files import each other without a cycle. A
+//! back-edge fails here with the file that makes it.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+/// Each top-level module and the modules it may import. Everything not named is unknown to it.
+const ALLOWED: &[(&str, &[&str])] = &[
+    ("tile", &[]),
+    ("geodesy", &[]),
+    ("panics", &[]),
+    ("geometry", &["tile"]),
+    ("format", &["tile"]),
+    ("osm", &["tile", "geometry"]),
+    ("features", &["osm", "geometry", "tile"]),
+    ("terrain", &["geometry", "tile"]),
+    (
+        "elevation",
+        &["features", "terrain", "osm", "geometry", "tile"],
+    ),
+    (
+        "mesh",
+        &[
+            "elevation",
+            "features",
+            "terrain",
+            "osm",
+            "geometry",
+            "geodesy",
+            "tile",
+        ],
+    ),
+    (
+        "output",
+        &[
+            "mesh",
+            "elevation",
+            "features",
+            "terrain",
+            "osm",
+            "geometry",
+            "geodesy",
+            "format",
+            "tile",
+        ],
+    ),
+    (
+        "render",
+        &[
+            "output",
+            "mesh",
+            "elevation",
+            "features",
+            "terrain",
+            "osm",
+            "geometry",
+            "panics",
+            "format",
+            "tile",
+        ],
+    ),
+    ("source", &["osm", "terrain", "geometry", "tile"]),
+    ("cache", &["format", "panics", "tile"]),
+    ("config", &["source", "render", "format", "tile"]),
+    (
+        "provider",
+        &[
+            "config", "source", "render", "output", "features", "terrain", "osm", "cache",
+            "format", "tile",
+        ],
+    ),
+    (
+        "server",
+        &[
+            "config", "provider", "cache", "source", "render", "output", "format", "panics", "tile",
+        ],
+    ),
+    (
+        "offline",
+        &[
+            "config", "provider", "cache", "source", "render", "output", "format", "tile",
+        ],
+    ),
+];
+
+/// Modules the library declares that no layer above may skip: `lib.rs` and `main.rs` wire
+/// everything and are not checked.
+const ROOTS: &[&str] = &["lib", "main"];
+
+fn src() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("src")
+}
+
+fn rust_files(dir: &Path, found: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            rust_files(&path, found);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            found.push(path);
+        }
+    }
+}
+
+/// The code of a file without its line comments and without the tests beside it.
+fn code_of(text: &str) -> String {
+    let without_tests = match text.find("#[cfg(test)]") {
+        Some(at) => &text[..at],
+        None => text,
+    };
+    without_tests
+        .lines()
+        .map(|line| match line.find("//") {
+            Some(at) => &line[..at],
+            None => line,
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The first names after each `prefix` (`crate::` or `super::`), brace groups opened:
+/// `crate::{a, b::c}` names `a` and `b`.
+fn names_after(code: &str, prefix: &str) -> BTreeSet<String> {
+    let mut names = BTreeSet::new();
+    let mut rest = code;
+    while let Some(at) = rest.find(prefix) {
+        let before = rest[..at].chars().next_back();
+        rest = &rest[at + prefix.len()..];
+        if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
+            continue;
+        }
+        if let Some(group) = rest.strip_prefix('{') {
+            let mut depth = 0;
+            let mut item = String::new();
+            for c in group.chars() {
+                match c {
+                    '{' => depth += 1,
+                    '}' if depth == 0 => break,
+                    '}' => depth -= 1,
+                    ',' if depth == 0 => {
+                        names.extend(first_identifier(&item));
+                        item.clear();
+                        continue;
+                    }
+                    _ => {}
+                }
+                item.push(c);
+            }
+            names.extend(first_identifier(&item));
+        } else {
+            names.extend(first_identifier(rest));
+        }
+    }
+    names
+}
+
+fn first_identifier(text: &str) -> Option<String> {
+    let name: String = text
+        .trim_start()
+        .chars()
+        .take_while(|c| c.is_alphanumeric() || *c == '_')
+        .collect();
+    (!name.is_empty() && name != "self").then_some(name)
+}
+
+/// The top-level module a file belongs to, and its name inside its folder.
+fn module_of(relative: &Path) -> (String, String) {
+    let mut parts: Vec<String> = relative
+        .iter()
+        .map(|p| p.to_string_lossy().trim_end_matches(".rs").to_string())
+        .collect();
+    let top = parts.remove(0);
+    let inner = parts.join("/");
+    (
+        top,
+        if inner.is_empty() {
+            "mod".into()
+        } else {
+            inner
+        },
+    )
+}
+
+struct Imports {
+    /// (top module, imported top module) → files making that import.
+    between: BTreeMap<(String, String), BTreeSet<String>>,
+    /// folder → file → files of the same folder it imports.
+    within: BTreeMap<String, BTreeMap<String, BTreeSet<String>>>,
+}
+
+/// Every `.rs` file under `src/`, by its path relative to `src/`, with its text.
+fn sources() -> Vec<(String, String)> {
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    files.sort();
+    files
+        .iter()
+        .map(|path| {
+            let relative = path.strip_prefix(src()).unwrap();
+            (
+                relative.to_string_lossy().into_owned(),
+                std::fs::read_to_string(path).unwrap(),
+            )
+        })
+        .collect()
+}
+
+fn imports(files: &[(String, String)]) -> Imports {
+    let mut between: BTreeMap<(String, String), BTreeSet<String>> = BTreeMap::new();
+    let mut within: BTreeMap<String, BTreeMap<String, BTreeSet<String>>> = BTreeMap::new();
+    for (path, text) in files {
+        let code = code_of(text);
+        let (top, inner) = module_of(Path::new(path));
+        let siblings: BTreeSet<String> = names_after(&code, "super::")
+            .into_iter()
+            .chain(
+                names_after(&code, &format!("crate::{top}::"))
+                    .into_iter()
+                    .filter(|_| inner != "mod"),
+            )
+            .collect();
+        if inner != "mod" {
+            let entry = within.entry(top.clone()).or_default();
+            entry.entry(inner.clone()).or_default().extend(siblings);
+        }
+        for used in names_after(&code, "crate::") {
+            if used != top {
+                between
+                    .entry((top.clone(), used))
+                    .or_default()
+                    .insert(path.clone());
+            }
+        }
+    }
+    // Only names that are files of the folder are edges between files.
+    for files in within.values_mut() {
+        let known: BTreeSet<String> = files.keys().cloned().collect();
+        for (file, used) in files.iter_mut() {
+            used.retain(|u| known.contains(u) && u != file);
+        }
+    }
+    Imports { between, within }
+}
+
+/// The imports against the layers, one line each.
+fn back_edges(imports: &Imports) -> Vec<String> {
+    let mut back_edges = Vec::new();
+    for ((from, to), files) in &imports.between {
+        if ROOTS.contains(&from.as_str()) {
+            continue;
+        }
+        let Some(allowed) = allowed(from) else {
+            back_edges.push(format!(
+                "{from} has no place in the layers of tests/layers.rs"
+            ));
+            continue;
+        };
+        if !allowed.contains(&to.as_str()) {
+            back_edges.push(format!("{from} → {to} (in {files:?})"));
+        }
+    }
+    back_edges
+}
+
+/// The cycles among the files of each folder, one line each.
+fn cycles(imports: &Imports) -> Vec<String> {
+    imports
+        .within
+        .iter()
+        .filter_map(|(folder, files)| {
+            find_cycle(files).map(|cycle| format!("{folder}: {}", cycle.join(" → ")))
+        })
+        .collect()
+}
+
+fn allowed(module: &str) -> Option<&'static [&'static str]> {
+    ALLOWED
+        .iter()
+        .find(|(name, _)| *name == module)
+        .map(|(_, allowed)| *allowed)
+}
+
+#[test]
+fn every_module_imports_only_the_layers_below_it() {
+    let back_edges = back_edges(&imports(&sources()));
+    assert!(
+        back_edges.is_empty(),
+        "imports against the layers:\n{}",
+        back_edges.join("\n")
+    );
+}
+
+#[test]
+fn an_import_up_the_layers_is_a_back_edge() {
+    let mut files = sources();
+    files.push((
+        "features/shapes.rs".into(),
+        "use crate::mesh::Part;\n".into(),
+    ));
+    files.push((
+        "cache/glb.rs".into(),
+        "fn f() { crate::output::glb::write(); }\n".into(),
+    ));
+    assert_eq!(
+        back_edges(&imports(&files)),
+        [
+            r#"cache → output (in {"cache/glb.rs"})"#,
+            r#"features → mesh (in {"features/shapes.rs"})"#,
+        ]
+    );
+}
+
+#[test]
+fn a_module_outside_the_layers_is_named() {
+    let mut files = sources();
+    files.push(("shortcuts.rs".into(), "use crate::tile::TileId;\n".into()));
+    assert_eq!(
+        back_edges(&imports(&files)),
+        ["shortcuts has no place in the layers of tests/layers.rs"]
+    );
+}
+
+#[test]
+fn the_layers_themselves_form_no_cycle() {
+    // Each module's allowed imports are declared before it in ALLOWED.
+    for (index, (module, allowed)) in ALLOWED.iter().enumerate() {
+        for below in *allowed {
+            let position = ALLOWED.iter().position(|(name, _)| name == below);
+            assert!(
+                position.is_some_and(|p| p < index),
+                "{module} may import {below}, which is not a layer below it"
+            );
+        }
+    }
+}
+
+#[test]
+fn files_of_a_folder_import_each_other_without_a_cycle() {
+    let cycles = cycles(&imports(&sources()));
+    assert!(cycles.is_empty(), "cycles:\n{}", cycles.join("\n"));
+}
+
+#[test]
+fn two_files_that_import_each_other_are_a_cycle() {
+    let mut files = sources();
+    files.push(("osm/first.rs".into(), "use super::second::B;\n".into()));
+    files.push(("osm/second.rs".into(), "use crate::osm::first::A;\n".into()));
+    assert_eq!(cycles(&imports(&files)), ["osm: first → second → first"]);
+}
+
+/// A cycle in a directed graph, by depth-first search, as the list of its nodes.
+fn find_cycle(graph: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
+    fn visit(
+        node: &str,
+        graph: &BTreeMap<String, BTreeSet<String>>,
+        state: &mut BTreeMap<String, u8>,
+        path: &mut Vec<String>,
+    ) -> Option<Vec<String>> {
+        state.insert(node.to_string(), 1);
+        path.push(node.to_string());
+        for next in graph.get(node).into_iter().flatten() {
+            match state.get(next.as_str()).copied().unwrap_or(0) {
+                1 => {
+                    let start = path.iter().position(|p| p == next).unwrap_or(0);
+                    let mut cycle = path[start..].to_vec();
+                    cycle.push(next.clone());
+                    return Some(cycle);
+                }
+                0 => {
+                    if let Some(cycle) = visit(next, graph, state, path) {
+                        return Some(cycle);
+                    }
+                }
+                _ => {}
+            }
+        }
+        path.pop();
+        state.insert(node.to_string(), 2);
+        None
+    }
+    let mut state = BTreeMap::new();
+    for node in graph.keys() {
+        if state.get(node.as_str()).copied().unwrap_or(0) == 0 {
+            let mut path = Vec::new();
+            if let Some(cycle) = visit(node, graph, &mut state, &mut path) {
+                return Some(cycle);
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn the_reader_finds_imports_in_braces_and_paths() {
+    let code = "use crate::{tile::TileId, geometry::{a, b}};\nlet x = crate::osm::Tags::new();\n\
+                use super::roads;\nfn f() { my_crate::mesh::x(); }";
+    assert_eq!(
+        names_after(code, "crate::"),
+        ["geometry", "osm", "tile"].map(String::from).into()
+    );
+    assert_eq!(names_after(code, "super::"), ["roads".to_string()].into());
+}
+
+#[test]
+fn a_cycle_is_found_and_a_chain_is_not() {
+    let graph = |edges: &[(&str, &str)]| {
+        let mut g: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+        for (a, b) in edges {
+            g.entry(a.to_string()).or_default().insert(b.to_string());
+            g.entry(b.to_string()).or_default();
+        }
+        g
+    };
+    assert!(find_cycle(&graph(&[("a", "b"), ("b", "c")])).is_none());
+    assert_eq!(
+        find_cycle(&graph(&[("a", "b"), ("b", "c"), ("c", "a")])),
+        Some(["a", "b", "c", "a"].map(String::from).to_vec())
+    );
+}
