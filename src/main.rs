@@ -12,6 +12,7 @@ use terrastitch::config::{Config, LogFormat};
 use terrastitch::format::Format;
 use terrastitch::offline::{export, seed};
 use terrastitch::provider::Inputs;
+use terrastitch::render::StageTimings;
 use terrastitch::server::{self, AppState};
 use terrastitch::source::fetch::Fetcher;
 use terrastitch::tile::{LonLatBounds, TileRange};
@@ -356,13 +357,9 @@ fn render(args: RenderArgs, config: Config) -> Result<()> {
         let t = rendered.timings;
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1000.0;
         eprintln!("load           {:8.1} ms", ms(load));
-        eprintln!("features       {:8.1} ms", ms(t.features));
-        eprintln!("structures     {:8.1} ms", ms(t.structures));
-        eprintln!("roads          {:8.1} ms", ms(t.roads));
-        eprintln!("triangulation  {:8.1} ms", ms(t.triangulation));
-        eprintln!("terrain        {:8.1} ms", ms(t.terrain));
-        eprintln!("elevation      {:8.1} ms", ms(t.elevation));
-        eprintln!("glb            {:8.1} ms", ms(t.glb));
+        for (name, duration) in StageTimings::NAMES.iter().zip(t.stages()) {
+            eprintln!("{name:<14} {:8.1} ms", ms(duration));
+        }
         eprintln!(
             "total          {:8.1} ms (render {:.1} ms)",
             ms(load + t.total()),

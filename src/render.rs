@@ -1,18 +1,24 @@
-//! The rendering pipeline of one tile, from OSM elements and SRTM samples to glb bytes.
+//! The rendering pipeline of one tile, from OSM elements and SRTM samples to glb or
+//! quantized-mesh bytes. It orchestrates; each stage's work lives in its module:
 //!
-//! Stages: features (OSM → surfaces and buildings) → triangulation (the ground CDT) → terrain
-//! (an elevation and a normal for every ground vertex) → elevation (building bases and tops) →
-//! glb. Everything here is a pure function of its inputs: no I/O, no randomness, sorted
-//! iteration wherever order reaches the output, so the same inputs give the same bytes.
-//! Stage times are measured for reporting only; they never reach the output.
+//! features (`features::collect`) → structures (bridges and tunnels settled whole,
+//! `elevation::structures`) → roads (ground road profiles, `elevation::road_profiles`) →
+//! triangulation (the ground with features stitched in, `mesh::ground`, settled elevations put
+//! on its vertices, `mesh::flatten`) → normals (`mesh::normals`) → ground (its triangles into
+//! parts, `mesh::ground_parts`) → shapes (buildings, barriers, bridges and tunnels, power lines,
+//! trees and objects, `mesh::*`) → encode (`output::glb`, `output::quantized_mesh`).
+//!
+//! Everything here is a pure function of its inputs: no I/O, no randomness, sorted iteration
+//! wherever order reaches the output, so the same inputs give the same bytes. Stage times are
+//! measured for reporting only ([`StageTimings`]); they never reach the output.
 
 use std::collections::{BTreeMap, HashMap};
 use std::time::{Duration, Instant};
 
 use crate::elevation;
-use crate::features::buildings::Finish;
 use crate::features::{self, FeatureClass, FeatureSet, FeatureSettings};
 use crate::mesh::ground::{self, Ground, MeshSettings};
+use crate::mesh::ground_parts::GroundParts;
 use crate::mesh::{self, MeshBuffers, Part};
 use crate::osm::index::Selection;
 use crate::output::{glb, quantized_mesh};
@@ -81,29 +87,57 @@ impl Deadline {
     }
 }
 
-/// Time spent in each stage.
+/// Time spent in each stage of a render.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageTimings {
+    /// OSM elements into surfaces, buildings and the other features.
     pub features: Duration,
     /// Bridges and tunnels settled by the LP, and the ground they reshape.
     pub structures: Duration,
     /// Ground roads held to their grade by the LP.
     pub roads: Duration,
+    /// The ground triangulated with the features stitched in, settled elevations on its
+    /// vertices.
     pub triangulation: Duration,
-    pub terrain: Duration,
-    pub elevation: Duration,
-    pub glb: Duration,
+    /// A normal for every ground vertex.
+    pub normals: Duration,
+    /// The ground's triangles sorted into the tile's parts.
+    pub ground: Duration,
+    /// Buildings, barriers, bridges and tunnels, power lines, trees and objects meshed.
+    pub shapes: Duration,
+    /// The glb or quantized-mesh written.
+    pub encode: Duration,
 }
 
 impl StageTimings {
+    /// The stages' names, in the order they run, as `--timings` and `/metrics` show them.
+    pub const NAMES: [&'static str; 8] = [
+        "features",
+        "structures",
+        "roads",
+        "triangulation",
+        "normals",
+        "ground",
+        "shapes",
+        "encode",
+    ];
+
+    /// Each stage's time, in the order of [`StageTimings::NAMES`].
+    pub fn stages(&self) -> [Duration; 8] {
+        [
+            self.features,
+            self.structures,
+            self.roads,
+            self.triangulation,
+            self.normals,
+            self.ground,
+            self.shapes,
+            self.encode,
+        ]
+    }
+
     pub fn total(&self) -> Duration {
-        self.features
-            + self.structures
-            + self.roads
-            + self.triangulation
-            + self.terrain
-            + self.elevation
-            + self.glb
+        self.stages().iter().sum()
     }
 }
 
@@ -146,11 +180,6 @@ pub struct RenderedTile {
     pub stats: RenderStats,
     pub timings: StageTimings,
 }
-
-/// The distance used for the ground normals' central differences, in local metres, at zoom
-/// [`NORMAL_STEP_ZOOM`] and above; it doubles with each coarser level, as the mesh does.
-const NORMAL_STEP_M: f64 = 10.0;
-const NORMAL_STEP_ZOOM: u8 = 14;
 
 /// Runs `f`, turning a panic (a bug, or a library tripping on degenerate input) into an error
 /// for this tile only.
@@ -213,7 +242,12 @@ fn prepare<'a>(
     let projection = features::Projection::new(tile.z);
     let margin = settings.mesh.max_error_m;
     let structures = settle_groups(tile, selection, &terrain, settings);
-    let structure_features = structure_rows(&mut feature_set, selection, tile);
+    let structure_features = features::structures::rows(
+        &mut feature_set,
+        &selection.structures,
+        selection.all_ways,
+        tile,
+    );
     let cuts = elevation::structures::ground_cuts(
         &structures,
         selection.all_ways,
@@ -264,31 +298,9 @@ fn prepare<'a>(
     timings.triangulation = started.elapsed();
     deadline.check(tile, "triangulation")?;
 
-    // Normals from the settled ground's gradient at each vertex, from the terrain's on the
-    // tile's edges (a function of global data, so a vertex on a shared edge gets the same
-    // normal in both tiles).
     let started = Instant::now();
-    let normal_step = NORMAL_STEP_M * 2f64.powi(i32::from(NORMAL_STEP_ZOOM.saturating_sub(tile.z)));
-    // A vertex on the tile's edge takes the terrain's normal: the settled ground beyond the
-    // edge depends on features this tile does not hold, the terrain does not.
-    let size = frame.size_m;
-    let normals: Vec<[f64; 3]> = ground
-        .vertices
-        .iter()
-        .map(|&[x, z]| {
-            let on_edge = x == 0.0 || z == 0.0 || x == size || z == size;
-            let model: &dyn Elevation = if on_edge { &terrain } else { &settled };
-            let height_at = |x: f64, z: f64| {
-                let (u, v) = frame.local_to_uv(x, z);
-                frame.elevation_to_y(model.elevation_uv([u, v]), z)
-            };
-            let h = normal_step;
-            let dy_dx = (height_at(x + h, z) - height_at(x - h, z)) / (2.0 * h);
-            let dy_dz = (height_at(x, z + h) - height_at(x, z - h)) / (2.0 * h);
-            mesh::normalize([-dy_dx, 1.0, -dy_dz]).unwrap_or([0.0, 1.0, 0.0])
-        })
-        .collect();
-    timings.terrain = started.elapsed();
+    let normals = mesh::normals::ground_normals(&ground, &frame, &terrain, &settled);
+    timings.normals = started.elapsed();
     Ok(Prepared {
         frame,
         terrain,
@@ -482,56 +494,15 @@ fn render_glb(
         normals,
     } = prepared;
     let started = Instant::now();
-    let vertex_y: Vec<f64> = ground
-        .vertices
-        .iter()
-        .zip(&ground.elevations)
-        .map(|(p, &elevation)| frame.elevation_to_y(elevation, p[1]))
-        .collect();
-    let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
-    let mut vertex_slots: rustc_hash::FxHashMap<(Part, u32, u32), u32> = Default::default();
-    let mut slivers = 0;
-    for triangle in &ground.triangles {
-        let part = match triangle.surface {
-            Some(index) => {
-                let surface = &feature_set.surfaces[index as usize];
-                Part::of_ground(surface.class, surface.cover, surface.paving)
-                    .map(|part| (part, surface.feature))
-            }
-            None => Some((Part::Terrain, 0)),
-        };
-        let Some((part, feature)) = part else {
-            continue;
-        };
-        // Counter-clockwise in (x, z) faces down in a Y-up frame: reverse to face up.
-        let [a, b, c] = triangle.vertices;
-        if !faces_up_in_f32([a, c, b].map(|v| ground.vertices[v as usize])) {
-            // A sliver that collapses or flips at the output's precision covers no area.
-            slivers += 1;
-            continue;
-        }
-        let buffers = parts.entry(part).or_default();
-        for vertex in [a, c, b] {
-            let slot = *vertex_slots
-                .entry((part, vertex, feature))
-                .or_insert_with(|| {
-                    let [x, z] = ground.vertices[vertex as usize];
-                    buffers.push_vertex(
-                        [x, vertex_y[vertex as usize], z],
-                        normals[vertex as usize],
-                        feature,
-                    )
-                });
-            buffers.indices.push(slot);
-        }
-    }
-    timings.terrain += started.elapsed();
+    let GroundParts {
+        mut parts,
+        vertex_y,
+        slivers,
+    } = mesh::ground_parts::ground_parts(ground, &feature_set.surfaces, normals, frame);
+    timings.ground = started.elapsed();
 
     let started = Instant::now();
     let sample_step_uv = srtm_step_uv(tile);
-    // One primitive per finish of walls and of roofs.
-    let mut walls: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
-    let mut roofs: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
     let settled = elevation::ground::Ground {
         terrain,
         water,
@@ -539,27 +510,13 @@ fn render_glb(
         roads,
         steps,
     };
-    let solids = mesh::buildings::solids(
+    parts.extend(mesh::buildings::build(
         &feature_set.buildings,
         frame,
         terrain,
         &settled,
         sample_step_uv,
-    );
-    for (building, solid) in feature_set.buildings.iter().zip(&solids) {
-        if let Some(solid) = solid {
-            let look = &building.appearance;
-            mesh::buildings::extrude(
-                building,
-                solid,
-                frame,
-                walls.entry(look.wall_finish).or_default(),
-                roofs.entry(look.roof_finish).or_default(),
-            );
-        }
-    }
-    parts.extend(walls.into_iter().map(|(f, b)| (Part::BuildingWalls(f), b)));
-    parts.extend(roofs.into_iter().map(|(f, b)| (Part::BuildingRoofs(f), b)));
+    ));
     parts.extend(mesh::barriers::build(
         &feature_set.barriers,
         frame,
@@ -587,7 +544,7 @@ fn render_glb(
         &vertex_y,
         frame,
     );
-    timings.elevation = started.elapsed();
+    timings.shapes = started.elapsed();
 
     let started = Instant::now();
     let description = glb::TileDescription {
@@ -603,7 +560,7 @@ fn render_glb(
         &feature_set.features,
         variant,
     );
-    timings.glb = started.elapsed();
+    timings.encode = started.elapsed();
 
     let stats = RenderStats {
         triangles: parts.values().map(MeshBuffers::triangle_count).sum(),
@@ -662,9 +619,6 @@ fn render_glb(
     }
 }
 
-/// Cells of the quantized-mesh water mask along each side.
-const WATER_MASK_CELLS: usize = 256;
-
 /// A tile's terrain as quantized-mesh.
 #[derive(Debug, Clone)]
 pub struct RenderedTerrain {
@@ -686,7 +640,7 @@ pub fn render_terrain(
     guarded(tile, || {
         let mut timings = StageTimings::default();
         let prepared = prepare(tile, selection, mosaic, settings, &mut timings, deadline)?;
-        Ok(encode_terrain(tile, &prepared, extensions, timings))
+        Ok(encode_terrain(&prepared, extensions, timings))
     })
 }
 
@@ -715,12 +669,11 @@ pub fn render_overview_terrain(
             &mut timings,
             deadline,
         )?;
-        Ok(encode_terrain(tile, &prepared, extensions, timings))
+        Ok(encode_terrain(&prepared, extensions, timings))
     })
 }
 
 fn encode_terrain(
-    tile: TileId,
     prepared: &Prepared<'_>,
     extensions: crate::format::Extensions,
     mut timings: StageTimings,
@@ -733,54 +686,15 @@ fn encode_terrain(
         normals,
         ..
     } = prepared;
-    let size = frame.size_m;
-    let b = tile.bounds();
-    let water = extensions.watermask.then(|| {
-        let waters: Vec<&features::Surface> = feature_set
-            .surfaces
-            .iter()
-            .filter(|s| s.class == FeatureClass::Water)
-            .collect();
-        let n = WATER_MASK_CELLS;
-        let mut cells = Vec::with_capacity(n * n);
-        for row in 0..n {
-            for column in 0..n {
-                let x = (column as f64 + 0.5) / n as f64 * size;
-                let z = (row as f64 + 0.5) / n as f64 * size;
-                let (u, v) = frame.local_to_uv(x, z);
-                cells.push(waters.iter().any(|s| s.contains([u, v])));
-            }
-        }
-        cells
-    });
-    let terrain_tile = quantized_mesh::TerrainTile {
-        bounds: [b.west, b.south, b.east, b.north],
-        positions: ground
-            .vertices
-            .iter()
-            .map(|&[x, z]| [x / size, 1.0 - z / size])
-            .collect(),
-        lon_lat: ground
-            .vertices
-            .iter()
-            .map(|&[x, z]| {
-                let (lon, lat) = frame.to_lon_lat(x, z);
-                [lon, lat]
-            })
-            .collect(),
-        heights: ground.elevations.clone(),
-        // Local (x east, y up, z south) to (east, north, up).
-        normals: normals.iter().map(|n| [n[0], -n[2], n[1]]).collect(),
-        // Counter-clockwise in (x, z) with z south is clockwise in (east, north).
-        triangles: ground
-            .triangles
-            .iter()
-            .map(|t| [t.vertices[0], t.vertices[2], t.vertices[1]])
-            .collect(),
-        water,
-    };
+    let waters: Vec<&features::Surface> = feature_set
+        .surfaces
+        .iter()
+        .filter(|s| s.class == FeatureClass::Water)
+        .collect();
+    let water = extensions.watermask.then_some(waters.as_slice());
+    let terrain_tile = quantized_mesh::TerrainTile::of_ground(ground, normals, frame, water);
     let (bytes, report) = quantized_mesh::encode(&terrain_tile, extensions);
-    timings.glb = started.elapsed();
+    timings.encode = started.elapsed();
     RenderedTerrain {
         bytes,
         report,
@@ -788,66 +702,9 @@ fn encode_terrain(
     }
 }
 
-/// True when the triangle `(a, b, c)` of local `(x, z)` points, rounded to `f32` as the glb
-/// stores them, has a positive area facing +y.
-fn faces_up_in_f32(corners: [[f64; 2]; 3]) -> bool {
-    let [a, b, c] = corners.map(|p| p.map(|v| f64::from(v as f32)));
-    let cross_y = (b[1] - a[1]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[1] - a[1]);
-    cross_y > 0.0
-}
-
 /// The east–west spacing of 3-arc-second samples in global tile units at this zoom: buildings
 /// sample the ground under them this finely.
 pub fn srtm_step_uv(tile: TileId) -> f64 {
     let degrees = 3.0 / 3600.0;
     degrees / 360.0 * tile.tiles_per_axis()
-}
-
-/// How far beyond the tile a structure way may lie and still be drawn in it (its half width),
-/// metres.
-const STRUCTURE_REACH_M: f64 = 30.0;
-
-/// Adds a feature row for each bridge or tunnel way that reaches into the tile; returns the
-/// rows by way index.
-fn structure_rows(
-    set: &mut FeatureSet,
-    selection: &Selection<'_>,
-    tile: TileId,
-) -> HashMap<u32, u32> {
-    let projection = features::Projection::new(tile.z);
-    let rect = features::tile_rect(tile);
-    let mut rows = HashMap::new();
-    for group in &selection.structures {
-        for chain in &group.chains {
-            let class = match chain.kind {
-                crate::osm::structures::StructureKind::Bridge => FeatureClass::Bridge,
-                crate::osm::structures::StructureKind::Tunnel => FeatureClass::Tunnel,
-            };
-            for chain_way in &chain.ways {
-                let Some(way) = selection.all_ways.get(chain_way.way as usize) else {
-                    continue;
-                };
-                if rows.contains_key(&chain_way.way) || way.positions.is_empty() {
-                    continue;
-                }
-                let reach = projection.metres(STRUCTURE_REACH_M, way.positions[0].lat);
-                let near = crate::geometry::Rect::around(&projection.points(&way.positions));
-                let meets = near.min[0] - reach <= rect.max[0]
-                    && near.max[0] + reach >= rect.min[0]
-                    && near.min[1] - reach <= rect.max[1]
-                    && near.max[1] + reach >= rect.min[1];
-                if meets {
-                    let element = crate::osm::ElementRef {
-                        element_type: crate::osm::ElementType::Way,
-                        id: way.id,
-                    };
-                    rows.insert(
-                        chain_way.way,
-                        set.add_feature(Some(element), class, &way.tags),
-                    );
-                }
-            }
-        }
-    }
-    rows
 }

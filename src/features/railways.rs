@@ -1,6 +1,5 @@
 //! Railways as ground surfaces: the track gauge plus ballast on each side.
 
-
 /// Standard gauge, metres.
 const STANDARD_GAUGE_M: f64 = 1.435;
 /// Ballast bed beyond the rails on each side, metres (a typical ballast shoulder).

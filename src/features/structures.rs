@@ -10,12 +10,15 @@
 //! tracks 20 %, paths and footways 25 % (ramps for people), steps none; main-line railways
 //! 4 %, light rail and trams 8 %, funiculars none.
 
-use crate::osm::structures::StructureKind;
+use std::collections::HashMap;
+
+use crate::osm::structures::{Group, StructureKind};
 use crate::osm::units::parse_length_m;
-use crate::osm::{Tags, Way};
+use crate::osm::{ElementRef, ElementType, Tags, Way};
+use crate::tile::TileId;
 
 use super::roads::Paving;
-use super::{railways, roads, FeatureSettings};
+use super::{railways, roads, FeatureClass, FeatureSet, FeatureSettings, Projection};
 
 /// Whether a way is part of a bridge or a tunnel that is drawn as such, with its layer (`1` for
 /// an untagged bridge, `-1` for an untagged tunnel, as OSM reads them).
@@ -216,6 +219,56 @@ pub fn is_off_ground(tags: &Tags) -> bool {
         || tags.get("indoor").is_some_and(|v| v != "no")
         || tags.get("location") == Some("underground")
         || tags.get("area") == Some("yes")
+}
+
+/// How far beyond the tile a structure way may lie and still be drawn in it (its half width),
+/// metres.
+const STRUCTURE_REACH_M: f64 = 30.0;
+
+/// Adds a feature row for each bridge or tunnel way that reaches into the tile; returns the
+/// rows by way index.
+pub fn rows(
+    set: &mut FeatureSet,
+    groups: &[&Group],
+    all_ways: &[Way],
+    tile: TileId,
+) -> HashMap<u32, u32> {
+    let projection = Projection::new(tile.z);
+    let rect = super::tile_rect(tile);
+    let mut rows = HashMap::new();
+    for group in groups {
+        for chain in &group.chains {
+            let class = match chain.kind {
+                StructureKind::Bridge => FeatureClass::Bridge,
+                StructureKind::Tunnel => FeatureClass::Tunnel,
+            };
+            for chain_way in &chain.ways {
+                let Some(way) = all_ways.get(chain_way.way as usize) else {
+                    continue;
+                };
+                if rows.contains_key(&chain_way.way) || way.positions.is_empty() {
+                    continue;
+                }
+                let reach = projection.metres(STRUCTURE_REACH_M, way.positions[0].lat);
+                let near = crate::geometry::Rect::around(&projection.points(&way.positions));
+                let meets = near.min[0] - reach <= rect.max[0]
+                    && near.max[0] + reach >= rect.min[0]
+                    && near.min[1] - reach <= rect.max[1]
+                    && near.max[1] + reach >= rect.min[1];
+                if meets {
+                    let element = ElementRef {
+                        element_type: ElementType::Way,
+                        id: way.id,
+                    };
+                    rows.insert(
+                        chain_way.way,
+                        set.add_feature(Some(element), class, &way.tags),
+                    );
+                }
+            }
+        }
+    }
+    rows
 }
 
 #[cfg(test)]

@@ -7,12 +7,14 @@
 //! Walls start [`WALL_SKIRT_M`] below that, so no wall ends above the ground on a slope. An
 //! untagged height is raised where needed so the roof clears the highest ground under it.
 
+use std::collections::BTreeMap;
+
 use super::roofs::{
     bend, centred_roof, long_axis, profile_roof, skeleton_roof, spread, square_up, CentredRoof,
     RoofEnd, RoofError, RoofMesh, SkeletonRoof,
 };
-use super::{newell, MeshBuffers};
-use crate::features::buildings::RoofShape;
+use super::{newell, MeshBuffers, Part};
+use crate::features::buildings::{Finish, RoofShape};
 use crate::features::BuildingShape;
 use crate::geometry::constrained::triangulate_polygon;
 use crate::geometry::{clip_to_rect, signed_area2, Point, Polygon};
@@ -242,6 +244,37 @@ pub fn solid(building: &BuildingShape, size_m: f64, low: f64, high: f64) -> Soli
         solid.roof = cap.iter().map(|t| oriented(t, true, top)).collect();
     }
     solid
+}
+
+/// The buildings drawn in the tile as parts, one primitive per finish of walls and of roofs;
+/// `sample_step_uv` is how finely the ground under them is sampled.
+pub fn build(
+    buildings: &[BuildingShape],
+    frame: &TileFrame,
+    terrain: &TerrainModel<'_>,
+    ground: &dyn Elevation,
+    sample_step_uv: f64,
+) -> Vec<(Part, MeshBuffers)> {
+    let mut walls: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
+    let mut roofs: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
+    let solids = solids(buildings, frame, terrain, ground, sample_step_uv);
+    for (building, solid) in buildings.iter().zip(&solids) {
+        if let Some(solid) = solid {
+            let look = &building.appearance;
+            extrude(
+                building,
+                solid,
+                frame,
+                walls.entry(look.wall_finish).or_default(),
+                roofs.entry(look.roof_finish).or_default(),
+            );
+        }
+    }
+    walls
+        .into_iter()
+        .map(|(f, b)| (Part::BuildingWalls(f), b))
+        .chain(roofs.into_iter().map(|(f, b)| (Part::BuildingRoofs(f), b)))
+        .collect()
 }
 
 /// The shells of the buildings drawn in the tile (`None` for the others), each on the ground

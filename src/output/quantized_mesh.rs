@@ -21,8 +21,11 @@
 
 use std::collections::HashMap;
 
+use crate::features::Surface;
 use crate::format::Extensions;
 use crate::geodesy::{ecef, enu_to_ecef, scaled};
+use crate::mesh::ground::Ground;
+use crate::tile::TileFrame;
 
 /// The largest quantized coordinate.
 const MAX: f64 = 32767.0;
@@ -45,6 +48,65 @@ pub struct TerrainTile {
     pub triangles: Vec<[u32; 3]>,
     /// 256 × 256 cells, row 0 north, column 0 west: true where there is water.
     pub water: Option<Vec<bool>>,
+}
+
+/// Cells of the water mask along each side.
+pub const WATER_MASK_CELLS: usize = 256;
+
+impl TerrainTile {
+    /// A tile's ground as quantized-mesh takes it: positions as fractions of the tile, normals
+    /// turned from the local frame (x east, y up, z south) to (east, north, up), triangles
+    /// counter-clockwise in (east, north), and the water mask from `water` surfaces if asked.
+    pub fn of_ground(
+        ground: &Ground,
+        normals: &[[f64; 3]],
+        frame: &TileFrame,
+        water: Option<&[&Surface]>,
+    ) -> TerrainTile {
+        let size = frame.size_m;
+        let b = frame.tile.bounds();
+        TerrainTile {
+            bounds: [b.west, b.south, b.east, b.north],
+            positions: ground
+                .vertices
+                .iter()
+                .map(|&[x, z]| [x / size, 1.0 - z / size])
+                .collect(),
+            lon_lat: ground
+                .vertices
+                .iter()
+                .map(|&[x, z]| {
+                    let (lon, lat) = frame.to_lon_lat(x, z);
+                    [lon, lat]
+                })
+                .collect(),
+            heights: ground.elevations.clone(),
+            normals: normals.iter().map(|n| [n[0], -n[2], n[1]]).collect(),
+            // Counter-clockwise in (x, z) with z south is clockwise in (east, north).
+            triangles: ground
+                .triangles
+                .iter()
+                .map(|t| [t.vertices[0], t.vertices[2], t.vertices[1]])
+                .collect(),
+            water: water.map(|surfaces| water_mask(surfaces, frame)),
+        }
+    }
+}
+
+/// [`WATER_MASK_CELLS`]² cells, row 0 north: true where a cell's centre is in water.
+fn water_mask(waters: &[&Surface], frame: &TileFrame) -> Vec<bool> {
+    let n = WATER_MASK_CELLS;
+    let size = frame.size_m;
+    let mut cells = Vec::with_capacity(n * n);
+    for row in 0..n {
+        for column in 0..n {
+            let x = (column as f64 + 0.5) / n as f64 * size;
+            let z = (row as f64 + 0.5) / n as f64 * size;
+            let (u, v) = frame.local_to_uv(x, z);
+            cells.push(waters.iter().any(|s| s.contains([u, v])));
+        }
+    }
+    cells
 }
 
 /// What the encoder wrote.

@@ -72,29 +72,21 @@ impl Histogram {
     }
 }
 
-/// The render stages timed, with their label.
-const STAGES: [&str; 8] = [
-    "features",
-    "structures",
-    "roads",
-    "triangulation",
-    "terrain",
-    "elevation",
-    "encode",
-    "total",
-];
+/// The render stages timed, with their label: each stage of a render, then the whole.
+const STAGES: [&str; 9] = {
+    let mut names = ["total"; 9];
+    let mut i = 0;
+    while i < StageTimings::NAMES.len() {
+        names[i] = StageTimings::NAMES[i];
+        i += 1;
+    }
+    names
+};
 
-fn stage_durations(t: &StageTimings) -> [Duration; 8] {
-    [
-        t.features,
-        t.structures,
-        t.roads,
-        t.triangulation,
-        t.terrain,
-        t.elevation,
-        t.glb,
-        t.total(),
-    ]
+fn stage_durations(t: &StageTimings) -> [Duration; 9] {
+    let mut durations = [t.total(); 9];
+    durations[..8].copy_from_slice(&t.stages());
+    durations
 }
 
 #[derive(Debug)]
