@@ -1,10 +1,11 @@
 # terrastitch: `make run` serves the bundled Monaco sample on http://127.0.0.1:8080,
-# `make test` runs every check and test.
+# `make test` runs every check and test; `make check` is the fast tier (under two minutes once
+# built): formatting, lints, unit tests, the layering test and the rule specifications.
 
 CARGO ?= cargo
 NPM ?= npm
 
-.PHONY: run test lint bench bench-terrain bench-roofs bench-elevation clean-cache
+.PHONY: run test check lint bench bench-terrain bench-roofs bench-elevation clean-cache
 
 run: static/vendor/.installed
 	$(CARGO) run --release -- serve
@@ -29,6 +30,10 @@ tests/.chromium:
 
 test: tests/js/node_modules/.installed tests/py/.venv/.installed static/vendor/.installed tests/.chromium lint
 	TERRASTITCH_PYTHON=$(CURDIR)/tests/py/.venv/bin/python $(CARGO) test --release
+
+# The fast tier: no extract read, no browser, no server process.
+check: lint
+	$(CARGO) test --release --lib --test layers --test spec
 
 lint:
 	$(CARGO) fmt --all -- --check

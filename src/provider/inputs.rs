@@ -8,7 +8,7 @@ use crate::source::fetch::{self, Download, FetchError, Fetcher};
 use crate::source::{osm_pbf, srtm};
 
 use crate::osm::index::Selection;
-use crate::osm::OsmIndex;
+use crate::osm::{OsmData, OsmIndex};
 use crate::terrain::cell::CellId;
 use crate::terrain::Mosaic;
 use crate::tile::TileId;
@@ -61,6 +61,15 @@ pub enum Uncovered {
         missing: Vec<String>,
         directory: String,
     },
+}
+
+/// Indexes OSM data at `zoom` with the feature rules the index needs over the whole extract:
+/// which ways are bridges and tunnels, which join the road network, what reaches down into the
+/// ground over a tunnel.
+pub fn index_osm(data: OsmData, zoom: u8) -> OsmIndex {
+    OsmIndex::new(data, zoom, crate::features::structures::classify)
+        .with_joints(crate::features::roads::joins)
+        .with_foundations(crate::features::structures::foundation_depth_m)
 }
 
 /// The opened data sources.
@@ -146,9 +155,7 @@ impl Inputs {
             .collect();
         let srtm = SrtmDirectory::open_all(srtm_dir, srtm_extra)?;
         Ok(Inputs {
-            osm: OsmIndex::new(data, zoom, crate::features::structures::classify)
-                .with_joints(crate::features::roads::joins)
-                .with_foundations(crate::features::structures::foundation_depth_m),
+            osm: index_osm(data, zoom),
             srtm,
             osm_paths: osm_paths.to_vec(),
             osm_versions,

@@ -1,0 +1,210 @@
+//! Rules of elevation, each on a hand-written fixture: a few ways on synthetic terrain (a plane
+//! or a ramp), indexed and settled as the server settles a tile. Fast: no extract is read, no
+//! tile is written.
+
+use std::sync::Arc;
+
+use terrastitch::features::structures::{
+    clearance_over_m, deck_thickness_m, foundation_depth_m, tunnel_height_m, TUNNEL_ROOF_M,
+};
+use terrastitch::osm::structures::StructureKind;
+use terrastitch::osm::{LonLat, Node, OsmData, Tags, Way};
+use terrastitch::provider::inputs::{index_osm, QUERY_MARGIN_DEG};
+use terrastitch::render::{settle_structures, RenderSettings};
+use terrastitch::terrain::cell::{CellId, SrtmTile};
+use terrastitch::terrain::Mosaic;
+use terrastitch::tile::lon_lat_to_uv;
+use terrastitch::TileId;
+
+/// The tile the fixtures lie in.
+const TILE: TileId = TileId {
+    z: 14,
+    x: 8529,
+    y: 5973,
+};
+
+/// A place in [`TILE`] as fractions of it: east from its west edge, south from its north edge.
+fn at(east: f64, south: f64) -> LonLat {
+    let b = TILE.bounds();
+    LonLat {
+        lon: b.west + east * (b.east - b.west),
+        lat: b.north - south * (b.north - b.south),
+    }
+}
+
+/// Hand-written OSM data: ways given as tags and places in the tile; node ids are handed out
+/// in order, so a place given twice is one node only when the same id is reused on purpose.
+#[derive(Default)]
+struct Fixture {
+    ways: Vec<Way>,
+    next_node: i64,
+}
+
+impl Fixture {
+    fn way(&mut self, tags: &[(&str, &str)], places: &[(f64, f64)]) -> &mut Self {
+        let positions: Vec<LonLat> = places.iter().map(|&(e, s)| at(e, s)).collect();
+        let nodes = (0..positions.len() as i64)
+            .map(|k| self.next_node + k + 1)
+            .collect();
+        self.next_node += positions.len() as i64;
+        self.ways.push(Way {
+            id: self.ways.len() as i64 + 1,
+            tags: Tags::from_pairs(tags.iter().copied()),
+            nodes,
+            positions,
+        });
+        self
+    }
+
+    /// A closed way around the rectangle from `(east0, south0)` to `(east1, south1)`.
+    fn area(&mut self, tags: &[(&str, &str)], from: (f64, f64), to: (f64, f64)) -> &mut Self {
+        let corners = [
+            (from.0, from.1),
+            (to.0, from.1),
+            (to.0, to.1),
+            (from.0, to.1),
+        ];
+        self.way(tags, &corners);
+        let way = self.ways.last_mut().expect("just added");
+        way.nodes.push(way.nodes[0]);
+        way.positions.push(way.positions[0]);
+        self
+    }
+
+    fn data(&self) -> OsmData {
+        OsmData {
+            nodes: Vec::<Node>::new(),
+            ways: self.ways.clone(),
+            relations: Vec::new(),
+            coverage: vec![TILE.bounds().expanded(0.1)],
+        }
+    }
+}
+
+/// SRTM samples for the cell of [`TILE`] whose height at a longitude and latitude is `f`.
+fn terrain(f: impl Fn(f64, f64) -> f64) -> Mosaic {
+    let cell = CellId { lat: 43, lon: 7 };
+    let size = 1201;
+    let step = 1.0 / (size - 1) as f64;
+    let mut heights = Vec::with_capacity(size * size);
+    for row in 0..size {
+        for column in 0..size {
+            let lat = f64::from(cell.lat) + 1.0 - row as f64 * step;
+            let lon = f64::from(cell.lon) + column as f64 * step;
+            heights.push(f(lon, lat) as f32);
+        }
+    }
+    Mosaic::new([Arc::new(SrtmTile {
+        cell,
+        size,
+        heights,
+    })])
+}
+
+/// A station of a settled profile: its point in global tile units, its elevation and the
+/// terrain's there.
+type Station = ([f64; 2], f64, f64);
+
+/// The bridges and tunnels of `fixture` settled on `mosaic`, as the glb of [`TILE`] settles
+/// them: each profile's stations as (point in global units, elevation, terrain).
+fn settled(fixture: &Fixture, mosaic: &Mosaic) -> Vec<(StructureKind, Vec<Station>)> {
+    let index = index_osm(fixture.data(), TILE.z);
+    let selection = index.query(TILE, QUERY_MARGIN_DEG);
+    settle_structures(TILE, &selection, mosaic, &RenderSettings::default())
+        .into_iter()
+        .flat_map(|settled| settled.profiles)
+        .map(|profile| {
+            let stations = (0..profile.points.len())
+                .map(|k| (profile.points[k], profile.elevations[k], profile.terrain[k]))
+                .collect();
+            (profile.kind, stations)
+        })
+        .collect()
+}
+
+/// The elevation of a profile where it passes closest to `place`, between its two nearest
+/// stations.
+fn elevation_near(stations: &[Station], place: LonLat) -> f64 {
+    let n = f64::from(1u32 << TILE.z);
+    let (u, v) = lon_lat_to_uv(place.lon, place.lat, n);
+    let distance = |p: [f64; 2]| ((p[0] - u).powi(2) + (p[1] - v).powi(2)).sqrt();
+    let nearest = (0..stations.len())
+        .min_by(|&a, &b| distance(stations[a].0).total_cmp(&distance(stations[b].0)))
+        .expect("a profile has stations");
+    stations[nearest].1
+}
+
+fn tags(pairs: &[(&str, &str)]) -> Tags {
+    Tags::from_pairs(pairs.iter().copied())
+}
+
+#[test]
+fn a_bridge_over_a_road_clears_it_by_its_clearance() {
+    let road = [("highway", "residential")];
+    let bridge = [
+        ("highway", "residential"),
+        ("bridge", "yes"),
+        ("layer", "1"),
+    ];
+    let mut fixture = Fixture::default();
+    fixture
+        .way(&road, &[(0.1, 0.5), (0.9, 0.5)])
+        .way(&bridge, &[(0.5, 0.2), (0.5, 0.4), (0.5, 0.6), (0.5, 0.8)]);
+    let settled = settled(&fixture, &terrain(|_, _| 10.0));
+    let [(StructureKind::Bridge, stations)] = settled.as_slice() else {
+        panic!("one bridge expected: {settled:?}");
+    };
+    let deck = elevation_near(stations, at(0.5, 0.5));
+    let needed = clearance_over_m(&tags(&road)).expect("a road is cleared")
+        + deck_thickness_m(&tags(&bridge));
+    assert!(
+        deck - 10.0 >= needed - 0.01,
+        "deck {deck:.2} m over a road at 10 m: {needed:.2} m needed"
+    );
+}
+
+#[test]
+fn a_tunnel_under_a_building_stays_below_its_foundations() {
+    let tunnel = [("highway", "primary"), ("tunnel", "yes"), ("layer", "-1")];
+    let building = [("building", "yes"), ("building:levels:underground", "2")];
+    let mut fixture = Fixture::default();
+    fixture
+        .way(
+            &tunnel,
+            &[(0.1, 0.5), (0.3, 0.5), (0.5, 0.5), (0.7, 0.5), (0.9, 0.5)],
+        )
+        .area(&building, (0.45, 0.47), (0.55, 0.53));
+    let ground = 50.0;
+    let settled = settled(&fixture, &terrain(|_, _| ground));
+    let [(StructureKind::Tunnel, stations)] = settled.as_slice() else {
+        panic!("one tunnel expected: {settled:?}");
+    };
+    let floor = elevation_near(stations, at(0.5, 0.5));
+    let roof = floor + tunnel_height_m(&tags(&tunnel)) + TUNNEL_ROOF_M;
+    let foundations = ground - foundation_depth_m(&tags(&building)).expect("a building has them");
+    assert!(
+        roof <= foundations + 0.01,
+        "tunnel roof at {roof:.2} m under foundations reaching down to {foundations:.2} m"
+    );
+}
+
+#[test]
+fn a_tunnel_rises_to_meet_the_ground_at_its_portals() {
+    let tunnel = [("highway", "primary"), ("tunnel", "yes"), ("layer", "-1")];
+    let mut fixture = Fixture::default();
+    fixture.way(&tunnel, &[(0.2, 0.5), (0.5, 0.5), (0.8, 0.5)]);
+    // A ramp rising to the east, 100 m over the tile.
+    let b = TILE.bounds();
+    let ramp = move |lon: f64, _: f64| 200.0 + 100.0 * (lon - b.west) / (b.east - b.west);
+    let settled = settled(&fixture, &terrain(ramp));
+    let [(StructureKind::Tunnel, stations)] = settled.as_slice() else {
+        panic!("one tunnel expected: {settled:?}");
+    };
+    for end in [stations.first(), stations.last()] {
+        let (_, floor, ground) = end.expect("a profile has stations");
+        assert!(
+            (floor - ground).abs() < 0.05,
+            "portal floor {floor:.2} m, ground {ground:.2} m"
+        );
+    }
+}
