@@ -252,10 +252,15 @@ fn prepare<'a>(
         &structures,
         selection.all_ways,
         &structure_features,
-        &mut feature_set,
         &projection,
         &settings.features,
         margin,
+    );
+    let cuts = add_ground_cuts(
+        &mut feature_set,
+        cuts,
+        &structure_features,
+        selection.all_ways,
     );
     timings.structures = started.elapsed();
     deadline.check(tile, "structures")?;
@@ -318,6 +323,38 @@ fn prepare<'a>(
         ground,
         normals,
     })
+}
+
+/// Adds the ground the tunnels reshape to the feature set: a row for each way's approach cuts,
+/// a surface for each cut and raised stretch; returns the levels the ground takes, each naming
+/// its surface.
+fn add_ground_cuts(
+    set: &mut FeatureSet,
+    cuts: elevation::structures::GroundCuts,
+    structure_rows: &HashMap<u32, u32>,
+    ways: &[crate::osm::Way],
+) -> Vec<elevation::settled::Level> {
+    let mut rows: HashMap<u32, u32> = HashMap::new();
+    for (way, class) in cuts.rows {
+        if let Some(&structure_row) = structure_rows.get(&way) {
+            let row =
+                features::structures::add_cut_row(set, structure_row, class, &ways[way as usize]);
+            rows.insert(way, row);
+        }
+    }
+    let mut levels = Vec::with_capacity(cuts.cuts.len());
+    for cut in cuts.cuts {
+        let mut level = cut.level;
+        if let Some(mut surface) = cut.surface {
+            if let Some(&row) = cut.row_of.and_then(|way| rows.get(&way)) {
+                surface.feature = row;
+            }
+            level.surface = set.surfaces.len() as u32;
+            set.surfaces.push(surface);
+        }
+        levels.push(level);
+    }
+    levels
 }
 
 /// Settles every bridge and tunnel that reaches the tile, each group whole; violated soft

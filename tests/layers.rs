@@ -1,7 +1,8 @@
 //! Imports run one way. Every `crate::…` and `super::…` path in `src/` (tests beside the code
 //! excluded) is read, and each top-level module may name only the modules below it, as
 //! ARCHITECTURE.md states; inside a folder the files import each other without a cycle. A
-//! back-edge fails here with the file that makes it.
+//! back-edge fails here with the file that makes it. Only the features (with the OSM model and
+//! its reader) read OSM tags: the layers above take typed features.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -319,6 +320,62 @@ fn a_module_outside_the_layers_is_named() {
     assert_eq!(
         back_edges(&imports(&files)),
         ["shortcuts has no place in the layers of tests/layers.rs"]
+    );
+}
+
+/// The modules that may read OSM tags: the model that holds them, the reader that fills it,
+/// the features that say what they mean, and the glb writer that copies a feature's tags into
+/// its metadata table.
+const TAG_READERS: &[&str] = &["osm", "source", "features", "output/glb.rs"];
+
+/// The places outside [`TAG_READERS`] that read tags (`.tags` or the `Tags` type).
+fn tag_reads(files: &[(String, String)]) -> Vec<String> {
+    files
+        .iter()
+        .filter(|(path, _)| {
+            let top = path.split('/').next().unwrap_or("").trim_end_matches(".rs");
+            !TAG_READERS.contains(&top) && !TAG_READERS.contains(&path.as_str())
+        })
+        .flat_map(|(path, text)| {
+            code_of(text)
+                .lines()
+                .enumerate()
+                .filter(|(_, line)| line.contains(".tags") || contains_word(line, "Tags"))
+                .map(|(n, line)| format!("{path}:{}: {}", n + 1, line.trim()))
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+fn contains_word(line: &str, word: &str) -> bool {
+    line.match_indices(word).any(|(at, _)| {
+        let before = line[..at].chars().next_back();
+        let after = line[at + word.len()..].chars().next();
+        let part = |c: Option<char>| c.is_some_and(|c| c.is_alphanumeric() || c == '_');
+        !part(before) && !part(after)
+    })
+}
+
+#[test]
+fn features_are_the_only_readers_of_osm_tags() {
+    let reads = tag_reads(&sources());
+    assert!(
+        reads.is_empty(),
+        "OSM tags read outside the features:\n{}",
+        reads.join("\n")
+    );
+}
+
+#[test]
+fn a_tag_read_in_elevation_is_found() {
+    let mut files = sources();
+    files.push((
+        "elevation/bridges.rs".into(),
+        "fn f(w: &Way) -> bool { w.tags.get(\"bridge\").is_some() }\n".into(),
+    ));
+    assert_eq!(
+        tag_reads(&files),
+        ["elevation/bridges.rs:1: fn f(w: &Way) -> bool { w.tags.get(\"bridge\").is_some() }"]
     );
 }
 

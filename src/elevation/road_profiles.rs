@@ -23,6 +23,7 @@ use super::lp::{self, Constraint, Problem, Relation, Smoothness};
 use super::structures::{ConstraintKind, ConstraintReport, GradeAsked};
 use crate::features::carriageways::road_line;
 use crate::features::road_network::{self, Cut, RoadLine, StretchLine};
+use crate::features::structures::Slope;
 use crate::features::{FeatureSettings, Projection};
 use crate::geometry::{bracket, distance_to_segment, distances_along, interpolate, Point, Rect};
 use crate::osm::{Joints, RoadGraph, Way};
@@ -460,7 +461,6 @@ fn add_stretch(
     stretch: &Stretch,
 ) -> Option<usize> {
     let profile = &mut draft.profile;
-    let tags = &draft.way.tags;
     let (s0, s1) = (stretch.stations.start, stretch.stations.end - 1);
     let length = profile.along[s1] - profile.along[s0];
     let along = &profile.along;
@@ -479,7 +479,7 @@ fn add_stretch(
     let candidate: Vec<f64> = (s0..=s1)
         .map(|i| level_at(i).unwrap_or(terrain[i]))
         .collect();
-    let asked = GradeAsked::of(tags, false);
+    let asked = GradeAsked::of(Slope::of(draft.way), false);
     let steepest = asked.steepest;
     let run_m = |i: usize| stretch.runs_m[i - s0];
     let too_steep = steepest.is_some_and(|max| {

@@ -21,8 +21,8 @@
 
 use crate::elevation::lp::{self, Constraint, Problem, Relation, Smoothness};
 use crate::elevation::settled::{Level, Rule, Stations};
-use crate::features::structures::{self as tags, Incline};
-use crate::features::{widened_surface, FeatureClass, FeatureSet, FeatureSettings, Projection};
+use crate::features::structures::{self as tags, Incline, Slope, WayTraits};
+use crate::features::{widened_surface, FeatureClass, FeatureSettings, Projection, Surface};
 use crate::geometry::{Point, Polygon, Rect};
 use crate::osm::structures::{Crossed, Group, StructureKind};
 use crate::osm::Way;
@@ -208,9 +208,9 @@ pub(crate) struct GradeAsked {
 }
 
 impl GradeAsked {
-    pub fn of(tags: &crate::osm::Tags, reversed: bool) -> GradeAsked {
-        let incline = tags::incline(tags);
-        let mut steepest = tags::max_incline(tags);
+    pub fn of(slope: Slope, reversed: bool) -> GradeAsked {
+        let incline = slope.incline;
+        let mut steepest = slope.max_incline;
         if let (Some(max), Some(Incline::Grade(g))) = (steepest, incline) {
             steepest = Some(max.max(g.abs()));
         }
@@ -409,7 +409,7 @@ pub fn settle(
                 .is_some_and(|w| w.reversed);
             let rise = vec![(first + i + 1, 1.0), (first + i, -1.0)];
             let at = profile.points[i];
-            let asked = GradeAsked::of(&way.tags, reversed);
+            let asked = GradeAsked::of(WayTraits::of(way, settings).slope, reversed);
             if let Some(max) = asked.steepest {
                 for (relation, bound) in [
                     (Relation::AtMost, max * run),
@@ -470,7 +470,7 @@ pub fn settle(
                         kind,
                         Relation::AtMost,
                         profile.terrain[i]
-                            - tags::tunnel_height_m(&way.tags)
+                            - WayTraits::of(way, settings).tunnel_height_m
                             - tags::TUNNEL_ROOF_M
                             - cover
                             - surface_margin_m,
@@ -520,16 +520,17 @@ pub fn settle(
         match (profiles[c].kind, crossing.other) {
             (StructureKind::Bridge, Crossed::Way(below)) => {
                 let below = &ways[below as usize];
-                let Some(clearance) = tags::clearance_over_m(&below.tags) else {
+                let below_traits = WayTraits::of(below, settings);
+                let Some(clearance) = below_traits.clearance_m else {
                     continue;
                 };
-                let below_layer = tags::layer(&below.tags).unwrap_or(0);
+                let below_layer = below_traits.layer;
                 if below_layer >= profiles[c].layer {
                     continue;
                 }
                 let ground =
                     ground_under(at, terrain, projection, settings, below) + surface_margin_m;
-                let bound = ground + clearance + tags::deck_thickness_m(&upper.tags);
+                let bound = ground + clearance + WayTraits::of(upper, settings).deck_thickness_m;
                 soft(
                     &mut problem,
                     (ConstraintKind::Clearance, upper.id, at),
@@ -544,17 +545,17 @@ pub fn settle(
                 let lower = &ways[lower_way as usize];
                 let (kind, gap) = match (upper_kind, profiles[chain as usize].kind) {
                     (StructureKind::Bridge, StructureKind::Bridge) => {
-                        let Some(clearance) = tags::clearance_over_m(&lower.tags) else {
+                        let Some(clearance) = WayTraits::of(lower, settings).clearance_m else {
                             continue;
                         };
                         (
                             ConstraintKind::Clearance,
-                            clearance + tags::deck_thickness_m(&upper.tags),
+                            clearance + WayTraits::of(upper, settings).deck_thickness_m,
                         )
                     }
                     (StructureKind::Tunnel, StructureKind::Tunnel) => (
                         ConstraintKind::TunnelOverTunnel,
-                        tags::tunnel_height_m(&lower.tags)
+                        WayTraits::of(lower, settings).tunnel_height_m
                             + tags::TUNNEL_ROOF_M
                             + ROCK_BETWEEN_TUNNELS_M,
                     ),
@@ -662,7 +663,7 @@ fn ground_under(
     below: &Way,
 ) -> f64 {
     let lat = below.positions.first().map_or(0.0, |p| p.lat);
-    let half = projection.metres(tags::width_m(&below.tags, settings) / 2.0, lat);
+    let half = projection.metres(WayTraits::of(below, settings).width_m / 2.0, lat);
     [
         [0.0, 0.0],
         [half, 0.0],
@@ -700,7 +701,7 @@ pub fn tube_heights(profile: &Profile, ways: &[Way]) -> Vec<f64> {
     profile
         .ways
         .iter()
-        .map(|&w| tags::tunnel_height_m(&ways[w as usize].tags) + tags::TUNNEL_ROOF_M)
+        .map(|&w| tags::tunnel_height_of(&ways[w as usize]) + tags::TUNNEL_ROOF_M)
         .collect()
 }
 
@@ -799,22 +800,43 @@ pub fn plan_tunnel(profile: &Profile, ways: &[Way], surface_margin_m: f64) -> Tu
 /// How far the ground raised over a tunnel reaches beyond the tube's sides, metres.
 const RAISED_BEYOND_M: f64 = 0.5;
 
-/// The ground tunnels reshape in a tile, added to `set` as surfaces: each approach cut drawn
-/// as its way's road or railway down at the floor, and the ground raised over the roof where
-/// the cover is short. Returns the levels the ground takes on them, with a floor over every
-/// tube that keeps other cuts from exposing it. `features` gives the
-/// feature row of each structure way drawn in the tile (by index into `ways`).
+/// The ground tunnels reshape in a tile.
+#[derive(Debug, Clone, Default)]
+pub struct GroundCuts {
+    /// The rows the approach cuts need, in order: one per structure way (by index into the
+    /// ways) with a cut, standing for that way's element, of the class the cut is drawn as.
+    pub rows: Vec<(u32, FeatureClass)>,
+    pub cuts: Vec<GroundCut>,
+}
+
+/// A stretch of ground a tunnel reshapes.
+#[derive(Debug, Clone)]
+pub struct GroundCut {
+    /// The elevation the ground takes there. Its `surface` is left for whoever adds
+    /// `surface` to the feature set.
+    pub level: Level,
+    /// What to draw there, if anything: an approach cut as its way's road or railway, or the
+    /// ground raised over the roof (a part of the terrain, row 0).
+    pub surface: Option<Surface>,
+    /// For an approach cut: the structure way (by index into the ways) whose row in
+    /// [`GroundCuts::rows`] it is drawn as.
+    pub row_of: Option<u32>,
+}
+
+/// The ground tunnels reshape in a tile: each approach cut drawn as its way's road or railway
+/// down at the floor, and the ground raised over the roof where the cover is short, with a
+/// floor over every tube that keeps other cuts from exposing it. `features` gives the feature
+/// row of each structure way drawn in the tile (by index into `ways`); only their stretches
+/// are returned. The feature set is left as it is: adding the cuts is the caller's part.
 pub fn ground_cuts(
     settled: &[Settled],
     ways: &[Way],
     features: &std::collections::HashMap<u32, u32>,
-    set: &mut FeatureSet,
     projection: &Projection,
     settings: &FeatureSettings,
     surface_margin_m: f64,
-) -> Vec<Level> {
-    let mut levels = Vec::new();
-    let mut ramp_rows: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+) -> GroundCuts {
+    let mut cuts = GroundCuts::default();
     for profile in settled.iter().flat_map(|s| &s.profiles) {
         if profile.kind != StructureKind::Tunnel {
             continue;
@@ -839,10 +861,11 @@ pub fn ground_cuts(
             } else {
                 stations[stations.len() - 1].way
             };
-            let Some(&feature) = features.get(&portal_way) else {
+            if !features.contains_key(&portal_way) {
                 continue;
-            };
+            }
             let way = &ways[portal_way as usize];
+            let traits = WayTraits::of(way, settings);
             let mut line: Vec<Point> = Vec::with_capacity(stations.len());
             let mut profile_uv: Vec<(f64, f64)> = Vec::with_capacity(stations.len());
             let mut along = 0.0;
@@ -868,57 +891,53 @@ pub fn ground_cuts(
                 profile_uv.push((along, elevation));
             }
             let lat = way.positions.first().map_or(0.0, |p| p.lat);
-            let mut width = tags::width_m(&way.tags, settings);
+            let mut width = traits.width_m;
             if raised {
                 width += 2.0 * RAISED_BEYOND_M;
             }
             let half = projection.metres(width / 2.0, lat);
             // The cut is drawn as the way's road or railway, a row of that class of its own;
             // raised ground belongs to the terrain.
-            let class = match (raised, way.tags.get("railway").is_some()) {
+            let class = match (raised, traits.railway) {
                 (true, _) => FeatureClass::Terrain,
                 (false, true) => FeatureClass::Railway,
                 (false, false) => FeatureClass::Road,
             };
-            let surface_feature = if raised {
-                0
-            } else {
-                *ramp_rows.entry(portal_way).or_insert_with(|| {
-                    let element = set.features[feature as usize].element;
-                    set.add_feature(element, class, &way.tags)
-                })
-            };
-            let Some(mut surface) = widened_surface(class, surface_feature, &line, half) else {
+            if !raised && cuts.rows.iter().all(|&(w, _)| w != portal_way) {
+                cuts.rows.push((portal_way, class));
+            }
+            let Some(mut surface) = widened_surface(class, 0, &line, half) else {
                 continue;
             };
             if class == FeatureClass::Road {
-                surface.paving = tags::paving_of(way);
+                surface.paving = traits.paving;
             }
             let rule = Rule::Along {
                 stations: Stations::new(&line),
                 profile: profile_uv,
             };
-            let level = Level::new(
-                set.surfaces.len() as u32,
-                surface.pieces.clone(),
-                surface.bounds,
-                rule,
-            );
-            match reshape {
-                Reshape::Cut => {
-                    levels.push(level);
-                    set.surfaces.push(surface);
-                }
-                Reshape::Raised => {
-                    levels.push(level.at_least());
-                    set.surfaces.push(surface);
-                }
+            let level = Level::new(u32::MAX, surface.pieces.clone(), surface.bounds, rule);
+            cuts.cuts.push(match reshape {
+                Reshape::Cut => GroundCut {
+                    level,
+                    surface: Some(surface),
+                    row_of: Some(portal_way),
+                },
+                Reshape::Raised => GroundCut {
+                    level: level.at_least(),
+                    surface: Some(surface),
+                    row_of: None,
+                },
                 // Not a surface of its own: it only keeps other ways' cuts off the roof.
-                Reshape::Guard => levels.push(level.detached()),
-            }
+                Reshape::Guard => GroundCut {
+                    level: level.detached(),
+                    surface: None,
+                    row_of: None,
+                },
+            });
         }
     }
-    levels
+    cuts
 }
 
 /// How a tunnel reshapes the ground along a stretch.

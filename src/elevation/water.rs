@@ -9,6 +9,7 @@
 //! level across each station, so its water only ever runs down.
 
 use super::settled::{samples_along, Level, Rule, Stations};
+use crate::features::water::WaterBody;
 use crate::features::{FeatureClass, FeatureSet, Surface};
 use crate::geometry::{Point, Polygon};
 use crate::terrain::Elevation;
@@ -23,13 +24,14 @@ pub fn levels(set: &FeatureSet, terrain: &dyn Elevation, metres_per_unit: f64) -
         .enumerate()
         .filter(|(_, s)| s.class == FeatureClass::Water)
         .filter_map(|(index, surface)| {
-            let tags = &set.features[surface.feature as usize].tags;
-            let rule = if tags.is_set("waterway") {
-                downstream(&surface.centreline, terrain, metres_per_unit)?
-            } else if tags.get("natural") == Some("sea") {
-                Rule::Level(0.0)
-            } else {
-                Rule::Level(shore_minimum(surface, terrain, metres_per_unit)?)
+            let rule = match surface.water {
+                Some(WaterBody::Flowing) => {
+                    downstream(&surface.centreline, terrain, metres_per_unit)?
+                }
+                Some(WaterBody::Sea) => Rule::Level(0.0),
+                Some(WaterBody::Still) | None => {
+                    Rule::Level(shore_minimum(surface, terrain, metres_per_unit)?)
+                }
             };
             Some(Level::new(
                 index as u32,

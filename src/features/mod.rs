@@ -134,6 +134,8 @@ pub struct Surface {
     pub piece_lines: Vec<(std::ops::Range<usize>, road_network::StretchLine)>,
     /// For a junction: the node it is drawn round.
     pub junction_at: Option<Point>,
+    /// For water: how it lies.
+    pub water: Option<water::WaterBody>,
 }
 
 impl Surface {
@@ -163,6 +165,7 @@ impl Surface {
             embedded: false,
             centreline: Vec::new(),
             piece_lines: Vec::new(),
+            water: None,
             junction_at: None,
         })
     }
@@ -493,9 +496,10 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, tile: TileId, projec
     }
     let tags = Tags::from_pairs([("natural", "sea")]);
     let feature = set.add_feature(None, FeatureClass::Water, &tags);
-    if let Some(surface) =
+    if let Some(mut surface) =
         Surface::from_parts(FeatureClass::Water, feature, sea.polygons, sea.coast)
     {
+        surface.water = Some(water::WaterBody::of(&tags));
         set.surfaces.push(surface);
     }
 }

@@ -211,6 +211,64 @@ pub fn paving_of(way: &Way) -> Option<Paving> {
         .then(|| Paving::from_tags(&way.tags))
 }
 
+/// Free height inside a tunnel along `way`, metres (see [`tunnel_height_m`]).
+pub fn tunnel_height_of(way: &Way) -> f64 {
+    tunnel_height_m(&way.tags)
+}
+
+/// What the tags say of a way's grade: the steepest it may be, and `incline=*`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Slope {
+    pub max_incline: Option<f64>,
+    pub incline: Option<Incline>,
+}
+
+impl Slope {
+    pub fn of(way: &Way) -> Slope {
+        let tags = &way.tags;
+        Slope {
+            max_incline: max_incline(tags),
+            incline: incline(tags),
+        }
+    }
+}
+
+/// What the tags say of a way that settling and drawing bridges and tunnels needs, read once:
+/// the way a structure is made of, or one it passes over.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WayTraits {
+    /// Carries rails (else a road or a path).
+    pub railway: bool,
+    /// `layer=*`, 0 when untagged.
+    pub layer: i32,
+    pub width_m: f64,
+    /// From a bridge's deck to its underside.
+    pub deck_thickness_m: f64,
+    /// Free height inside a tunnel.
+    pub tunnel_height_m: f64,
+    /// The free height a bridge must leave over this way, `None` for none.
+    pub clearance_m: Option<f64>,
+    pub slope: Slope,
+    /// The road's paving, `None` for a railway.
+    pub paving: Option<Paving>,
+}
+
+impl WayTraits {
+    pub fn of(way: &Way, settings: &FeatureSettings) -> WayTraits {
+        let tags = &way.tags;
+        WayTraits {
+            railway: tags.get("railway").is_some(),
+            layer: layer(tags).unwrap_or(0),
+            width_m: width_m(tags, settings),
+            deck_thickness_m: deck_thickness_m(tags),
+            tunnel_height_m: tunnel_height_m(tags),
+            clearance_m: clearance_over_m(tags),
+            slope: Slope::of(way),
+            paving: paving_of(way),
+        }
+    }
+}
+
 /// True for ways drawn below or away from the ground surface (bridges and tunnels are drawn as
 /// structures of their own).
 pub fn is_off_ground(tags: &Tags) -> bool {
@@ -269,6 +327,18 @@ pub fn rows(
         }
     }
     rows
+}
+
+/// Adds the row of a tunnel's approach cut: the element of the structure way's row
+/// `structure_row`, drawn as `class` with `way`'s tags.
+pub fn add_cut_row(
+    set: &mut FeatureSet,
+    structure_row: u32,
+    class: FeatureClass,
+    way: &Way,
+) -> u32 {
+    let element = set.features[structure_row as usize].element;
+    set.add_feature(element, class, &way.tags)
 }
 
 #[cfg(test)]

@@ -27,11 +27,36 @@ pub fn default_width_m(waterway: &str) -> Option<f64> {
     })
 }
 
+/// How the water of a surface lies, as its tags say.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WaterBody {
+    /// Tagged `waterway=*`: runs down along its centreline.
+    Flowing,
+    /// The sea, at sea level.
+    Sea,
+    /// Anything else: lies flat.
+    Still,
+}
+
+impl WaterBody {
+    pub fn of(tags: &Tags) -> WaterBody {
+        if tags.is_set("waterway") {
+            WaterBody::Flowing
+        } else if tags.get("natural") == Some("sea") {
+            WaterBody::Sea
+        } else {
+            WaterBody::Still
+        }
+    }
+}
+
 pub(super) fn add_area(set: &mut FeatureSet, area: &Area<'_>, projection: &Projection) {
     if !is_water_area(area.tags) || area.tags.is_set("tunnel") {
         return;
     }
-    set.add_area_surface(area, FeatureClass::Water, projection);
+    if let Some(surface) = set.add_area_surface(area, FeatureClass::Water, projection) {
+        surface.water = Some(WaterBody::of(area.tags));
+    }
 }
 
 pub(super) fn add_waterway(set: &mut FeatureSet, way: &Way, projection: &Projection) {
@@ -55,7 +80,10 @@ pub(super) fn add_waterway(set: &mut FeatureSet, way: &Way, projection: &Project
     };
     let feature = set.add_feature(Some(element), FeatureClass::Water, &way.tags);
     match widened_surface(FeatureClass::Water, feature, &line, half_width) {
-        Some(surface) => set.surfaces.push(surface),
+        Some(mut surface) => {
+            surface.water = Some(WaterBody::of(&way.tags));
+            set.surfaces.push(surface);
+        }
         None => {
             set.features.pop();
         }
@@ -136,6 +164,7 @@ pub(super) fn drop_waterways_in_water_areas(set: &mut FeatureSet) {
         {
             // The water still runs down the whole way.
             trimmed.centreline.clone_from(&surface.centreline);
+            trimmed.water = surface.water;
             kept.push(trimmed);
         }
     }

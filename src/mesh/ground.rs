@@ -532,6 +532,7 @@ mod tests {
             centreline: Vec::new(),
             piece_lines: Vec::new(),
             junction_at: None,
+            water: None,
         }
     }
 
@@ -760,6 +761,7 @@ mod tests {
             centreline: Vec::new(),
             piece_lines: Vec::new(),
             junction_at: None,
+            water: None,
                     }
                 })
                 .collect();

@@ -12,7 +12,7 @@ use std::collections::{BTreeMap, HashMap};
 
 use super::{MeshBuffers, Part};
 use crate::elevation::structures::{plan_tunnel, tube_heights, Profile, Settled, Station};
-use crate::features::structures as tags;
+use crate::features::structures::{WayTraits, TUNNEL_ROOF_M};
 use crate::features::{FeatureSettings, Projection};
 use crate::geometry::{clip_to_rect, offset_polyline, Point, Rect};
 use crate::osm::structures::StructureKind;
@@ -79,6 +79,11 @@ struct Run {
 }
 
 impl Drawer<'_, '_> {
+    /// What the tags say of a structure's way.
+    fn traits(&self, way: &Way) -> WayTraits {
+        WayTraits::of(way, self.context.settings)
+    }
+
     /// `metres` in global tile units where `way` is.
     fn in_units(&self, way: &Way, metres: f64) -> f64 {
         let lat = way.positions.first().map_or(0.0, |p| p.lat);
@@ -107,7 +112,7 @@ impl Drawer<'_, '_> {
                 continue;
             };
             let w = &self.context.ways[way as usize];
-            let half = self.in_units(w, tags::width_m(&w.tags, self.context.settings) / 2.0);
+            let half = self.in_units(w, self.traits(w).width_m / 2.0);
             let line: Vec<Point> = run.iter().map(|s| s.point).collect();
             if let Some((left, right)) = offset_polyline(&line, half) {
                 runs.push(Run {
@@ -148,8 +153,9 @@ impl Drawer<'_, '_> {
         let stations = profile.stretch(0.0, length);
         for run in self.runs(&stations) {
             let way = &self.context.ways[run.way as usize];
-            let thickness = tags::deck_thickness_m(&way.tags);
-            let deck = Part::BridgeDeck(tags::paving_of(way));
+            let traits = self.traits(way);
+            let thickness = traits.deck_thickness_m;
+            let deck = Part::BridgeDeck(traits.paving);
             let s = &run.stations;
             for k in 0..s.len() - 1 {
                 let (e0, e1) = (s[k].elevation, s[k + 1].elevation);
@@ -228,13 +234,13 @@ impl Drawer<'_, '_> {
                 continue;
             };
             let way = &self.context.ways[a.way as usize];
-            let bottom = a.elevation.min(b.elevation) - tags::deck_thickness_m(&way.tags);
+            let traits = self.traits(way);
+            let bottom = a.elevation.min(b.elevation) - traits.deck_thickness_m;
             if bottom - a.terrain.max(b.terrain) < PIER_MIN_HEIGHT_M {
                 continue;
             }
             let foot = a.terrain.min(b.terrain) - PIER_FOOTING_M - self.context.surface_margin_m;
-            let width = (tags::width_m(&way.tags, self.context.settings) * PIER_WIDTH_SHARE)
-                .min(PIER_MAX_WIDTH_M);
+            let width = (traits.width_m * PIER_WIDTH_SHARE).min(PIER_MAX_WIDTH_M);
             let half = self.in_units(way, width / 2.0);
             let Some((left, right)) = offset_polyline(&[a.point, b.point], half) else {
                 continue;
@@ -268,8 +274,9 @@ impl Drawer<'_, '_> {
             let stations = profile.stretch(from, to);
             for run in self.runs(&stations) {
                 let way = &self.context.ways[run.way as usize];
-                let height = tags::tunnel_height_m(&way.tags);
-                let floor = Part::TunnelFloor(tags::paving_of(way));
+                let traits = self.traits(way);
+                let height = traits.tunnel_height_m;
+                let floor = Part::TunnelFloor(traits.paving);
                 let s = &run.stations;
                 let at = |p: Point, e: f64| [p[0], p[1], e];
                 for k in 0..s.len() - 1 {
@@ -319,12 +326,12 @@ impl Drawer<'_, '_> {
                 continue;
             };
             let way = &self.context.ways[a.way as usize];
-            let half = self.in_units(way, tags::width_m(&way.tags, self.context.settings) / 2.0);
+            let half = self.in_units(way, self.traits(way).width_m / 2.0);
             let Some((left, right)) = offset_polyline(&[a.point, b.point], half) else {
                 continue;
             };
             let k = profile.along_m.partition_point(|&s| s <= at).min(n - 1);
-            let top = a.elevation + heights[k] - tags::TUNNEL_ROOF_M;
+            let top = a.elevation + heights[k] - TUNNEL_ROOF_M;
             let facing = [
                 outwards * (b.point[0] - a.point[0]),
                 outwards * (b.point[1] - a.point[1]),
