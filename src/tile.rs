@@ -40,20 +40,22 @@ pub struct TileId {
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 pub enum TileIdError {
     #[error("zoom {0} is above the maximum zoom {MAX_ZOOM}")]
-    ZoomTooHigh(u32),
+    ZoomTooHigh(u64),
     #[error("x = {x} is outside 0..{limit} at zoom {z}")]
     XOutOfRange { z: u8, x: u64, limit: u64 },
     #[error("y = {y} is outside 0..{limit} at zoom {z}")]
     YOutOfRange { z: u8, y: u64, limit: u64 },
     #[error("'{0}' is not a tile id of the form Z/X/Y")]
     Syntax(String),
+    #[error("{name} = '{text}' is not a non-negative integer")]
+    NotANumber { name: &'static str, text: String },
 }
 
 impl TileId {
     /// Checks that `x` and `y` lie inside `0..2^z`.
     pub fn new(z: u32, x: u64, y: u64) -> Result<Self, TileIdError> {
         if z > u32::from(MAX_ZOOM) {
-            return Err(TileIdError::ZoomTooHigh(z));
+            return Err(TileIdError::ZoomTooHigh(u64::from(z)));
         }
         let z = z as u8;
         let limit = 1u64 << z;
@@ -111,6 +113,22 @@ impl TileId {
     }
 }
 
+impl TileId {
+    /// Reads a tile from the three numbers of a path (`z`, `x`, `y` as written), checked as
+    /// [`TileId::new`] checks them: the one parser of tile paths, for URLs and the command line.
+    pub fn from_parts(z: &str, x: &str, y: &str) -> Result<TileId, TileIdError> {
+        let number = |name: &'static str, text: &str| {
+            text.parse::<u64>().map_err(|_| TileIdError::NotANumber {
+                name,
+                text: text.to_string(),
+            })
+        };
+        let zoom = number("z", z)?;
+        let zoom = u32::try_from(zoom).map_err(|_| TileIdError::ZoomTooHigh(zoom))?;
+        TileId::new(zoom, number("x", x)?, number("y", y)?)
+    }
+}
+
 impl fmt::Display for TileId {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}/{}/{}", self.z, self.x, self.y)
@@ -126,11 +144,7 @@ impl FromStr for TileId {
         let [z, x, y] = parts.as_slice() else {
             return Err(TileIdError::Syntax(s.to_string()));
         };
-        let syntax = || TileIdError::Syntax(s.to_string());
-        let z: u32 = z.parse().map_err(|_| syntax())?;
-        let x: u64 = x.parse().map_err(|_| syntax())?;
-        let y: u64 = y.parse().map_err(|_| syntax())?;
-        TileId::new(z, x, y)
+        TileId::from_parts(z, x, y)
     }
 }
 
@@ -335,6 +349,41 @@ mod tests {
     use super::*;
 
     #[test]
+    fn tile_paths_are_read_from_their_three_numbers() {
+        assert_eq!(
+            TileId::from_parts("14", "8529", "5973"),
+            Ok(TileId {
+                z: 14,
+                x: 8529,
+                y: 5973
+            })
+        );
+        assert_eq!(
+            "14/8529/5973".parse(),
+            TileId::from_parts("14", "8529", "5973")
+        );
+        assert_eq!(
+            TileId::from_parts("14", "abc", "1"),
+            Err(TileIdError::NotANumber {
+                name: "x",
+                text: "abc".into()
+            })
+        );
+        assert!(matches!(
+            TileId::from_parts("-1", "0", "0"),
+            Err(TileIdError::NotANumber { name: "z", .. })
+        ));
+        assert_eq!(
+            TileId::from_parts("99999999999", "0", "0"),
+            Err(TileIdError::ZoomTooHigh(99_999_999_999))
+        );
+        assert!(matches!(
+            TileId::from_parts("14", "16384", "0"),
+            Err(TileIdError::XOutOfRange { .. })
+        ));
+    }
+
+    #[test]
     fn a_box_covers_the_tiles_it_touches_and_no_more() {
         let monaco: LonLatBounds = "7.40,43.72,7.44,43.75".parse().unwrap();
         let range = TileRange::covering(14, &monaco);
@@ -431,6 +480,10 @@ mod tests {
         );
         assert!(matches!(
             "14/abc/1".parse::<TileId>(),
+            Err(TileIdError::NotANumber { name: "x", .. })
+        ));
+        assert!(matches!(
+            "14/1".parse::<TileId>(),
             Err(TileIdError::Syntax(_))
         ));
         assert!(matches!(

@@ -56,15 +56,7 @@ fn parse(z: &str, x: &str, file: &str) -> Result<TileId, ApiError> {
     let y = file
         .strip_suffix(".geojson")
         .ok_or_else(|| ApiError::bad_request(format!("'{file}' is not Y.geojson")))?;
-    let number = |name: &str, text: &str| {
-        text.parse::<u64>().map_err(|_| {
-            ApiError::bad_request(format!("{name} = '{text}' is not a non-negative integer"))
-        })
-    };
-    let z = u32::try_from(number("z", z)?)
-        .map_err(|_| ApiError::bad_request(format!("zoom {z} is out of range")))?;
-    TileId::new(z, number("x", x)?, number("y", y)?)
-        .map_err(|e| ApiError::bad_request(e.to_string()))
+    TileId::from_parts(z, x, y).map_err(|e| ApiError::bad_request(e.to_string()))
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@ use crate::format::{Format, TileKey};
 use crate::format::{Frame, Variant};
 use crate::provider::inputs::{Inputs, MissingSrtm};
 use crate::render::Deadline;
-use crate::tile::{TileId, TileIdError};
+use crate::tile::TileId;
 
 /// Whether the query asks for compressed glb: `compress=meshopt` (`EXT_meshopt_compression`
 /// over `KHR_mesh_quantization`) or `compress=none` (the default). Other parameters are left
@@ -74,18 +74,7 @@ pub fn parse_tile_path(
             }))
         }
     };
-    let number = |name: &str, text: &str| {
-        text.parse::<u64>().map_err(|_| {
-            ApiError::bad_request(format!("{name} = '{text}' is not a non-negative integer"))
-        })
-    };
-    let z = number("z", z)?;
-    let x = number("x", x)?;
-    let y = number("y", y)?;
-    let z =
-        u32::try_from(z).map_err(|_| ApiError::bad_request(format!("zoom {z} is out of range")))?;
-    let tile =
-        TileId::new(z, x, y).map_err(|e: TileIdError| ApiError::bad_request(e.to_string()))?;
+    let tile = TileId::from_parts(z, x, y).map_err(|e| ApiError::bad_request(e.to_string()))?;
     Ok((tile, format))
 }
 
