@@ -1,11 +1,15 @@
 //! terrastitch turns OpenStreetMap extracts and SRTM elevation tiles into seamless 3D map tiles.
 //!
-//! The data flows through the modules in this order: [`source`] (extracts and rasters) →
-//! [`osm`] (the OSM model and its spatial index) → [`features`] (roads, water, buildings…) →
-//! [`terrain`] (elevation between samples) → [`mesh`] (the ground triangulation with features
-//! stitched in, extruded buildings) → [`output`] (glb) → [`cache`] → [`server`] and
-//! [`offline`] (`seed`, `export`). [`render::render`] is the pure core from one tile's inputs
-//! to its bytes; [`pipeline::make`] feeds it from the opened sources.
+//! The layers, lowest first (each imports only those below it; ARCHITECTURE.md draws them):
+//! [`tile`], [`geometry`], [`geodesy`], [`mod@format`], [`panics`] (value types and small
+//! mathematics) → [`osm`] (the OSM model and its index) → [`features`] (the only reader of tags:
+//! roads, water, buildings, bridges and tunnels as typed values) → [`terrain`] (SRTM rasters and
+//! the approximations between samples) → [`elevation`] (the LP that settles structures and
+//! roads) → [`mesh`] (the ground with features stitched in, buildings, structures) → [`output`]
+//! (glb, quantized-mesh, 3D Tiles) → [`render`] (the pure core of one tile). Beside the core:
+//! [`source`] reads files and downloads, [`cache`] stores keys and bytes, [`config`] is the
+//! configuration, [`provider`] opens the inputs and makes a tile from them
+//! ([`provider::pipeline::make`]), and [`server`] and [`offline`] (`seed`, `export`) use it.
 
 pub mod cache;
 pub mod config;

@@ -10,7 +10,7 @@
 //!    insertion to the same error bound. The corners are always vertices. Both tiles that share
 //!    a side compute exactly the same vertices, so neighbours meet without a crack.
 //! 3. Feature outlines, clipped to the tile in global tile units, go in as constraint edges,
-//!    split where they cross by [`super::constraints`] (never by spade itself).
+//!    split where they cross by [`crate::geometry::constrained`] (never by spade itself).
 //! 4. Greedy insertion ([`super::tin`]) adds interior samples until every sample is within the
 //!    bound; it never inserts on the tile's edges.
 //! 5. Each triangle belongs to exactly one surface, decided at its centroid by priority

@@ -4,7 +4,7 @@
 //!
 //! Bounding volumes need the ground's height under each tile: read from the SRTM files on the
 //! blocking pool ([`Inputs::ground_range`]: a content tile's samples, at most
-//! [`HEIGHT_SAMPLES`] of them; a parent's whole files, whose ranges are kept once read). A
+//! `HEIGHT_SAMPLES` of them; a parent's whole files, whose ranges are kept once read). A
 //! server of an MBTiles archive serves the tileset when the archive holds east-north-up glb,
 //! with the archive's compression and without heights.
 
