@@ -19,9 +19,12 @@
 //! A group is solved from the whole group alone, so every tile that shows a part of a bridge
 //! gets the same elevations for it.
 
-use crate::elevation::lp::{self, Constraint, Problem, Relation, Smoothness};
+pub use crate::elevation::constraints::{ConstraintKind, ConstraintReport};
+
+use crate::elevation::constraints::{ConstraintBuilder, GradeAsked};
+use crate::elevation::lp::{Constraint, Relation};
 use crate::elevation::settled::{Level, Rule, Stations};
-use crate::features::structures::{self as tags, Incline, Slope, WayTraits};
+use crate::features::structures::{self as tags, WayTraits};
 use crate::features::{widened_surface, FeatureClass, FeatureSettings, Projection, Surface};
 use crate::geometry::{Point, Polygon, Rect};
 use crate::osm::structures::{Crossed, Group, StructureKind};
@@ -43,60 +46,11 @@ pub const TUNNEL_COVER_M: f64 = 0.5;
 const CHORD_WEIGHT: f64 = 0.01;
 /// Weight of a change of slope (rise per run) at a station.
 const SMOOTHNESS_WEIGHT: f64 = 100.0;
-/// Penalties per metre of violation: clearances and tagged grades are worth the most, the
-/// class's steepest grade less, the ground over a tunnel (which the portals' approaches must
-/// break) and under a bridge least, per metre of chain.
+/// Penalties per metre of violation: clearances are worth the most, grades (charged as
+/// [`ConstraintBuilder`] charges them) less, the ground over a tunnel (which the portals'
+/// approaches must break) and under a bridge least, per metre of chain.
 const CLEARANCE_PENALTY: f64 = 10_000.0;
-const TAGGED_INCLINE_PENALTY: f64 = 1_000.0;
-const MAX_INCLINE_PENALTY: f64 = 1_000.0;
 const GROUND_PENALTY_PER_M: f64 = 10.0;
-
-/// What a soft constraint stood for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum ConstraintKind {
-    /// A bridge's underside over what it crosses.
-    Clearance,
-    /// A bridge's deck above the ground.
-    AboveGround,
-    /// A tunnel's roof under the ground.
-    Cover,
-    /// A tunnel's roof under the foundations of a building or the roots of a tree over it.
-    Foundations,
-    /// A tunnel above another.
-    TunnelOverTunnel,
-    /// The steepest grade of the way's class.
-    MaxIncline,
-    /// `incline=*`.
-    TaggedIncline,
-}
-
-impl ConstraintKind {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            ConstraintKind::Clearance => "clearance",
-            ConstraintKind::AboveGround => "above_ground",
-            ConstraintKind::Cover => "cover",
-            ConstraintKind::Foundations => "foundations",
-            ConstraintKind::TunnelOverTunnel => "tunnel_over_tunnel",
-            ConstraintKind::MaxIncline => "max_incline",
-            ConstraintKind::TaggedIncline => "tagged_incline",
-        }
-    }
-}
-
-/// One soft constraint of a settled group: what it was, on which way, where, and how far it
-/// is from holding (0 when it holds).
-#[derive(Debug, Clone, PartialEq)]
-pub struct ConstraintReport {
-    pub kind: ConstraintKind,
-    /// The OSM way the constraint belongs to.
-    pub way: i64,
-    /// Where (global tile units).
-    pub at: Point,
-    /// What was asked, as written in reports (`>= 12.30`).
-    pub bound: f64,
-    pub violation: f64,
-}
 
 /// A chain settled: its stations and their elevations.
 #[derive(Debug, Clone, PartialEq)]
@@ -199,36 +153,6 @@ impl Settled {
     }
 }
 
-/// What a way's tags ask of its grade, along a run in its direction or, `reversed`, against
-/// it: the steepest grade either way (the class's, or a steeper tagged one) and the tagged
-/// grade as a relation on the rise per metre.
-pub(crate) struct GradeAsked {
-    pub steepest: Option<f64>,
-    pub tagged: Option<(Relation, f64)>,
-}
-
-impl GradeAsked {
-    pub fn of(slope: Slope, reversed: bool) -> GradeAsked {
-        let incline = slope.incline;
-        let mut steepest = slope.max_incline;
-        if let (Some(max), Some(Incline::Grade(g))) = (steepest, incline) {
-            steepest = Some(max.max(g.abs()));
-        }
-        let (up, down) = if reversed {
-            (Relation::AtMost, Relation::AtLeast)
-        } else {
-            (Relation::AtLeast, Relation::AtMost)
-        };
-        let tagged = match incline {
-            Some(Incline::Grade(g)) => Some((Relation::Equal, if reversed { -g } else { g })),
-            Some(Incline::Up) => Some((up, 0.0)),
-            Some(Incline::Down) => Some((down, 0.0)),
-            None => None,
-        };
-        GradeAsked { steepest, tagged }
-    }
-}
-
 /// How elevation is read along a chain: the variable at each station.
 struct Row {
     first: usize,
@@ -247,8 +171,7 @@ pub fn settle(
     settings: &FeatureSettings,
     surface_margin_m: f64,
 ) -> Settled {
-    let mut problem = Problem::default();
-    let mut labels: Vec<ConstraintReport> = Vec::new();
+    let mut builder = ConstraintBuilder::default();
     let mut profiles: Vec<Profile> = Vec::new();
     let mut rows: Vec<Row> = Vec::new();
 
@@ -302,7 +225,7 @@ pub fn settle(
             .map(|&p| terrain.elevation_uv(p))
             .collect();
         rows.push(Row {
-            first: problem.targets.len(),
+            first: builder.problem.targets.len(),
             node_station,
         });
         // Variables, with targets on the line between the ends; weights by the length each
@@ -322,7 +245,7 @@ pub fn settle(
             } else {
                 0.0
             };
-            problem.variable(
+            builder.problem.variable(
                 h0 + share * (h1 - h0),
                 CHORD_WEIGHT * (before + after) / 2.0,
             );
@@ -336,7 +259,7 @@ pub fn settle(
         for (k, &node) in chain.nodes.iter().enumerate() {
             let variable = rows[c].first + rows[c].node_station[k];
             match at_node.get(&node) {
-                Some(&other) => problem.constraints.push(Constraint {
+                Some(&other) => builder.problem.constraints.push(Constraint {
                     terms: vec![(variable, 1.0), (other, -1.0)],
                     kind: Relation::Equal,
                     rhs: 0.0,
@@ -362,34 +285,12 @@ pub fn settle(
             if !shared(chain.nodes[k]) {
                 let station = rows[c].node_station[k];
                 profiles[c].grounded[end] = true;
-                problem.fix(rows[c].first + station, profiles[c].terrain[station]);
+                builder
+                    .problem
+                    .fix(rows[c].first + station, profiles[c].terrain[station]);
             }
         }
     }
-
-    // A soft constraint `terms (relation) rhs`, reported as what it stands for, on which way
-    // and where.
-    let mut soft = |problem: &mut Problem,
-                    (kind, way, at): (ConstraintKind, i64, Point),
-                    terms: Vec<(usize, f64)>,
-                    relation: Relation,
-                    rhs: f64,
-                    penalty: f64| {
-        problem.constraints.push(Constraint {
-            terms,
-            kind: relation,
-            rhs,
-            penalty: Some(penalty),
-            label: labels.len() as u32,
-        });
-        labels.push(ConstraintReport {
-            kind,
-            way,
-            at,
-            bound: rhs,
-            violation: 0.0,
-        });
-    };
 
     // Along each chain: grades, smoothness, the ground.
     let foundations = Foundations::new(group, projection);
@@ -399,42 +300,18 @@ pub fn settle(
         for i in 0..n.saturating_sub(1) {
             let way = &ways[profile.ways[i] as usize];
             let run = profile.along_m[i + 1] - profile.along_m[i];
-            if run <= 0.0 {
-                continue;
-            }
             let reversed = group.chains[c]
                 .ways
                 .iter()
                 .find(|w| w.way == profile.ways[i])
                 .is_some_and(|w| w.reversed);
-            let rise = vec![(first + i + 1, 1.0), (first + i, -1.0)];
-            let at = profile.points[i];
             let asked = GradeAsked::of(WayTraits::of(way, settings).slope, reversed);
-            if let Some(max) = asked.steepest {
-                for (relation, bound) in [
-                    (Relation::AtMost, max * run),
-                    (Relation::AtLeast, -max * run),
-                ] {
-                    soft(
-                        &mut problem,
-                        (ConstraintKind::MaxIncline, way.id, at),
-                        rise.clone(),
-                        relation,
-                        bound,
-                        MAX_INCLINE_PENALTY,
-                    );
-                }
-            }
-            if let Some((relation, per_metre)) = asked.tagged {
-                soft(
-                    &mut problem,
-                    (ConstraintKind::TaggedIncline, way.id, at),
-                    rise,
-                    relation,
-                    per_metre * run,
-                    TAGGED_INCLINE_PENALTY,
-                );
-            }
+            builder.grade(
+                &asked,
+                (way.id, profile.points[i]),
+                [first + i, first + i + 1],
+                run,
+            );
         }
         for i in 1..n.saturating_sub(1) {
             let l1 = profile.along_m[i] - profile.along_m[i - 1];
@@ -442,14 +319,11 @@ pub fn settle(
             if l1 <= 0.0 || l2 <= 0.0 {
                 continue;
             }
-            problem.smoothness.push(Smoothness {
-                terms: vec![
-                    (first + i - 1, 1.0 / l1),
-                    (first + i, -1.0 / l1 - 1.0 / l2),
-                    (first + i + 1, 1.0 / l2),
-                ],
-                weight: SMOOTHNESS_WEIGHT,
-            });
+            builder.smoothness(
+                [first + i - 1, first + i, first + i + 1],
+                [l1, l2],
+                SMOOTHNESS_WEIGHT,
+            );
             let way = &ways[profile.ways[i] as usize];
             let penalty = GROUND_PENALTY_PER_M * (l1 + l2) / 2.0;
             let (kind, relation, bound) = match profile.kind {
@@ -477,8 +351,7 @@ pub fn settle(
                     )
                 }
             };
-            soft(
-                &mut problem,
+            builder.soft(
                 (kind, way.id, profile.points[i]),
                 vec![(first + i, 1.0)],
                 relation,
@@ -531,8 +404,7 @@ pub fn settle(
                 let ground =
                     ground_under(at, terrain, projection, settings, below) + surface_margin_m;
                 let bound = ground + clearance + WayTraits::of(upper, settings).deck_thickness_m;
-                soft(
-                    &mut problem,
+                builder.soft(
                     (ConstraintKind::Clearance, upper.id, at),
                     terms,
                     Relation::AtLeast,
@@ -563,8 +435,7 @@ pub fn settle(
                 };
                 let mut all = terms;
                 all.extend(lower_terms.into_iter().map(|(v, k)| (v, -k)));
-                soft(
-                    &mut problem,
+                builder.soft(
                     (kind, upper.id, at),
                     all,
                     Relation::AtLeast,
@@ -579,22 +450,17 @@ pub fn settle(
     for (c, along) in crossings_m {
         profiles[c].crossings_m.push(along);
     }
-    let outcome = lp::solve(&problem);
-    for violation in &outcome.violations {
-        if let Some(report) = labels.get_mut(violation.label as usize) {
-            report.violation = violation.amount;
-        }
-    }
+    let outcome = builder.solve();
     for (c, profile) in profiles.iter_mut().enumerate() {
         let first = rows[c].first;
         profile.elevations = outcome.values[first..first + profile.points.len()].to_vec();
     }
     Settled {
         profiles,
-        variables: problem.targets.len(),
-        constraints: problem.constraints.len(),
+        variables: builder.problem.targets.len(),
+        constraints: builder.problem.constraints.len(),
         components: outcome.components,
-        reports: labels,
+        reports: builder.reports,
         failed: outcome.failed,
     }
 }
