@@ -19,8 +19,8 @@
 
 use std::collections::HashMap;
 
-use super::lp::{self, Constraint, Problem, Relation, Smoothness};
-use super::structures::{ConstraintKind, ConstraintReport, GradeAsked};
+use super::constraints::{ConstraintBuilder, ConstraintKind, ConstraintReport, GradeAsked};
+use super::lp::Relation;
 use crate::features::carriageways::road_line;
 use crate::features::road_network::{self, Cut, RoadLine, StretchLine};
 use crate::features::structures::Slope;
@@ -35,10 +35,8 @@ pub const STATION_SPACING_M: f64 = 10.0;
 const TERRAIN_WEIGHT: f64 = 1.0;
 /// Weight of a change of slope (rise per run) at a station.
 const SMOOTHNESS_WEIGHT: f64 = 20.0;
-/// Penalties per metre of violation.
-const MAX_INCLINE_PENALTY: f64 = 1_000.0;
-const TAGGED_INCLINE_PENALTY: f64 = 1_000.0;
-/// Per metre a road under a bridge rises above the ground the bridge cleared.
+/// Penalty per metre a road under a bridge rises above the ground the bridge cleared (grades
+/// are charged as [`ConstraintBuilder`] charges them).
 const CLEARANCE_PENALTY: f64 = 10_000.0;
 /// The level part at a junction reaches this far beyond the network's cut, metres: the cut is
 /// measured along the smoothed line, the level part along the way's own.
@@ -188,8 +186,7 @@ pub fn settle(
     projection: &Projection,
     settings: &FeatureSettings,
 ) -> RoadProfiles {
-    let mut problem = Problem::default();
-    let mut labels: Vec<ConstraintReport> = Vec::new();
+    let mut builder = ConstraintBuilder::default();
     let mut out = RoadProfiles::default();
     // Per LP stretch: the way, and the range of its variables and stations.
     let mut solved: Vec<(i64, usize, std::ops::Range<usize>)> = Vec::new();
@@ -230,7 +227,7 @@ pub fn settle(
                 ],
                 ..stretch
             };
-            if let Some(first) = add_stretch(&mut problem, &mut labels, &mut draft, &stretch) {
+            if let Some(first) = add_stretch(&mut builder, &mut draft, &stretch) {
                 out.settled += 1;
                 solved.push((draft.way.id, first, stretch.stations.clone()));
             }
@@ -238,13 +235,12 @@ pub fn settle(
         drafts.push(draft);
     }
 
-    let outcome = lp::solve(&problem);
-    for violation in &outcome.violations {
-        if let Some(report) = labels.get_mut(violation.label as usize) {
-            report.violation = violation.amount;
-        }
-    }
-    out.violations = labels.into_iter().filter(|r| r.violation > 0.0).collect();
+    let outcome = builder.solve();
+    out.violations = builder
+        .reports
+        .into_iter()
+        .filter(|r| r.violation > 0.0)
+        .collect();
     let mut by_way: HashMap<i64, Draft> = drafts.into_iter().map(|d| (d.way.id, d)).collect();
     for (way, first, stations) in solved {
         if let Some(draft) = by_way.get_mut(&way) {
@@ -256,8 +252,8 @@ pub fn settle(
         .into_iter()
         .map(|(id, draft)| (id, draft.profile))
         .collect();
-    out.variables = problem.targets.len();
-    out.constraints = problem.constraints.len();
+    out.variables = builder.problem.targets.len();
+    out.constraints = builder.problem.constraints.len();
     out.components = outcome.components;
     out.failed = outcome.failed;
     out
@@ -455,8 +451,7 @@ fn under_bridges(
 /// Settles a stretch: at the terrain with its level parts where that keeps the grade (no LP),
 /// else as variables of the problem; returns the first variable in that case.
 fn add_stretch(
-    problem: &mut Problem,
-    labels: &mut Vec<ConstraintReport>,
+    builder: &mut ConstraintBuilder,
     draft: &mut Draft,
     stretch: &Stretch,
 ) -> Option<usize> {
@@ -480,9 +475,8 @@ fn add_stretch(
         .map(|i| level_at(i).unwrap_or(terrain[i]))
         .collect();
     let asked = GradeAsked::of(Slope::of(draft.way), false);
-    let steepest = asked.steepest;
     let run_m = |i: usize| stretch.runs_m[i - s0];
-    let too_steep = steepest.is_some_and(|max| {
+    let too_steep = asked.steepest.is_some_and(|max| {
         (s0..s1).any(|i| {
             (candidate[i + 1 - s0] - candidate[i - s0]).abs() > max * run_m(i) + GRADE_TOLERANCE
         })
@@ -496,72 +490,30 @@ fn add_stretch(
         return None;
     }
 
-    let first = problem.targets.len();
+    let first = builder.problem.targets.len();
     for (i, &target) in terrain.iter().enumerate().take(s1 + 1).skip(s0) {
         let before = if i > s0 { run_m(i - 1) } else { 0.0 };
         let after = if i < s1 { run_m(i) } else { 0.0 };
-        let variable = problem.variable(target, TERRAIN_WEIGHT * (before + after) / 2.0);
+        let variable = builder
+            .problem
+            .variable(target, TERRAIN_WEIGHT * (before + after) / 2.0);
         if let Some(level) = level_at(i) {
-            problem.fix(variable, level);
+            builder.problem.fix(variable, level);
         }
     }
     let var = |i: usize| first + i - s0;
-    let mut soft = |problem: &mut Problem, kind, at, terms, relation, rhs, penalty| {
-        problem.constraints.push(Constraint {
-            terms,
-            kind: relation,
-            rhs,
-            penalty: Some(penalty),
-            label: labels.len() as u32,
-        });
-        labels.push(ConstraintReport {
-            kind,
-            way: draft.way.id,
-            at,
-            bound: rhs,
-            violation: 0.0,
-        });
-    };
+    let way = draft.way.id;
     for i in s0..s1 {
-        let run = run_m(i);
-        if run <= 0.0 {
-            continue;
-        }
-        let rise = vec![(var(i + 1), 1.0), (var(i), -1.0)];
-        let at = profile.points[i];
-        if let Some(max) = steepest {
-            for (relation, bound) in [
-                (Relation::AtMost, max * run),
-                (Relation::AtLeast, -max * run),
-            ] {
-                soft(
-                    problem,
-                    ConstraintKind::MaxIncline,
-                    at,
-                    rise.clone(),
-                    relation,
-                    bound,
-                    MAX_INCLINE_PENALTY,
-                );
-            }
-        }
-        if let Some((relation, per_metre)) = asked.tagged {
-            soft(
-                problem,
-                ConstraintKind::TaggedIncline,
-                at,
-                rise,
-                relation,
-                per_metre * run,
-                TAGGED_INCLINE_PENALTY,
-            );
-        }
+        builder.grade(
+            &asked,
+            (way, profile.points[i]),
+            [var(i), var(i + 1)],
+            run_m(i),
+        );
     }
     for u in &stretch.under {
-        soft(
-            problem,
-            ConstraintKind::Clearance,
-            u.at,
+        builder.soft(
+            (ConstraintKind::Clearance, way, u.at),
             vec![(var(u.station), 1.0 - u.t), (var(u.station + 1), u.t)],
             Relation::AtMost,
             u.bound,
@@ -569,18 +521,11 @@ fn add_stretch(
         );
     }
     for i in s0 + 1..s1 {
-        let (l1, l2) = (run_m(i - 1), run_m(i));
-        if l1 <= 0.0 || l2 <= 0.0 {
-            continue;
-        }
-        problem.smoothness.push(Smoothness {
-            terms: vec![
-                (var(i - 1), 1.0 / l1),
-                (var(i), -1.0 / l1 - 1.0 / l2),
-                (var(i + 1), 1.0 / l2),
-            ],
-            weight: SMOOTHNESS_WEIGHT,
-        });
+        builder.smoothness(
+            [var(i - 1), var(i), var(i + 1)],
+            [run_m(i - 1), run_m(i)],
+            SMOOTHNESS_WEIGHT,
+        );
     }
     Some(first)
 }

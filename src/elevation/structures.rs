@@ -19,12 +19,15 @@
 //! A group is solved from the whole group alone, so every tile that shows a part of a bridge
 //! gets the same elevations for it.
 
-use crate::elevation::lp::{self, Constraint, Problem, Relation, Smoothness};
+pub use crate::elevation::constraints::{ConstraintKind, ConstraintReport};
+
+use crate::elevation::constraints::{ConstraintBuilder, GradeAsked};
+use crate::elevation::lp::{Constraint, Relation};
 use crate::elevation::settled::{Level, Rule, Stations};
-use crate::features::structures::{self as tags, Incline, Slope, WayTraits};
+use crate::features::structures::{self as tags, WayTraits};
 use crate::features::{widened_surface, FeatureClass, FeatureSettings, Projection, Surface};
 use crate::geometry::{Point, Polygon, Rect};
-use crate::osm::structures::{Crossed, Group, StructureKind};
+use crate::osm::structures::{Chain, Crossed, Crossing, Group, StructureKind};
 use crate::osm::Way;
 use crate::terrain::Elevation;
 
@@ -43,60 +46,11 @@ pub const TUNNEL_COVER_M: f64 = 0.5;
 const CHORD_WEIGHT: f64 = 0.01;
 /// Weight of a change of slope (rise per run) at a station.
 const SMOOTHNESS_WEIGHT: f64 = 100.0;
-/// Penalties per metre of violation: clearances and tagged grades are worth the most, the
-/// class's steepest grade less, the ground over a tunnel (which the portals' approaches must
-/// break) and under a bridge least, per metre of chain.
+/// Penalties per metre of violation: clearances are worth the most, grades (charged as
+/// [`ConstraintBuilder`] charges them) less, the ground over a tunnel (which the portals'
+/// approaches must break) and under a bridge least, per metre of chain.
 const CLEARANCE_PENALTY: f64 = 10_000.0;
-const TAGGED_INCLINE_PENALTY: f64 = 1_000.0;
-const MAX_INCLINE_PENALTY: f64 = 1_000.0;
 const GROUND_PENALTY_PER_M: f64 = 10.0;
-
-/// What a soft constraint stood for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum ConstraintKind {
-    /// A bridge's underside over what it crosses.
-    Clearance,
-    /// A bridge's deck above the ground.
-    AboveGround,
-    /// A tunnel's roof under the ground.
-    Cover,
-    /// A tunnel's roof under the foundations of a building or the roots of a tree over it.
-    Foundations,
-    /// A tunnel above another.
-    TunnelOverTunnel,
-    /// The steepest grade of the way's class.
-    MaxIncline,
-    /// `incline=*`.
-    TaggedIncline,
-}
-
-impl ConstraintKind {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            ConstraintKind::Clearance => "clearance",
-            ConstraintKind::AboveGround => "above_ground",
-            ConstraintKind::Cover => "cover",
-            ConstraintKind::Foundations => "foundations",
-            ConstraintKind::TunnelOverTunnel => "tunnel_over_tunnel",
-            ConstraintKind::MaxIncline => "max_incline",
-            ConstraintKind::TaggedIncline => "tagged_incline",
-        }
-    }
-}
-
-/// One soft constraint of a settled group: what it was, on which way, where, and how far it
-/// is from holding (0 when it holds).
-#[derive(Debug, Clone, PartialEq)]
-pub struct ConstraintReport {
-    pub kind: ConstraintKind,
-    /// The OSM way the constraint belongs to.
-    pub way: i64,
-    /// Where (global tile units).
-    pub at: Point,
-    /// What was asked, as written in reports (`>= 12.30`).
-    pub bound: f64,
-    pub violation: f64,
-}
 
 /// A chain settled: its stations and their elevations.
 #[derive(Debug, Clone, PartialEq)]
@@ -199,36 +153,6 @@ impl Settled {
     }
 }
 
-/// What a way's tags ask of its grade, along a run in its direction or, `reversed`, against
-/// it: the steepest grade either way (the class's, or a steeper tagged one) and the tagged
-/// grade as a relation on the rise per metre.
-pub(crate) struct GradeAsked {
-    pub steepest: Option<f64>,
-    pub tagged: Option<(Relation, f64)>,
-}
-
-impl GradeAsked {
-    pub fn of(slope: Slope, reversed: bool) -> GradeAsked {
-        let incline = slope.incline;
-        let mut steepest = slope.max_incline;
-        if let (Some(max), Some(Incline::Grade(g))) = (steepest, incline) {
-            steepest = Some(max.max(g.abs()));
-        }
-        let (up, down) = if reversed {
-            (Relation::AtMost, Relation::AtLeast)
-        } else {
-            (Relation::AtLeast, Relation::AtMost)
-        };
-        let tagged = match incline {
-            Some(Incline::Grade(g)) => Some((Relation::Equal, if reversed { -g } else { g })),
-            Some(Incline::Up) => Some((up, 0.0)),
-            Some(Incline::Down) => Some((down, 0.0)),
-            None => None,
-        };
-        GradeAsked { steepest, tagged }
-    }
-}
-
 /// How elevation is read along a chain: the variable at each station.
 struct Row {
     first: usize,
@@ -247,66 +171,56 @@ pub fn settle(
     settings: &FeatureSettings,
     surface_margin_m: f64,
 ) -> Settled {
-    let mut problem = Problem::default();
-    let mut labels: Vec<ConstraintReport> = Vec::new();
-    let mut profiles: Vec<Profile> = Vec::new();
-    let mut rows: Vec<Row> = Vec::new();
-
-    // Stations of every chain.
+    let mut settling = Settling {
+        group,
+        ways,
+        terrain,
+        projection,
+        settings,
+        surface_margin_m,
+        builder: ConstraintBuilder::default(),
+        profiles: Vec::new(),
+        rows: Vec::new(),
+    };
     for chain in &group.chains {
-        let mut profile = Profile {
-            kind: chain.kind,
-            layer: chain.layer,
-            points: Vec::new(),
-            along_m: Vec::new(),
-            elevations: Vec::new(),
-            terrain: Vec::new(),
-            ways: Vec::new(),
-            grounded: [false; 2],
-            crossings_m: Vec::new(),
-        };
-        let mut node_station = Vec::with_capacity(chain.nodes.len());
-        let mut along = 0.0;
-        for k in 0..chain.positions.len() {
-            node_station.push(profile.points.len());
-            let a = projection.point(chain.positions[k]);
-            let way =
-                chain.ways[chain.segment_way[k.min(chain.segment_way.len() - 1)] as usize].way;
-            let Some(&next) = chain.positions.get(k + 1) else {
-                profile.points.push(a);
-                profile.along_m.push(along);
-                profile.ways.push(way);
-                break;
-            };
-            let b = projection.point(next);
-            let metre = projection.metres(1.0, (chain.positions[k].lat + next.lat) / 2.0);
-            let length_m = (b[0] - a[0]).hypot(b[1] - a[1]) / metre;
-            let spacing = match chain.kind {
-                StructureKind::Bridge => BRIDGE_STATION_SPACING_M,
-                StructureKind::Tunnel => TUNNEL_STATION_SPACING_M,
-            };
-            let pieces = (length_m / spacing).ceil().max(1.0) as usize;
-            for j in 0..pieces {
-                let t = j as f64 / pieces as f64;
-                profile
-                    .points
-                    .push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
-                profile.along_m.push(along + t * length_m);
-                profile.ways.push(way);
-            }
-            along += length_m;
-        }
-        profile.terrain = profile
-            .points
-            .iter()
-            .map(|&p| terrain.elevation_uv(p))
-            .collect();
-        rows.push(Row {
+        settling.add_chain(chain);
+    }
+    settling.join_chains();
+    let foundations = Foundations::new(group, projection);
+    for c in 0..group.chains.len() {
+        settling.add_grades_and_smoothness(c);
+        settling.add_ground_bounds(c, &foundations);
+    }
+    for crossing in &group.crossings {
+        settling.add_crossing(crossing);
+    }
+    settling.solve()
+}
+
+/// A group on its way to the LP: what it is settled from, the problem so far, and each chain's
+/// stations and variables (the profiles wait for their elevations until the problem is solved).
+struct Settling<'a> {
+    group: &'a Group,
+    ways: &'a [Way],
+    terrain: &'a dyn Elevation,
+    projection: &'a Projection,
+    settings: &'a FeatureSettings,
+    surface_margin_m: f64,
+    builder: ConstraintBuilder,
+    profiles: Vec<Profile>,
+    rows: Vec<Row>,
+}
+
+impl Settling<'_> {
+    /// A chain's stations and their variables, with targets on the line between the chain's
+    /// ends and weights by the length each station stands for.
+    fn add_chain(&mut self, chain: &Chain) {
+        let (profile, node_station) = stations(chain, self.terrain, self.projection);
+        let problem = &mut self.builder.problem;
+        self.rows.push(Row {
             first: problem.targets.len(),
             node_station,
         });
-        // Variables, with targets on the line between the ends; weights by the length each
-        // station stands for.
         let n = profile.points.len();
         let (h0, h1) = (profile.terrain[0], profile.terrain[n - 1]);
         let length = profile.along_m[n - 1].max(1e-9);
@@ -327,130 +241,98 @@ pub fn settle(
                 CHORD_WEIGHT * (before + after) / 2.0,
             );
         }
-        profiles.push(profile);
+        self.profiles.push(profile);
     }
 
-    // Ends that meet no other chain are on the ground; shared nodes are equal.
-    let mut at_node: std::collections::HashMap<i64, usize> = std::collections::HashMap::new();
-    for (c, chain) in group.chains.iter().enumerate() {
-        for (k, &node) in chain.nodes.iter().enumerate() {
-            let variable = rows[c].first + rows[c].node_station[k];
-            match at_node.get(&node) {
-                Some(&other) => problem.constraints.push(Constraint {
-                    terms: vec![(variable, 1.0), (other, -1.0)],
-                    kind: Relation::Equal,
-                    rhs: 0.0,
-                    penalty: None,
-                    label: u32::MAX,
-                }),
-                None => {
-                    at_node.insert(node, variable);
+    /// Chains that share a node are equal there; an end that meets no other chain is on the
+    /// ground (an abutment or a portal).
+    fn join_chains(&mut self) {
+        let chains = &self.group.chains;
+        let problem = &mut self.builder.problem;
+        let mut at_node: std::collections::HashMap<i64, usize> = std::collections::HashMap::new();
+        for (c, chain) in chains.iter().enumerate() {
+            for (k, &node) in chain.nodes.iter().enumerate() {
+                let variable = self.rows[c].first + self.rows[c].node_station[k];
+                match at_node.get(&node) {
+                    Some(&other) => problem.constraints.push(Constraint {
+                        terms: vec![(variable, 1.0), (other, -1.0)],
+                        kind: Relation::Equal,
+                        rhs: 0.0,
+                        penalty: None,
+                        label: u32::MAX,
+                    }),
+                    None => {
+                        at_node.insert(node, variable);
+                    }
+                }
+            }
+        }
+        for (c, chain) in chains.iter().enumerate() {
+            let shared = |node: i64| {
+                chains
+                    .iter()
+                    .enumerate()
+                    .any(|(d, other)| d != c && other.nodes.contains(&node))
+            };
+            let last = chain.nodes.len() - 1;
+            for (end, k) in [(0, 0), (1, last)] {
+                if !shared(chain.nodes[k]) {
+                    let station = self.rows[c].node_station[k];
+                    self.profiles[c].grounded[end] = true;
+                    problem.fix(
+                        self.rows[c].first + station,
+                        self.profiles[c].terrain[station],
+                    );
                 }
             }
         }
     }
-    for (c, chain) in group.chains.iter().enumerate() {
-        let shared = |node: i64| {
-            group
-                .chains
-                .iter()
-                .enumerate()
-                .any(|(d, other)| d != c && other.nodes.contains(&node))
-        };
-        let last = chain.nodes.len() - 1;
-        for (end, k) in [(0, 0), (1, last)] {
-            if !shared(chain.nodes[k]) {
-                let station = rows[c].node_station[k];
-                profiles[c].grounded[end] = true;
-                problem.fix(rows[c].first + station, profiles[c].terrain[station]);
-            }
-        }
-    }
 
-    // A soft constraint `terms (relation) rhs`, reported as what it stands for, on which way
-    // and where.
-    let mut soft = |problem: &mut Problem,
-                    (kind, way, at): (ConstraintKind, i64, Point),
-                    terms: Vec<(usize, f64)>,
-                    relation: Relation,
-                    rhs: f64,
-                    penalty: f64| {
-        problem.constraints.push(Constraint {
-            terms,
-            kind: relation,
-            rhs,
-            penalty: Some(penalty),
-            label: labels.len() as u32,
-        });
-        labels.push(ConstraintReport {
-            kind,
-            way,
-            at,
-            bound: rhs,
-            violation: 0.0,
-        });
-    };
-
-    // Along each chain: grades, smoothness, the ground.
-    let foundations = Foundations::new(group, projection);
-    for (c, profile) in profiles.iter().enumerate() {
-        let first = rows[c].first;
+    /// The grade each way of chain `c` asks along it, and its change of slope at each station.
+    fn add_grades_and_smoothness(&mut self, c: usize) {
+        let (profile, first) = (&self.profiles[c], self.rows[c].first);
         let n = profile.points.len();
         for i in 0..n.saturating_sub(1) {
-            let way = &ways[profile.ways[i] as usize];
+            let way = &self.ways[profile.ways[i] as usize];
             let run = profile.along_m[i + 1] - profile.along_m[i];
-            if run <= 0.0 {
-                continue;
-            }
-            let reversed = group.chains[c]
+            let reversed = self.group.chains[c]
                 .ways
                 .iter()
                 .find(|w| w.way == profile.ways[i])
                 .is_some_and(|w| w.reversed);
-            let rise = vec![(first + i + 1, 1.0), (first + i, -1.0)];
-            let at = profile.points[i];
-            let asked = GradeAsked::of(WayTraits::of(way, settings).slope, reversed);
-            if let Some(max) = asked.steepest {
-                for (relation, bound) in [
-                    (Relation::AtMost, max * run),
-                    (Relation::AtLeast, -max * run),
-                ] {
-                    soft(
-                        &mut problem,
-                        (ConstraintKind::MaxIncline, way.id, at),
-                        rise.clone(),
-                        relation,
-                        bound,
-                        MAX_INCLINE_PENALTY,
-                    );
-                }
-            }
-            if let Some((relation, per_metre)) = asked.tagged {
-                soft(
-                    &mut problem,
-                    (ConstraintKind::TaggedIncline, way.id, at),
-                    rise,
-                    relation,
-                    per_metre * run,
-                    TAGGED_INCLINE_PENALTY,
-                );
-            }
+            let asked = GradeAsked::of(WayTraits::of(way, self.settings).slope, reversed);
+            self.builder.grade(
+                &asked,
+                (way.id, profile.points[i]),
+                [first + i, first + i + 1],
+                run,
+            );
         }
+        for i in 1..n.saturating_sub(1) {
+            self.builder.smoothness(
+                [first + i - 1, first + i, first + i + 1],
+                [
+                    profile.along_m[i] - profile.along_m[i - 1],
+                    profile.along_m[i + 1] - profile.along_m[i],
+                ],
+                SMOOTHNESS_WEIGHT,
+            );
+        }
+    }
+
+    /// At each inner station of chain `c`, a bridge's deck above the ground, or a tunnel's roof
+    /// under it with its cover (or under the foundations over it); charged by the length the
+    /// station stands for.
+    fn add_ground_bounds(&mut self, c: usize, foundations: &Foundations) {
+        let (profile, first) = (&self.profiles[c], self.rows[c].first);
+        let n = profile.points.len();
         for i in 1..n.saturating_sub(1) {
             let l1 = profile.along_m[i] - profile.along_m[i - 1];
             let l2 = profile.along_m[i + 1] - profile.along_m[i];
             if l1 <= 0.0 || l2 <= 0.0 {
                 continue;
             }
-            problem.smoothness.push(Smoothness {
-                terms: vec![
-                    (first + i - 1, 1.0 / l1),
-                    (first + i, -1.0 / l1 - 1.0 / l2),
-                    (first + i + 1, 1.0 / l2),
-                ],
-                weight: SMOOTHNESS_WEIGHT,
-            });
-            let way = &ways[profile.ways[i] as usize];
+            let way = &self.ways[profile.ways[i] as usize];
             let penalty = GROUND_PENALTY_PER_M * (l1 + l2) / 2.0;
             let (kind, relation, bound) = match profile.kind {
                 StructureKind::Bridge => (
@@ -470,15 +352,14 @@ pub fn settle(
                         kind,
                         Relation::AtMost,
                         profile.terrain[i]
-                            - WayTraits::of(way, settings).tunnel_height_m
+                            - WayTraits::of(way, self.settings).tunnel_height_m
                             - tags::TUNNEL_ROOF_M
                             - cover
-                            - surface_margin_m,
+                            - self.surface_margin_m,
                     )
                 }
             };
-            soft(
-                &mut problem,
+            self.builder.soft(
                 (kind, way.id, profile.points[i]),
                 vec![(first + i, 1.0)],
                 relation,
@@ -488,9 +369,10 @@ pub fn settle(
         }
     }
 
-    // What each chain crosses.
-    let on = |c: usize, segment: u32, t: f64| -> (Vec<(usize, f64)>, Point, u32) {
-        let row = &rows[c];
+    /// Where on chain `c` a crossing at share `t` of node segment `segment` lies: its elevation
+    /// as a combination of the two stations around it, the point, and the way there.
+    fn point_on(&self, c: usize, segment: u32, t: f64) -> (Vec<(usize, f64)>, Point, u32) {
+        let (row, profile) = (&self.rows[c], &self.profiles[c]);
         let (s0, s1) = (
             row.node_station[segment as usize],
             row.node_station[segment as usize + 1],
@@ -499,104 +381,151 @@ pub fn settle(
         let position = (t * pieces).clamp(0.0, pieces);
         let j = (position.floor() as usize).min(s1 - s0 - 1);
         let local = position - j as f64;
-        let (a, b) = (profiles[c].points[s0 + j], profiles[c].points[s0 + j + 1]);
+        let (a, b) = (profile.points[s0 + j], profile.points[s0 + j + 1]);
         let at = [a[0] + local * (b[0] - a[0]), a[1] + local * (b[1] - a[1])];
         let terms = vec![
             (row.first + s0 + j, 1.0 - local),
             (row.first + s0 + j + 1, local),
         ];
-        (terms, at, profiles[c].ways[s0 + j])
-    };
-    let mut crossings_m: Vec<(usize, f64)> = Vec::new();
-    for crossing in &group.crossings {
+        (terms, at, profile.ways[s0 + j])
+    }
+
+    /// What a chain crosses: a bridge's underside over the way below it by that way's
+    /// clearance, a bridge over a bridge likewise, a tunnel over a tunnel with rock between.
+    fn add_crossing(&mut self, crossing: &Crossing) {
         let c = crossing.chain as usize;
-        let (terms, at, way) = on(c, crossing.segment, crossing.t);
+        let (terms, at, way) = self.point_on(c, crossing.segment, crossing.t);
+        let first = self.rows[c].first;
         let along = terms
             .iter()
-            .map(|&(v, share)| share * profiles[c].along_m[v - rows[c].first])
+            .map(|&(v, share)| share * self.profiles[c].along_m[v - first])
             .sum();
-        crossings_m.push((c, along));
-        let upper = &ways[way as usize];
-        match (profiles[c].kind, crossing.other) {
+        self.profiles[c].crossings_m.push(along);
+        let upper = &self.ways[way as usize];
+        let (kind, terms, bound) = match (self.profiles[c].kind, crossing.other) {
             (StructureKind::Bridge, Crossed::Way(below)) => {
-                let below = &ways[below as usize];
-                let below_traits = WayTraits::of(below, settings);
+                let below = &self.ways[below as usize];
+                let below_traits = WayTraits::of(below, self.settings);
                 let Some(clearance) = below_traits.clearance_m else {
-                    continue;
+                    return;
                 };
-                let below_layer = below_traits.layer;
-                if below_layer >= profiles[c].layer {
-                    continue;
+                if below_traits.layer >= self.profiles[c].layer {
+                    return;
                 }
-                let ground =
-                    ground_under(at, terrain, projection, settings, below) + surface_margin_m;
-                let bound = ground + clearance + WayTraits::of(upper, settings).deck_thickness_m;
-                soft(
-                    &mut problem,
-                    (ConstraintKind::Clearance, upper.id, at),
-                    terms,
-                    Relation::AtLeast,
-                    bound,
-                    CLEARANCE_PENALTY,
-                );
+                let ground = ground_under(at, self.terrain, self.projection, self.settings, below)
+                    + self.surface_margin_m;
+                let deck = WayTraits::of(upper, self.settings).deck_thickness_m;
+                (ConstraintKind::Clearance, terms, ground + clearance + deck)
             }
             (upper_kind, Crossed::Chain { chain, segment, t }) => {
-                let (lower_terms, _, lower_way) = on(chain as usize, segment, t);
-                let lower = &ways[lower_way as usize];
-                let (kind, gap) = match (upper_kind, profiles[chain as usize].kind) {
+                let (lower_terms, _, lower_way) = self.point_on(chain as usize, segment, t);
+                let lower = &self.ways[lower_way as usize];
+                let (kind, gap) = match (upper_kind, self.profiles[chain as usize].kind) {
                     (StructureKind::Bridge, StructureKind::Bridge) => {
-                        let Some(clearance) = WayTraits::of(lower, settings).clearance_m else {
-                            continue;
+                        let Some(clearance) = WayTraits::of(lower, self.settings).clearance_m
+                        else {
+                            return;
                         };
                         (
                             ConstraintKind::Clearance,
-                            clearance + WayTraits::of(upper, settings).deck_thickness_m,
+                            clearance + WayTraits::of(upper, self.settings).deck_thickness_m,
                         )
                     }
                     (StructureKind::Tunnel, StructureKind::Tunnel) => (
                         ConstraintKind::TunnelOverTunnel,
-                        WayTraits::of(lower, settings).tunnel_height_m
+                        WayTraits::of(lower, self.settings).tunnel_height_m
                             + tags::TUNNEL_ROOF_M
                             + ROCK_BETWEEN_TUNNELS_M,
                     ),
-                    _ => continue,
+                    _ => return,
                 };
                 let mut all = terms;
                 all.extend(lower_terms.into_iter().map(|(v, k)| (v, -k)));
-                soft(
-                    &mut problem,
-                    (kind, upper.id, at),
-                    all,
-                    Relation::AtLeast,
-                    gap,
-                    CLEARANCE_PENALTY,
-                );
+                (kind, all, gap)
             }
-            (StructureKind::Tunnel, Crossed::Way(_)) => {}
-        }
+            (StructureKind::Tunnel, Crossed::Way(_)) => return,
+        };
+        self.builder.soft(
+            (kind, upper.id, at),
+            terms,
+            Relation::AtLeast,
+            bound,
+            CLEARANCE_PENALTY,
+        );
     }
 
-    for (c, along) in crossings_m {
-        profiles[c].crossings_m.push(along);
-    }
-    let outcome = lp::solve(&problem);
-    for violation in &outcome.violations {
-        if let Some(report) = labels.get_mut(violation.label as usize) {
-            report.violation = violation.amount;
+    /// Solves the group; each profile reads its elevations back from its variables.
+    fn solve(mut self) -> Settled {
+        let outcome = self.builder.solve();
+        for (profile, row) in self.profiles.iter_mut().zip(&self.rows) {
+            let first = row.first;
+            profile.elevations = outcome.values[first..first + profile.points.len()].to_vec();
+        }
+        Settled {
+            profiles: self.profiles,
+            variables: self.builder.problem.targets.len(),
+            constraints: self.builder.problem.constraints.len(),
+            components: outcome.components,
+            reports: self.builder.reports,
+            failed: outcome.failed,
         }
     }
-    for (c, profile) in profiles.iter_mut().enumerate() {
-        let first = rows[c].first;
-        profile.elevations = outcome.values[first..first + profile.points.len()].to_vec();
+}
+
+/// A chain's stations: its nodes, and more between them at most the kind's station spacing
+/// apart, each with the terrain under it; and the station of each node.
+fn stations(
+    chain: &Chain,
+    terrain: &dyn Elevation,
+    projection: &Projection,
+) -> (Profile, Vec<usize>) {
+    let mut profile = Profile {
+        kind: chain.kind,
+        layer: chain.layer,
+        points: Vec::new(),
+        along_m: Vec::new(),
+        elevations: Vec::new(),
+        terrain: Vec::new(),
+        ways: Vec::new(),
+        grounded: [false; 2],
+        crossings_m: Vec::new(),
+    };
+    let mut node_station = Vec::with_capacity(chain.nodes.len());
+    let mut along = 0.0;
+    for k in 0..chain.positions.len() {
+        node_station.push(profile.points.len());
+        let a = projection.point(chain.positions[k]);
+        let way = chain.ways[chain.segment_way[k.min(chain.segment_way.len() - 1)] as usize].way;
+        let Some(&next) = chain.positions.get(k + 1) else {
+            profile.points.push(a);
+            profile.along_m.push(along);
+            profile.ways.push(way);
+            break;
+        };
+        let b = projection.point(next);
+        let metre = projection.metres(1.0, (chain.positions[k].lat + next.lat) / 2.0);
+        let length_m = (b[0] - a[0]).hypot(b[1] - a[1]) / metre;
+        let spacing = match chain.kind {
+            StructureKind::Bridge => BRIDGE_STATION_SPACING_M,
+            StructureKind::Tunnel => TUNNEL_STATION_SPACING_M,
+        };
+        let pieces = (length_m / spacing).ceil().max(1.0) as usize;
+        for j in 0..pieces {
+            let t = j as f64 / pieces as f64;
+            profile
+                .points
+                .push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+            profile.along_m.push(along + t * length_m);
+            profile.ways.push(way);
+        }
+        along += length_m;
     }
-    Settled {
-        profiles,
-        variables: problem.targets.len(),
-        constraints: problem.constraints.len(),
-        components: outcome.components,
-        reports: labels,
-        failed: outcome.failed,
-    }
+    profile.terrain = profile
+        .points
+        .iter()
+        .map(|&p| terrain.elevation_uv(p))
+        .collect();
+    (profile, node_station)
 }
 
 /// What reaches down into the ground over a group's tunnels, in tile units.
