@@ -174,6 +174,75 @@ pub struct RenderStats {
     pub road_lp_violations: usize,
 }
 
+impl RenderStats {
+    /// The counts of a tile made of `parts` and `instanced` models from `prepared`.
+    fn of(
+        prepared: &Prepared<'_>,
+        parts: &BTreeMap<Part, MeshBuffers>,
+        instanced: &BTreeMap<mesh::models::Model, mesh::instances::Instances>,
+        slivers: usize,
+        glb_bytes: usize,
+    ) -> RenderStats {
+        let Prepared {
+            feature_set,
+            ground,
+            structures,
+            road_profiles,
+            ..
+        } = prepared;
+        RenderStats {
+            triangles: parts.values().map(MeshBuffers::triangle_count).sum(),
+            vertices: parts.values().map(|b| b.positions.len()).sum(),
+            primitives: parts.values().filter(|b| !b.is_empty()).count(),
+            features_by_class: FeatureClass::ALL
+                .iter()
+                .map(|&c| (c.as_str(), feature_set.count(c)))
+                .collect(),
+            glb_bytes,
+            slivers_dropped: slivers,
+            ground_vertices_inserted: ground.inserted,
+            ground_triangles: ground.triangles.len() - ground.removed,
+            edge_vertices: ground.edge_vertices,
+            trees: instanced
+                .iter()
+                .filter(|(model, _)| matches!(model, mesh::models::Model::Tree(..)))
+                .map(|(_, t)| t.len())
+                .sum(),
+            objects: instanced
+                .iter()
+                .filter(|(model, _)| matches!(model, mesh::models::Model::Object(_)))
+                .map(|(_, t)| t.len())
+                .sum(),
+            lp_variables: structures.iter().map(|s| s.variables).sum::<usize>()
+                + road_profiles.variables,
+            lp_constraints: structures.iter().map(|s| s.constraints).sum::<usize>()
+                + road_profiles.constraints,
+            lp_components: structures.iter().map(|s| s.components).sum::<usize>()
+                + road_profiles.components,
+            lp_violations: structures
+                .iter()
+                .map(|s| {
+                    s.violations(crate::output::debug::VIOLATION_TOLERANCE_M)
+                        .count()
+                })
+                .sum::<usize>()
+                + road_profiles
+                    .violations
+                    .iter()
+                    .filter(|r| r.violation > crate::output::debug::VIOLATION_TOLERANCE_M)
+                    .count(),
+            road_stretches_settled: road_profiles.settled,
+            road_lp_variables: road_profiles.variables,
+            road_lp_constraints: road_profiles.constraints,
+            road_lp_violations: road_profiles
+                .violations
+                .iter()
+                .filter(|r| r.violation > crate::output::debug::VIOLATION_TOLERANCE_M)
+                .count(),
+        }
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct RenderedTile {
     pub glb: Vec<u8>,
@@ -522,13 +591,13 @@ fn render_glb(
         cuts,
         roads,
         steps,
-        road_profiles,
         all_ways,
         feature_settings,
         surface_margin_m,
         feature_set,
         ground,
         normals,
+        ..
     } = prepared;
     let started = Instant::now();
     let GroundParts {
@@ -599,56 +668,7 @@ fn render_glb(
     );
     timings.encode = started.elapsed();
 
-    let stats = RenderStats {
-        triangles: parts.values().map(MeshBuffers::triangle_count).sum(),
-        vertices: parts.values().map(|b| b.positions.len()).sum(),
-        primitives: parts.values().filter(|b| !b.is_empty()).count(),
-        features_by_class: FeatureClass::ALL
-            .iter()
-            .map(|&c| (c.as_str(), feature_set.count(c)))
-            .collect(),
-        glb_bytes: bytes.len(),
-        slivers_dropped: slivers,
-        ground_vertices_inserted: ground.inserted,
-        ground_triangles: ground.triangles.len() - ground.removed,
-        edge_vertices: ground.edge_vertices,
-        trees: instanced
-            .iter()
-            .filter(|(model, _)| matches!(model, mesh::models::Model::Tree(..)))
-            .map(|(_, t)| t.len())
-            .sum(),
-        objects: instanced
-            .iter()
-            .filter(|(model, _)| matches!(model, mesh::models::Model::Object(_)))
-            .map(|(_, t)| t.len())
-            .sum(),
-        lp_variables: structures.iter().map(|s| s.variables).sum::<usize>()
-            + road_profiles.variables,
-        lp_constraints: structures.iter().map(|s| s.constraints).sum::<usize>()
-            + road_profiles.constraints,
-        lp_components: structures.iter().map(|s| s.components).sum::<usize>()
-            + road_profiles.components,
-        lp_violations: structures
-            .iter()
-            .map(|s| {
-                s.violations(crate::output::debug::VIOLATION_TOLERANCE_M)
-                    .count()
-            })
-            .sum::<usize>()
-            + road_profiles
-                .violations
-                .iter()
-                .filter(|r| r.violation > crate::output::debug::VIOLATION_TOLERANCE_M)
-                .count(),
-        road_stretches_settled: road_profiles.settled,
-        road_lp_variables: road_profiles.variables,
-        road_lp_constraints: road_profiles.constraints,
-        road_lp_violations: road_profiles
-            .violations
-            .iter()
-            .filter(|r| r.violation > crate::output::debug::VIOLATION_TOLERANCE_M)
-            .count(),
-    };
+    let stats = RenderStats::of(prepared, &parts, &instanced, slivers, bytes.len());
     RenderedTile {
         glb: bytes,
         stats,
