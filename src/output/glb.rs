@@ -391,52 +391,15 @@ pub fn write(
         fallback: variant.meshopt.then_some(0),
     };
 
-    let mut class_parts: BTreeMap<FeatureClass, Vec<(Part, &MeshBuffers)>> = BTreeMap::new();
-    for (&part, buffers) in parts {
-        if !buffers.is_empty() {
-            class_parts
-                .entry(part.class())
-                .or_default()
-                .push((part, buffers));
-        }
-    }
-
     let mut nodes = Vec::new();
-    for (class, class_parts) in class_parts {
-        // Positions on the shared grid where the node's extent allows it.
-        let grid = if variant.meshopt && variant.frame == Frame::WebMercator {
-            Grid::over(
-                description.size_m,
-                class_parts.iter().flat_map(|(_, b)| b.positions.iter()),
-            )
-        } else {
-            None
-        };
-        let primitives = class_parts
-            .iter()
-            .map(|&(part, buffers)| write_primitive(&mut builder, part, buffers, grid.as_ref()))
-            .collect();
-        let mesh = builder.root.push(json::Mesh {
-            extensions: None,
-            extras: Default::default(),
-            name: Some(class.as_str().to_string()),
-            primitives,
-            weights: None,
-        });
-        let (translation, scale) = match grid {
-            Some(grid) => (
-                Some(grid.base.map(|b| (b as f64 * grid.step) as f32)),
-                Some([grid.step as f32; 3]),
-            ),
-            None => (None, None),
-        };
-        nodes.push(builder.root.push(json::Node {
-            mesh: Some(mesh),
-            name: Some(class.as_str().to_string()),
-            translation,
-            scale,
-            ..Default::default()
-        }));
+    for (class, class_parts) in parts_by_class(parts) {
+        nodes.push(write_class(
+            &mut builder,
+            description,
+            variant,
+            class,
+            &class_parts,
+        ));
     }
     for (&model, instances) in instanced {
         if !instances.is_empty() {
@@ -462,11 +425,82 @@ pub fn write(
             .into_iter()
             .collect(),
     });
+    declare_extensions(&mut builder, instanced.values().any(|i| !i.is_empty()));
+    write_buffers(&mut builder);
+    builder.root.asset = asset(description, enu.as_ref());
+
+    let json_bytes = serde_json::to_vec(&builder.root).expect("glTF JSON serializes");
+    container(&json_bytes, &builder.bytes)
+}
+
+/// The non-empty parts grouped by the feature class whose node draws them.
+fn parts_by_class(
+    parts: &BTreeMap<Part, MeshBuffers>,
+) -> BTreeMap<FeatureClass, Vec<(Part, &MeshBuffers)>> {
+    let mut class_parts: BTreeMap<FeatureClass, Vec<(Part, &MeshBuffers)>> = BTreeMap::new();
+    for (&part, buffers) in parts {
+        if !buffers.is_empty() {
+            class_parts
+                .entry(part.class())
+                .or_default()
+                .push((part, buffers));
+        }
+    }
+    class_parts
+}
+
+/// A class's node: one mesh with a primitive per part, and with compressed positions of the
+/// flat frame, the translation and scale that carry the shared grid back to metres.
+fn write_class(
+    builder: &mut BinaryBuilder,
+    description: &TileDescription,
+    variant: Variant,
+    class: FeatureClass,
+    class_parts: &[(Part, &MeshBuffers)],
+) -> json::Index<json::Node> {
+    // Positions on the shared grid where the node's extent allows it.
+    let grid = if variant.meshopt && variant.frame == Frame::WebMercator {
+        Grid::over(
+            description.size_m,
+            class_parts.iter().flat_map(|(_, b)| b.positions.iter()),
+        )
+    } else {
+        None
+    };
+    let primitives = class_parts
+        .iter()
+        .map(|&(part, buffers)| write_primitive(builder, part, buffers, grid.as_ref()))
+        .collect();
+    let mesh = builder.root.push(json::Mesh {
+        extensions: None,
+        extras: Default::default(),
+        name: Some(class.as_str().to_string()),
+        primitives,
+        weights: None,
+    });
+    let (translation, scale) = match grid {
+        Some(grid) => (
+            Some(grid.base.map(|b| (b as f64 * grid.step) as f32)),
+            Some([grid.step as f32; 3]),
+        ),
+        None => (None, None),
+    };
+    builder.root.push(json::Node {
+        mesh: Some(mesh),
+        name: Some(class.as_str().to_string()),
+        translation,
+        scale,
+        ..Default::default()
+    })
+}
+
+/// The extensions the tile uses, and of them those a reader needs to decode it.
+fn declare_extensions(builder: &mut BinaryBuilder, has_instances: bool) {
     builder.root.extensions_used = vec![
         "EXT_mesh_features".to_string(),
         "EXT_structural_metadata".to_string(),
     ];
-    if instanced.values().any(|i| !i.is_empty()) {
+    if has_instances {
         builder.root.extensions_used.extend([
             "EXT_mesh_gpu_instancing".to_string(),
             "EXT_instance_features".to_string(),
@@ -479,7 +513,11 @@ pub fn write(
             builder.root.extensions_required.push(extension.to_string());
         }
     }
+}
 
+/// Pads the binary chunk and declares the buffer that holds it, and with meshopt the fallback
+/// buffer the compressed views decode into.
+fn write_buffers(builder: &mut BinaryBuilder) {
     while builder.bytes.len() % 4 != 0 {
         builder.bytes.push(0);
     }
@@ -507,10 +545,6 @@ pub fn write(
             extras: Default::default(),
         });
     }
-    builder.root.asset = asset(description, enu.as_ref());
-
-    let json_bytes = serde_json::to_vec(&builder.root).expect("glTF JSON serializes");
-    container(&json_bytes, &builder.bytes)
 }
 
 /// A node drawing one model at every instance: `EXT_mesh_gpu_instancing` with translation,
