@@ -481,88 +481,128 @@ fn junction_ring(centre: Point, caps: &[Cap]) -> Option<Ring> {
 
 /// The outline of the union of convex `parts` that touch `centre`, cut short along a direction
 /// from the centre where it would end inside one of the convex `obstacles` (which do not contain
-/// the centre): there it stops where the obstacles holding its end begin. Seen from the centre, the boundary in any direction is the farthest
-/// part edge or the nearest obstacle edge; which edge that is changes only at vertices and where
-/// two edges cross, so tracing it between those directions gives the outline.
+/// the centre): there it stops where the obstacles holding its end begin. Seen from the centre,
+/// the boundary in any direction is the farthest part edge or the nearest obstacle edge; which
+/// edge that is changes only at vertices and where two edges cross, so tracing it between those
+/// directions gives the outline.
 fn star_union(centre: Point, parts: &[Vec<Point>], obstacles: &[Vec<Point>]) -> Option<Ring> {
-    let local = |p: &Point| [p[0] - centre[0], p[1] - centre[1]];
-    let edges_of = |polygons: &[Vec<Point>], first: usize| -> Vec<(Point, Point, usize)> {
-        polygons
-            .iter()
-            .enumerate()
-            .flat_map(|(k, polygon)| {
-                (0..polygon.len()).map(move |i| {
-                    (
-                        local(&polygon[i]),
-                        local(&polygon[(i + 1) % polygon.len()]),
-                        first + k,
-                    )
-                })
-            })
-            .collect()
-    };
-    let edges = edges_of(parts, 0);
-    let walls = edges_of(obstacles, parts.len());
-    let everything: Vec<(Point, Point, usize)> = edges.iter().chain(&walls).copied().collect();
-    // The input vertices as given, in the order of the edges that start at them.
-    let originals: Vec<Point> = parts.iter().chain(obstacles).flatten().copied().collect();
-    let scale = edges
-        .iter()
-        .map(|(a, _, _)| a[0].hypot(a[1]))
-        .fold(0.0, f64::max);
-    if scale == 0.0 {
+    let star = Star::new(centre, parts, obstacles)?;
+    let angles = star.turning_angles();
+    if angles.len() < 2 {
         return None;
     }
-    let tiny = scale * 1e-9;
-    let snap = scale * 1e-6;
-    let mut angles: Vec<f64> = everything
-        .iter()
-        .filter(|(a, _, _)| a[0].hypot(a[1]) > tiny)
-        .map(|(a, _, _)| angle(*a))
-        .collect();
-    for (i, &(a, b, k)) in everything.iter().enumerate() {
-        for &(c, d, l) in &everything[i + 1..] {
-            if k == l {
-                continue;
-            }
-            let (ab, cd) = ([b[0] - a[0], b[1] - a[1]], [d[0] - c[0], d[1] - c[1]]);
-            if let Some((s, t)) = meet(a, ab, c, cd) {
-                if (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t) {
-                    let x = [a[0] + ab[0] * s, a[1] + ab[1] * s];
-                    if x[0].hypot(x[1]) > tiny {
-                        angles.push(angle(x));
+    let ring = star.trace(&angles);
+    simplified(ring, star.tiny)
+}
+
+/// An edge relative to the centre, with the number of the polygon it belongs to.
+type StarEdge = (Point, Point, usize);
+
+/// The parts and obstacles of [`star_union`] as edges relative to its centre.
+struct Star {
+    centre: Point,
+    /// The parts' edges, their polygons numbered from 0.
+    edges: Vec<StarEdge>,
+    /// The obstacles' edges, their polygons numbered after the parts'.
+    walls: Vec<StarEdge>,
+    /// The parts' edges, then the obstacles'.
+    everything: Vec<StarEdge>,
+    /// The input vertices as given, in the order of the edges that start at them.
+    originals: Vec<Point>,
+    /// The numbers of the obstacles.
+    obstacle_numbers: std::ops::Range<usize>,
+    /// Lengths below this are zero: a billionth of the parts' reach from the centre.
+    tiny: f64,
+    /// A traced point this close to an input vertex is that vertex.
+    snap: f64,
+}
+
+impl Star {
+    /// `None` when every part's corner is the centre.
+    fn new(centre: Point, parts: &[Vec<Point>], obstacles: &[Vec<Point>]) -> Option<Star> {
+        let local = |p: &Point| [p[0] - centre[0], p[1] - centre[1]];
+        let edges_of = |polygons: &[Vec<Point>], first: usize| -> Vec<StarEdge> {
+            polygons
+                .iter()
+                .enumerate()
+                .flat_map(|(k, polygon)| {
+                    (0..polygon.len()).map(move |i| {
+                        (
+                            local(&polygon[i]),
+                            local(&polygon[(i + 1) % polygon.len()]),
+                            first + k,
+                        )
+                    })
+                })
+                .collect()
+        };
+        let edges = edges_of(parts, 0);
+        let walls = edges_of(obstacles, parts.len());
+        let everything: Vec<StarEdge> = edges.iter().chain(&walls).copied().collect();
+        let originals: Vec<Point> = parts.iter().chain(obstacles).flatten().copied().collect();
+        let scale = edges
+            .iter()
+            .map(|(a, _, _)| a[0].hypot(a[1]))
+            .fold(0.0, f64::max);
+        if scale == 0.0 {
+            return None;
+        }
+        Some(Star {
+            centre,
+            edges,
+            walls,
+            everything,
+            originals,
+            obstacle_numbers: parts.len()..parts.len() + obstacles.len(),
+            tiny: scale * 1e-9,
+            snap: scale * 1e-6,
+        })
+    }
+
+    /// The directions, sorted and distinct, at which the bounding edge may change: towards
+    /// every vertex and every crossing of edges of different polygons.
+    fn turning_angles(&self) -> Vec<f64> {
+        let tiny = self.tiny;
+        let everything = &self.everything;
+        let mut angles: Vec<f64> = everything
+            .iter()
+            .filter(|(a, _, _)| a[0].hypot(a[1]) > tiny)
+            .map(|(a, _, _)| angle(*a))
+            .collect();
+        for (i, &(a, b, k)) in everything.iter().enumerate() {
+            for &(c, d, l) in &everything[i + 1..] {
+                if k == l {
+                    continue;
+                }
+                let (ab, cd) = ([b[0] - a[0], b[1] - a[1]], [d[0] - c[0], d[1] - c[1]]);
+                if let Some((s, t)) = meet(a, ab, c, cd) {
+                    if (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t) {
+                        let x = [a[0] + ab[0] * s, a[1] + ab[1] * s];
+                        if x[0].hypot(x[1]) > tiny {
+                            angles.push(angle(x));
+                        }
                     }
                 }
             }
         }
+        angles.sort_by(f64::total_cmp);
+        angles.dedup_by(|b, a| *b - *a < 1e-12);
+        angles
     }
-    angles.sort_by(f64::total_cmp);
-    angles.dedup_by(|b, a| *b - *a < 1e-12);
-    if angles.len() < 2 {
-        return None;
-    }
-    // The edge that bounds the region along a direction, and how far it is.
-    let hits = |direction: Point, edges: &[(Point, Point, usize)]| {
-        edges
-            .iter()
-            .filter_map(move |&(a, b, k)| {
-                let ab = [b[0] - a[0], b[1] - a[1]];
-                let (t, s) = meet([0.0, 0.0], direction, a, ab)?;
-                ((0.0..=1.0).contains(&s) && t > 0.0).then_some((t, a, ab, k))
-            })
-            .collect::<Vec<_>>()
-    };
-    let farthest = |direction: Point| {
-        let (mut reach, mut a, mut ab, _) = hits(direction, &edges)
+
+    /// The edge that bounds the region along `direction`, and how far it is: the farthest part
+    /// edge, cut short by the obstacles.
+    fn farthest(&self, direction: Point) -> Option<(f64, Point, Point)> {
+        let (mut reach, mut a, mut ab, _) = hits(direction, &self.edges)
             .into_iter()
             .max_by(|x, y| x.0.total_cmp(&y.0))?;
         // Where an obstacle holds the far end, the region stops where that obstacle begins
         // along the direction (and so on while that point lies in another): the stretch cut off
         // is covered by obstacles. Where the far end lies behind an obstacle but outside all,
         // the region keeps its reach and overlaps the obstacle rather than leave a gap.
-        let wall_hits = hits(direction, &walls);
+        let wall_hits = hits(direction, &self.walls);
         let mut spans: Vec<(f64, f64, Point, Point)> = Vec::new();
-        for k in parts.len()..parts.len() + obstacles.len() {
+        for k in self.obstacle_numbers.clone() {
             let mine = wall_hits.iter().filter(|h| h.3 == k);
             let first = mine.clone().min_by(|x, y| x.0.total_cmp(&y.0));
             let last = mine.max_by(|x, y| x.0.total_cmp(&y.0));
@@ -577,38 +617,66 @@ fn star_union(centre: Point, parts: &[Vec<Point>], obstacles: &[Vec<Point>]) -> 
             (reach, a, ab) = (span.0, span.2, span.3);
         }
         Some((reach, a, ab))
-    };
-    let mut ring: Ring = Vec::with_capacity(angles.len() * 2);
-    for k in 0..angles.len() {
-        let from = angles[k];
-        let to = if k + 1 < angles.len() {
-            angles[k + 1]
-        } else {
-            angles[0] + std::f64::consts::TAU
-        };
-        let ray = |theta: f64| [theta.cos(), theta.sin()];
-        let Some((reach, a, ab)) = farthest(ray((from + to) / 2.0)) else {
-            ring.push(centre);
-            continue;
-        };
-        // Where the farthest edge's line crosses the two bounding directions.
-        for theta in [from, to] {
-            let point = match meet([0.0, 0.0], ray(theta), a, ab) {
-                Some((t, _)) if t > 0.0 && t < reach * 1e3 => [t * theta.cos(), t * theta.sin()],
-                _ => {
-                    let mid = ray((from + to) / 2.0);
-                    [mid[0] * reach, mid[1] * reach]
-                }
-            };
-            // A point that is one of the input vertices (a cap corner) takes its exact bits, so
-            // the junction and the arm share the edge.
-            let exact = everything
-                .iter()
-                .position(|e| distance(e.0, point) <= snap)
-                .map(|i| originals[i]);
-            ring.push(exact.unwrap_or([centre[0] + point[0], centre[1] + point[1]]));
-        }
     }
+
+    /// The outline, in the plan: between each two turning angles, where the bounding edge's line
+    /// crosses them (the centre where nothing bounds the region).
+    fn trace(&self, angles: &[f64]) -> Ring {
+        let centre = self.centre;
+        let mut ring: Ring = Vec::with_capacity(angles.len() * 2);
+        for k in 0..angles.len() {
+            let from = angles[k];
+            let to = if k + 1 < angles.len() {
+                angles[k + 1]
+            } else {
+                angles[0] + std::f64::consts::TAU
+            };
+            let ray = |theta: f64| [theta.cos(), theta.sin()];
+            let Some((reach, a, ab)) = self.farthest(ray((from + to) / 2.0)) else {
+                ring.push(centre);
+                continue;
+            };
+            // Where the farthest edge's line crosses the two bounding directions.
+            for theta in [from, to] {
+                let point = match meet([0.0, 0.0], ray(theta), a, ab) {
+                    Some((t, _)) if t > 0.0 && t < reach * 1e3 => {
+                        [t * theta.cos(), t * theta.sin()]
+                    }
+                    _ => {
+                        let mid = ray((from + to) / 2.0);
+                        [mid[0] * reach, mid[1] * reach]
+                    }
+                };
+                // A point that is one of the input vertices (a cap corner) takes its exact bits,
+                // so the junction and the arm share the edge.
+                let exact = self
+                    .everything
+                    .iter()
+                    .position(|e| distance(e.0, point) <= self.snap)
+                    .map(|i| self.originals[i]);
+                ring.push(exact.unwrap_or([centre[0] + point[0], centre[1] + point[1]]));
+            }
+        }
+        ring
+    }
+}
+
+/// Where the ray from the centre along `direction` crosses each of `edges`: how far along the
+/// ray, the edge's start and direction, and its polygon.
+fn hits(direction: Point, edges: &[StarEdge]) -> Vec<(f64, Point, Point, usize)> {
+    edges
+        .iter()
+        .filter_map(move |&(a, b, k)| {
+            let ab = [b[0] - a[0], b[1] - a[1]];
+            let (t, s) = meet([0.0, 0.0], direction, a, ab)?;
+            ((0.0..=1.0).contains(&s) && t > 0.0).then_some((t, a, ab, k))
+        })
+        .collect::<Vec<_>>()
+}
+
+/// The traced ring without repeated points (within `tiny`, the closing one too) and without the
+/// points in the middle of a straight stretch; `None` if fewer than three are left.
+fn simplified(ring: Ring, tiny: f64) -> Option<Ring> {
     let mut out: Ring = Vec::with_capacity(ring.len());
     for p in ring {
         let repeated = out
@@ -624,7 +692,6 @@ fn star_union(centre: Point, parts: &[Vec<Point>], obstacles: &[Vec<Point>]) -> 
     } {
         out.pop();
     }
-    // Points in the middle of a straight stretch are dropped.
     let mut i = 0;
     while out.len() > 3 && i < out.len() {
         let n = out.len();

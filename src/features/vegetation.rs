@@ -135,6 +135,28 @@ pub(super) fn collect(
     rect: &Rect,
     settings: &VegetationSettings,
 ) {
+    let mut trees = mapped_trees(set, selection, projection, rect);
+    trees.extend(tree_rows(set, selection, projection, rect, settings));
+    let mut forest_trees = forest_trees(set, projection, rect, settings);
+    let room = settings.max_trees_per_tile.saturating_sub(trees.len());
+    trees.truncate(settings.max_trees_per_tile);
+    if forest_trees.len() > room && room > 0 {
+        thin_evenly(&mut forest_trees, room);
+    } else if room == 0 {
+        forest_trees.clear();
+    }
+    trees.extend(forest_trees);
+    set.trees = trees;
+}
+
+/// The tile's `natural=tree` nodes, each a feature of its own, with a tagged height when it is
+/// a plausible one.
+fn mapped_trees(
+    set: &mut FeatureSet,
+    selection: &Selection<'_>,
+    projection: &Projection,
+    rect: &Rect,
+) -> Vec<Tree> {
     let mut trees = Vec::new();
     for node in &selection.nodes {
         if node.tags.get("natural") != Some("tree") {
@@ -164,6 +186,19 @@ pub(super) fn collect(
             &mut draws,
         ));
     }
+    trees
+}
+
+/// The trees of the `natural=tree_row` ways, planted along each at the row spacing; a row with
+/// a tree in the tile is one feature.
+fn tree_rows(
+    set: &mut FeatureSet,
+    selection: &Selection<'_>,
+    projection: &Projection,
+    rect: &Rect,
+    settings: &VegetationSettings,
+) -> Vec<Tree> {
+    let mut trees = Vec::new();
     for way in &selection.ways {
         if way.tags.get("natural") != Some("tree_row") {
             continue;
@@ -173,21 +208,10 @@ pub(super) fn collect(
         if spacing <= 0.0 {
             continue;
         }
-        let mut planted = Vec::new();
-        let mut carried = 0.0;
-        for pair in line.windows(2) {
-            let (a, b) = (pair[0], pair[1]);
-            let length = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
-            let mut s = carried;
-            while s < length {
-                let t = s / length;
-                let at = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-                planted.push(at);
-                s += spacing;
-            }
-            carried = s - length;
-        }
-        let planted: Vec<Point> = planted.into_iter().filter(|&at| rect.owns(at)).collect();
+        let planted: Vec<Point> = planted_along(&line, spacing)
+            .into_iter()
+            .filter(|&at| rect.owns(at))
+            .collect();
         if planted.is_empty() {
             continue;
         }
@@ -208,72 +232,97 @@ pub(super) fn collect(
             ));
         }
     }
+    trees
+}
 
-    // Forests, on the global jittered grid.
+/// Points every `spacing` along the line from its start, the spacing carried over its bends.
+fn planted_along(line: &[Point], spacing: f64) -> Vec<Point> {
+    let mut planted = Vec::new();
+    let mut carried = 0.0;
+    for pair in line.windows(2) {
+        let (a, b) = (pair[0], pair[1]);
+        let length = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+        let mut s = carried;
+        while s < length {
+            let t = s / length;
+            let at = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+            planted.push(at);
+            s += spacing;
+        }
+        carried = s - length;
+    }
+    planted
+}
+
+/// The trees of the forest surfaces, on the global jittered grid (so a forest cut by a tile
+/// edge has the same trees in both tiles), in grid order.
+fn forest_trees(
+    set: &FeatureSet,
+    projection: &Projection,
+    rect: &Rect,
+    settings: &VegetationSettings,
+) -> Vec<Tree> {
     let centre_lat = crate::tile::v_to_lat(
         (rect.min[1] + rect.max[1]) / 2.0,
         projection.tiles_per_axis(),
     );
     let step = projection.metres(settings.forest_spacing_m, centre_lat);
     let mut forest_trees = Vec::new();
-    if step > 0.0 {
-        for (index, surface) in set.surfaces.iter().enumerate() {
-            if surface.cover != Some(super::landcover::Cover::Forest) {
-                continue;
-            }
-            let info = &set.features[surface.feature as usize];
-            let id = info.element.map_or(0, |e| e.id as u64);
-            let kinds = kinds_of(&info.tags);
-            let b = surface.bounds;
-            let (i0, i1) = (
-                (b.min[0].max(rect.min[0]) / step).floor() as i64,
-                (b.max[0].min(rect.max[0]) / step).ceil() as i64,
-            );
-            let (j0, j1) = (
-                (b.min[1].max(rect.min[1]) / step).floor() as i64,
-                (b.max[1].min(rect.max[1]) / step).ceil() as i64,
-            );
-            for j in j0..j1 {
-                for i in i0..i1 {
-                    let mut draws = Draws::new(&[id, i as u64, j as u64]);
-                    let at = [
-                        (i as f64 + 0.1 + 0.8 * draws.next()) * step,
-                        (j as f64 + 0.1 + 0.8 * draws.next()) * step,
-                    ];
-                    if rect.owns(at) && surface.contains(at) {
-                        forest_trees.push(tree(
-                            at,
-                            kinds,
-                            None,
-                            surface.feature,
-                            Some(index as u32),
-                            &mut draws,
-                        ));
-                    }
+    if step <= 0.0 {
+        return forest_trees;
+    }
+    for (index, surface) in set.surfaces.iter().enumerate() {
+        if surface.cover != Some(super::landcover::Cover::Forest) {
+            continue;
+        }
+        let info = &set.features[surface.feature as usize];
+        let id = info.element.map_or(0, |e| e.id as u64);
+        let kinds = kinds_of(&info.tags);
+        let b = surface.bounds;
+        let (i0, i1) = (
+            (b.min[0].max(rect.min[0]) / step).floor() as i64,
+            (b.max[0].min(rect.max[0]) / step).ceil() as i64,
+        );
+        let (j0, j1) = (
+            (b.min[1].max(rect.min[1]) / step).floor() as i64,
+            (b.max[1].min(rect.max[1]) / step).ceil() as i64,
+        );
+        for j in j0..j1 {
+            for i in i0..i1 {
+                let mut draws = Draws::new(&[id, i as u64, j as u64]);
+                let at = [
+                    (i as f64 + 0.1 + 0.8 * draws.next()) * step,
+                    (j as f64 + 0.1 + 0.8 * draws.next()) * step,
+                ];
+                if rect.owns(at) && surface.contains(at) {
+                    forest_trees.push(tree(
+                        at,
+                        kinds,
+                        None,
+                        surface.feature,
+                        Some(index as u32),
+                        &mut draws,
+                    ));
                 }
             }
         }
     }
-    let room = settings.max_trees_per_tile.saturating_sub(trees.len());
-    trees.truncate(settings.max_trees_per_tile);
-    if forest_trees.len() > room && room > 0 {
-        // Keep an even selection: every k-th tree in grid order.
-        let keep = room as f64 / forest_trees.len() as f64;
-        let mut credit = 0.0;
-        forest_trees.retain(|_| {
-            credit += keep;
-            if credit >= 1.0 {
-                credit -= 1.0;
-                true
-            } else {
-                false
-            }
-        });
-    } else if room == 0 {
-        forest_trees.clear();
-    }
-    trees.extend(forest_trees);
-    set.trees = trees;
+    forest_trees
+}
+
+/// Keeps `room` of the trees, an even selection: every k-th tree in grid order.
+fn thin_evenly(trees: &mut Vec<Tree>, room: usize) {
+    let keep = room as f64 / trees.len() as f64;
+    let mut credit = 0.0;
+    trees.retain(|_| {
+        credit += keep;
+        if credit >= 1.0 {
+            credit -= 1.0;
+            true
+        } else {
+            false
+        }
+    });
 }
 
 #[cfg(test)]

@@ -14,7 +14,7 @@ use super::roofs::{
     RoofEnd, RoofError, RoofMesh, SkeletonRoof,
 };
 use super::{newell, MeshBuffers, Part};
-use crate::features::buildings::{Finish, RoofShape};
+use crate::features::buildings::{Finish, RoofShape, RoofSpec};
 use crate::features::BuildingShape;
 use crate::geometry::constrained::triangulate_polygon;
 use crate::geometry::{clip_to_rect, signed_area2, Point, Polygon};
@@ -406,46 +406,82 @@ fn pitched_roof(
     }
     let most = building.height_m * MAX_ROOF_SHARE;
     let tagged = spec.height_m.map(|h| h.min(most));
-    let centred = match spec.shape {
-        RoofShape::Pyramidal => Some(CentredRoof::Pyramid),
-        RoofShape::Dome => Some(CentredRoof::Dome),
-        RoofShape::Onion => Some(CentredRoof::Onion),
-        _ => None,
-    };
     let mut fallback = None;
-    if let Some(centred) = centred {
-        let built = match rings {
-            [outer] => spread(outer).and_then(|(inner, radius)| {
-                let untagged = match centred {
-                    CentredRoof::Pyramid => spec.pitch * inner,
-                    CentredRoof::Dome => radius,
-                    CentredRoof::Onion => 1.5 * radius,
-                };
-                centred_roof(outer, centred, tagged.unwrap_or(untagged).min(most))
-            }),
-            _ => None,
-        };
+    if let Some(centred) = centred_shape(spec.shape) {
+        let built = centred_roof_over(spec, rings, centred, tagged, most);
         if built.is_some() {
             return (built, None);
         }
         fallback = fall_back(Fallback::NotStarShaped, None);
     }
-    // The plan direction the roof's main face looks towards (`roof:direction`: 0° north, 90°
-    // east; the plan's y grows southwards), else across the ridge, which runs along the longer
-    // side unless `roof:orientation=across`.
-    let direction = spec.direction_deg.map(|d| {
+    let direction = main_face_direction(spec);
+    let profile = roof_profile(spec, direction);
+    if profile.is_some() || spec.shape == RoofShape::Sawtooth {
+        return match profiled_roof(spec, rings, direction, profile, tagged, most) {
+            Ok(mesh) => (Some(mesh), fallback),
+            Err(error) => (None, fall_back(Fallback::Profile, error)),
+        };
+    }
+    let shape = skeleton_shape(spec, direction);
+    match skeleton_roof_within(rings, shape, tagged, spec.pitch, most) {
+        Ok(mut mesh) => {
+            if matches!(spec.shape, RoofShape::Mansard | RoofShape::Gambrel) {
+                bend(&mut mesh);
+            }
+            (Some(mesh), fallback)
+        }
+        Err(error) => (None, fall_back(Fallback::Skeleton, Some(error))),
+    }
+}
+
+/// The shapes that rise to one point over the centroid rather than along a ridge.
+fn centred_shape(shape: RoofShape) -> Option<CentredRoof> {
+    match shape {
+        RoofShape::Pyramidal => Some(CentredRoof::Pyramid),
+        RoofShape::Dome => Some(CentredRoof::Dome),
+        RoofShape::Onion => Some(CentredRoof::Onion),
+        _ => None,
+    }
+}
+
+/// A pyramid, dome or onion over a footprint without courtyards, if it is star-shaped around
+/// its centroid. Untagged, a pyramid rises at the roof's pitch over the least distance from the
+/// centroid to a side, a dome as high as the mean distance to a corner, an onion half as high
+/// again.
+fn centred_roof_over(
+    spec: &RoofSpec,
+    rings: &[Vec<Point>],
+    centred: CentredRoof,
+    tagged: Option<f64>,
+    most: f64,
+) -> Option<RoofMesh> {
+    match rings {
+        [outer] => spread(outer).and_then(|(inner, radius)| {
+            let untagged = match centred {
+                CentredRoof::Pyramid => spec.pitch * inner,
+                CentredRoof::Dome => radius,
+                CentredRoof::Onion => 1.5 * radius,
+            };
+            centred_roof(outer, centred, tagged.unwrap_or(untagged).min(most))
+        }),
+        _ => None,
+    }
+}
+
+/// The plan direction the roof's main face looks towards (`roof:direction`: 0° north, 90°
+/// east; the plan's y grows southwards), when tagged.
+fn main_face_direction(spec: &RoofSpec) -> Option<Point> {
+    spec.direction_deg.map(|d| {
         let d = d.to_radians();
         [d.sin(), -d.cos()]
-    });
-    let across = || {
-        let long = long_axis(&rings[0])?;
-        Some(if spec.across {
-            long
-        } else {
-            [-long[1], long[0]]
-        })
-    };
-    let profile: Option<(Vec<(f64, f64)>, f64)> = match spec.shape {
+    })
+}
+
+/// The section of a roof drawn along a profile, as (share of the width, share of the height)
+/// points, with the run its untagged height is reckoned on; `None` for the other shapes
+/// (a sawtooth's profile depends on the footprint's width, see [`sawtooth_profile`]).
+fn roof_profile(spec: &RoofSpec, direction: Option<Point>) -> Option<(Vec<(f64, f64)>, f64)> {
+    match spec.shape {
         RoofShape::Skillion => Some((vec![(0.0, 0.0), (1.0, 1.0)], SKILLION_RUN)),
         RoofShape::Saltbox => Some((
             vec![(0.0, 0.0), (SALTBOX_RIDGE, 1.0), (1.0, 0.0)],
@@ -465,39 +501,60 @@ fn pitched_roof(
             Some((vec![(0.0, 0.0), (0.5, 1.0), (1.0, 0.0)], GABLE_RUN))
         }
         _ => None,
-    };
-    let sawtooth = spec.shape == RoofShape::Sawtooth;
-    if profile.is_some() || sawtooth {
-        // Rising away from the main face: it looks down the slope.
-        let axis = direction.map(|d| [-d[0], -d[1]]).or_else(across);
-        let Some(axis) = axis else {
-            return (None, fall_back(Fallback::Profile, None));
-        };
-        let values = rings[0].iter().map(|p| p[0] * axis[0] + p[1] * axis[1]);
-        let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
-            (lo.min(x), hi.max(x))
-        });
-        let width = hi - lo;
-        let (profile, run) = match profile {
-            Some((profile, run)) => (profile, run),
-            None => {
-                let teeth = (width / SAWTOOTH_PERIOD_M).round().max(1.0) as usize;
-                let mut profile = vec![(0.0, 0.0)];
-                for k in 0..teeth {
-                    let start = k as f64 / teeth as f64;
-                    profile.push((start + SAWTOOTH_SLOPE / teeth as f64, 1.0));
-                    profile.push(((k + 1) as f64 / teeth as f64, 0.0));
-                }
-                (profile, SAWTOOTH_SLOPE / teeth as f64)
-            }
-        };
-        let height = tagged.unwrap_or(spec.pitch * run * width).min(most);
-        return match profile_roof(rings, axis, &profile, height) {
-            Ok(mesh) => (Some(mesh), fallback),
-            Err(error) => (None, fall_back(Fallback::Profile, Some(error))),
-        };
     }
-    let shape = match spec.shape {
+}
+
+/// A sawtooth's section across `width` metres: a tooth per [`SAWTOOTH_PERIOD_M`], each a long
+/// slope and a steep face, with the run of one slope.
+fn sawtooth_profile(width: f64) -> (Vec<(f64, f64)>, f64) {
+    let teeth = (width / SAWTOOTH_PERIOD_M).round().max(1.0) as usize;
+    let mut profile = vec![(0.0, 0.0)];
+    for k in 0..teeth {
+        let start = k as f64 / teeth as f64;
+        profile.push((start + SAWTOOTH_SLOPE / teeth as f64, 1.0));
+        profile.push(((k + 1) as f64 / teeth as f64, 0.0));
+    }
+    (profile, SAWTOOTH_SLOPE / teeth as f64)
+}
+
+/// A roof drawn along `profile` (a sawtooth's when `None`), rising away from the main face, else
+/// across the ridge, which runs along the longer side unless `roof:orientation=across`. The
+/// error is `None` when the footprint has no long axis to rise along.
+fn profiled_roof(
+    spec: &RoofSpec,
+    rings: &[Vec<Point>],
+    direction: Option<Point>,
+    profile: Option<(Vec<(f64, f64)>, f64)>,
+    tagged: Option<f64>,
+    most: f64,
+) -> Result<RoofMesh, Option<RoofError>> {
+    let across = || {
+        let long = long_axis(&rings[0])?;
+        Some(if spec.across {
+            long
+        } else {
+            [-long[1], long[0]]
+        })
+    };
+    // Rising away from the main face: it looks down the slope.
+    let axis = direction.map(|d| [-d[0], -d[1]]).or_else(across);
+    let Some(axis) = axis else {
+        return Err(None);
+    };
+    let values = rings[0].iter().map(|p| p[0] * axis[0] + p[1] * axis[1]);
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+        (lo.min(x), hi.max(x))
+    });
+    let width = hi - lo;
+    let (profile, run) = profile.unwrap_or_else(|| sawtooth_profile(width));
+    let height = tagged.unwrap_or(spec.pitch * run * width).min(most);
+    profile_roof(rings, axis, &profile, height).map_err(Some)
+}
+
+/// How the skeleton finishes the ends of the roof's wings for the tagged shape; hipped unless
+/// the shape says otherwise.
+fn skeleton_shape(spec: &RoofSpec, direction: Option<Point>) -> SkeletonRoof {
+    match spec.shape {
         RoofShape::Gabled | RoofShape::Gambrel => SkeletonRoof::GABLED,
         RoofShape::HalfHipped => SkeletonRoof::ends(RoofEnd::HalfHip),
         RoofShape::HippedAndGabled => SkeletonRoof::ends(RoofEnd::Gablet),
@@ -513,31 +570,32 @@ fn pitched_roof(
             )),
         },
         _ => SkeletonRoof::HIPPED,
-    };
+    }
+}
+
+/// The skeleton's roof, built again at `most` when it rises higher. A near-rectilinear
+/// footprint whose skeleton trips on its almost-parallel sides gets the roof of its squared
+/// outline (paper 003 §5.2), the walls following it.
+fn skeleton_roof_within(
+    rings: &[Vec<Point>],
+    shape: SkeletonRoof,
+    tagged: Option<f64>,
+    pitch: f64,
+    most: f64,
+) -> Result<RoofMesh, RoofError> {
     let build = |rings: &[Vec<Point>]| {
-        skeleton_roof(rings, shape, tagged, spec.pitch).and_then(|mesh| {
+        skeleton_roof(rings, shape, tagged, pitch).and_then(|mesh| {
             if mesh.height > most {
-                skeleton_roof(rings, shape, Some(most), spec.pitch)
+                skeleton_roof(rings, shape, Some(most), pitch)
             } else {
                 Ok(mesh)
             }
         })
     };
-    // A near-rectilinear footprint whose skeleton trips on its almost-parallel sides gets the
-    // roof of its squared outline (paper 003 §5.2), the walls following it.
-    let built = build(rings).or_else(|error| match square_up(rings) {
+    build(rings).or_else(|error| match square_up(rings) {
         Some(squared) => build(&squared),
         None => Err(error),
-    });
-    match built {
-        Ok(mut mesh) => {
-            if matches!(spec.shape, RoofShape::Mansard | RoofShape::Gambrel) {
-                bend(&mut mesh);
-            }
-            (Some(mesh), fallback)
-        }
-        Err(error) => (None, fall_back(Fallback::Skeleton, Some(error))),
-    }
+    })
 }
 
 #[cfg(test)]

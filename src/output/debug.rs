@@ -8,7 +8,7 @@
 use serde_json::{json, Value};
 
 use crate::elevation::road_profiles::RoadProfiles;
-use crate::elevation::structures::{plan_tunnel, Settled};
+use crate::elevation::structures::{plan_tunnel, ConstraintReport, Profile, Settled};
 use crate::geometry::Point;
 use crate::osm::structures::StructureKind;
 use crate::osm::Way;
@@ -27,15 +27,6 @@ pub fn elevations(
     surface_margin_m: f64,
 ) -> Value {
     let n = tile.tiles_per_axis();
-    let position = |p: Point| -> Value {
-        let round = |v: f64| (v * 1e7).round() / 1e7;
-        json!([round(u_to_lon(p[0], n)), round(v_to_lat(p[1], n))])
-    };
-    let kind_name = |kind: StructureKind| match kind {
-        StructureKind::Bridge => "bridge",
-        StructureKind::Tunnel => "tunnel",
-    };
-    let cm = |v: f64| (v * 100.0).round() / 100.0;
     let mut features: Vec<Value> = Vec::new();
     let (mut variables, mut constraints, mut components, mut violated) = (0, 0, 0, 0);
     for (group, outcome) in settled.iter().enumerate() {
@@ -43,123 +34,26 @@ pub fn elevations(
         constraints += outcome.constraints;
         components += outcome.components;
         for (chain, profile) in outcome.profiles.iter().enumerate() {
-            let mut way_ids: Vec<i64> = profile.ways.iter().map(|&w| ways[w as usize].id).collect();
-            way_ids.dedup();
-            let mut properties = json!({
-                "layer": "structure",
-                "kind": kind_name(profile.kind),
-                "group": group,
-                "chain": chain,
-                "osm_ways": way_ids,
-                "structure_layer": profile.layer,
-                "grounded": profile.grounded,
-                "length_m": cm(profile.along_m.last().copied().unwrap_or(0.0)),
-                "elevations_m": profile.elevations.iter().map(|&e| cm(e)).collect::<Vec<_>>(),
-                "terrain_m": profile.terrain.iter().map(|&e| cm(e)).collect::<Vec<_>>(),
-            });
-            if profile.kind == StructureKind::Tunnel {
-                let plan = plan_tunnel(profile, ways, surface_margin_m);
-                properties["ramps_m"] = json!(plan.ramps);
-                properties["tube_m"] = json!(plan.tube);
-                properties["raised_m"] = json!(plan.raised);
-                properties["portals_m"] = json!(plan.portals);
-            }
-            features.push(json!({
-                "type": "Feature",
-                "geometry": {
-                    "type": "LineString",
-                    "coordinates": profile.points.iter().map(|&p| position(p)).collect::<Vec<_>>(),
-                },
-                "properties": properties,
-            }));
-            let last = profile.points.len().saturating_sub(1);
-            for (i, &p) in profile.points.iter().enumerate() {
-                let connector = match (i, i == last) {
-                    (0, _) if profile.grounded[0] => "ground",
-                    (_, true) if profile.grounded[1] => "ground",
-                    (0, _) | (_, true) => "joined",
-                    _ => "station",
-                };
-                features.push(json!({
-                    "type": "Feature",
-                    "geometry": {"type": "Point", "coordinates": position(p)},
-                    "properties": {
-                        "layer": "connector",
-                        "connector": connector,
-                        "kind": kind_name(profile.kind),
-                        "osm_way": ways[profile.ways[i] as usize].id,
-                        "along_m": cm(profile.along_m[i]),
-                        "elevation_m": cm(profile.elevations[i]),
-                        "terrain_m": cm(profile.terrain[i]),
-                    },
-                }));
-            }
+            let feature = structure_feature(group, chain, profile, ways, surface_margin_m, n);
+            features.push(feature);
+            push_connectors(&mut features, profile, ways, n);
         }
         for report in &outcome.reports {
             let holds = report.violation <= VIOLATION_TOLERANCE_M;
             if !holds {
                 violated += 1;
             }
-            features.push(json!({
-                "type": "Feature",
-                "geometry": {"type": "Point", "coordinates": position(report.at)},
-                "properties": {
-                    "layer": "constraint",
-                    "constraint": report.kind.as_str(),
-                    "osm_way": report.way,
-                    "bound_m": cm(report.bound),
-                    "violation_m": cm(report.violation),
-                    "satisfied": holds,
-                },
-            }));
+            features.push(constraint_feature(report, "constraint", holds, n));
         }
     }
-    // Ground roads: the profiles that left the terrain (by half a centimetre, as written), and
-    // what gave way.
-    let mut road_ids: Vec<&i64> = roads.profiles.keys().collect();
-    road_ids.sort_unstable();
-    for id in road_ids {
-        let profile = &roads.profiles[id];
-        let left = profile
-            .elevations
-            .iter()
-            .zip(&profile.terrain)
-            .any(|(e, t)| (e - t).abs() >= 0.005);
-        if !left {
-            continue;
-        }
-        features.push(json!({
-            "type": "Feature",
-            "geometry": {
-                "type": "LineString",
-                "coordinates": profile.points.iter().map(|&p| position(p)).collect::<Vec<_>>(),
-            },
-            "properties": {
-                "layer": "road_profile",
-                "osm_way": id,
-                "elevations_m": profile.elevations.iter().map(|&e| cm(e)).collect::<Vec<_>>(),
-                "terrain_m": profile.terrain.iter().map(|&e| cm(e)).collect::<Vec<_>>(),
-            },
-        }));
-    }
+    push_road_profiles(&mut features, roads, n);
     let mut road_violations = 0;
     for report in &roads.violations {
         if report.violation <= VIOLATION_TOLERANCE_M {
             continue;
         }
         road_violations += 1;
-        features.push(json!({
-            "type": "Feature",
-            "geometry": {"type": "Point", "coordinates": position(report.at)},
-            "properties": {
-                "layer": "road_constraint",
-                "constraint": report.kind.as_str(),
-                "osm_way": report.way,
-                "bound_m": cm(report.bound),
-                "violation_m": cm(report.violation),
-                "satisfied": false,
-            },
-        }));
+        features.push(constraint_feature(report, "road_constraint", false, n));
     }
     json!({
         "type": "FeatureCollection",
@@ -181,4 +75,141 @@ pub fn elevations(
         },
         "features": features,
     })
+}
+
+/// A bridge or tunnel chain as a line with its stations' elevations, and for a tunnel its plan.
+fn structure_feature(
+    group: usize,
+    chain: usize,
+    profile: &Profile,
+    ways: &[Way],
+    surface_margin_m: f64,
+    n: f64,
+) -> Value {
+    let mut way_ids: Vec<i64> = profile.ways.iter().map(|&w| ways[w as usize].id).collect();
+    way_ids.dedup();
+    let mut properties = json!({
+        "layer": "structure",
+        "kind": kind_name(profile.kind),
+        "group": group,
+        "chain": chain,
+        "osm_ways": way_ids,
+        "structure_layer": profile.layer,
+        "grounded": profile.grounded,
+        "length_m": centimetres(profile.along_m.last().copied().unwrap_or(0.0)),
+        "elevations_m": profile.elevations.iter().map(|&e| centimetres(e)).collect::<Vec<_>>(),
+        "terrain_m": profile.terrain.iter().map(|&e| centimetres(e)).collect::<Vec<_>>(),
+    });
+    if profile.kind == StructureKind::Tunnel {
+        let plan = plan_tunnel(profile, ways, surface_margin_m);
+        properties["ramps_m"] = json!(plan.ramps);
+        properties["tube_m"] = json!(plan.tube);
+        properties["raised_m"] = json!(plan.raised);
+        properties["portals_m"] = json!(plan.portals);
+    }
+    json!({
+        "type": "Feature",
+        "geometry": {
+            "type": "LineString",
+            "coordinates": line(&profile.points, n),
+        },
+        "properties": properties,
+    })
+}
+
+/// A point per station of the chain: its grounded or joined ends and the stations between.
+fn push_connectors(features: &mut Vec<Value>, profile: &Profile, ways: &[Way], n: f64) {
+    let last = profile.points.len().saturating_sub(1);
+    for (i, &p) in profile.points.iter().enumerate() {
+        let connector = match (i, i == last) {
+            (0, _) if profile.grounded[0] => "ground",
+            (_, true) if profile.grounded[1] => "ground",
+            (0, _) | (_, true) => "joined",
+            _ => "station",
+        };
+        features.push(json!({
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": position(p, n)},
+            "properties": {
+                "layer": "connector",
+                "connector": connector,
+                "kind": kind_name(profile.kind),
+                "osm_way": ways[profile.ways[i] as usize].id,
+                "along_m": centimetres(profile.along_m[i]),
+                "elevation_m": centimetres(profile.elevations[i]),
+                "terrain_m": centimetres(profile.terrain[i]),
+            },
+        }));
+    }
+}
+
+/// A soft constraint as a point in `layer`, with its bound and how far it is from holding.
+fn constraint_feature(report: &ConstraintReport, layer: &str, satisfied: bool, n: f64) -> Value {
+    json!({
+        "type": "Feature",
+        "geometry": {"type": "Point", "coordinates": position(report.at, n)},
+        "properties": {
+            "layer": layer,
+            "constraint": report.kind.as_str(),
+            "osm_way": report.way,
+            "bound_m": centimetres(report.bound),
+            "violation_m": centimetres(report.violation),
+            "satisfied": satisfied,
+        },
+    })
+}
+
+/// The ground roads whose profiles left the terrain (by half a centimetre, as written), in
+/// order of way id.
+fn push_road_profiles(features: &mut Vec<Value>, roads: &RoadProfiles, n: f64) {
+    let mut road_ids: Vec<&i64> = roads.profiles.keys().collect();
+    road_ids.sort_unstable();
+    for id in road_ids {
+        let profile = &roads.profiles[id];
+        let left = profile
+            .elevations
+            .iter()
+            .zip(&profile.terrain)
+            .any(|(e, t)| (e - t).abs() >= 0.005);
+        if !left {
+            continue;
+        }
+        features.push(json!({
+            "type": "Feature",
+            "geometry": {
+                "type": "LineString",
+                "coordinates": line(&profile.points, n),
+            },
+            "properties": {
+                "layer": "road_profile",
+                "osm_way": id,
+                "elevations_m": profile.elevations.iter().map(|&e| centimetres(e)).collect::<Vec<_>>(),
+                "terrain_m": profile.terrain.iter().map(|&e| centimetres(e)).collect::<Vec<_>>(),
+            },
+        }));
+    }
+}
+
+/// Longitude and latitude to 1e-7 degrees (about a centimetre), for a tile zoom of `n` tiles
+/// along each axis.
+fn position(p: Point, n: f64) -> Value {
+    let round = |v: f64| (v * 1e7).round() / 1e7;
+    json!([round(u_to_lon(p[0], n)), round(v_to_lat(p[1], n))])
+}
+
+/// The coordinates of a line string.
+fn line(points: &[Point], n: f64) -> Vec<Value> {
+    points.iter().map(|&p| position(p, n)).collect()
+}
+
+/// Metres rounded to the centimetre.
+fn centimetres(v: f64) -> f64 {
+    (v * 100.0).round() / 100.0
+}
+
+fn kind_name(kind: StructureKind) -> &'static str {
+    match kind {
+        StructureKind::Bridge => "bridge",
+        StructureKind::Tunnel => "tunnel",
+    }
 }

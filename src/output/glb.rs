@@ -391,52 +391,15 @@ pub fn write(
         fallback: variant.meshopt.then_some(0),
     };
 
-    let mut class_parts: BTreeMap<FeatureClass, Vec<(Part, &MeshBuffers)>> = BTreeMap::new();
-    for (&part, buffers) in parts {
-        if !buffers.is_empty() {
-            class_parts
-                .entry(part.class())
-                .or_default()
-                .push((part, buffers));
-        }
-    }
-
     let mut nodes = Vec::new();
-    for (class, class_parts) in class_parts {
-        // Positions on the shared grid where the node's extent allows it.
-        let grid = if variant.meshopt && variant.frame == Frame::WebMercator {
-            Grid::over(
-                description.size_m,
-                class_parts.iter().flat_map(|(_, b)| b.positions.iter()),
-            )
-        } else {
-            None
-        };
-        let primitives = class_parts
-            .iter()
-            .map(|&(part, buffers)| write_primitive(&mut builder, part, buffers, grid.as_ref()))
-            .collect();
-        let mesh = builder.root.push(json::Mesh {
-            extensions: None,
-            extras: Default::default(),
-            name: Some(class.as_str().to_string()),
-            primitives,
-            weights: None,
-        });
-        let (translation, scale) = match grid {
-            Some(grid) => (
-                Some(grid.base.map(|b| (b as f64 * grid.step) as f32)),
-                Some([grid.step as f32; 3]),
-            ),
-            None => (None, None),
-        };
-        nodes.push(builder.root.push(json::Node {
-            mesh: Some(mesh),
-            name: Some(class.as_str().to_string()),
-            translation,
-            scale,
-            ..Default::default()
-        }));
+    for (class, class_parts) in parts_by_class(parts) {
+        nodes.push(write_class(
+            &mut builder,
+            description,
+            variant,
+            class,
+            &class_parts,
+        ));
     }
     for (&model, instances) in instanced {
         if !instances.is_empty() {
@@ -462,11 +425,82 @@ pub fn write(
             .into_iter()
             .collect(),
     });
+    declare_extensions(&mut builder, instanced.values().any(|i| !i.is_empty()));
+    write_buffers(&mut builder);
+    builder.root.asset = asset(description, enu.as_ref());
+
+    let json_bytes = serde_json::to_vec(&builder.root).expect("glTF JSON serializes");
+    container(&json_bytes, &builder.bytes)
+}
+
+/// The non-empty parts grouped by the feature class whose node draws them.
+fn parts_by_class(
+    parts: &BTreeMap<Part, MeshBuffers>,
+) -> BTreeMap<FeatureClass, Vec<(Part, &MeshBuffers)>> {
+    let mut class_parts: BTreeMap<FeatureClass, Vec<(Part, &MeshBuffers)>> = BTreeMap::new();
+    for (&part, buffers) in parts {
+        if !buffers.is_empty() {
+            class_parts
+                .entry(part.class())
+                .or_default()
+                .push((part, buffers));
+        }
+    }
+    class_parts
+}
+
+/// A class's node: one mesh with a primitive per part, and with compressed positions of the
+/// flat frame, the translation and scale that carry the shared grid back to metres.
+fn write_class(
+    builder: &mut BinaryBuilder,
+    description: &TileDescription,
+    variant: Variant,
+    class: FeatureClass,
+    class_parts: &[(Part, &MeshBuffers)],
+) -> json::Index<json::Node> {
+    // Positions on the shared grid where the node's extent allows it.
+    let grid = if variant.meshopt && variant.frame == Frame::WebMercator {
+        Grid::over(
+            description.size_m,
+            class_parts.iter().flat_map(|(_, b)| b.positions.iter()),
+        )
+    } else {
+        None
+    };
+    let primitives = class_parts
+        .iter()
+        .map(|&(part, buffers)| write_primitive(builder, part, buffers, grid.as_ref()))
+        .collect();
+    let mesh = builder.root.push(json::Mesh {
+        extensions: None,
+        extras: Default::default(),
+        name: Some(class.as_str().to_string()),
+        primitives,
+        weights: None,
+    });
+    let (translation, scale) = match grid {
+        Some(grid) => (
+            Some(grid.base.map(|b| (b as f64 * grid.step) as f32)),
+            Some([grid.step as f32; 3]),
+        ),
+        None => (None, None),
+    };
+    builder.root.push(json::Node {
+        mesh: Some(mesh),
+        name: Some(class.as_str().to_string()),
+        translation,
+        scale,
+        ..Default::default()
+    })
+}
+
+/// The extensions the tile uses, and of them those a reader needs to decode it.
+fn declare_extensions(builder: &mut BinaryBuilder, has_instances: bool) {
     builder.root.extensions_used = vec![
         "EXT_mesh_features".to_string(),
         "EXT_structural_metadata".to_string(),
     ];
-    if instanced.values().any(|i| !i.is_empty()) {
+    if has_instances {
         builder.root.extensions_used.extend([
             "EXT_mesh_gpu_instancing".to_string(),
             "EXT_instance_features".to_string(),
@@ -479,7 +513,11 @@ pub fn write(
             builder.root.extensions_required.push(extension.to_string());
         }
     }
+}
 
+/// Pads the binary chunk and declares the buffer that holds it, and with meshopt the fallback
+/// buffer the compressed views decode into.
+fn write_buffers(builder: &mut BinaryBuilder) {
     while builder.bytes.len() % 4 != 0 {
         builder.bytes.push(0);
     }
@@ -507,10 +545,6 @@ pub fn write(
             extras: Default::default(),
         });
     }
-    builder.root.asset = asset(description, enu.as_ref());
-
-    let json_bytes = serde_json::to_vec(&builder.root).expect("glTF JSON serializes");
-    container(&json_bytes, &builder.bytes)
 }
 
 /// A node drawing one model at every instance: `EXT_mesh_gpu_instancing` with translation,
@@ -585,6 +619,8 @@ fn write_instanced(
     })
 }
 
+/// One part as a primitive: its attributes, indices and material, with the feature ids that
+/// index the property table.
 fn write_primitive(
     builder: &mut BinaryBuilder,
     part: Part,
@@ -601,109 +637,13 @@ fn write_primitive(
     };
     let count = buffers.positions.len();
     let positions = match grid {
-        Some(grid) => {
-            // Whole grid steps, 16 bits each, padded to 8 bytes a vertex.
-            let quantized: Vec<[u16; 3]> = buffers
-                .positions
-                .iter()
-                .map(|&p| grid.quantize(p))
-                .collect();
-            let mut min = [u16::MAX; 3];
-            let mut max = [0u16; 3];
-            for q in &quantized {
-                for axis in 0..3 {
-                    min[axis] = min[axis].min(q[axis]);
-                    max[axis] = max[axis].max(q[axis]);
-                }
-            }
-            let bytes: Vec<u8> = quantized
-                .iter()
-                .flat_map(|q| {
-                    let [a, b, c] = q.map(u16::to_le_bytes);
-                    [a[0], a[1], b[0], b[1], c[0], c[1], 0, 0]
-                })
-                .collect();
-            let view = builder.vertex_view(&bytes, 8);
-            builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(8));
-            builder.accessor(
-                view,
-                count,
-                json::accessor::ComponentType::U16,
-                json::accessor::Type::Vec3,
-                Some((value!(min), value!(max))),
-            )
-        }
-        None => {
-            let mut min = [f32::INFINITY; 3];
-            let mut max = [f32::NEG_INFINITY; 3];
-            for p in &buffers.positions {
-                for axis in 0..3 {
-                    min[axis] = min[axis].min(p[axis]);
-                    max[axis] = max[axis].max(p[axis]);
-                }
-            }
-            builder.float_vec3(&buffers.positions, Some((value!(min), value!(max))))
-        }
+        Some(grid) => write_grid_positions(builder, &buffers.positions, grid),
+        None => write_float_positions(builder, &buffers.positions),
     };
-    let normals = if compressed {
-        // Signed normalized bytes, padded to 4 a vertex.
-        let bytes: Vec<u8> = buffers
-            .normals
-            .iter()
-            .flat_map(|n| {
-                let [a, b, c] = n.map(|v| (v.clamp(-1.0, 1.0) * 127.0).round() as i8 as u8);
-                [a, b, c, 0]
-            })
-            .collect();
-        builder.byte_attribute(
-            &bytes,
-            count,
-            json::accessor::ComponentType::I8,
-            json::accessor::Type::Vec3,
-        )
-    } else {
-        builder.float_vec3(&buffers.normals, None)
-    };
+    let normals = write_normals(builder, &buffers.normals, count, compressed);
+    let feature_ids = write_feature_ids(builder, &buffers.feature_ids, count);
+    let indices = write_indices(builder, &buffers.indices, count);
 
-    // Feature ids: 16-bit where they fit (vertex attributes may not be 32-bit integers), each
-    // element padded to the 4-byte alignment vertex attributes need.
-    let max_id = buffers.feature_ids.iter().copied().max().unwrap_or(0);
-    let (id_view, id_type) = if max_id < u32::from(u16::MAX) {
-        let padded: Vec<u8> = buffers
-            .feature_ids
-            .iter()
-            .flat_map(|&id| {
-                let [a, b] = (id as u16).to_le_bytes();
-                [a, b, 0, 0]
-            })
-            .collect();
-        let view = builder.vertex_view(&padded, 4);
-        builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(4));
-        (view, json::accessor::ComponentType::U16)
-    } else {
-        let bytes = floats_to_bytes(buffers.feature_ids.iter().map(|&id| id as f32));
-        (
-            builder.vertex_view(&bytes, 4),
-            json::accessor::ComponentType::F32,
-        )
-    };
-    let feature_ids = builder.accessor(id_view, count, id_type, json::accessor::Type::Scalar, None);
-
-    let wide = count > usize::from(u16::MAX);
-    let indices = builder.index_view(&buffers.indices, count, wide);
-    let indices = builder.accessor(
-        indices,
-        buffers.indices.len(),
-        if wide {
-            json::accessor::ComponentType::U32
-        } else {
-            json::accessor::ComponentType::U16
-        },
-        json::accessor::Type::Scalar,
-        None,
-    );
-
-    let (mut colour, roughness) = material_of(part);
     let painted = !buffers.colours.is_empty() && buffers.colours.len() == count;
     let colours = painted.then(|| {
         let bytes: Vec<u8> = buffers.colours.iter().flatten().copied().collect();
@@ -714,23 +654,7 @@ fn write_primitive(
             json::accessor::Type::Vec4,
         )
     });
-    if painted {
-        // The vertices carry the colour.
-        colour = [1.0, 1.0, 1.0, 1.0];
-    }
-    let material = builder.root.push(json::Material {
-        name: Some(part.name().to_string()),
-        pbr_metallic_roughness: json::material::PbrMetallicRoughness {
-            base_color_factor: json::material::PbrBaseColorFactor(colour),
-            metallic_factor: json::material::StrengthFactor(metallic_of(part)),
-            roughness_factor: json::material::StrengthFactor(roughness),
-            ..Default::default()
-        },
-        // A tunnel's lining is seen from inside (through a portal) and from outside (with the
-        // ground hidden).
-        double_sided: part == Part::TunnelLining,
-        ..Default::default()
-    });
+    let material = write_material(builder, part, painted);
 
     let distinct: BTreeSet<u32> = buffers.feature_ids.iter().copied().collect();
     let mut attributes = BTreeMap::new();
@@ -766,6 +690,155 @@ fn write_primitive(
         mode: Valid(json::mesh::Mode::Triangles),
         targets: None,
     }
+}
+
+/// Positions as whole steps of the shared grid, 16 bits each, padded to 8 bytes a vertex.
+fn write_grid_positions(
+    builder: &mut BinaryBuilder,
+    positions: &[[f32; 3]],
+    grid: &Grid,
+) -> json::Index<json::Accessor> {
+    let quantized: Vec<[u16; 3]> = positions.iter().map(|&p| grid.quantize(p)).collect();
+    let mut min = [u16::MAX; 3];
+    let mut max = [0u16; 3];
+    for q in &quantized {
+        for axis in 0..3 {
+            min[axis] = min[axis].min(q[axis]);
+            max[axis] = max[axis].max(q[axis]);
+        }
+    }
+    let bytes: Vec<u8> = quantized
+        .iter()
+        .flat_map(|q| {
+            let [a, b, c] = q.map(u16::to_le_bytes);
+            [a[0], a[1], b[0], b[1], c[0], c[1], 0, 0]
+        })
+        .collect();
+    let view = builder.vertex_view(&bytes, 8);
+    builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(8));
+    builder.accessor(
+        view,
+        positions.len(),
+        json::accessor::ComponentType::U16,
+        json::accessor::Type::Vec3,
+        Some((value!(min), value!(max))),
+    )
+}
+
+/// Positions as floats, with the bounds glTF requires of them.
+fn write_float_positions(
+    builder: &mut BinaryBuilder,
+    positions: &[[f32; 3]],
+) -> json::Index<json::Accessor> {
+    let mut min = [f32::INFINITY; 3];
+    let mut max = [f32::NEG_INFINITY; 3];
+    for p in positions {
+        for axis in 0..3 {
+            min[axis] = min[axis].min(p[axis]);
+            max[axis] = max[axis].max(p[axis]);
+        }
+    }
+    builder.float_vec3(positions, Some((value!(min), value!(max))))
+}
+
+/// Normals as floats, or in a compressed tile as signed normalized bytes, padded to 4 a vertex.
+fn write_normals(
+    builder: &mut BinaryBuilder,
+    normals: &[[f32; 3]],
+    count: usize,
+    compressed: bool,
+) -> json::Index<json::Accessor> {
+    if !compressed {
+        return builder.float_vec3(normals, None);
+    }
+    let bytes: Vec<u8> = normals
+        .iter()
+        .flat_map(|n| {
+            let [a, b, c] = n.map(|v| (v.clamp(-1.0, 1.0) * 127.0).round() as i8 as u8);
+            [a, b, c, 0]
+        })
+        .collect();
+    builder.byte_attribute(
+        &bytes,
+        count,
+        json::accessor::ComponentType::I8,
+        json::accessor::Type::Vec3,
+    )
+}
+
+/// Feature ids: 16-bit where they fit (vertex attributes may not be 32-bit integers), each
+/// element padded to the 4-byte alignment vertex attributes need; floats beyond.
+fn write_feature_ids(
+    builder: &mut BinaryBuilder,
+    feature_ids: &[u32],
+    count: usize,
+) -> json::Index<json::Accessor> {
+    let max_id = feature_ids.iter().copied().max().unwrap_or(0);
+    let (id_view, id_type) = if max_id < u32::from(u16::MAX) {
+        let padded: Vec<u8> = feature_ids
+            .iter()
+            .flat_map(|&id| {
+                let [a, b] = (id as u16).to_le_bytes();
+                [a, b, 0, 0]
+            })
+            .collect();
+        let view = builder.vertex_view(&padded, 4);
+        builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(4));
+        (view, json::accessor::ComponentType::U16)
+    } else {
+        let bytes = floats_to_bytes(feature_ids.iter().map(|&id| id as f32));
+        (
+            builder.vertex_view(&bytes, 4),
+            json::accessor::ComponentType::F32,
+        )
+    };
+    builder.accessor(id_view, count, id_type, json::accessor::Type::Scalar, None)
+}
+
+/// Triangle indices, 16 bits each unless the primitive has more vertices than 16 bits number.
+fn write_indices(
+    builder: &mut BinaryBuilder,
+    indices: &[u32],
+    vertex_count: usize,
+) -> json::Index<json::Accessor> {
+    let wide = vertex_count > usize::from(u16::MAX);
+    let view = builder.index_view(indices, vertex_count, wide);
+    builder.accessor(
+        view,
+        indices.len(),
+        if wide {
+            json::accessor::ComponentType::U32
+        } else {
+            json::accessor::ComponentType::U16
+        },
+        json::accessor::Type::Scalar,
+        None,
+    )
+}
+
+/// The part's material; painted parts carry their colour in their vertices, under white.
+fn write_material(
+    builder: &mut BinaryBuilder,
+    part: Part,
+    painted: bool,
+) -> json::Index<json::Material> {
+    let (mut colour, roughness) = material_of(part);
+    if painted {
+        colour = [1.0, 1.0, 1.0, 1.0];
+    }
+    builder.root.push(json::Material {
+        name: Some(part.name().to_string()),
+        pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+            base_color_factor: json::material::PbrBaseColorFactor(colour),
+            metallic_factor: json::material::StrengthFactor(metallic_of(part)),
+            roughness_factor: json::material::StrengthFactor(roughness),
+            ..Default::default()
+        },
+        // A tunnel's lining is seen from inside (through a portal) and from outside (with the
+        // ground hidden).
+        double_sided: part == Part::TunnelLining,
+        ..Default::default()
+    })
 }
 
 /// The schema and the one property table of `EXT_structural_metadata`.

@@ -120,27 +120,44 @@ pub struct EncodeReport {
 
 /// Encodes a tile (uncompressed; the server gzips it).
 pub fn encode(tile: &TerrainTile, extensions: Extensions) -> (Vec<u8>, EncodeReport) {
-    // Quantize and weld: of the vertices that share a quantized position, the one on the tile's
-    // edge wins, then the one with the smallest (u, v).
-    // A coordinate strictly inside the tile stays strictly inside (a vertex a few centimetres
-    // from the edge must not land on it in one tile only).
-    let quantize = |f: f64| {
-        if f <= 0.0 {
-            0
-        } else if f >= 1.0 {
-            MAX as u16
-        } else {
-            (f * MAX).round().clamp(1.0, MAX - 1.0) as u16
-        }
+    let (quantized, welded) = weld(&tile.positions);
+    let mut triangles = triangulate(&quantized);
+    let order = renumber(&mut triangles, welded.len());
+    let vertices = Vertices::new(tile, &quantized, &welded, &order);
+    let n = vertices.source.len();
+    let report = EncodeReport {
+        vertices: n,
+        triangles: triangles.len(),
+        input_triangles: tile.triangles.len(),
     };
+
+    let mut out = Vec::with_capacity(88 + n * 6 + triangles.len() * 6 + 64);
+    write_header(&mut out, tile, &vertices);
+    write_vertices(&mut out, &vertices);
+    let wide = n > 65536;
+    write_indices(&mut out, &triangles, wide);
+    write_edge_lists(&mut out, &vertices, wide);
+    if extensions.normals {
+        write_normals(&mut out, tile, &vertices.source);
+    }
+    if extensions.watermask {
+        write_watermask(&mut out, tile.water.as_deref());
+    }
+    (out, report)
+}
+
+/// Quantizes the positions and welds those that share a quantized position, returning the
+/// distinct quantized points sorted by `(u, v)` and, for each, the index of the vertex that won:
+/// the one on the tile's edge, then the one with the smallest (u, v).
+fn weld(positions: &[[f64; 2]]) -> (Vec<(u16, u16)>, Vec<usize>) {
     let on_edge = |p: [f64; 2]| p[0] == 0.0 || p[0] == 1.0 || p[1] == 0.0 || p[1] == 1.0;
+    let rank = |i: usize| {
+        let q = positions[i];
+        (!on_edge(q), q[0].to_bits(), q[1].to_bits())
+    };
     let mut winner: HashMap<(u16, u16), usize> = HashMap::new();
-    for (index, &p) in tile.positions.iter().enumerate() {
+    for (index, &p) in positions.iter().enumerate() {
         let key = (quantize(p[0]), quantize(p[1]));
-        let rank = |i: usize| {
-            let q = tile.positions[i];
-            (!on_edge(q), q[0].to_bits(), q[1].to_bits())
-        };
         winner
             .entry(key)
             .and_modify(|w| {
@@ -152,18 +169,27 @@ pub fn encode(tile: &TerrainTile, extensions: Extensions) -> (Vec<u8>, EncodeRep
     }
     let mut points: Vec<((u16, u16), usize)> = winner.into_iter().collect();
     points.sort_unstable();
-    let quantized: Vec<(u16, u16)> = points.iter().map(|p| p.0).collect();
-    let welded: Vec<usize> = points.iter().map(|p| p.1).collect();
+    points.into_iter().unzip()
+}
 
-    let mut report = EncodeReport {
-        input_triangles: tile.triangles.len(),
-        ..EncodeReport::default()
-    };
-    let mut triangles = triangulate(&quantized);
-    // Renumber in order of first use.
+/// A fraction of the tile on the `0..=MAX` grid. A coordinate strictly inside the tile stays
+/// strictly inside: a vertex a few centimetres from the edge must not land on it in one tile only.
+fn quantize(f: f64) -> u16 {
+    if f <= 0.0 {
+        0
+    } else if f >= 1.0 {
+        MAX as u16
+    } else {
+        (f * MAX).round().clamp(1.0, MAX - 1.0) as u16
+    }
+}
+
+/// Renumbers the triangles' vertices in order of first use, as high-water-mark coding requires,
+/// and returns the old index of each new one. Points no triangle uses are dropped.
+fn renumber(triangles: &mut [[u32; 3]], point_count: usize) -> Vec<u32> {
     let mut order: Vec<u32> = Vec::new();
-    let mut new_index: Vec<u32> = vec![u32::MAX; welded.len()];
-    for t in &mut triangles {
+    let mut new_index: Vec<u32> = vec![u32::MAX; point_count];
+    for t in triangles.iter_mut() {
         for i in t.iter_mut() {
             if new_index[*i as usize] == u32::MAX {
                 new_index[*i as usize] = order.len() as u32;
@@ -172,47 +198,88 @@ pub fn encode(tile: &TerrainTile, extensions: Extensions) -> (Vec<u8>, EncodeRep
             *i = new_index[*i as usize];
         }
     }
-    let vertex = |k: usize| welded[order[k] as usize];
-    let n = order.len();
-    report.vertices = n;
-    report.triangles = triangles.len();
+    order
+}
 
-    let heights: Vec<f64> = (0..n).map(|k| tile.heights[vertex(k)]).collect();
-    let min_height = heights.iter().copied().fold(f64::INFINITY, f64::min);
-    let max_height = heights.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let (min_height, max_height) = if n == 0 {
-        (0.0, 0.0)
-    } else {
-        (min_height, max_height)
-    };
-    let span = max_height - min_height;
+/// The vertices as written, in order of first use.
+struct Vertices {
+    /// The index of each in the tile's own vertices.
+    source: Vec<usize>,
+    /// Quantized east, `0..=MAX`.
+    u: Vec<i32>,
+    /// Quantized north, `0..=MAX`.
+    v: Vec<i32>,
+    /// Heights above the ellipsoid, metres.
+    heights: Vec<f64>,
+    /// Heights quantized over `min_height..=max_height` to `0..=MAX`.
+    quantized_heights: Vec<i32>,
+    /// The height range, both 0 for a tile without vertices.
+    min_height: f64,
+    max_height: f64,
+}
 
-    let hs: Vec<i32> = heights
-        .iter()
-        .map(|&h| {
-            if span > 0.0 {
-                ((h - min_height) / span * MAX).round() as i32
-            } else {
-                0
-            }
-        })
-        .collect();
+impl Vertices {
+    fn new(tile: &TerrainTile, quantized: &[(u16, u16)], welded: &[usize], order: &[u32]) -> Self {
+        let n = order.len();
+        let source: Vec<usize> = order.iter().map(|&o| welded[o as usize]).collect();
+        let heights: Vec<f64> = source.iter().map(|&s| tile.heights[s]).collect();
+        let min_height = heights.iter().copied().fold(f64::INFINITY, f64::min);
+        let max_height = heights.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let (min_height, max_height) = if n == 0 {
+            (0.0, 0.0)
+        } else {
+            (min_height, max_height)
+        };
+        let span = max_height - min_height;
+        let quantized_heights: Vec<i32> = heights
+            .iter()
+            .map(|&h| {
+                if span > 0.0 {
+                    ((h - min_height) / span * MAX).round() as i32
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let u = order
+            .iter()
+            .map(|&o| i32::from(quantized[o as usize].0))
+            .collect();
+        let v = order
+            .iter()
+            .map(|&o| i32::from(quantized[o as usize].1))
+            .collect();
+        Self {
+            source,
+            u,
+            v,
+            heights,
+            quantized_heights,
+            min_height,
+            max_height,
+        }
+    }
+}
 
-    // Header. The bounding sphere and the horizon occlusion point hold both the exact vertices
-    // and the points a client decodes: longitude and latitude linear in `u` and `v` across the
-    // tile's bounds, heights from the quantized values over the range as written (f32).
+/// The 88-byte header: centre, height range, bounding sphere and horizon occlusion point.
+///
+/// The bounding sphere and the horizon occlusion point hold both the exact vertices and the
+/// points a client decodes: longitude and latitude linear in `u` and `v` across the tile's
+/// bounds, heights from the quantized values over the range as written (f32).
+fn write_header(out: &mut Vec<u8>, tile: &TerrainTile, vertices: &Vertices) {
     let [west, south, east, north] = tile.bounds;
+    let (min_height, max_height) = (vertices.min_height, vertices.max_height);
     let (low, high) = (f64::from(min_height as f32), f64::from(max_height as f32));
+    let n = vertices.source.len();
     let exact = (0..n).map(|k| {
-        let [lon, lat] = tile.lon_lat[vertex(k)];
-        ecef(lon, lat, heights[k])
+        let [lon, lat] = tile.lon_lat[vertices.source[k]];
+        ecef(lon, lat, vertices.heights[k])
     });
     let decoded = (0..n).map(|k| {
-        let (u, v) = quantized[order[k] as usize];
         ecef(
-            west + f64::from(u) / MAX * (east - west),
-            south + f64::from(v) / MAX * (north - south),
-            low + f64::from(hs[k]) / MAX * (high - low),
+            west + f64::from(vertices.u[k]) / MAX * (east - west),
+            south + f64::from(vertices.v[k]) / MAX * (north - south),
+            low + f64::from(vertices.quantized_heights[k]) / MAX * (high - low),
         )
     });
     let ecef_points: Vec<[f64; 3]> = exact.chain(decoded).collect();
@@ -227,7 +294,6 @@ pub fn encode(tile: &TerrainTile, extensions: Extensions) -> (Vec<u8>, EncodeRep
         .fold(0.0, f64::max);
     let occlusion = horizon_occlusion_point(&ecef_points, centre);
 
-    let mut out = Vec::with_capacity(88 + n * 6 + triangles.len() * 6 + 64);
     for value in centre {
         out.extend_from_slice(&value.to_le_bytes());
     }
@@ -240,16 +306,12 @@ pub fn encode(tile: &TerrainTile, extensions: Extensions) -> (Vec<u8>, EncodeRep
     for value in occlusion {
         out.extend_from_slice(&value.to_le_bytes());
     }
+}
 
-    // Vertex data.
-    out.extend_from_slice(&(n as u32).to_le_bytes());
-    let us: Vec<i32> = (0..n)
-        .map(|k| i32::from(quantized[order[k] as usize].0))
-        .collect();
-    let vs: Vec<i32> = (0..n)
-        .map(|k| i32::from(quantized[order[k] as usize].1))
-        .collect();
-    for values in [&us, &vs, &hs] {
+/// The vertex count, then `u`, `v` and height, each zig-zag delta coded.
+fn write_vertices(out: &mut Vec<u8>, vertices: &Vertices) {
+    out.extend_from_slice(&(vertices.source.len() as u32).to_le_bytes());
+    for values in [&vertices.u, &vertices.v, &vertices.quantized_heights] {
         let mut previous = 0i32;
         for &value in values.iter() {
             let delta = value - previous;
@@ -258,31 +320,38 @@ pub fn encode(tile: &TerrainTile, extensions: Extensions) -> (Vec<u8>, EncodeRep
             previous = value;
         }
     }
+}
 
-    // Index data.
-    let wide = n > 65536;
+/// The triangle count and the high-water-mark coded indices, aligned to the index width.
+fn write_indices(out: &mut Vec<u8>, triangles: &[[u32; 3]], wide: bool) {
     let align = if wide { 4 } else { 2 };
     while out.len() % align != 0 {
         out.push(0);
     }
-    let push_index = |out: &mut Vec<u8>, value: u32| {
-        if wide {
-            out.extend_from_slice(&value.to_le_bytes());
-        } else {
-            out.extend_from_slice(&(value as u16).to_le_bytes());
-        }
-    };
     out.extend_from_slice(&(triangles.len() as u32).to_le_bytes());
     let mut highest = 0u32;
     for &index in triangles.iter().flatten() {
-        push_index(&mut out, highest - index);
+        push_index(out, highest - index, wide);
         if index == highest {
             highest += 1;
         }
     }
-    // Edge lists, each sorted along its edge.
+}
+
+/// An index in 32 bits when the tile has more vertices than 16 bits can number, else in 16.
+fn push_index(out: &mut Vec<u8>, value: u32, wide: bool) {
+    if wide {
+        out.extend_from_slice(&value.to_le_bytes());
+    } else {
+        out.extend_from_slice(&(value as u16).to_le_bytes());
+    }
+}
+
+/// The west, south, east and north edge vertex lists, each sorted along its edge.
+fn write_edge_lists(out: &mut Vec<u8>, vertices: &Vertices, wide: bool) {
+    let (us, vs) = (&vertices.u, &vertices.v);
     let edge = |select: &dyn Fn(usize) -> Option<i32>| {
-        let mut list: Vec<(i32, u32)> = (0..n)
+        let mut list: Vec<(i32, u32)> = (0..us.len())
             .filter_map(|k| select(k).map(|key| (key, k as u32)))
             .collect();
         list.sort_unstable();
@@ -298,34 +367,36 @@ pub fn encode(tile: &TerrainTile, extensions: Extensions) -> (Vec<u8>, EncodeRep
     for list in lists {
         out.extend_from_slice(&(list.len() as u32).to_le_bytes());
         for index in list {
-            push_index(&mut out, index);
+            push_index(out, index, wide);
         }
     }
+}
 
-    // Extensions.
-    if extensions.normals {
-        out.push(1);
-        out.extend_from_slice(&((2 * n) as u32).to_le_bytes());
-        for k in 0..n {
-            let [lon, lat] = tile.lon_lat[vertex(k)];
-            let [x, y] = oct_encode(enu_to_ecef(tile.normals[vertex(k)], lon, lat));
-            out.push(x);
-            out.push(y);
+/// The `octvertexnormals` extension (id 1): each vertex's normal, in ECEF, oct-encoded.
+fn write_normals(out: &mut Vec<u8>, tile: &TerrainTile, source: &[usize]) {
+    out.push(1);
+    out.extend_from_slice(&((2 * source.len()) as u32).to_le_bytes());
+    for &s in source {
+        let [lon, lat] = tile.lon_lat[s];
+        let [x, y] = oct_encode(enu_to_ecef(tile.normals[s], lon, lat));
+        out.push(x);
+        out.push(y);
+    }
+}
+
+/// The `watermask` extension (id 2): the 256 × 256 mask, or one byte when the tile is all land
+/// or all water.
+fn write_watermask(out: &mut Vec<u8>, water: Option<&[bool]>) {
+    let mask: Vec<u8> = match water {
+        Some(cells) if cells.iter().any(|&w| w) && !cells.iter().all(|&w| w) => {
+            cells.iter().map(|&w| if w { 255 } else { 0 }).collect()
         }
-    }
-    if extensions.watermask {
-        let mask: Vec<u8> = match &tile.water {
-            Some(cells) if cells.iter().any(|&w| w) && !cells.iter().all(|&w| w) => {
-                cells.iter().map(|&w| if w { 255 } else { 0 }).collect()
-            }
-            Some(cells) if cells.first() == Some(&true) => vec![255],
-            _ => vec![0],
-        };
-        out.push(2);
-        out.extend_from_slice(&(mask.len() as u32).to_le_bytes());
-        out.extend_from_slice(&mask);
-    }
-    (out, report)
+        Some(cells) if cells.first() == Some(&true) => vec![255],
+        _ => vec![0],
+    };
+    out.push(2);
+    out.extend_from_slice(&(mask.len() as u32).to_le_bytes());
+    out.extend_from_slice(&mask);
 }
 
 /// A Delaunay triangulation of distinct integer points, counter-clockwise in (u, v).

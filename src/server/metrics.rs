@@ -178,84 +178,100 @@ impl Metrics {
     }
 
     pub fn render_text(&self, pool: PoolGauges, downloads: &FetchStats) -> String {
-        let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
         let mut out = String::new();
-        let mut counter = |name: &str, help: &str, value: u64| {
+        for (name, help, value) in self.counters(downloads) {
             let _ = writeln!(
                 out,
                 "# HELP {name} {help}\n# TYPE {name} counter\n{name} {value}"
             );
-        };
-        counter(
-            "terrastitch_tile_requests_total",
-            "Tile requests received.",
-            get(&self.tile_requests),
-        );
-        counter(
-            "terrastitch_renders_total",
-            "Tiles rendered.",
-            get(&self.renders),
-        );
-        counter(
-            "terrastitch_render_failures_total",
-            "Renders that failed.",
-            get(&self.render_failures),
-        );
-        counter(
-            "terrastitch_render_timeouts_total",
-            "Renders stopped at the time limit.",
-            get(&self.render_timeouts),
-        );
-        counter(
-            "terrastitch_rejected_busy_total",
-            "Tile requests answered 503 because the render queue was full.",
-            get(&self.rejected_busy),
-        );
-        counter(
-            "terrastitch_stale_served_total",
-            "Stale tiles served while their replacement was made.",
-            get(&self.stale_served),
-        );
-        counter(
-            "terrastitch_lp_components_total",
-            "Components of the elevation linear program solved.",
-            get(&self.lp_components),
-        );
-        counter(
-            "terrastitch_lp_violations_total",
-            "Soft elevation constraints (from tags and defaults) violated in rendered tiles.",
-            get(&self.lp_violations),
-        );
-        counter(
-            "terrastitch_regenerations_total",
-            "Tiles made again in the background.",
-            get(&self.regenerations),
-        );
-        counter(
-            "terrastitch_regeneration_failures_total",
-            "Background remakes that failed (the old tile stays).",
-            get(&self.regeneration_failures),
-        );
-        counter(
-            "terrastitch_downloads_total",
-            "Source files downloaded whole.",
-            get(&downloads.downloads),
-        );
-        counter(
-            "terrastitch_download_failures_total",
-            "Source downloads that failed after their retries.",
-            get(&downloads.failures),
-        );
-        counter(
-            "terrastitch_download_requests_total",
-            "HTTP requests sent for source files, retries included.",
-            get(&downloads.requests),
-        );
-        counter(
-            "terrastitch_download_bytes_total",
-            "Bytes of source files received.",
-            get(&downloads.bytes),
-        );
+        }
+        self.write_cache(&mut out);
+        write_queue(&mut out, pool);
+        self.write_stages(&mut out);
+        self.write_http(&mut out);
+        out
+    }
+
+    /// The plain counters, as name, help and value, in the order they are written.
+    fn counters(&self, downloads: &FetchStats) -> [(&'static str, &'static str, u64); 14] {
+        let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
+        [
+            (
+                "terrastitch_tile_requests_total",
+                "Tile requests received.",
+                get(&self.tile_requests),
+            ),
+            (
+                "terrastitch_renders_total",
+                "Tiles rendered.",
+                get(&self.renders),
+            ),
+            (
+                "terrastitch_render_failures_total",
+                "Renders that failed.",
+                get(&self.render_failures),
+            ),
+            (
+                "terrastitch_render_timeouts_total",
+                "Renders stopped at the time limit.",
+                get(&self.render_timeouts),
+            ),
+            (
+                "terrastitch_rejected_busy_total",
+                "Tile requests answered 503 because the render queue was full.",
+                get(&self.rejected_busy),
+            ),
+            (
+                "terrastitch_stale_served_total",
+                "Stale tiles served while their replacement was made.",
+                get(&self.stale_served),
+            ),
+            (
+                "terrastitch_lp_components_total",
+                "Components of the elevation linear program solved.",
+                get(&self.lp_components),
+            ),
+            (
+                "terrastitch_lp_violations_total",
+                "Soft elevation constraints (from tags and defaults) violated in rendered tiles.",
+                get(&self.lp_violations),
+            ),
+            (
+                "terrastitch_regenerations_total",
+                "Tiles made again in the background.",
+                get(&self.regenerations),
+            ),
+            (
+                "terrastitch_regeneration_failures_total",
+                "Background remakes that failed (the old tile stays).",
+                get(&self.regeneration_failures),
+            ),
+            (
+                "terrastitch_downloads_total",
+                "Source files downloaded whole.",
+                get(&downloads.downloads),
+            ),
+            (
+                "terrastitch_download_failures_total",
+                "Source downloads that failed after their retries.",
+                get(&downloads.failures),
+            ),
+            (
+                "terrastitch_download_requests_total",
+                "HTTP requests sent for source files, retries included.",
+                get(&downloads.requests),
+            ),
+            (
+                "terrastitch_download_bytes_total",
+                "Bytes of source files received.",
+                get(&downloads.bytes),
+            ),
+        ]
+    }
+
+    /// Cache hits by layer, and misses.
+    fn write_cache(&self, out: &mut String) {
+        let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
         let _ = writeln!(
             out,
             "# HELP terrastitch_cache_hits_total Tiles served from a cache layer.\n# TYPE terrastitch_cache_hits_total counter\nterrastitch_cache_hits_total{{layer=\"memory\"}} {}\nterrastitch_cache_hits_total{{layer=\"sqlite\"}} {}",
@@ -267,22 +283,25 @@ impl Metrics {
             "# HELP terrastitch_cache_misses_total Tiles found in no cache layer and rendered.\n# TYPE terrastitch_cache_misses_total counter\nterrastitch_cache_misses_total {}",
             get(&self.misses)
         );
-        let _ = writeln!(
-            out,
-            "# HELP terrastitch_render_queue Renders by state: running, waiting (requests waiting for a slot), background (remakes waiting for a slot), regenerating (tiles queued to be made again, or being made).\n# TYPE terrastitch_render_queue gauge\nterrastitch_render_queue{{state=\"running\"}} {}\nterrastitch_render_queue{{state=\"waiting\"}} {}\nterrastitch_render_queue{{state=\"background\"}} {}\nterrastitch_render_queue{{state=\"regenerating\"}} {}",
-            pool.running, pool.waiting, pool.background_waiting, pool.regenerating
-        );
+    }
+
+    /// The render time histogram of each stage.
+    fn write_stages(&self, out: &mut String) {
         let _ = writeln!(
             out,
             "# HELP terrastitch_render_stage_seconds Render time by stage.\n# TYPE terrastitch_render_stage_seconds histogram"
         );
         for (stage, histogram) in STAGES.iter().zip(&self.stage_seconds) {
             histogram.write(
-                &mut out,
+                out,
                 "terrastitch_render_stage_seconds",
                 &format!("stage=\"{stage}\""),
             );
         }
+    }
+
+    /// Responses by route and status, and the time to answer.
+    fn write_http(&self, out: &mut String) {
         let _ = writeln!(
             out,
             "# HELP terrastitch_http_requests_total HTTP responses by route and status.\n# TYPE terrastitch_http_requests_total counter"
@@ -303,9 +322,17 @@ impl Metrics {
             "# HELP terrastitch_http_request_seconds Time to answer a request (to its headers).\n# TYPE terrastitch_http_request_seconds histogram"
         );
         self.request_seconds
-            .write(&mut out, "terrastitch_http_request_seconds", "");
-        out
+            .write(out, "terrastitch_http_request_seconds", "");
     }
+}
+
+/// The render queue's gauges by state.
+fn write_queue(out: &mut String, pool: PoolGauges) {
+    let _ = writeln!(
+        out,
+        "# HELP terrastitch_render_queue Renders by state: running, waiting (requests waiting for a slot), background (remakes waiting for a slot), regenerating (tiles queued to be made again, or being made).\n# TYPE terrastitch_render_queue gauge\nterrastitch_render_queue{{state=\"running\"}} {}\nterrastitch_render_queue{{state=\"waiting\"}} {}\nterrastitch_render_queue{{state=\"background\"}} {}\nterrastitch_render_queue{{state=\"regenerating\"}} {}",
+        pool.running, pool.waiting, pool.background_waiting, pool.regenerating
+    );
 }
 
 #[cfg(test)]
