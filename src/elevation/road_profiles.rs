@@ -533,7 +533,7 @@ fn add_stretch(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::osm::{LonLat, Tags};
+    use crate::osm::LonLat;
 
     const LAT: f64 = 43.74;
     const LON: f64 = 7.42;
@@ -560,20 +560,14 @@ mod tests {
     }
 
     /// A way through `(node, metres east, metres north)` points.
+    /// A way with its nodes given in metres east and north of (`LON`, `LAT`).
     fn way(id: i64, tags: &[(&str, &str)], nodes: &[(i64, f64, f64)]) -> Way {
         let degree = metres_per_degree();
-        Way {
-            id,
-            tags: Tags::from_pairs(tags.iter().copied()),
-            nodes: nodes.iter().map(|n| n.0).collect(),
-            positions: nodes
-                .iter()
-                .map(|&(_, east, north)| LonLat {
-                    lon: LON + east / degree,
-                    lat: LAT + north / 111_195.0,
-                })
-                .collect(),
-        }
+        let nodes: Vec<(i64, f64, f64)> = nodes
+            .iter()
+            .map(|&(node, east, north)| (node, LON + east / degree, LAT + north / 111_195.0))
+            .collect();
+        crate::osm::fixture::way(id, tags, &nodes)
     }
 
     fn joints(ways: &[Way]) -> Joints {

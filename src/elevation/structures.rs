@@ -888,25 +888,13 @@ fn distance(a: Point, b: Point) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::osm::{LonLat, Tags};
+    use crate::osm::fixture::way;
 
     /// Level ground at 10 m.
     struct Flat;
     impl Elevation for Flat {
         fn elevation_uv(&self, _: [f64; 2]) -> f64 {
             10.0
-        }
-    }
-
-    fn way(id: i64, tags: &[(&str, &str)], nodes: &[(i64, f64, f64)]) -> Way {
-        Way {
-            id,
-            tags: Tags::from_pairs(tags.iter().copied()),
-            nodes: nodes.iter().map(|n| n.0).collect(),
-            positions: nodes
-                .iter()
-                .map(|&(_, lon, lat)| LonLat { lon, lat })
-                .collect(),
         }
     }
 

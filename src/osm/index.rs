@@ -383,18 +383,13 @@ fn cells_of(bounds: &Bounds, n: f64) -> impl Iterator<Item = (u32, u32)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::osm::Tags;
 
     fn way(id: i64, points: &[(f64, f64)]) -> Way {
-        Way {
-            id,
-            tags: Tags::from_pairs([("highway", "residential")]),
-            nodes: (0..points.len() as i64).collect(),
-            positions: points
-                .iter()
-                .map(|&(lon, lat)| LonLat { lon, lat })
-                .collect(),
-        }
+        let nodes: Vec<(i64, f64, f64)> = (0..)
+            .zip(points)
+            .map(|(k, &(lon, lat))| (k, lon, lat))
+            .collect();
+        crate::osm::fixture::way(id, &[("highway", "residential")], &nodes)
     }
 
     #[test]

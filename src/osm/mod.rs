@@ -3,6 +3,8 @@
 //! near this tile" (thesis §2.1).
 
 pub mod areas;
+#[cfg(test)]
+pub(crate) mod fixture;
 pub mod index;
 pub mod multipolygon;
 pub mod structures;

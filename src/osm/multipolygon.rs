@@ -229,15 +229,7 @@ mod tests {
     use crate::osm::{ElementRef, Member, Tags};
 
     fn way(id: i64, nodes: &[(i64, f64, f64)]) -> Way {
-        Way {
-            id,
-            tags: Tags::default(),
-            nodes: nodes.iter().map(|n| n.0).collect(),
-            positions: nodes
-                .iter()
-                .map(|&(_, lon, lat)| LonLat { lon, lat })
-                .collect(),
-        }
+        crate::osm::fixture::way(id, &[], nodes)
     }
 
     fn relation(members: &[(i64, &str)]) -> Relation {

@@ -435,18 +435,7 @@ fn union(parent: &mut [usize], a: usize, b: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn way(id: i64, tags: &[(&str, &str)], nodes: &[(i64, f64, f64)]) -> Way {
-        Way {
-            id,
-            tags: Tags::from_pairs(tags.iter().copied()),
-            nodes: nodes.iter().map(|n| n.0).collect(),
-            positions: nodes
-                .iter()
-                .map(|&(_, lon, lat)| LonLat { lon, lat })
-                .collect(),
-        }
-    }
+    use crate::osm::fixture::way;
 
     fn classify(tags: &Tags) -> Option<(StructureKind, i32)> {
         if tags.is_set("bridge") {
