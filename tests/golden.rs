@@ -11,9 +11,8 @@ mod common;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use common::{repo, terrastitch};
+use common::{bbox, repo, terrastitch};
 use sha2::{Digest, Sha256};
-use terrastitch::TileId;
 
 /// Monaco's ten densest tiles: the coast, the port, the bridges and tunnels of the centre.
 const COLUMNS: std::ops::RangeInclusive<u32> = 8527..=8531;
@@ -22,23 +21,6 @@ const FORMATS: &str = "glb,glb-meshopt,glb-enu,glb-enu-meshopt,terrain";
 
 fn digests_file() -> std::path::PathBuf {
     repo().join("tests/golden/digests.txt")
-}
-
-/// A box just inside the golden tiles.
-fn bbox() -> String {
-    let tile = |x, y| TileId { z: 14, x, y }.bounds();
-    let (nw, se) = (
-        tile(*COLUMNS.start(), *ROWS.start()),
-        tile(*COLUMNS.end(), *ROWS.end()),
-    );
-    let inset = 1e-5;
-    format!(
-        "{},{},{},{}",
-        nw.west + inset,
-        se.south + inset,
-        se.east - inset,
-        nw.north - inset
-    )
 }
 
 /// Every file under `dir`, by its path relative to `dir`, with the SHA-256 of its bytes.
@@ -84,7 +66,14 @@ fn golden_tiles_keep_their_bytes() {
     let work = tempfile::tempdir().unwrap();
     let out = work.path().join("tiles");
     let output = terrastitch()
-        .args(["export", "--bbox", &bbox(), "--format", FORMATS])
+        .args(["export", "--bbox"])
+        .arg(bbox(
+            *COLUMNS.start(),
+            *COLUMNS.end(),
+            *ROWS.start(),
+            *ROWS.end(),
+        ))
+        .args(["--format", FORMATS])
         .arg("--cache")
         .arg(work.path().join("cache.sqlite"))
         .arg("-o")

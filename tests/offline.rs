@@ -9,34 +9,9 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::terrastitch;
+use common::{bbox, terrastitch};
 use terrastitch::cache::{etag_of, SqliteStore, TileFilter, TileStore};
 use terrastitch::tile::{LonLatBounds, TileRange};
-use terrastitch::TileId;
-
-/// A box just inside the tiles x0..=x1, y0..=y1 at zoom 14.
-fn bbox(x0: u32, x1: u32, y0: u32, y1: u32) -> String {
-    let nw = TileId {
-        z: 14,
-        x: x0,
-        y: y0,
-    }
-    .bounds();
-    let se = TileId {
-        z: 14,
-        x: x1,
-        y: y1,
-    }
-    .bounds();
-    let inset = 1e-5;
-    format!(
-        "{},{},{},{}",
-        nw.west + inset,
-        se.south + inset,
-        se.east - inset,
-        nw.north - inset
-    )
-}
 
 fn run(args: &[&str], cache: &Path) -> (bool, String) {
     let output = terrastitch()

@@ -13,6 +13,7 @@ use terrastitch::cache::{SqliteStore, TileCache};
 use terrastitch::config::{Config, ServerConfig};
 use terrastitch::provider::Inputs;
 use terrastitch::server::{self, AppState};
+use terrastitch::TileId;
 
 /// The `terrastitch` binary, run in the repository.
 pub fn terrastitch() -> Command {
@@ -86,6 +87,30 @@ pub async fn browser_check(script: &str, folder: &str, args: Vec<String>) -> ser
             String::from_utf8_lossy(&output.stderr)
         )
     })
+}
+
+/// A box just inside the tiles x0..=x1, y0..=y1 at zoom 14.
+pub fn bbox(x0: u32, x1: u32, y0: u32, y1: u32) -> String {
+    let nw = TileId {
+        z: 14,
+        x: x0,
+        y: y0,
+    }
+    .bounds();
+    let se = TileId {
+        z: 14,
+        x: x1,
+        y: y1,
+    }
+    .bounds();
+    let inset = 1e-5;
+    format!(
+        "{},{},{},{}",
+        nw.west + inset,
+        se.south + inset,
+        se.east - inset,
+        nw.north - inset
+    )
 }
 
 pub fn repo() -> PathBuf {
