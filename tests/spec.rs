@@ -4,6 +4,7 @@
 
 use std::sync::Arc;
 
+use terrastitch::elevation::settled::Rule;
 use terrastitch::features::structures::{
     clearance_over_m, deck_thickness_m, foundation_depth_m, tunnel_height_m, TUNNEL_ROOF_M,
 };
@@ -12,7 +13,7 @@ use terrastitch::osm::{LonLat, Node, OsmData, Tags, Way};
 use terrastitch::provider::inputs::{index_osm, QUERY_MARGIN_DEG};
 use terrastitch::render::{settle_structures, RenderSettings};
 use terrastitch::terrain::cell::{CellId, SrtmTile};
-use terrastitch::terrain::Mosaic;
+use terrastitch::terrain::{Mosaic, TerrainModel};
 use terrastitch::tile::lon_lat_to_uv;
 use terrastitch::TileId;
 
@@ -207,4 +208,32 @@ fn a_tunnel_rises_to_meet_the_ground_at_its_portals() {
             "portal floor {floor:.2} m, ground {ground:.2} m"
         );
     }
+}
+
+#[test]
+fn a_lake_on_a_slope_lies_flat_at_its_lowest_shore() {
+    let mut fixture = Fixture::default();
+    fixture.area(&[("natural", "water")], (0.3, 0.3), (0.6, 0.5));
+    // A ramp rising 100 m to the east across the tile.
+    let b = TILE.bounds();
+    let ramp = move |lon: f64| 200.0 + 100.0 * (lon - b.west) / (b.east - b.west);
+    let mosaic = terrain(move |lon, _| ramp(lon));
+    let index = index_osm(fixture.data(), TILE.z);
+    let selection = index.query(TILE, QUERY_MARGIN_DEG);
+    let settings = RenderSettings::default();
+    let set = terrastitch::features::collect(&selection, TILE, &settings.features);
+    let model = TerrainModel::new(&mosaic, settings.interpolation, TILE.z);
+    let levels = terrastitch::elevation::water::levels(&set, &model, TILE.frame().size_m);
+    let [level] = levels.as_slice() else {
+        panic!("one water level expected, found {}", levels.len());
+    };
+    let Rule::Level(height) = level.rule else {
+        panic!("a lake lies flat: {:?}", level.rule);
+    };
+    // The west shore is the lowest: 30 % of the way up the ramp.
+    let west_shore = ramp(at(0.3, 0.4).lon);
+    assert!(
+        (height - west_shore).abs() < 0.05,
+        "lake at {height:.3} m, its west shore at {west_shore:.3} m"
+    );
 }
