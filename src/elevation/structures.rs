@@ -21,6 +21,8 @@
 
 pub use crate::elevation::constraints::{ConstraintKind, ConstraintReport};
 
+use std::collections::HashMap;
+
 use crate::elevation::constraints::{ConstraintBuilder, GradeAsked};
 use crate::elevation::lp::{Constraint, Relation};
 use crate::elevation::settled::{Level, Rule, Stations};
@@ -178,6 +180,7 @@ pub fn settle(
         projection,
         settings,
         surface_margin_m,
+        traits: group_traits(group, ways, settings),
         builder: ConstraintBuilder::default(),
         profiles: Vec::new(),
         rows: Vec::new(),
@@ -206,12 +209,22 @@ struct Settling<'a> {
     projection: &'a Projection,
     settings: &'a FeatureSettings,
     surface_margin_m: f64,
+    /// What the tags say of each way the group is made of or crosses, read once.
+    traits: HashMap<u32, WayTraits>,
     builder: ConstraintBuilder,
     profiles: Vec<Profile>,
     rows: Vec<Row>,
 }
 
 impl Settling<'_> {
+    /// What the tags say of way `way` (an index into the ways).
+    fn traits(&self, way: u32) -> WayTraits {
+        self.traits
+            .get(&way)
+            .copied()
+            .unwrap_or_else(|| WayTraits::of(&self.ways[way as usize], self.settings))
+    }
+
     /// A chain's stations and their variables, with targets on the line between the chain's
     /// ends and weights by the length each station stands for.
     fn add_chain(&mut self, chain: &Chain) {
@@ -300,7 +313,7 @@ impl Settling<'_> {
                 .iter()
                 .find(|w| w.way == profile.ways[i])
                 .is_some_and(|w| w.reversed);
-            let asked = GradeAsked::of(WayTraits::of(way, self.settings).slope, reversed);
+            let asked = GradeAsked::of(self.traits(profile.ways[i]).slope, reversed);
             self.builder.grade(
                 &asked,
                 (way.id, profile.points[i]),
@@ -352,7 +365,7 @@ impl Settling<'_> {
                         kind,
                         Relation::AtMost,
                         profile.terrain[i]
-                            - WayTraits::of(way, self.settings).tunnel_height_m
+                            - self.traits(profile.ways[i]).tunnel_height_m
                             - tags::TUNNEL_ROOF_M
                             - cover
                             - self.surface_margin_m,
@@ -404,36 +417,39 @@ impl Settling<'_> {
         let upper = &self.ways[way as usize];
         let (kind, terms, bound) = match (self.profiles[c].kind, crossing.other) {
             (StructureKind::Bridge, Crossed::Way(below)) => {
+                let below_traits = self.traits(below);
                 let below = &self.ways[below as usize];
-                let below_traits = WayTraits::of(below, self.settings);
                 let Some(clearance) = below_traits.clearance_m else {
                     return;
                 };
                 if below_traits.layer >= self.profiles[c].layer {
                     return;
                 }
-                let ground = ground_under(at, self.terrain, self.projection, self.settings, below)
-                    + self.surface_margin_m;
-                let deck = WayTraits::of(upper, self.settings).deck_thickness_m;
+                let ground = ground_under(
+                    at,
+                    self.terrain,
+                    self.projection,
+                    below,
+                    below_traits.width_m,
+                ) + self.surface_margin_m;
+                let deck = self.traits(way).deck_thickness_m;
                 (ConstraintKind::Clearance, terms, ground + clearance + deck)
             }
             (upper_kind, Crossed::Chain { chain, segment, t }) => {
                 let (lower_terms, _, lower_way) = self.point_on(chain as usize, segment, t);
-                let lower = &self.ways[lower_way as usize];
                 let (kind, gap) = match (upper_kind, self.profiles[chain as usize].kind) {
                     (StructureKind::Bridge, StructureKind::Bridge) => {
-                        let Some(clearance) = WayTraits::of(lower, self.settings).clearance_m
-                        else {
+                        let Some(clearance) = self.traits(lower_way).clearance_m else {
                             return;
                         };
                         (
                             ConstraintKind::Clearance,
-                            clearance + WayTraits::of(upper, self.settings).deck_thickness_m,
+                            clearance + self.traits(way).deck_thickness_m,
                         )
                     }
                     (StructureKind::Tunnel, StructureKind::Tunnel) => (
                         ConstraintKind::TunnelOverTunnel,
-                        WayTraits::of(lower, self.settings).tunnel_height_m
+                        self.traits(lower_way).tunnel_height_m
                             + tags::TUNNEL_ROOF_M
                             + ROCK_BETWEEN_TUNNELS_M,
                     ),
@@ -582,17 +598,37 @@ impl Foundations {
     }
 }
 
+/// What the tags say of the ways a group is made of and of those it crosses.
+fn group_traits(
+    group: &Group,
+    ways: &[Way],
+    settings: &FeatureSettings,
+) -> HashMap<u32, WayTraits> {
+    let made_of = group
+        .chains
+        .iter()
+        .flat_map(|c| c.ways.iter().map(|w| w.way));
+    let crossed = group.crossings.iter().filter_map(|c| match c.other {
+        Crossed::Way(way) => Some(way),
+        Crossed::Chain { .. } => None,
+    });
+    made_of
+        .chain(crossed)
+        .map(|way| (way, WayTraits::of(&ways[way as usize], settings)))
+        .collect()
+}
+
 /// The highest terrain under a crossed way near a crossing: at the crossing and half the
 /// way's width to either side along the chain's normal.
 fn ground_under(
     at: Point,
     terrain: &dyn Elevation,
     projection: &Projection,
-    settings: &FeatureSettings,
     below: &Way,
+    width_m: f64,
 ) -> f64 {
     let lat = below.positions.first().map_or(0.0, |p| p.lat);
-    let half = projection.metres(WayTraits::of(below, settings).width_m / 2.0, lat);
+    let half = projection.metres(width_m / 2.0, lat);
     [
         [0.0, 0.0],
         [half, 0.0],
