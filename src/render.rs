@@ -190,6 +190,12 @@ impl RenderStats {
             road_profiles,
             ..
         } = prepared;
+        let tolerance = crate::output::debug::VIOLATION_TOLERANCE_M;
+        let road_violations = road_profiles
+            .violations
+            .iter()
+            .filter(|r| r.violation > tolerance)
+            .count();
         RenderStats {
             triangles: parts.values().map(MeshBuffers::triangle_count).sum(),
             vertices: parts.values().map(|b| b.positions.len()).sum(),
@@ -221,24 +227,13 @@ impl RenderStats {
                 + road_profiles.components,
             lp_violations: structures
                 .iter()
-                .map(|s| {
-                    s.violations(crate::output::debug::VIOLATION_TOLERANCE_M)
-                        .count()
-                })
+                .map(|s| s.violations(tolerance).count())
                 .sum::<usize>()
-                + road_profiles
-                    .violations
-                    .iter()
-                    .filter(|r| r.violation > crate::output::debug::VIOLATION_TOLERANCE_M)
-                    .count(),
+                + road_violations,
             road_stretches_settled: road_profiles.settled,
             road_lp_variables: road_profiles.variables,
             road_lp_constraints: road_profiles.constraints,
-            road_lp_violations: road_profiles
-                .violations
-                .iter()
-                .filter(|r| r.violation > crate::output::debug::VIOLATION_TOLERANCE_M)
-                .count(),
+            road_lp_violations: road_violations,
         }
     }
 }
