@@ -8,10 +8,11 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 
 use terrastitch::cache::{MbtilesStore, SqliteStore, TileCache};
+use terrastitch::config::ServerConfig;
 use terrastitch::config::{Config, LogFormat};
 use terrastitch::format::Format;
 use terrastitch::offline::{export, seed};
-use terrastitch::provider::Inputs;
+use terrastitch::provider::{Archive, Renderer, TileProvider};
 use terrastitch::render::StageTimings;
 use terrastitch::server::{self, AppState};
 use terrastitch::source::fetch::Fetcher;
@@ -139,17 +140,23 @@ fn load_config(args: &SourceArgs) -> Result<Config> {
     Ok(config)
 }
 
-/// Opens (downloading what the data directory lacks) the configured sources.
-fn open_sources(config: &Config, fetcher: Arc<Fetcher>) -> Result<Inputs> {
+/// Opens (downloading what the data directory lacks) the configured sources, to render from.
+fn open_renderer(config: &Config, fetcher: Arc<Fetcher>) -> Result<Renderer> {
     let started = Instant::now();
-    let sources = Inputs::load(&config.sources, config.server.zoom, fetcher)?;
+    let renderer = Renderer::load(
+        &config.sources,
+        config.render.clone(),
+        config.server.zoom,
+        fetcher,
+    )?;
+    let sources = renderer.inputs();
     tracing::info!(
         ways = sources.osm.data().ways.len(),
         srtm_files = sources.srtm.cells().len(),
         ms = started.elapsed().as_millis() as u64,
         "sources loaded"
     );
-    Ok(sources)
+    Ok(renderer)
 }
 
 /// Caps glibc's malloc arenas at two per core (unless `MALLOC_ARENA_MAX` says otherwise). By
@@ -219,9 +226,8 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
     }
     let store = open_store(&config)?;
     let cache = TileCache::new(Arc::new(store), config.cache.memory_mib * 1024 * 1024);
-    let mut state = AppState::new(cache, config.render.clone(), &config.server);
-    state.source_config = Some(Arc::new(config.sources.clone()));
-    state.fetcher = Arc::new(Fetcher::new(config.sources.fetch_settings()));
+    let state = AppState::new(cache, &config.server);
+    let fetcher = Arc::new(Fetcher::new(config.sources.fetch_settings()));
     let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
     runtime.block_on(async move {
         let listener = tokio::net::TcpListener::bind(&config.server.listen)
@@ -235,11 +241,10 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
         // `503`); a source that cannot be loaded stops the server with its error.
         let (failed_tx, failed_rx) = tokio::sync::oneshot::channel::<anyhow::Error>();
         let loading = state.clone();
-        let fetcher = state.fetcher.clone();
-        tokio::task::spawn_blocking(move || match open_sources(&config, fetcher) {
-            Ok(sources) => loading.set_sources(sources),
+        tokio::task::spawn_blocking(move || match open_renderer(&config, fetcher) {
+            Ok(renderer) => loading.provide(Arc::new(renderer)),
             Err(error) => {
-                loading.sources_failed(format!("{error:#}"));
+                loading.provider_failed(format!("{error:#}"));
                 let _ = failed_tx.send(error);
             }
         });
@@ -274,18 +279,14 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
 /// Serves an exported MBTiles file as it is.
 fn serve_archive(file: &std::path::Path, config: Config) -> Result<()> {
     let store = MbtilesStore::open(file)?;
-    let mut server = config.server.clone();
-    if let Some(zoom) = store.zoom() {
-        server.zoom = zoom;
-    }
-    let archive = server::Archive {
-        path: file.to_path_buf(),
-        format: store.format(),
-        bounds: store.bounds(),
+    let archive = Archive::of(file.to_path_buf(), &store, config.server.zoom);
+    let server = ServerConfig {
+        zoom: archive.zoom,
+        ..config.server.clone()
     };
     let cache = TileCache::new(Arc::new(store), config.cache.memory_mib * 1024 * 1024);
-    let mut state = AppState::new(cache, config.render.clone(), &server);
-    state.archive = Some(Arc::new(archive));
+    let state = AppState::new(cache, &server);
+    state.provide(Arc::new(archive));
     let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
     runtime.block_on(async move {
         let listener = tokio::net::TcpListener::bind(&server.listen)
@@ -330,10 +331,11 @@ fn render(args: RenderArgs, config: Config) -> Result<()> {
         )
     })?;
     let started = Instant::now();
-    let sources = open_sources(
+    let renderer = open_renderer(
         &config,
         Arc::new(Fetcher::new(config.sources.fetch_settings())),
     )?;
+    let sources = renderer.inputs();
     if sources.check_coverage(tile).is_err() {
         sources.fetch_missing_srtm(tile)?;
     }
@@ -423,14 +425,13 @@ fn formats(names: &[String]) -> Result<Vec<Format>> {
 fn seed_area(
     area: &AreaArgs,
     config: &Config,
-    sources: &Inputs,
+    provider: &dyn TileProvider,
     store: &SqliteStore,
     shard: seed::Shard,
 ) -> Result<seed::SeedReport> {
     let range = TileRange::covering(config.server.zoom, &area.bbox);
     let formats = formats(&area.formats)?;
-    let pipeline = server::pipeline_id(&config.render);
-    let plan = seed::plan(sources, store, &pipeline, range, &formats, shard)?;
+    let plan = seed::plan(provider, store, range, &formats, shard)?;
     eprintln!(
         "{} tiles in the box; this share: {} to make, {} already in the cache, {} outside the data",
         plan.in_box,
@@ -451,11 +452,8 @@ fn seed_area(
     let limit = (config.server.render_timeout_ms > 0)
         .then(|| std::time::Duration::from_millis(config.server.render_timeout_ms));
     let report = seed::seed(
-        sources,
+        provider,
         store,
-        &config.render,
-        &pipeline,
-        config.server.zoom,
         &plan.to_make,
         threads,
         limit,
@@ -482,18 +480,18 @@ fn seed_into_store(
     mut config: Config,
     area: &AreaArgs,
     shard: seed::Shard,
-) -> Result<(Config, Inputs, SqliteStore)> {
+) -> Result<(Config, Renderer, SqliteStore)> {
     if let Some(cache) = &area.cache {
         config.cache.path = cache.clone();
     }
     let fetcher = Arc::new(Fetcher::new(config.sources.fetch_settings()));
-    let sources = open_sources(&config, fetcher)?;
+    let renderer = open_renderer(&config, fetcher)?;
     let store = open_store(&config)?;
-    let report = seed_area(area, &config, &sources, &store, shard)?;
+    let report = seed_area(area, &config, &renderer, &store, shard)?;
     if !report.failed.is_empty() {
         anyhow::bail!("{} tiles could not be made", report.failed.len());
     }
-    Ok((config, sources, store))
+    Ok((config, renderer, store))
 }
 
 fn seed(args: SeedArgs, config: Config) -> Result<()> {
@@ -502,17 +500,13 @@ fn seed(args: SeedArgs, config: Config) -> Result<()> {
 
 fn export(args: ExportArgs, config: Config) -> Result<()> {
     // Whatever the cache lacks is made first; nothing is exported if a tile fails.
-    let (config, sources, store) = seed_into_store(config, &args.area, seed::Shard::default())?;
+    let (config, renderer, store) = seed_into_store(config, &args.area, seed::Shard::default())?;
     let range = TileRange::covering(config.server.zoom, &args.area.bbox);
     let formats = formats(&args.area.formats)?;
     let keys: Vec<_> = range
         .tiles()
-        .filter(|t| sources.check_coverage(*t).is_ok())
-        .flat_map(|tile| {
-            formats
-                .iter()
-                .map(move |&format| terrastitch::format::TileKey { tile, format })
-        })
+        .flat_map(|tile| formats.iter().map(move |&format| (tile, format)))
+        .filter_map(|(tile, format)| seed::available(&renderer, tile, format))
         .collect();
     let target = export::Target::from_path(&args.output);
     if matches!(target, export::Target::Mbtiles(_)) && formats.len() > 1 {

@@ -11,7 +11,8 @@ use std::time::{Duration, Instant};
 
 use common::{repo, sample_osm, TestServer};
 use terrastitch::config::{ServerConfig, SourcesConfig};
-use terrastitch::provider::Inputs;
+use terrastitch::provider::{Inputs, Renderer};
+use terrastitch::render::RenderSettings;
 use terrastitch::source::fetch::Fetcher;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
@@ -157,11 +158,9 @@ async fn server(dir: &Path, config: SourcesConfig) -> TestServer {
         check_interval_s: 0,
         ..ServerConfig::default()
     };
-    let mut state = TestServer::state(&dir.join("cache.sqlite"), &server_config);
-    state.fetcher = fetcher;
-    state.source_config = Some(Arc::new(config));
-    state.set_sources(sources);
-    TestServer::start_state(state).await
+    let renderer = Renderer::new(sources, RenderSettings::default(), server_config.zoom)
+        .reopening_from(config, fetcher);
+    TestServer::start_rendering(&dir.join("cache.sqlite"), renderer, &server_config).await
 }
 
 async fn get(server: &TestServer, path: &str) -> (u16, String) {
@@ -372,7 +371,7 @@ async fn an_extract_published_anew_at_its_url_is_fetched_and_its_tiles_made_agai
     let first = first.bytes().await.unwrap();
 
     // Nothing changed: the check asks (with the ETag) and leaves everything as it is.
-    let queued = terrastitch::server::regenerate::check_sources(&server.state, &sources)
+    let queued = terrastitch::server::regenerate::check_sources(&server.state)
         .await
         .unwrap();
     assert_eq!(queued, 0);
@@ -383,7 +382,7 @@ async fn an_extract_published_anew_at_its_url_is_fetched_and_its_tiles_made_agai
         published.join("monaco.osm.pbf"),
     )
     .unwrap();
-    let queued = terrastitch::server::regenerate::check_sources(&server.state, &sources)
+    let queued = terrastitch::server::regenerate::check_sources(&server.state)
         .await
         .unwrap();
     assert_eq!(queued, 1, "the one stored tile is stale");
@@ -421,7 +420,7 @@ async fn a_changed_local_file_makes_stale_only_the_tiles_it_reaches() {
     let first = reqwest::get(server.url(TILE)).await.unwrap();
     assert_eq!(first.headers()["x-cache"], "miss");
     let _ = first.bytes().await;
-    let check = || terrastitch::server::regenerate::check_sources(&server.state, &sources);
+    let check = || terrastitch::server::regenerate::check_sources(&server.state);
     assert_eq!(check().await.unwrap(), 0);
 
     std::fs::copy(
@@ -434,7 +433,8 @@ async fn a_changed_local_file_makes_stale_only_the_tiles_it_reaches() {
         0,
         "a file far from the tile stales nothing"
     );
-    assert_eq!(server.state.sources().unwrap().srtm.cells().len(), 2);
+    let offer = server.state.provider().unwrap().offer();
+    assert_eq!(offer.terrain_cells.map(|cells| cells.len()), Some(2));
     let fresh = reqwest::get(server.url(TILE)).await.unwrap();
     assert_eq!(fresh.headers()["x-cache"], "hit");
     let _ = fresh.bytes().await;

@@ -75,14 +75,12 @@ const ALLOWED: &[(&str, &[&str])] = &[
     (
         "server",
         &[
-            "config", "provider", "cache", "source", "render", "output", "format", "panics", "tile",
+            "config", "provider", "cache", "output", "format", "panics", "tile",
         ],
     ),
     (
         "offline",
-        &[
-            "config", "provider", "cache", "source", "render", "output", "format", "tile",
-        ],
+        &["provider", "cache", "output", "format", "tile"],
     ),
 ];
 

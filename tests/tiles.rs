@@ -85,7 +85,7 @@ async fn monaco_tiles_are_valid_and_stitched() {
     for (tile, _, bytes) in &files {
         let decoded = decode(bytes);
         check_frame(&decoded, *tile);
-        check_feature_table(&decoded, &server.state.sources().expect("loaded"), *tile);
+        check_feature_table(&decoded, server.inputs(), *tile);
         check_roads_lie_on_the_ground(&decoded, *tile);
         check_walls_reach_the_ground(&decoded, *tile);
         check_ground_faces_up(&decoded);

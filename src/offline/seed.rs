@@ -15,9 +15,8 @@ use std::time::{Duration, Instant};
 use crate::cache::encoding::Bodies;
 use crate::cache::{etag_of, unix_now, Provenance, StoreError, StoredTile, TileFilter, TileStore};
 use crate::format::{Format, TileKey};
-use crate::provider::Inputs;
-use crate::render::{Deadline, RenderSettings};
-use crate::tile::TileRange;
+use crate::provider::{Availability, Deadline, TileProvider};
+use crate::tile::{TileId, TileRange};
 
 /// The `i`-th of `n` shares of a box's tiles (`1 ≤ i ≤ n`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -68,11 +67,11 @@ pub struct Plan {
     pub in_box: u64,
 }
 
-/// Plans a seed of `range` in `formats`: this shard's tiles that the cache lacks.
+/// Plans a seed of `range` in `formats`: this shard's tiles that the cache lacks, or holds as
+/// `provider` would not make them now.
 pub fn plan(
-    sources: &Inputs,
+    provider: &dyn TileProvider,
     store: &dyn TileStore,
-    pipeline: &str,
     range: TileRange,
     formats: &[Format],
     shard: Shard,
@@ -90,30 +89,37 @@ pub fn plan(
         if !shard.takes(position as u64) {
             continue;
         }
-        if sources.check_coverage(tile).is_err() {
-            // Download what the configured SRTM source has for it.
-            if let Err(error) = sources.fetch_missing_srtm(tile) {
-                tracing::info!(%error, "tile left out");
-            }
-        }
-        if sources.check_coverage(tile).is_err() {
-            plan.uncovered += formats.len();
-            continue;
-        }
-        let wanted = Provenance {
-            pipeline: pipeline.to_string(),
-            sources: sources.version_for(tile),
-        };
+        let wanted = provider.provenance(tile);
         for &format in formats {
-            let key = TileKey { tile, format };
-            if held.get(&key) == Some(&wanted) {
-                plan.already += 1;
-            } else {
-                plan.to_make.push(key);
+            let Some(key) = available(provider, tile, format) else {
+                plan.uncovered += 1;
+                continue;
+            };
+            match (held.get(&key), &wanted) {
+                (Some(made_by), Some(wanted)) if made_by == wanted => plan.already += 1,
+                // A provider that makes nothing keeps what the store holds.
+                (Some(_), None) => plan.already += 1,
+                _ => plan.to_make.push(key),
             }
         }
     }
     Ok(plan)
+}
+
+/// The key of the tile if `provider` can have it, downloading what it lacks if it can.
+pub fn available(provider: &dyn TileProvider, tile: TileId, format: Format) -> Option<TileKey> {
+    let key = provider.resolve(tile, format).ok()?;
+    match provider.availability(key) {
+        Availability::Ready => Some(key),
+        Availability::AfterFetch => match provider.fetch(tile) {
+            Ok(()) => Some(key),
+            Err(error) => {
+                tracing::info!(%error, "tile left out");
+                None
+            }
+        },
+        Availability::Missing(_) => None,
+    }
 }
 
 /// How a seed went.
@@ -140,15 +146,11 @@ pub struct Progress {
     pub total: usize,
 }
 
-/// Makes the planned tiles on `threads` threads and stores each as soon as it is made.
+/// Makes the planned tiles with `provider` on `threads` threads and stores each as soon as it is made.
 /// A tile that fails is reported and the others go on; a store error stops the seed.
-#[allow(clippy::too_many_arguments)]
 pub fn seed(
-    sources: &Inputs,
+    provider: &dyn TileProvider,
     store: &dyn TileStore,
-    settings: &RenderSettings,
-    pipeline: &str,
-    served_zoom: u8,
     keys: &[TileKey],
     threads: usize,
     render_limit: Option<Duration>,
@@ -168,16 +170,14 @@ pub fn seed(
                 let i = next.fetch_add(1, Ordering::Relaxed);
                 let Some(&key) = keys.get(i) else { return };
                 let deadline = render_limit.map_or(Deadline::none(), Deadline::after);
-                let outcome = crate::provider::pipeline::make(sources, key, settings, served_zoom, deadline)
+                let outcome = provider
+                    .make(key, deadline)
                     .map_err(|e| e.to_string())
                     .and_then(|made| {
                         let tile = StoredTile {
                             etag: etag_of(&made.bytes),
                             bodies: Bodies::compress(made.bytes).map_err(|e| e.to_string())?,
-                            made_by: Provenance {
-                                pipeline: pipeline.to_string(),
-                                sources: sources.version_for(key.tile),
-                            },
+                            made_by: provider.provenance(key.tile).unwrap_or_default(),
                             created_at: unix_now(),
                         };
                         Ok(tile)

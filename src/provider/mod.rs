@@ -1,7 +1,123 @@
-//! Where tiles come from: the opened inputs a tile is made from ([`inputs`]), and the one step
-//! from them to a tile's bytes in a format ([`pipeline`]).
+//! Where tiles come from. A [`TileProvider`] says what it offers, whether it can have a tile,
+//! what a tile made now would be made from, and makes it; the server, `seed` and `export` ask
+//! it and nothing else, so they do not know whether tiles are rendered or read from a file.
+//!
+//! Two providers: the [`Renderer`] (the opened inputs — extracts, SRTM files and their index —
+//! with the render settings, made into tiles by [`pipeline`]), and the [`Archive`] (an exported
+//! MBTiles file, whose tiles are the cache's store: it never makes one).
 
+pub mod archive;
 pub mod inputs;
 pub mod pipeline;
+pub mod renderer;
 
+use std::sync::Arc;
+
+use crate::cache::Provenance;
+use crate::format::{Format, TileKey};
+use crate::terrain::cell::CellId;
+use crate::tile::{LonLatBounds, TileId};
+
+pub use archive::Archive;
 pub use inputs::Inputs;
+pub use pipeline::{Made, MakeError};
+pub use renderer::Renderer;
+// What the layers above see of making a tile: its time limit, what its stages took, and what
+// the downloads it needed did.
+pub use crate::render::{Deadline, StageTimings};
+pub use crate::source::fetch::FetchStats;
+
+/// What a provider offers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Offer {
+    /// The zoom of its tiles (terrain also at every coarser zoom, when it makes tiles).
+    pub zoom: u8,
+    /// The areas its data covers.
+    pub coverage: Vec<LonLatBounds>,
+    /// The one format it holds; `None` when it makes every format.
+    pub only: Option<Format>,
+    /// Whether tiles outside the coverage may still be had (downloaded when asked for).
+    pub open_ended: bool,
+    /// The SRTM cells whose terrain it has at its zoom; `None` when it offers no terrain layer.
+    pub terrain_cells: Option<Vec<CellId>>,
+}
+
+/// Whether a tile can be had now.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Availability {
+    Ready,
+    /// Once [`TileProvider::fetch`] has downloaded what it lacks.
+    AfterFetch,
+    /// Never: why not.
+    Missing(String),
+}
+
+/// Why a tile cannot be had.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum Unavailable {
+    /// Its zoom, or its format, is not offered.
+    #[error("{0}")]
+    NotOffered(String),
+    /// The data does not cover it.
+    #[error("{0}")]
+    NotCovered(String),
+    /// A download it needs failed.
+    #[error("{0}")]
+    FetchFailed(String),
+}
+
+/// A source of tiles. Every method but [`TileProvider::offer`], [`TileProvider::resolve`],
+/// [`TileProvider::availability`] and [`TileProvider::provenance`] may block (read files,
+/// download, render): call them off the async executor.
+pub trait TileProvider: Send + Sync + std::fmt::Debug {
+    /// What it offers.
+    fn offer(&self) -> Offer;
+
+    /// The key a request for `tile` in `format` is served under, or why it is not offered.
+    fn resolve(&self, tile: TileId, format: Format) -> Result<TileKey, Unavailable>;
+
+    /// Whether `key` can be had now.
+    fn availability(&self, key: TileKey) -> Availability;
+
+    /// Downloads what `tile` lacks, when [`TileProvider::availability`] says
+    /// [`Availability::AfterFetch`].
+    fn fetch(&self, tile: TileId) -> Result<(), Unavailable> {
+        let _ = tile;
+        Ok(())
+    }
+
+    /// What a tile made now would be made from: a stored tile made otherwise is stale. `None`
+    /// when the provider makes no tiles (held tiles are never stale).
+    fn provenance(&self, tile: TileId) -> Option<Provenance>;
+
+    /// Makes the tile, uncompressed.
+    fn make(&self, key: TileKey, deadline: Deadline) -> Result<Made, MakeError>;
+
+    /// Lowest and highest ground under a tile, metres, for a bounding volume: sampled at the
+    /// provider's zoom, the whole source files' range at coarser ones.
+    fn ground_range(&self, tile: TileId) -> Option<(f64, f64)> {
+        let _ = tile;
+        None
+    }
+
+    /// A GeoJSON view of how a tile's elevations were settled, for looking into a tile.
+    fn explain(&self, tile: TileId) -> Result<Vec<u8>, MakeError> {
+        Err(MakeError::NotHeld(format!(
+            "no view of how tile {tile} was made: this server does not make tiles"
+        )))
+    }
+
+    /// A provider on the inputs as they are now, when they changed since this one opened them
+    /// (an extract rewritten, an SRTM file added or replaced); `None` when nothing changed.
+    fn reopened(&self) -> Result<Option<Arc<dyn TileProvider>>, String> {
+        Ok(None)
+    }
+
+    /// What `/ready` says of it.
+    fn status(&self) -> serde_json::Value;
+
+    /// Counters of its downloads, if it downloads.
+    fn downloads(&self) -> Option<&FetchStats> {
+        None
+    }
+}

@@ -25,6 +25,11 @@ pub enum MakeError {
     Srtm(#[from] SrtmError),
     #[error(transparent)]
     Render(#[from] RenderError),
+    /// The provider does not hold the tile and cannot make it.
+    #[error("{0}")]
+    NotHeld(String),
+    #[error("the tile could not be written: {0}")]
+    Encode(String),
 }
 
 impl MakeError {

@@ -66,7 +66,7 @@ impl Selection {
 
 /// Checks the bearer token: `404` when admin routes are off, `401` without the right token.
 fn authorize(state: &AppState, headers: &HeaderMap) -> Result<(), ApiError> {
-    let Some(token) = &state.admin_token else {
+    let Some(token) = &state.http.admin_token else {
         return Err(ApiError::not_found(
             "admin routes are off: set server.admin_token to turn them on",
         ));
@@ -108,14 +108,14 @@ pub async fn regenerate(
     authorize(&state, &headers)?;
     let filter = selection(&body)?.filter(state.zoom)?;
     // Tiles that failed lately may be tried again at once.
-    state.failed_renders.invalidate_all();
+    state.work.failed_renders.invalidate_all();
     let queued = queue_stored(&state, filter, false)
         .await
         .map_err(ApiError::internal)?;
     tracing::info!(queued, "regeneration asked for");
     Ok((
         StatusCode::ACCEPTED,
-        Json(json!({ "queued": queued, "in_line": state.regenerator.len() })),
+        Json(json!({ "queued": queued, "in_line": state.work.regenerator.len() })),
     ))
 }
 
@@ -126,8 +126,8 @@ pub async fn purge(
 ) -> Result<Json<Value>, ApiError> {
     authorize(&state, &headers)?;
     let filter = selection(&body)?.filter(state.zoom)?;
-    let unqueued = state.regenerator.forget(&filter);
-    state.failed_renders.invalidate_all();
+    let unqueued = state.work.regenerator.forget(&filter);
+    state.work.failed_renders.invalidate_all();
     let store = state.cache.store().clone();
     let all = filter == TileFilter::All;
     let removed = tokio::task::spawn_blocking(move || store.remove(&filter))

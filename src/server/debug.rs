@@ -8,6 +8,7 @@ use axum::response::{IntoResponse, Response};
 
 use super::error::ApiError;
 use super::AppState;
+use crate::provider::{Availability, MakeError};
 use crate::tile::TileId;
 
 pub async fn elevations(
@@ -21,25 +22,27 @@ pub async fn elevations(
             tile.z, state.zoom
         )));
     }
-    let sources = state.sources()?;
-    sources
-        .check_coverage(tile)
-        .map_err(|e| ApiError::not_found(e.to_string()))?;
-    let worker = state.clone();
-    let body = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
-        let mosaic = sources.mosaic(tile).map_err(|e| e.to_string())?;
-        let selection = sources.selection(tile);
-        let settled = crate::render::settle_structures(tile, &selection, &mosaic, &worker.settings);
-        let roads =
-            crate::render::settle_road_profiles(tile, &selection, &mosaic, &worker.settings);
-        let margin = worker.settings.mesh.max_error_m;
-        let value =
-            crate::output::debug::elevations(tile, &settled, &roads, selection.all_ways, margin);
-        serde_json::to_vec(&value).map_err(|e| e.to_string())
-    })
-    .await
-    .map_err(|e| ApiError::internal(format!("debug view of {tile} failed: {e}")))?
-    .map_err(|e| ApiError::internal(format!("debug view of {tile} failed: {e}")))?;
+    let provider = state.provider()?;
+    let key = crate::format::TileKey {
+        tile,
+        format: crate::format::Format::GLB,
+    };
+    match provider.availability(key) {
+        Availability::Ready => {}
+        Availability::Missing(reason) => return Err(ApiError::not_found(reason)),
+        Availability::AfterFetch => {
+            return Err(ApiError::not_found(format!(
+                "the SRTM data of tile {tile} is not downloaded yet: ask for the tile first"
+            )))
+        }
+    }
+    let body = tokio::task::spawn_blocking(move || provider.explain(tile))
+        .await
+        .map_err(|e| ApiError::internal(format!("debug view of {tile} failed: {e}")))?
+        .map_err(|e| match e {
+            MakeError::NotHeld(message) => ApiError::not_found(message),
+            e => ApiError::internal(format!("debug view of {tile} failed: {e}")),
+        })?;
     Ok((
         StatusCode::OK,
         [(

@@ -64,3 +64,17 @@ impl IntoResponse for ApiError {
         response
     }
 }
+
+/// A tile the provider cannot have: `404` when it is not offered or not covered, `502` when a
+/// download it needs failed.
+impl From<crate::provider::Unavailable> for ApiError {
+    fn from(error: crate::provider::Unavailable) -> ApiError {
+        use crate::provider::Unavailable;
+        match error {
+            Unavailable::NotOffered(message) | Unavailable::NotCovered(message) => {
+                ApiError::not_found(message)
+            }
+            Unavailable::FetchFailed(message) => ApiError::new(StatusCode::BAD_GATEWAY, message),
+        }
+    }
+}

@@ -16,8 +16,11 @@ use crate::output::glb::ATTRIBUTION;
 use crate::tile::TileId;
 
 pub async fn layer(State(state): State<AppState>) -> Result<Json<Value>, ApiError> {
-    let z = state.zoom;
-    let cells: Vec<_> = state.sources()?.srtm.cells();
+    let offer = state.provider()?.offer();
+    let z = offer.zoom;
+    let cells = offer.terrain_cells.ok_or_else(|| {
+        ApiError::not_found("this server has no terrain layer: it serves the tiles of a file")
+    })?;
     let mut bounds: Option<[f64; 4]> = None;
     let mut ranges = Vec::new();
     for cell in &cells {

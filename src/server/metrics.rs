@@ -6,8 +6,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::Duration;
 
-use crate::render::StageTimings;
-use crate::source::fetch::FetchStats;
+use crate::provider::{FetchStats, StageTimings};
 
 /// Upper bounds of the render-time buckets, seconds.
 const SECONDS_BUCKETS: &[f64] = &[
@@ -177,9 +176,12 @@ impl Metrics {
         self.request_seconds.observe(elapsed);
     }
 
-    pub fn render_text(&self, pool: PoolGauges, downloads: &FetchStats) -> String {
+    /// The metrics in Prometheus' text format; `downloads` counts the provider's downloads
+    /// (none when it downloads nothing).
+    pub fn render_text(&self, pool: PoolGauges, downloads: Option<&FetchStats>) -> String {
+        let none = FetchStats::default();
         let mut out = String::new();
-        for (name, help, value) in self.counters(downloads) {
+        for (name, help, value) in self.counters(downloads.unwrap_or(&none)) {
             let _ = writeln!(
                 out,
                 "# HELP {name} {help}\n# TYPE {name} counter\n{name} {value}"

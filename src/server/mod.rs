@@ -22,10 +22,8 @@ use axum::routing::{get, post};
 use axum::Router;
 
 use crate::cache::TileCache;
-use crate::config::{ServerConfig, SourcesConfig};
-use crate::provider::Inputs;
-use crate::render::RenderSettings;
-use crate::source::fetch::Fetcher;
+use crate::config::ServerConfig;
+use crate::provider::TileProvider;
 use error::ApiError;
 use metrics::{Metrics, PoolGauges};
 use pool::RenderPool;
@@ -33,92 +31,94 @@ use pool::RenderPool;
 /// How long a client is asked to wait before retrying when sources load or renders queue.
 pub const RETRY_AFTER_S: u64 = 5;
 
-/// Where the sources stand.
+/// Where the provider stands.
 #[derive(Debug, Clone)]
-enum SourceState {
+enum ProviderState {
     Loading,
-    Ready(Arc<Inputs>),
+    Ready(Arc<dyn TileProvider>),
     Failed(String),
 }
 
 /// Everything a request handler needs.
 #[derive(Debug, Clone)]
 pub struct AppState {
-    sources: Arc<RwLock<SourceState>>,
+    provider: Arc<RwLock<ProviderState>>,
     pub cache: TileCache,
-    pub settings: Arc<RenderSettings>,
-    /// Identity of the rendering code and settings, stored with every tile.
-    pub pipeline: Arc<str>,
+    /// The zoom of the served tiles.
     pub zoom: u8,
     pub metrics: Arc<Metrics>,
-    pub pool: Arc<RenderPool>,
+    pub work: Arc<Work>,
+    pub http: Arc<Http>,
+}
+
+/// How tiles are made: the render slots and their limits, and the background work.
+#[derive(Debug)]
+pub struct Work {
+    pub pool: RenderPool,
     /// Longest a render may take.
     pub render_limit: Option<Duration>,
-    /// Origins allowed to read responses in a browser (`*` for any).
-    pub cors_origins: Arc<Vec<String>>,
-    /// `Cache-Control` for tiles, if any.
-    pub cache_control: Option<axum::http::HeaderValue>,
-    /// The bearer token `/admin/*` asks for; `None` turns those routes off.
-    pub admin_token: Option<Arc<str>>,
-    pub check_interval: Option<Duration>,
+    /// Requests that may wait at once for a download on a blocking thread; the others wait
+    /// for a turn without holding one.
+    pub download_waits: Arc<tokio::sync::Semaphore>,
+    /// Tiles whose render failed or ran out of time lately, with the error (status, message).
+    pub failed_renders: moka::sync::Cache<crate::format::TileKey, (StatusCode, Arc<str>)>,
     /// Tiles to make again in the background.
     pub regenerator: Arc<regenerate::Regenerator>,
     /// Workers making them (each holds at most one render slot).
     pub background_workers: usize,
-    /// What the sources were loaded from, for reloading them when they change.
-    pub source_config: Option<Arc<SourcesConfig>>,
-    /// Downloads source files; shared by every load of the sources.
-    pub fetcher: Arc<Fetcher>,
-    /// When the server serves an exported file instead of rendering: what it holds.
-    pub archive: Option<Arc<Archive>>,
-    /// Requests that may wait at once for a source download on a blocking thread; the others
-    /// wait for a turn without holding one.
-    pub download_waits: Arc<tokio::sync::Semaphore>,
-    /// The viewer's files, served at `/`.
-    pub static_dir: std::path::PathBuf,
-    /// Tiles whose render failed or ran out of time lately, with the error (status, message).
-    pub failed_renders: moka::sync::Cache<crate::format::TileKey, (StatusCode, Arc<str>)>,
+    /// How often the provider is asked whether its inputs changed.
+    pub check_interval: Option<Duration>,
 }
 
-/// Requests that may wait at once for a source download.
+/// What the HTTP side is told: who may read, how long clients may keep tiles, the admin
+/// token, and the viewer's files.
+#[derive(Debug)]
+pub struct Http {
+    /// Origins allowed to read responses in a browser (`*` for any).
+    pub cors_origins: Vec<String>,
+    /// `Cache-Control` for tiles, if any.
+    pub cache_control: Option<axum::http::HeaderValue>,
+    /// The bearer token `/admin/*` asks for; `None` turns those routes off.
+    pub admin_token: Option<Arc<str>>,
+    /// The viewer's files, served at `/`.
+    pub static_dir: std::path::PathBuf,
+}
+
+/// Requests that may wait at once for a download.
 const DOWNLOAD_WAITS: usize = 32;
 
 /// How long a tile whose render failed or ran out of time is answered with that error before
 /// it is tried again, so retries of one bad tile cannot hold the render slots.
 pub const FAILED_RENDER_MEMORY: Duration = Duration::from_secs(600);
 
-/// An exported MBTiles file served as it is, without sources.
-#[derive(Debug, Clone)]
-pub struct Archive {
-    pub path: std::path::PathBuf,
-    pub format: crate::format::Format,
-    pub bounds: Option<crate::tile::LonLatBounds>,
-}
-
-impl AppState {
-    /// A server without sources yet: tiles are refused with `503` until
-    /// [`AppState::set_sources`].
-    pub fn new(cache: TileCache, settings: RenderSettings, server: &ServerConfig) -> AppState {
+impl Work {
+    fn new(server: &ServerConfig) -> Work {
         let threads = if server.render_threads == 0 {
             std::thread::available_parallelism().map_or(2, |n| n.get())
         } else {
             server.render_threads
         };
-        AppState {
-            sources: Arc::new(RwLock::new(SourceState::Loading)),
-            cache,
-            pipeline: pipeline_id(&settings).into(),
-            settings: Arc::new(settings),
-            zoom: server.zoom,
-            metrics: Arc::new(Metrics::default()),
-            pool: Arc::new(RenderPool::new(
-                threads,
-                server.render_queue,
-                server.background_renders,
-            )),
+        Work {
+            pool: RenderPool::new(threads, server.render_queue, server.background_renders),
             render_limit: (server.render_timeout_ms > 0)
                 .then(|| Duration::from_millis(server.render_timeout_ms)),
-            cors_origins: Arc::new(server.cors_origins.clone()),
+            download_waits: Arc::new(tokio::sync::Semaphore::new(DOWNLOAD_WAITS)),
+            failed_renders: moka::sync::Cache::builder()
+                .max_capacity(100_000)
+                .time_to_live(FAILED_RENDER_MEMORY)
+                .build(),
+            regenerator: regenerate::new_queue(),
+            background_workers: server.background_renders.max(1),
+            check_interval: (server.check_interval_s > 0)
+                .then(|| Duration::from_secs(server.check_interval_s)),
+        }
+    }
+}
+
+impl Http {
+    fn new(server: &ServerConfig) -> Http {
+        Http {
+            cors_origins: server.cors_origins.clone(),
             cache_control: match axum::http::HeaderValue::from_str(&server.cache_control) {
                 Ok(value) if !server.cache_control.is_empty() => Some(value),
                 Ok(_) => None,
@@ -129,72 +129,63 @@ impl AppState {
             },
             admin_token: (!server.admin_token.is_empty())
                 .then(|| server.admin_token.as_str().into()),
-            check_interval: (server.check_interval_s > 0)
-                .then(|| Duration::from_secs(server.check_interval_s)),
-            regenerator: regenerate::new_queue(),
-            background_workers: server.background_renders.max(1),
-            source_config: None,
-            fetcher: Arc::new(Fetcher::new(SourcesConfig::default().fetch_settings())),
-            archive: None,
-            download_waits: Arc::new(tokio::sync::Semaphore::new(DOWNLOAD_WAITS)),
             static_dir: server.static_dir.clone(),
-            failed_renders: moka::sync::Cache::builder()
-                .max_capacity(100_000)
-                .time_to_live(FAILED_RENDER_MEMORY)
-                .build(),
+        }
+    }
+}
+
+impl AppState {
+    /// A server without a provider yet: tiles are refused with `503` until
+    /// [`AppState::provide`].
+    pub fn new(cache: TileCache, server: &ServerConfig) -> AppState {
+        AppState {
+            provider: Arc::new(RwLock::new(ProviderState::Loading)),
+            cache,
+            zoom: server.zoom,
+            metrics: Arc::new(Metrics::default()),
+            work: Arc::new(Work::new(server)),
+            http: Arc::new(Http::new(server)),
         }
     }
 
-    /// The loaded sources, or a `503` while they load (a `500` if loading failed).
-    pub fn sources(&self) -> Result<Arc<Inputs>, ApiError> {
-        if let Some(archive) = &self.archive {
-            return Err(ApiError::not_found(format!(
-                "this server serves the exported file {} and has no sources",
-                archive.path.display()
-            )));
-        }
-        match &*self.sources.read().unwrap_or_else(|p| p.into_inner()) {
-            SourceState::Ready(sources) => Ok(sources.clone()),
-            SourceState::Loading => Err(ApiError::unavailable(
+    /// The provider, or a `503` while it loads (a `500` if loading failed).
+    pub fn provider(&self) -> Result<Arc<dyn TileProvider>, ApiError> {
+        match &*self.provider.read().unwrap_or_else(|p| p.into_inner()) {
+            ProviderState::Ready(provider) => Ok(provider.clone()),
+            ProviderState::Loading => Err(ApiError::unavailable(
                 "the sources are still loading; retry shortly",
                 RETRY_AFTER_S,
             )),
-            SourceState::Failed(message) => Err(ApiError::internal(format!(
+            ProviderState::Failed(message) => Err(ApiError::internal(format!(
                 "the sources could not be loaded: {message}"
             ))),
         }
     }
 
-    /// Puts loaded sources in place (replacing any before them: tiles made from the old ones
+    /// Puts a provider in place (replacing any before it: tiles it would make otherwise
     /// become stale).
-    pub fn set_sources(&self, sources: Inputs) {
-        *self.sources.write().unwrap_or_else(|p| p.into_inner()) =
-            SourceState::Ready(Arc::new(sources));
+    pub fn provide(&self, provider: Arc<dyn TileProvider>) {
+        *self.provider.write().unwrap_or_else(|p| p.into_inner()) = ProviderState::Ready(provider);
     }
 
-    /// Records that the sources could not be loaded (`/ready` says why).
-    pub fn sources_failed(&self, message: String) {
-        *self.sources.write().unwrap_or_else(|p| p.into_inner()) = SourceState::Failed(message);
+    /// Records that the provider could not be loaded (`/ready` says why).
+    pub fn provider_failed(&self, message: String) {
+        *self.provider.write().unwrap_or_else(|p| p.into_inner()) = ProviderState::Failed(message);
     }
 
     pub fn pool_gauges(&self) -> PoolGauges {
-        let (running, waiting, background_waiting) = self.pool.gauges();
+        let (running, waiting, background_waiting) = self.work.pool.gauges();
         PoolGauges {
             running,
             waiting,
             background_waiting,
-            regenerating: self.regenerator.len(),
+            regenerating: self.work.regenerator.len(),
         }
     }
 }
 
-/// The identity of the rendering code and settings, stored with every cached tile.
-pub fn pipeline_id(settings: &RenderSettings) -> String {
-    format!("{}+{}", env!("CARGO_PKG_VERSION"), settings.fingerprint())
-}
-
 pub fn router(state: AppState) -> Router {
-    let cors = cors(&state.cors_origins);
+    let cors = cors(&state.http.cors_origins);
     let router = Router::new()
         .route("/tiles/{z}/{x}/{file}", get(tiles::tile))
         .route("/debug/tiles/{z}/{x}/{file}", get(debug::elevations))
@@ -210,7 +201,7 @@ pub fn router(state: AppState) -> Router {
         .route("/admin/purge", post(admin::purge))
         // Anything else is a file of the viewer, or a JSON 404.
         .fallback_service(
-            tower_http::services::ServeDir::new(&state.static_dir)
+            tower_http::services::ServeDir::new(&state.http.static_dir)
                 .append_index_html_on_directories(true)
                 .not_found_service(axum::handler::HandlerWithoutStateExt::into_service(
                     not_found,
@@ -332,23 +323,19 @@ async fn health() -> impl IntoResponse {
     axum::Json(serde_json::json!({ "status": "ok" }))
 }
 
-/// Ready when the sources are loaded (or an archive is served): `200`, else `503` saying what
-/// is missing.
+/// Ready when the provider is in place: `200` with what it serves from, else `503` saying
+/// what is missing.
 async fn ready(State(state): State<AppState>) -> Response {
-    if let Some(archive) = &state.archive {
-        return axum::Json(serde_json::json!({
-            "status": "ready",
-            "archive": archive.path.display().to_string(),
-        }))
-        .into_response();
-    }
-    match state.sources() {
-        Ok(sources) => axum::Json(serde_json::json!({
-            "status": "ready",
-            "osm_extracts": sources.osm_paths.len(),
-            "srtm_files": sources.srtm.cells().len(),
-        }))
-        .into_response(),
+    match state.provider() {
+        Ok(provider) => {
+            let mut body = serde_json::json!({ "status": "ready" });
+            if let (Some(body), serde_json::Value::Object(status)) =
+                (body.as_object_mut(), provider.status())
+            {
+                body.extend(status);
+            }
+            axum::Json(body).into_response()
+        }
         Err(error) => (
             StatusCode::SERVICE_UNAVAILABLE,
             axum::Json(serde_json::json!({ "status": "not ready", "error": error.message })),
@@ -360,9 +347,10 @@ async fn ready(State(state): State<AppState>) -> Response {
 async fn metrics(State(state): State<AppState>) -> impl IntoResponse {
     (
         [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
-        state
-            .metrics
-            .render_text(state.pool_gauges(), &state.fetcher.stats),
+        state.metrics.render_text(
+            state.pool_gauges(),
+            state.provider().ok().as_deref().and_then(|p| p.downloads()),
+        ),
     )
 }
 
@@ -389,11 +377,10 @@ pub async fn serve(
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
     let mut background = vec![tokio::spawn(background_tasks(state.clone()))];
-    background.extend(regenerate::start(&state, state.background_workers));
-    if let (Some(interval), Some(config)) = (state.check_interval, state.source_config.clone()) {
+    background.extend(regenerate::start(&state, state.work.background_workers));
+    if let Some(interval) = state.work.check_interval {
         background.push(tokio::spawn(regenerate::watch_sources(
             state.clone(),
-            config,
             interval,
         )));
     }
@@ -403,7 +390,7 @@ pub async fn serve(
     for task in background {
         task.abort();
     }
-    state.pool.close();
+    state.work.pool.close();
     if let Err(error) = state.cache.flush_touches().await {
         tracing::warn!(%error, "recording served tiles failed");
     }

@@ -9,10 +9,11 @@ use std::sync::{Arc, Mutex};
 use tokio::sync::Notify;
 
 use super::metrics::Metrics;
-use super::tiles::{provenance, render_job, Priority};
+use super::tiles::{render_job, Priority};
 use super::AppState;
 use crate::cache::{StoredEntry, TileFilter};
 use crate::format::TileKey;
+use crate::provider::Availability;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Job {
@@ -111,7 +112,7 @@ impl Regenerator {
 
 /// One worker: takes tiles from the queue and makes them again, one at a time.
 pub async fn work(state: AppState) {
-    let queue = state.regenerator.clone();
+    let queue = state.work.regenerator.clone();
     loop {
         let job = queue.next().await;
         remake(&state, job).await;
@@ -120,15 +121,18 @@ pub async fn work(state: AppState) {
 }
 
 async fn remake(state: &AppState, job: Job) {
-    let Ok(sources) = state.sources() else {
+    let Ok(provider) = state.provider() else {
         return;
     };
     let key = job.key;
-    if key.tile.z == state.zoom && sources.check_coverage(key.tile).is_err() {
+    if provider.availability(key) != Availability::Ready {
         tracing::warn!(tile = %key.tile, "not made again: the sources no longer cover it");
         return;
     }
-    let wanted = provenance(state, &sources, key.tile);
+    // A provider that makes no tiles has none to make again.
+    let Some(wanted) = provider.provenance(key.tile) else {
+        return;
+    };
     if !job.force {
         if let Some(held) = state.cache.peek(&key).await {
             if held.made_by == wanted {
@@ -147,7 +151,7 @@ async fn remake(state: &AppState, job: Job) {
     if !matches!(still_stored, Ok(Ok(true))) {
         return;
     }
-    let render = render_job(state, sources, key, Priority::Background);
+    let render = render_job(state, provider, key, Priority::Background);
     match state.cache.remake(key, wanted, render).await {
         Ok(()) => Metrics::count(&state.metrics.regenerations),
         Err(error) => {
@@ -158,7 +162,7 @@ async fn remake(state: &AppState, job: Job) {
 }
 
 /// Queues the stored tiles that `filter` selects, most recently served first; `only_stale`
-/// keeps those whose sources or pipeline differ from the current ones. Returns how many.
+/// keeps those the provider would make otherwise now. Returns how many.
 pub async fn queue_stored(
     state: &AppState,
     filter: TileFilter,
@@ -169,17 +173,18 @@ pub async fn queue_stored(
         .await
         .map_err(|e| e.to_string())?
         .map_err(|e| e.to_string())?;
-    let sources = state.sources().map_err(|e| e.message)?;
+    let provider = state.provider().map_err(|e| e.message)?;
     let keys: Vec<TileKey> = entries
         .into_iter()
         .filter(|entry| {
             !only_stale
-                || entry.made_by.pipeline != *state.pipeline
-                || entry.made_by.sources != sources.version_for(entry.key.tile)
+                || provider
+                    .provenance(entry.key.tile)
+                    .is_some_and(|wanted| entry.made_by != wanted)
         })
         .map(|entry| entry.key)
         .collect();
-    Ok(state.regenerator.enqueue(keys, !only_stale))
+    Ok(state.work.regenerator.enqueue(keys, !only_stale))
 }
 
 /// Starts the workers.
@@ -195,46 +200,30 @@ pub fn new_queue() -> Arc<Regenerator> {
 }
 
 /// Checks the sources every `interval`; see [`check_sources`].
-pub async fn watch_sources(
-    state: AppState,
-    config: Arc<crate::config::SourcesConfig>,
-    interval: std::time::Duration,
-) {
+pub async fn watch_sources(state: AppState, interval: std::time::Duration) {
     let mut ticker = tokio::time::interval(interval);
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     ticker.tick().await;
     loop {
         ticker.tick().await;
-        if let Err(error) = check_sources(&state, &config).await {
+        if let Err(error) = check_sources(&state).await {
             tracing::error!(%error, "checking the sources failed; the tiles are still made from the sources loaded before");
         }
     }
 }
 
-/// When a source changed (an extract rewritten, an SRTM file added or replaced), loads the
-/// sources again, puts them in place, and queues every stored tile they make stale, most
-/// recently served first. Returns how many tiles were queued.
-pub async fn check_sources(
-    state: &AppState,
-    config: &crate::config::SourcesConfig,
-) -> Result<usize, String> {
-    let current = state.sources().map_err(|e| e.message)?;
-    let changed = tokio::task::spawn_blocking(move || current.changed_files())
+/// When the provider's inputs changed (an extract rewritten, an SRTM file added or
+/// replaced), puts a provider on the new ones in place, and queues every stored tile it makes
+/// stale, most recently served first. Returns how many tiles were queued.
+pub async fn check_sources(state: &AppState) -> Result<usize, String> {
+    let current = state.provider().map_err(|e| e.message)?;
+    let reopened = tokio::task::spawn_blocking(move || current.reopened())
         .await
-        .map_err(|e| e.to_string())?;
-    if changed.is_empty() {
+        .map_err(|e| e.to_string())??;
+    let Some(provider) = reopened else {
         return Ok(0);
-    }
-    tracing::info!(files = ?changed, "sources changed; loading them again");
-    let config = config.clone();
-    let zoom = state.zoom;
-    let fetcher = state.fetcher.clone();
-    let loaded =
-        tokio::task::spawn_blocking(move || crate::provider::Inputs::load(&config, zoom, fetcher))
-            .await
-            .map_err(|e| e.to_string())?
-            .map_err(|e| e.to_string())?;
-    state.set_sources(loaded);
+    };
+    state.provide(provider);
     let queued = queue_stored(state, TileFilter::All, true).await?;
     tracing::info!(
         queued,

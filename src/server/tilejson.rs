@@ -37,12 +37,9 @@ pub async fn tilejson(
         }
         None => String::new(),
     };
-    let coverage = match (&state.archive, state.sources()) {
-        (_, Ok(sources)) => sources.osm.data().coverage.clone(),
-        (Some(archive), Err(_)) => archive.bounds.into_iter().collect(),
-        (None, Err(error)) => return Err(error),
-    };
-    let bounds = coverage
+    let offer = state.provider()?.offer();
+    let bounds = offer
+        .coverage
         .iter()
         .map(|b| [b.west, b.south, b.east, b.north])
         .reduce(|a, b| {
@@ -54,17 +51,15 @@ pub async fn tilejson(
             ]
         })
         .unwrap_or([-180.0, -85.051_128_78, 180.0, 85.051_128_78]);
-    // The compressions of glb asked for with `?compress=`: an archive has the one it holds.
-    let compressions: Vec<&str> = match &state.archive {
-        Some(archive) => match archive.format {
-            Format::Glb(v) if v.frame == Frame::WebMercator => {
-                vec![if v.meshopt { "meshopt" } else { "none" }]
-            }
-            _ => Vec::new(),
-        },
+    // The compressions of glb asked for with `?compress=`: a provider of one format has that.
+    let compressions: Vec<&str> = match offer.only {
+        Some(Format::Glb(v)) if v.frame == Frame::WebMercator => {
+            vec![if v.meshopt { "meshopt" } else { "none" }]
+        }
+        Some(_) => Vec::new(),
         None => vec!["none", "meshopt"],
     };
-    let z = state.zoom;
+    let z = offer.zoom;
     Ok(Json(json!({
         "tilejson": "3.0.0",
         "name": "terrastitch",

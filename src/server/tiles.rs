@@ -14,12 +14,11 @@ use super::metrics::Metrics;
 use super::pool::Refused;
 use super::{AppState, RETRY_AFTER_S};
 use crate::cache::encoding::{Accepted, Encoding};
-use crate::cache::{CacheError, Origin, Provenance, Served};
+use crate::cache::{CacheError, Origin, Served};
 use crate::format::Extensions;
 use crate::format::{Format, TileKey};
 use crate::format::{Frame, Variant};
-use crate::provider::inputs::{Inputs, MissingSrtm};
-use crate::render::Deadline;
+use crate::provider::{Availability, Deadline, MakeError, TileProvider};
 use crate::tile::TileId;
 
 /// Whether the query asks for compressed glb: `compress=meshopt` (`EXT_meshopt_compression`
@@ -98,60 +97,21 @@ pub async fn tile(
     serve(state, tile, format, request_headers).await
 }
 
-/// A tile in `format`: from memory, the store, or made now.
+/// A tile in `format`: from memory, the store, or made now by the provider.
 pub async fn serve(
     state: AppState,
     tile: TileId,
     format: Format,
     request_headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let overview = matches!(format, Format::Terrain(_)) && tile.z < state.zoom;
-    if tile.z != state.zoom && !overview {
-        return Err(ApiError::not_found(match format {
-            Format::Glb(_) => format!(
-                "zoom {} is not served; this server serves glb tiles at zoom {}",
-                tile.z, state.zoom
-            ),
-            Format::Terrain(_) => format!(
-                "zoom {} is not served; this server serves terrain at zooms 0 to {}",
-                tile.z, state.zoom
-            ),
-        }));
+    let provider = state.provider()?;
+    let key = provider.resolve(tile, format)?;
+    match provider.availability(key) {
+        Availability::Ready => {}
+        Availability::AfterFetch => fetch(&state, &provider, tile).await?,
+        Availability::Missing(reason) => return Err(ApiError::not_found(reason)),
     }
-    if let Some(archive) = &state.archive {
-        return from_archive(&state, archive, tile, format, &request_headers).await;
-    }
-    let sources = state.sources()?;
-    if !overview {
-        // Overview tiles cover whatever they cover: sea level where there is no data.
-        if sources.check_coverage(tile).is_err() && sources.can_fetch_srtm() {
-            // Waiting for a download holds a blocking thread: only so many wait there; the
-            // others wait here, on the executor, holding nothing.
-            let permit = state
-                .download_waits
-                .clone()
-                .acquire_owned()
-                .await
-                .map_err(|_| ApiError::unavailable("the server is shutting down", RETRY_AFTER_S))?;
-            let fetching = sources.clone();
-            tokio::task::spawn_blocking(move || {
-                let _permit = permit;
-                fetching.fetch_missing_srtm(tile)
-            })
-            .await
-            .map_err(|e| ApiError::internal(e.to_string()))?
-            .map_err(|e| match e {
-                MissingSrtm::NotFound { .. } => ApiError::not_found(e.to_string()),
-                MissingSrtm::Failed { .. } => ApiError::new(StatusCode::BAD_GATEWAY, e.to_string()),
-            })?;
-        }
-        sources
-            .check_coverage(tile)
-            .map_err(|e| ApiError::not_found(e.to_string()))?;
-    }
-
-    let key = TileKey { tile, format };
-    if let Some((status, message)) = state.failed_renders.get(&key) {
+    if let Some((status, message)) = state.work.failed_renders.get(&key) {
         return Err(ApiError {
             retry_after: Some(super::FAILED_RENDER_MEMORY.as_secs()),
             ..ApiError::new(
@@ -160,11 +120,11 @@ pub async fn serve(
             )
         });
     }
-    let wanted = provenance(&state, &sources, tile);
-    let render = render_job(&state, sources.clone(), key, Priority::Request);
+    let wanted = provider.provenance(tile);
+    let render = render_job(&state, provider, key, Priority::Request);
     let served = state
         .cache
-        .get_or_render(key, Some(&wanted), render)
+        .get_or_render(key, wanted.as_ref(), render)
         .await
         .map_err(|e| {
             let error = failure_response(&state, tile, &e);
@@ -173,6 +133,7 @@ pub async fn serve(
                 CacheError::Render(RenderFailure::TimedOut(_) | RenderFailure::Failed(_))
             ) {
                 state
+                    .work
                     .failed_renders
                     .insert(key, (error.status, error.message.as_str().into()));
             }
@@ -185,49 +146,33 @@ pub async fn serve(
     }
     if served.stale {
         Metrics::count(&state.metrics.stale_served);
-        state.regenerator.stale(key);
+        state.work.regenerator.stale(key);
     }
     Ok(respond(&state, key, &served, &request_headers))
 }
 
-/// A tile of the served archive; one it lacks is a `404`.
-async fn from_archive(
+/// Has the provider download what `tile` lacks. Waiting for a download holds a blocking
+/// thread: only so many wait there; the others wait here, on the executor, holding nothing.
+async fn fetch(
     state: &AppState,
-    archive: &super::Archive,
+    provider: &Arc<dyn TileProvider>,
     tile: TileId,
-    format: Format,
-    request_headers: &HeaderMap,
-) -> Result<Response, ApiError> {
-    let format = match (format, archive.format) {
-        (Format::Terrain(_), Format::Terrain(held)) => Format::Terrain(held),
-        (asked, _) => asked,
-    };
-    let key = TileKey { tile, format };
-    let path = archive.path.display().to_string();
-    let missing = move || -> Result<Vec<u8>, RenderFailure> {
-        Err(RenderFailure::NotInArchive(format!(
-            "tile {tile} ({}) is not in {path}",
-            format.as_str()
-        )))
-    };
-    let served = state
-        .cache
-        .get_or_render(key, None, missing)
+) -> Result<(), ApiError> {
+    let permit = state
+        .work
+        .download_waits
+        .clone()
+        .acquire_owned()
         .await
-        .map_err(|e| failure_response(state, tile, &e))?;
-    match served.origin {
-        Origin::Memory => Metrics::count(&state.metrics.hits_memory),
-        _ => Metrics::count(&state.metrics.hits_store),
-    }
-    Ok(respond(state, key, &served, request_headers))
-}
-
-/// What a tile made now from these sources is made from.
-pub fn provenance(state: &AppState, sources: &Inputs, tile: TileId) -> Provenance {
-    Provenance {
-        pipeline: state.pipeline.to_string(),
-        sources: sources.version_for(tile),
-    }
+        .map_err(|_| ApiError::unavailable("the server is shutting down", RETRY_AFTER_S))?;
+    let fetching = provider.clone();
+    tokio::task::spawn_blocking(move || {
+        let _permit = permit;
+        fetching.fetch(tile)
+    })
+    .await
+    .map_err(|e| ApiError::internal(e.to_string()))??;
+    Ok(())
 }
 
 /// The tile's response: the smallest coding the client accepts, its validator, and the
@@ -265,7 +210,7 @@ fn respond(state: &AppState, key: TileKey, served: &Served, request: &HeaderMap)
     if let Ok(value) = HeaderValue::from_str(&etag) {
         headers.insert(header::ETAG, value);
     }
-    if let Some(cache_control) = &state.cache_control {
+    if let Some(cache_control) = &state.http.cache_control {
         headers.insert(header::CACHE_CONTROL, cache_control.clone());
     }
     // A client that holds this tile in the coding it would get now receives a `304` without
@@ -345,9 +290,9 @@ pub enum RenderFailure {
     TimedOut(String),
     #[error("{0}")]
     Failed(String),
-    /// A server of an archive was asked for a tile the archive lacks.
+    /// The provider does not hold the tile and cannot make it.
     #[error("{0}")]
-    NotInArchive(String),
+    NotHeld(String),
 }
 
 /// The error response for a tile that could not be made.
@@ -361,9 +306,7 @@ fn failure_response(state: &AppState, tile: TileId, error: &CacheError<RenderFai
                 RETRY_AFTER_S,
             )
         }
-        CacheError::Render(RenderFailure::NotInArchive(message)) => {
-            ApiError::not_found(message.clone())
-        }
+        CacheError::Render(RenderFailure::NotHeld(message)) => ApiError::not_found(message.clone()),
         CacheError::Render(RenderFailure::TimedOut(message)) => {
             tracing::error!(%tile, %message, "render stopped at its time limit");
             ApiError::unavailable(message.clone(), RETRY_AFTER_S)
@@ -375,32 +318,38 @@ fn failure_response(state: &AppState, tile: TileId, error: &CacheError<RenderFai
     }
 }
 
-/// A render of `key` from `sources`, to run on the blocking pool: it takes a render slot
-/// first (at `priority`), then renders within the time limit, counting what it did.
+/// A render of `key` by `provider`, to run on the blocking pool: it takes a render slot first
+/// (at `priority`), then makes the tile within the time limit, counting what it did.
 pub fn render_job(
     state: &AppState,
-    sources: Arc<Inputs>,
+    provider: Arc<dyn TileProvider>,
     key: TileKey,
     priority: Priority,
 ) -> impl FnOnce() -> Result<Vec<u8>, RenderFailure> + Send + 'static {
-    let state = state.clone();
+    let work = state.work.clone();
+    let metrics = state.metrics.clone();
     // The render's log lines carry the request's span (and id) onto the blocking pool.
     let span = tracing::Span::current();
     move || {
         let _entered = span.enter();
-        let pool = state.pool.clone();
         let _slot = match priority {
-            Priority::Request => pool.acquire()?,
-            Priority::Background => pool.acquire_background()?,
+            Priority::Request => work.pool.acquire()?,
+            Priority::Background => work.pool.acquire_background()?,
         };
-        let deadline = state.render_limit.map_or(Deadline::none(), Deadline::after);
-        let result = render_format(&state, &sources, key, deadline);
-        let metrics = &state.metrics;
-        Metrics::count(&metrics.renders);
+        let deadline = work.render_limit.map_or(Deadline::none(), Deadline::after);
+        let result = make(&*provider, &metrics, key, deadline);
         match &result {
-            Ok(_) => {}
-            Err(RenderFailure::TimedOut(_)) => Metrics::count(&metrics.render_timeouts),
-            Err(_) => Metrics::count(&metrics.render_failures),
+            Ok(_) => Metrics::count(&metrics.renders),
+            // Not a render: the provider holds tiles and lacks this one.
+            Err(RenderFailure::NotHeld(_)) => {}
+            Err(RenderFailure::TimedOut(_)) => {
+                Metrics::count(&metrics.renders);
+                Metrics::count(&metrics.render_timeouts);
+            }
+            Err(_) => {
+                Metrics::count(&metrics.renders);
+                Metrics::count(&metrics.render_failures);
+            }
         }
         result
     }
@@ -408,21 +357,17 @@ pub fn render_job(
 
 /// Makes the tile, uncompressed, and records what the render measured (runs on the blocking
 /// pool).
-fn render_format(
-    state: &AppState,
-    sources: &Inputs,
+fn make(
+    provider: &dyn TileProvider,
+    metrics: &Metrics,
     key: TileKey,
     deadline: Deadline,
 ) -> Result<Vec<u8>, RenderFailure> {
-    let made = crate::provider::pipeline::make(sources, key, &state.settings, state.zoom, deadline)
-        .map_err(|e| {
-            if e.timed_out() {
-                RenderFailure::TimedOut(e.to_string())
-            } else {
-                RenderFailure::Failed(e.to_string())
-            }
-        })?;
-    let metrics = &state.metrics;
+    let made = provider.make(key, deadline).map_err(|e| match e {
+        MakeError::NotHeld(message) => RenderFailure::NotHeld(message),
+        e if e.timed_out() => RenderFailure::TimedOut(e.to_string()),
+        e => RenderFailure::Failed(e.to_string()),
+    })?;
     Metrics::add(&metrics.lp_components, made.lp_components as u64);
     Metrics::add(&metrics.lp_violations, made.lp_violations as u64);
     metrics.observe_render(&made.timings);

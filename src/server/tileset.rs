@@ -2,11 +2,12 @@
 //! content `GET /3dtiles/{z}/{x}/{y}.glb` (the tile in its east-north-up frame). `?compress=
 //! meshopt` on the root is carried to every file and content tile below it.
 //!
-//! Bounding volumes need the ground's height under each tile: read from the SRTM files on the
-//! blocking pool ([`Inputs::ground_range`]: a content tile's samples, at most
-//! `HEIGHT_SAMPLES` of them; a parent's whole files, whose ranges are kept once read). A
-//! server of an MBTiles archive serves the tileset when the archive holds east-north-up glb,
-//! with the archive's compression and without heights.
+//! Bounding volumes need the ground's height under each tile: asked of the provider on the
+//! blocking pool ([`TileProvider::ground_range`]). A provider of one format (an exported
+//! archive) has a tileset when it holds east-north-up glb, with that compression and without
+//! heights.
+
+use std::sync::Arc;
 
 use axum::extract::{Path, RawQuery, State};
 use axum::http::{header, HeaderMap, HeaderValue};
@@ -20,65 +21,45 @@ use super::AppState;
 use crate::format::Format;
 use crate::format::{Frame, Variant};
 use crate::output::tileset::{Plan, Root};
-use crate::provider::Inputs;
+use crate::provider::TileProvider;
 use crate::tile::TileId;
 
-/// Samples read per tile for its heights.
-const HEIGHT_SAMPLES: usize = 40_000;
-
 /// The plan of the served data: its coverage and the query to carry.
-fn plan(state: &AppState, meshopt: bool) -> Result<Plan, ApiError> {
+fn plan(provider: &dyn TileProvider, meshopt: bool) -> Result<Plan, ApiError> {
     let query = |meshopt: bool| match meshopt {
         true => "?compress=meshopt".to_string(),
         false => String::new(),
     };
-    if let Some(archive) = &state.archive {
-        return match archive.format {
-            Format::Glb(variant) if variant.frame == Frame::EastNorthUp => Ok(Plan {
-                content_zoom: state.zoom,
-                coverage: archive.bounds.into_iter().collect(),
-                query: query(variant.meshopt),
-                list_unknown: true,
-            }),
-            other => Err(ApiError::not_found(format!(
-                "this archive holds {} tiles; a 3D Tiles tileset needs glb-enu or \
+    let offer = provider.offer();
+    // A provider of one format carries its compression.
+    let meshopt = match offer.only {
+        None => meshopt,
+        Some(Format::Glb(variant)) if variant.frame == Frame::EastNorthUp => variant.meshopt,
+        Some(other) => {
+            return Err(ApiError::not_found(format!(
+                "this server holds {} tiles; a 3D Tiles tileset needs glb-enu or \
                  glb-enu-meshopt (export with --format glb-enu-meshopt)",
                 other.as_str()
-            ))),
-        };
-    }
-    let sources = state.sources()?;
-    Ok(Plan {
-        content_zoom: state.zoom,
-        coverage: sources.osm.data().coverage.clone(),
-        query: query(meshopt),
-        list_unknown: sources.can_fetch_srtm(),
-    })
-}
-
-/// Lowest and highest SRTM ground under a tile, from the opened sources: sampled for a content
-/// tile, whole files for a parent.
-fn heights(sources: Option<&Inputs>, content_zoom: u8, tile: TileId) -> Option<(f64, f64)> {
-    let sampled = tile.z == content_zoom;
-    match sources?.ground_range(tile, sampled, HEIGHT_SAMPLES) {
-        Ok(range) => range,
-        Err(error) => {
-            tracing::warn!(%tile, %error, "no heights for the tile's bounding volume");
-            None
+            )))
         }
-    }
+    };
+    Ok(Plan {
+        content_zoom: offer.zoom,
+        coverage: offer.coverage,
+        query: query(meshopt),
+        list_unknown: offer.open_ended,
+    })
 }
 
 /// Builds a tileset document on the blocking pool.
 async fn document(
     state: &AppState,
+    provider: Arc<dyn TileProvider>,
     build: impl FnOnce(&Plan, &dyn Fn(TileId) -> Option<(f64, f64)>) -> Value + Send + 'static,
     plan: Plan,
 ) -> Result<Response, ApiError> {
-    let sources = state.sources().ok().filter(|_| state.archive.is_none());
     let value = tokio::task::spawn_blocking(move || {
-        let zoom = plan.content_zoom;
-        let heights = |tile: TileId| heights(sources.as_deref(), zoom, tile);
+        let heights = |tile: TileId| provider.ground_range(tile);
         build(&plan, &heights)
     })
     .await
@@ -88,7 +69,7 @@ async fn document(
         header::CONTENT_TYPE,
         HeaderValue::from_static("application/json"),
     );
-    if let Some(cache_control) = &state.cache_control {
+    if let Some(cache_control) = &state.http.cache_control {
         headers.insert(header::CACHE_CONTROL, cache_control.clone());
     }
     Ok((headers, value.to_string()).into_response())
@@ -99,8 +80,15 @@ pub async fn root(
     State(state): State<AppState>,
     RawQuery(query): RawQuery,
 ) -> Result<Response, ApiError> {
-    let plan = plan(&state, wants_meshopt(query.as_deref())?)?;
-    document(&state, |plan, heights| plan.root(heights, Root::Top), plan).await
+    let provider = state.provider()?;
+    let plan = plan(&*provider, wants_meshopt(query.as_deref())?)?;
+    document(
+        &state,
+        provider,
+        |plan, heights| plan.root(heights, Root::Top),
+        plan,
+    )
+    .await
 }
 
 /// `GET /3dtiles/tileset.json`: the same root, next to the files it names.
@@ -108,9 +96,11 @@ pub async fn root_in_folder(
     State(state): State<AppState>,
     RawQuery(query): RawQuery,
 ) -> Result<Response, ApiError> {
-    let plan = plan(&state, wants_meshopt(query.as_deref())?)?;
+    let provider = state.provider()?;
+    let plan = plan(&*provider, wants_meshopt(query.as_deref())?)?;
     document(
         &state,
+        provider,
         |plan, heights| plan.root(heights, Root::InFolder),
         plan,
     )
@@ -127,7 +117,8 @@ pub async fn file(
     let meshopt = wants_meshopt(query.as_deref())?;
     if let Some(y) = file.strip_suffix(".json") {
         let (tile, _) = parse_tile_path(&z, &x, &format!("{y}.glb"), "", Variant::default())?;
-        let plan = plan(&state, meshopt)?;
+        let provider = state.provider()?;
+        let plan = plan(&*provider, meshopt)?;
         if !plan.has_tileset(tile) {
             return Err(ApiError::not_found(format!(
                 "no tileset file for tile {tile}: files stand at zooms {} - 2k down to the \
@@ -137,6 +128,7 @@ pub async fn file(
         }
         return document(
             &state,
+            provider,
             move |plan, heights| plan.subtree(tile, heights),
             plan,
         )

@@ -11,7 +11,7 @@ use std::process::Command;
 
 use terrastitch::cache::{SqliteStore, TileCache};
 use terrastitch::config::{Config, ServerConfig};
-use terrastitch::provider::Inputs;
+use terrastitch::provider::{Inputs, Renderer};
 use terrastitch::server::{self, AppState};
 use terrastitch::TileId;
 
@@ -129,6 +129,8 @@ pub fn sample_srtm() -> PathBuf {
 pub struct TestServer {
     pub base: String,
     pub state: AppState,
+    /// What it renders with, when it renders.
+    pub renderer: Option<std::sync::Arc<Renderer>>,
     shutdown: Option<tokio::sync::oneshot::Sender<()>>,
     handle: Option<tokio::task::JoinHandle<()>>,
 }
@@ -152,17 +154,34 @@ impl TestServer {
         sources: Inputs,
         server_config: &ServerConfig,
     ) -> TestServer {
+        let renderer = Renderer::new(sources, Config::default().render, server_config.zoom);
+        TestServer::start_rendering(cache, renderer, server_config).await
+    }
+
+    /// Starts a server rendering with `renderer`, with its cache in `cache`.
+    pub async fn start_rendering(
+        cache: &Path,
+        renderer: Renderer,
+        server_config: &ServerConfig,
+    ) -> TestServer {
         let state = TestServer::state(cache, server_config);
-        state.set_sources(sources);
-        TestServer::start_state(state).await
+        let renderer = std::sync::Arc::new(renderer);
+        state.provide(renderer.clone());
+        let mut server = TestServer::start_state(state).await;
+        server.renderer = Some(renderer);
+        server
+    }
+
+    /// The inputs it renders from.
+    pub fn inputs(&self) -> &Inputs {
+        self.renderer.as_ref().expect("a rendering server").inputs()
     }
 
     /// A server's state with its cache in `cache`, without sources yet.
     pub fn state(cache: &Path, server_config: &ServerConfig) -> AppState {
-        let config = Config::default();
         let store = SqliteStore::open(cache, None).expect("cache opens");
         let tile_cache = TileCache::new(std::sync::Arc::new(store), 64 << 20);
-        AppState::new(tile_cache, config.render.clone(), server_config)
+        AppState::new(tile_cache, server_config)
     }
 
     /// Starts a server with this state.
@@ -183,6 +202,7 @@ impl TestServer {
         TestServer {
             base,
             state,
+            renderer: None,
             shutdown: Some(tx),
             handle: Some(handle),
         }

@@ -1,0 +1,190 @@
+//! The provider that renders: the opened [`Inputs`] with the render settings and the zoom of the
+//! served tiles. Terrain tiles at coarser zooms are overviews of the SRTM files alone.
+
+use std::sync::Arc;
+
+use super::{Availability, Inputs, Made, MakeError, Offer, TileProvider, Unavailable};
+use crate::cache::Provenance;
+use crate::config::SourcesConfig;
+use crate::format::{Format, TileKey};
+use crate::render::{Deadline, RenderSettings};
+use crate::source::fetch::{FetchStats, Fetcher};
+use crate::tile::TileId;
+
+/// Samples read per tile for its ground range.
+const HEIGHT_SAMPLES: usize = 40_000;
+
+/// The identity of the rendering code and settings, stored with every tile made.
+pub fn pipeline_id(settings: &RenderSettings) -> String {
+    format!("{}+{}", env!("CARGO_PKG_VERSION"), settings.fingerprint())
+}
+
+/// Renders tiles from opened inputs.
+#[derive(Debug)]
+pub struct Renderer {
+    inputs: Arc<Inputs>,
+    settings: Arc<RenderSettings>,
+    zoom: u8,
+    pipeline: Arc<str>,
+    /// What the inputs were opened from, to open them again when they change.
+    origin: Option<(Arc<SourcesConfig>, Arc<Fetcher>)>,
+}
+
+impl Renderer {
+    pub fn new(inputs: Inputs, settings: RenderSettings, zoom: u8) -> Renderer {
+        Renderer {
+            inputs: Arc::new(inputs),
+            pipeline: pipeline_id(&settings).into(),
+            settings: Arc::new(settings),
+            zoom,
+            origin: None,
+        }
+    }
+
+    /// Opens the sources a configuration names (downloading with `fetcher`), and keeps the
+    /// configuration to open them again when they change.
+    pub fn load(
+        config: &SourcesConfig,
+        settings: RenderSettings,
+        zoom: u8,
+        fetcher: Arc<Fetcher>,
+    ) -> Result<Renderer, super::inputs::SourceError> {
+        let inputs = Inputs::load(config, zoom, fetcher.clone())?;
+        Ok(Renderer::new(inputs, settings, zoom).reopening_from(config.clone(), fetcher))
+    }
+
+    /// The same renderer, told what its inputs were opened from.
+    pub fn reopening_from(mut self, config: SourcesConfig, fetcher: Arc<Fetcher>) -> Renderer {
+        self.origin = Some((Arc::new(config), fetcher));
+        self
+    }
+
+    pub fn inputs(&self) -> &Arc<Inputs> {
+        &self.inputs
+    }
+
+    pub fn settings(&self) -> &RenderSettings {
+        &self.settings
+    }
+
+    /// The identity of its code and settings.
+    pub fn pipeline(&self) -> &str {
+        &self.pipeline
+    }
+
+    /// A terrain tile coarser than the served zoom: an overview, made wherever it is asked.
+    fn is_overview(&self, key: TileKey) -> bool {
+        matches!(key.format, Format::Terrain(_)) && key.tile.z < self.zoom
+    }
+}
+
+impl TileProvider for Renderer {
+    fn offer(&self) -> Offer {
+        Offer {
+            zoom: self.zoom,
+            coverage: self.inputs.osm.data().coverage.clone(),
+            only: None,
+            open_ended: self.inputs.can_fetch_srtm(),
+            terrain_cells: Some(self.inputs.srtm.cells()),
+        }
+    }
+
+    fn resolve(&self, tile: TileId, format: Format) -> Result<TileKey, Unavailable> {
+        let key = TileKey { tile, format };
+        if tile.z == self.zoom || self.is_overview(key) {
+            return Ok(key);
+        }
+        Err(Unavailable::NotOffered(match format {
+            Format::Glb(_) => format!(
+                "zoom {} is not served; this server serves glb tiles at zoom {}",
+                tile.z, self.zoom
+            ),
+            Format::Terrain(_) => format!(
+                "zoom {} is not served; this server serves terrain at zooms 0 to {}",
+                tile.z, self.zoom
+            ),
+        }))
+    }
+
+    fn availability(&self, key: TileKey) -> Availability {
+        // Overview tiles cover whatever they cover: sea level where there is no data.
+        if self.is_overview(key) {
+            return Availability::Ready;
+        }
+        match self.inputs.check_coverage(key.tile) {
+            Ok(()) => Availability::Ready,
+            Err(_) if self.inputs.can_fetch_srtm() => Availability::AfterFetch,
+            Err(uncovered) => Availability::Missing(uncovered.to_string()),
+        }
+    }
+
+    fn fetch(&self, tile: TileId) -> Result<(), Unavailable> {
+        use super::inputs::MissingSrtm;
+        self.inputs.fetch_missing_srtm(tile).map_err(|e| match e {
+            MissingSrtm::NotFound { .. } => Unavailable::NotCovered(e.to_string()),
+            MissingSrtm::Failed { .. } => Unavailable::FetchFailed(e.to_string()),
+        })?;
+        self.inputs
+            .check_coverage(tile)
+            .map_err(|e| Unavailable::NotCovered(e.to_string()))
+    }
+
+    fn provenance(&self, tile: TileId) -> Option<Provenance> {
+        Some(Provenance {
+            pipeline: self.pipeline.to_string(),
+            sources: self.inputs.version_for(tile),
+        })
+    }
+
+    fn make(&self, key: TileKey, deadline: Deadline) -> Result<Made, MakeError> {
+        super::pipeline::make(&self.inputs, key, &self.settings, self.zoom, deadline)
+    }
+
+    fn ground_range(&self, tile: TileId) -> Option<(f64, f64)> {
+        let sampled = tile.z == self.zoom;
+        match self.inputs.ground_range(tile, sampled, HEIGHT_SAMPLES) {
+            Ok(range) => range,
+            Err(error) => {
+                tracing::warn!(%tile, %error, "no ground range for the tile");
+                None
+            }
+        }
+    }
+
+    fn explain(&self, tile: TileId) -> Result<Vec<u8>, MakeError> {
+        let mosaic = self.inputs.mosaic(tile)?;
+        let selection = self.inputs.selection(tile);
+        let settled = crate::render::settle_structures(tile, &selection, &mosaic, &self.settings);
+        let roads = crate::render::settle_road_profiles(tile, &selection, &mosaic, &self.settings);
+        let margin = self.settings.mesh.max_error_m;
+        let value =
+            crate::output::debug::elevations(tile, &settled, &roads, selection.all_ways, margin);
+        serde_json::to_vec(&value).map_err(|e| MakeError::Encode(e.to_string()))
+    }
+
+    fn reopened(&self) -> Result<Option<Arc<dyn TileProvider>>, String> {
+        let Some((config, fetcher)) = &self.origin else {
+            return Ok(None);
+        };
+        let changed = self.inputs.changed_files();
+        if changed.is_empty() {
+            return Ok(None);
+        }
+        tracing::info!(files = ?changed, "sources changed; loading them again");
+        let settings = (*self.settings).clone();
+        let renderer = Renderer::load(config, settings, self.zoom, fetcher.clone())
+            .map_err(|e| e.to_string())?;
+        Ok(Some(Arc::new(renderer)))
+    }
+
+    fn status(&self) -> serde_json::Value {
+        serde_json::json!({
+            "osm_extracts": self.inputs.osm_paths.len(),
+            "srtm_files": self.inputs.srtm.cells().len(),
+        })
+    }
+
+    fn downloads(&self) -> Option<&FetchStats> {
+        self.origin.as_ref().map(|(_, fetcher)| &fetcher.stats)
+    }
+}
