@@ -33,7 +33,7 @@ test: tests/js/node_modules/.installed tests/py/.venv/.installed static/vendor/.
 
 # The fast tier: no extract read, no browser, no server process.
 check: lint
-	$(CARGO) test --release --lib --test layers --test spec
+	$(CARGO) test --release --lib --test layers --test spec --test router
 
 lint:
 	$(CARGO) fmt --all -- --check

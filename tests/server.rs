@@ -1,5 +1,7 @@
-//! How the server behaves as an HTTP service: content codings, the bounded render queue and
-//! time limit, stale tiles, the admin routes, readiness, metrics and request ids, shutdown.
+//! How the server behaves as an HTTP service on real renders: content codings, the time limit,
+//! stale tiles, the admin routes, readiness, metrics and request ids, shutdown. The routes'
+//! rules on a provider that renders nothing (the queue, single flight, validators) are in
+//! `tests/router.rs`.
 
 mod common;
 
@@ -10,9 +12,9 @@ use std::time::{Duration, Instant};
 use common::{sample_osm, sample_srtm, TestServer};
 use terrastitch::cache::encoding::Bodies;
 use terrastitch::cache::{etag_of, Provenance, SqliteStore, StoredTile, TileFilter, TileStore};
-use terrastitch::config::ServerConfig;
+use terrastitch::config::{Config, ServerConfig};
 use terrastitch::format::{Format, TileKey};
-use terrastitch::provider::Inputs;
+use terrastitch::provider::{Inputs, Renderer};
 use terrastitch::TileId;
 
 fn sources() -> Inputs {
@@ -127,76 +129,6 @@ async fn codings_are_negotiated_and_each_has_its_own_validator() {
     server.stop().await;
 }
 
-/// With one render slot and no queue, a second cold tile is refused at once with `503` and
-/// `Retry-After`, while a cached tile is served whatever the renders do.
-#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
-async fn past_the_queue_a_request_gets_503_and_cached_tiles_still_flow() {
-    let dir = tempfile::tempdir().unwrap();
-    let config = ServerConfig {
-        render_threads: 1,
-        render_queue: 0,
-        ..ServerConfig::default()
-    };
-    let server = start(dir.path(), config).await;
-    let cached = "/tiles/14/8527/5974.glb";
-    assert_eq!(get_with(&server, cached, &[]).await.status(), 200);
-
-    let client = reqwest::Client::new();
-    let cold: Vec<_> = ["8529/5973", "8530/5973", "8529/5974"]
-        .iter()
-        .map(|tile| {
-            let request = client
-                .get(server.url(&format!("/tiles/14/{tile}.glb")))
-                .send();
-            tokio::spawn(async move {
-                let response = request.await.unwrap();
-                let status = response.status().as_u16();
-                let retry = response
-                    .headers()
-                    .get("retry-after")
-                    .map(|v| v.to_str().unwrap().to_string());
-                let body = response.text().await.unwrap_or_default();
-                (status, retry, body)
-            })
-        })
-        .collect();
-    // While those render, the cached tile comes at once.
-    tokio::time::sleep(Duration::from_millis(100)).await;
-    let started = Instant::now();
-    let hit = get_with(&server, cached, &[]).await;
-    assert_eq!(hit.status(), 200);
-    assert_eq!(hit.headers()["x-cache"], "hit");
-    assert!(
-        started.elapsed() < Duration::from_millis(500),
-        "{:?}",
-        started.elapsed()
-    );
-
-    let mut refused = 0;
-    for handle in cold {
-        let (status, retry, body) = handle.await.unwrap();
-        match status {
-            200 => {}
-            503 => {
-                refused += 1;
-                assert_eq!(retry.as_deref(), Some("5"));
-                let json: serde_json::Value = serde_json::from_str(&body).unwrap();
-                assert!(
-                    json["error"].as_str().unwrap().contains("render slot"),
-                    "{body}"
-                );
-            }
-            other => panic!("unexpected {other}: {body}"),
-        }
-    }
-    assert!(refused >= 1, "no request was refused");
-    assert_eq!(
-        server.metric("terrastitch_rejected_busy_total").await,
-        f64::from(refused)
-    );
-    server.stop().await;
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_render_past_its_time_limit_is_stopped_with_a_503() {
     let dir = tempfile::tempdir().unwrap();
@@ -274,7 +206,8 @@ async fn a_stale_tile_is_served_while_it_is_made_again() {
     assert_eq!(&fresh.bytes().await.unwrap()[..4], b"glTF");
     let stored = server.state.cache.store().list(&TileFilter::All).unwrap();
     assert_eq!(stored.len(), 1);
-    assert_eq!(stored[0].made_by.pipeline, *server.state.pipeline);
+    let renderer = server.renderer.as_ref().unwrap();
+    assert_eq!(stored[0].made_by.pipeline, renderer.pipeline());
     server.stop().await;
 }
 
@@ -382,7 +315,8 @@ async fn not_ready_until_the_sources_are_loaded() {
     assert_eq!(tile.status(), 503);
     assert!(tile.headers().contains_key("retry-after"));
     let _ = tile.bytes().await;
-    server.state.set_sources(sources());
+    let renderer = Renderer::new(sources(), Config::default().render, 14);
+    server.state.provide(std::sync::Arc::new(renderer));
     let ready = get_with(&server, "/ready", &[]).await;
     assert_eq!(ready.status(), 200);
     let json: serde_json::Value = ready.json().await.unwrap();
