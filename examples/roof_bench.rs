@@ -48,7 +48,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for x in x0..=x1 {
         for y in y0..=y1 {
             let tile = TileId { z: 14, x, y };
-            let mut set = features::collect(&sources.selection(tile), tile, &Default::default());
+            let mut set = features::collect(
+                &sources.osm_for(tile)?.selection(tile),
+                tile,
+                &Default::default(),
+            );
             if let Some(shape) = forced {
                 for building in &mut set.buildings {
                     building.roof.shape = shape;

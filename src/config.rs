@@ -77,6 +77,10 @@ pub struct SourcesConfig {
     /// OSM extracts (`.osm.pbf`): local files, or `http(s)://` URLs downloaded once into
     /// `downloads` and checked for new versions with the other sources.
     pub osm: Vec<PathBuf>,
+    /// The imported OSM store (SQLite): tiles read their data from it instead of holding the
+    /// extracts in memory; imported from `osm` when missing or older than the extracts. None:
+    /// the extracts are read into memory at start.
+    pub store: Option<PathBuf>,
     /// Directory of SRTM files (`.hgt`, `.hgt.zip`).
     pub srtm: PathBuf,
     /// URL template of SRTM files the directory lacks, fetched when a tile needs one:
@@ -101,6 +105,7 @@ impl Default for SourcesConfig {
     fn default() -> Self {
         SourcesConfig {
             osm: vec![PathBuf::from("data/monaco-osrm-2016.osm.pbf")],
+            store: None,
             srtm: PathBuf::from("data"),
             srtm_url: String::new(),
             downloads: PathBuf::from("data/downloads"),

@@ -40,6 +40,8 @@ enum Command {
     Seed(SeedArgs),
     /// Write a box's tiles to an MBTiles file, or to DIR/z/x/y.glb with `-o DIR/`.
     Export(ExportArgs),
+    /// Read the OSM extracts once into the on-disk store the other commands read.
+    Import(ImportArgs),
 }
 
 /// Where the data comes from; flags override the configuration file.
@@ -54,6 +56,16 @@ struct SourceArgs {
     /// Directory of SRTM .hgt / .hgt.zip files [default: data]
     #[arg(long, value_name = "DIR")]
     srtm: Option<PathBuf>,
+    /// The imported OSM store to read (imported when missing or older than the extracts)
+    /// [default: none, the extracts are read into memory]
+    #[arg(long, value_name = "FILE")]
+    store: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct ImportArgs {
+    #[command(flatten)]
+    sources: SourceArgs,
 }
 
 #[derive(Args)]
@@ -67,7 +79,7 @@ struct ServeArgs {
     #[arg(long, value_name = "FILE")]
     cache: Option<PathBuf>,
     /// Serve the tiles of an MBTiles file made by `export`, read-only, without sources
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["cache", "osm", "srtm"])]
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["cache", "osm", "srtm", "store"])]
     mbtiles: Option<PathBuf>,
 }
 
@@ -137,6 +149,9 @@ fn load_config(args: &SourceArgs) -> Result<Config> {
     if let Some(srtm) = &args.srtm {
         config.sources.srtm = srtm.clone();
     }
+    if let Some(store) = &args.store {
+        config.sources.store = Some(store.clone());
+    }
     Ok(config)
 }
 
@@ -151,7 +166,7 @@ fn open_renderer(config: &Config, fetcher: Arc<Fetcher>) -> Result<Renderer> {
     )?;
     let sources = renderer.inputs();
     tracing::info!(
-        ways = sources.osm.data().ways.len(),
+        extracts = sources.osm_paths.len(),
         srtm_files = sources.srtm.cells().len(),
         ms = started.elapsed().as_millis() as u64,
         "sources loaded"
@@ -184,6 +199,7 @@ fn main() -> Result<()> {
         Command::Render(args) => &args.sources,
         Command::Seed(args) => &args.sources,
         Command::Export(args) => &args.sources,
+        Command::Import(args) => &args.sources,
     };
     let config = load_config(sources)?;
     init_logging(config.log.format);
@@ -192,6 +208,7 @@ fn main() -> Result<()> {
         Command::Render(args) => render(args, config),
         Command::Seed(args) => seed(args, config),
         Command::Export(args) => export(args, config),
+        Command::Import(_) => import(config),
     }
 }
 
@@ -343,7 +360,8 @@ fn render(args: RenderArgs, config: Config) -> Result<()> {
         anyhow::bail!(uncovered);
     }
     let mosaic = sources.mosaic(tile)?;
-    let selection = sources.selection(tile);
+    let osm = sources.osm_for(tile)?;
+    let selection = osm.selection(tile);
     let load = started.elapsed();
     let rendered = terrastitch::render::render_within(
         tile,
@@ -520,6 +538,64 @@ fn export(args: ExportArgs, config: Config) -> Result<()> {
         written.tiles,
         written.bytes,
         args.output.display()
+    );
+    Ok(())
+}
+
+/// The store `import` writes: the configured one, else `cache/osm.sqlite`.
+const DEFAULT_STORE: &str = "cache/osm.sqlite";
+
+fn import(config: Config) -> Result<()> {
+    let store = config
+        .sources
+        .store
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(DEFAULT_STORE));
+    let fetcher = Fetcher::new(config.sources.fetch_settings());
+    let (extracts, _) = terrastitch::provider::inputs::local_extracts(&config.sources, &fetcher)?;
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{msg:<20} {bar:30} {bytes}/{total_bytes}  {bytes_per_sec}  {elapsed_precise} elapsed, {eta} left  {prefix}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let started = Instant::now();
+    let progress = |p: &terrastitch::source::store::import::Progress| {
+        bar.set_length(p.total_bytes);
+        bar.set_position(p.bytes);
+        bar.set_message(p.phase.as_str());
+        bar.set_prefix(format!(
+            "{} nodes, {} ways, {} relations",
+            p.nodes, p.ways, p.relations
+        ));
+    };
+    let imported = terrastitch::source::store::import::import(
+        &extracts,
+        &store,
+        config.server.zoom,
+        &terrastitch::provider::osm_source::rules(),
+        &progress,
+    )?;
+    bar.finish_and_clear();
+    let seconds = started.elapsed().as_secs_f64();
+    let bytes: u64 = extracts
+        .iter()
+        .map(|p| std::fs::metadata(p).map_or(0, |m| m.len()))
+        .sum();
+    eprintln!(
+        "imported {} nodes ({} tagged), {} ways, {} relations, {} bridge and tunnel groups, {} joints \
+         in {:.1} s ({:.1} MB/s of PBF) into {} ({} bytes)",
+        imported.nodes,
+        imported.tagged_nodes,
+        imported.ways,
+        imported.relations,
+        imported.groups,
+        imported.joints,
+        seconds,
+        bytes as f64 / 1e6 / seconds.max(1e-9),
+        store.display(),
+        imported.store_bytes
     );
     Ok(())
 }

@@ -85,7 +85,7 @@ fn water_lies_flat_and_meets_its_shore_and_waterways_run_down() {
             }
         }
         let id = TileId { z: 14, x, y };
-        let set = features::collect(&sources.selection(id), id, &Default::default());
+        let set = features::collect(&common::selection(&sources, id), id, &Default::default());
         for primitive in tile.primitives("water") {
             let mut by_feature: HashMap<u32, Vec<(f64, f64)>> = HashMap::new();
             for (k, &p) in primitive.positions.iter().enumerate() {
@@ -195,7 +195,7 @@ fn roads_are_level_across_and_junctions_level() {
             }
             road.get(&key(lx, lz)).copied()
         };
-        let set = features::collect(&sources.selection(id), id, &Default::default());
+        let set = features::collect(&common::selection(&sources, id), id, &Default::default());
         for surface in &set.surfaces {
             if surface.junction_at.is_some() {
                 // Corners another junction also holds (junctions close enough to touch) take
@@ -309,7 +309,7 @@ fn road_grades_keep_to_the_class_maximum_unless_reported() {
         let id = TileId { z: 14, x, y };
         let frame = id.frame();
         let size = tile.tile_size() as f32;
-        let selection = sources.selection(id);
+        let selection = common::selection(&sources, id);
         let mosaic = sources.mosaic(id).expect("srtm");
         let roads = terrastitch::render::settle_road_profiles(id, &selection, &mosaic, &settings);
         settled_stretches += roads.settled;
@@ -464,7 +464,7 @@ fn cliffs_and_retaining_walls_step_the_ground() {
     for (x, y) in TILES {
         let name = format!("14/{x}/{y}");
         let id = TileId { z: 14, x, y };
-        let set = features::collect(&sources.selection(id), id, &Default::default());
+        let set = features::collect(&common::selection(&sources, id), id, &Default::default());
         if set.steps.is_empty() {
             continue;
         }

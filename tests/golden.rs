@@ -61,10 +61,9 @@ fn recorded() -> BTreeMap<String, String> {
         .collect()
 }
 
-#[test]
-fn golden_tiles_keep_their_bytes() {
-    let work = tempfile::tempdir().unwrap();
-    let out = work.path().join("tiles");
+/// The golden tiles made by `export`, with `extra` arguments, by their paths.
+fn export(work: &Path, extra: &[&std::ffi::OsStr]) -> BTreeMap<String, String> {
+    let out = work.join("tiles");
     let output = terrastitch()
         .args(["export", "--bbox"])
         .arg(bbox(
@@ -75,7 +74,8 @@ fn golden_tiles_keep_their_bytes() {
         ))
         .args(["--format", FORMATS])
         .arg("--cache")
-        .arg(work.path().join("cache.sqlite"))
+        .arg(work.join("cache.sqlite"))
+        .args(extra)
         .arg("-o")
         .arg(format!("{}/", out.display()))
         .output()
@@ -85,7 +85,25 @@ fn golden_tiles_keep_their_bytes() {
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
-    let made = digests_under(&out);
+    digests_under(&out)
+}
+
+/// The tiles that differ from the recorded digests.
+fn changed(made: &BTreeMap<String, String>) -> Vec<String> {
+    let expected = recorded();
+    made.keys()
+        .chain(expected.keys())
+        .filter(|path| made.get(*path) != expected.get(*path))
+        .cloned()
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect()
+}
+
+#[test]
+fn golden_tiles_keep_their_bytes() {
+    let work = tempfile::tempdir().unwrap();
+    let made = export(work.path(), &[]);
     assert_eq!(made.len(), 50, "ten tiles in five formats: {made:#?}");
     if std::env::var_os("TERRASTITCH_GOLDEN_WRITE").is_some() {
         let mut text = String::from(
@@ -99,16 +117,31 @@ fn golden_tiles_keep_their_bytes() {
         std::fs::write(digests_file(), text).unwrap();
         return;
     }
-    let expected = recorded();
-    let changed: std::collections::BTreeSet<&String> = made
-        .keys()
-        .chain(expected.keys())
-        .filter(|path| made.get(*path) != expected.get(*path))
-        .collect();
+    let changed = changed(&made);
     assert!(
         changed.is_empty(),
         "{} of {} golden tiles changed: {changed:?}",
         changed.len(),
-        expected.len()
+        made.len()
+    );
+}
+
+/// Tiles read from the imported store are the tiles made from the extract in memory.
+#[test]
+fn golden_tiles_from_the_store_keep_their_bytes() {
+    let work = tempfile::tempdir().unwrap();
+    let store = work.path().join("osm.sqlite");
+    let made = export(work.path(), &["--store".as_ref(), store.as_os_str()]);
+    assert!(
+        store.exists(),
+        "export imported the store it was told to read"
+    );
+    assert_eq!(made.len(), 50);
+    let changed = changed(&made);
+    assert!(
+        changed.is_empty(),
+        "{} of {} golden tiles from the store differ: {changed:?}",
+        changed.len(),
+        made.len()
     );
 }

@@ -21,7 +21,7 @@ fn every_sample_of_the_steepest_and_densest_tiles_is_within_the_bound() {
         let frame = tile.frame();
         let mosaic = sources.mosaic(tile).unwrap();
         let terrain = TerrainModel::new(&mosaic, Interpolation::LeastSquares, 14);
-        let selection = sources.selection(tile);
+        let selection = common::selection(&sources, tile);
         let feature_set = features::collect(&selection, tile, &Default::default());
         let ground = ground::triangulate(
             &frame,

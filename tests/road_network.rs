@@ -12,7 +12,11 @@ use terrastitch::TileId;
 fn feature_set(x: u32, y: u32) -> FeatureSet {
     let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let tile = TileId { z: 14, x, y };
-    features::collect(&sources.selection(tile), tile, &Default::default())
+    features::collect(
+        &common::selection(&sources, tile),
+        tile,
+        &Default::default(),
+    )
 }
 
 /// Of the sample points on a grid over the tile that lie on a road surface, how many lie on
@@ -84,7 +88,7 @@ fn a_named_road_is_as_wide_as_its_tags_say() {
     let (x, y) = (8529, 5974);
     let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
     let tile = TileId { z: 14, x, y };
-    let selection = sources.selection(tile);
+    let selection = common::selection(&sources, tile);
     let set = features::collect(&selection, tile, &Default::default());
     let projection = features::Projection::new(14);
     let settings = features::FeatureSettings::default();

@@ -20,7 +20,11 @@ use terrastitch::TileId;
 fn footprints(osm: PathBuf, x: u32, y: u32) -> Vec<Vec<Vec<[f64; 2]>>> {
     let sources = Inputs::open(&[osm], &sample_srtm(), 14).expect("sample data");
     let tile = TileId { z: 14, x, y };
-    let set = features::collect(&sources.selection(tile), tile, &Default::default());
+    let set = features::collect(
+        &common::selection(&sources, tile),
+        tile,
+        &Default::default(),
+    );
     let metres = tile.frame().size_m;
     set.buildings
         .iter()
@@ -168,7 +172,11 @@ fn every_building_of_a_tag_rich_tile_is_a_closed_shell_at_its_tagged_height() {
         x: 8529,
         y: 5973,
     };
-    let tagged = features::collect(&sources.selection(tile), tile, &Default::default());
+    let tagged = features::collect(
+        &common::selection(&sources, tile),
+        tile,
+        &Default::default(),
+    );
     let mosaic = sources.mosaic(tile).expect("SRTM");
     let terrain = TerrainModel::new(&mosaic, Interpolation::default(), tile.z);
     let mut failures = Vec::new();

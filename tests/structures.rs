@@ -27,14 +27,13 @@ fn settle_all(sources: &Inputs) -> Vec<Settled> {
     let mosaic = sources.mosaic(tile).expect("srtm");
     let terrain = TerrainModel::new(&mosaic, Interpolation::default(), 14);
     let margin = MeshSettings::default().max_error_m;
-    sources
-        .osm
+    common::whole(sources)
         .structures()
         .iter()
         .map(|group| {
             settle(
                 group,
-                &sources.osm.data().ways,
+                &common::whole(sources).data().ways,
                 &terrain,
                 &Projection::new(14),
                 &FeatureSettings::default(),
@@ -52,8 +51,8 @@ fn settle_all(sources: &Inputs) -> Vec<Settled> {
 fn bridges_clear_what_they_cross_and_tunnels_stay_under_the_ground() {
     let dir = tempfile::tempdir().expect("a temporary directory");
     let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
-    let ways = &sources.osm.data().ways;
-    let groups = sources.osm.structures();
+    let ways = &common::whole(&sources).data().ways;
+    let groups = common::whole(&sources).structures();
     let settled = settle_all(&sources);
     let projection = Projection::new(14);
     let (mut crossings, mut reported, mut tunnel_vertices) = (0, 0, 0);
@@ -198,7 +197,7 @@ fn bridges_clear_what_they_cross_and_tunnels_stay_under_the_ground() {
 #[test]
 fn grades_keep_to_the_class_maximum_unless_reported() {
     let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
-    let ways = &sources.osm.data().ways;
+    let ways = &common::whole(&sources).data().ways;
     let settled = settle_all(&sources);
     let mut by_kind: BTreeMap<ConstraintKind, usize> = BTreeMap::new();
     let (mut segments, mut steep) = (0, 0);
@@ -247,8 +246,8 @@ fn grades_keep_to_the_class_maximum_unless_reported() {
 #[test]
 fn tunnels_keep_clear_of_the_foundations_over_them() {
     let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
-    let ways = &sources.osm.data().ways;
-    let groups = sources.osm.structures();
+    let ways = &common::whole(&sources).data().ways;
+    let groups = common::whole(&sources).structures();
     let settled = settle_all(&sources);
     let projection = Projection::new(14);
     let margin = MeshSettings::default().max_error_m;

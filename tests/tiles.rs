@@ -33,7 +33,7 @@ fn extract_building_range(sources: &Inputs, tile: TileId) -> (usize, usize) {
     let b = tile.bounds();
     let mut centred = 0;
     let mut touching = 0;
-    for way in &sources.osm.data().ways {
+    for way in &common::whole(sources).data().ways {
         if !way.tags.is_set("building") || !way.is_closed() {
             continue;
         }

@@ -69,76 +69,29 @@ impl OsmIndex {
     /// Indexes `data` on a grid of zoom-`zoom` tiles; `classify` tells which ways make up
     /// bridges and tunnels.
     pub fn new(data: OsmData, zoom: u8, classify: Classify) -> OsmIndex {
-        let mut cells: HashMap<(u32, u32), CellContent> = HashMap::new();
-        let n = f64::from(1u32 << zoom);
-        let mut register = |bounds: Bounds, push: &mut dyn FnMut(&mut CellContent)| {
-            for cell in cells_of(&bounds, n) {
-                push(cells.entry(cell).or_default());
-            }
-        };
-        for (i, way) in data.ways.iter().enumerate() {
-            if let Some(bounds) = bounds_of(&way.positions) {
-                register(bounds, &mut |c| c.ways.push(i as u32));
-            }
-        }
-        for (i, node) in data.nodes.iter().enumerate() {
-            let bounds = bounds_of(&[node.position]).expect("one position has bounds");
-            register(bounds, &mut |c| c.nodes.push(i as u32));
-        }
-        for (i, relation) in data.relations.iter().enumerate() {
-            // Ways, and the ways of member relations (a building's multipolygon outline).
-            let member_ways = |members: &'_ [super::Member]| -> Vec<i64> {
-                members
-                    .iter()
-                    .filter(|m| m.element.element_type == super::ElementType::Way)
-                    .map(|m| m.element.id)
-                    .collect()
-            };
-            let mut ways = member_ways(&relation.members);
-            for member in &relation.members {
-                if member.element.element_type == super::ElementType::Relation {
-                    if let Some(inner) = data.relation(member.element.id) {
-                        ways.extend(member_ways(&inner.members));
-                    }
-                }
-            }
-            let member_positions: Vec<LonLat> = ways
-                .iter()
-                .filter_map(|&id| data.way(id))
-                .flat_map(|w| w.positions.iter().copied())
-                .collect();
-            if let Some(bounds) = bounds_of(&member_positions) {
-                register(bounds, &mut |c| c.relations.push(i as u32));
-            }
-        }
         let coastlines = (0..data.ways.len() as u32)
-            .filter(|&i| data.ways[i as usize].tags.get("natural") == Some("coastline"))
+            .filter(|&i| is_coastline(&data.ways[i as usize].tags))
             .collect();
         let structures = structures::find(&data.ways, classify);
-        let mut under_bridges: HashMap<i64, Vec<LonLat>> = HashMap::new();
-        for group in &structures {
-            for crossing in &group.crossings {
-                let chain = &group.chains[crossing.chain as usize];
-                let (structures::Crossed::Way(below), StructureKind::Bridge) =
-                    (crossing.other, chain.kind)
-                else {
-                    continue;
-                };
-                let k = crossing.segment as usize;
-                let (Some(a), Some(b), Some(way)) = (
-                    chain.positions.get(k),
-                    chain.positions.get(k + 1),
-                    data.ways.get(below as usize),
-                ) else {
-                    continue;
-                };
-                let t = crossing.t;
-                under_bridges.entry(way.id).or_default().push(LonLat {
-                    lon: a.lon + t * (b.lon - a.lon),
-                    lat: a.lat + t * (b.lat - a.lat),
-                });
-            }
-        }
+        let roads = RoadGraph {
+            joints: Joints::new(),
+            under_bridges: under_bridges(&data.ways, &structures),
+        };
+        OsmIndex::from_parts(data, zoom, structures, roads, coastlines)
+    }
+
+    /// Indexes `data` whose extract-wide facts were found over more data than it holds: its
+    /// bridge and tunnel groups (their way indices into `data.ways`), where its ways join and
+    /// pass under bridges, and which of its ways are coastlines.
+    pub fn from_parts(
+        data: OsmData,
+        zoom: u8,
+        structures: Vec<Group>,
+        roads: RoadGraph,
+        coastlines: Vec<u32>,
+    ) -> OsmIndex {
+        let n = f64::from(1u32 << zoom);
+        let cells = grid(&data, n);
         let mut structure_cells: HashMap<(u32, u32), Vec<u32>> = HashMap::new();
         for (i, group) in structures.iter().enumerate() {
             for cell in cells_of(&group.bounds, n) {
@@ -152,10 +105,7 @@ impl OsmIndex {
             coastlines,
             structures,
             structure_cells,
-            roads: RoadGraph {
-                joints: Joints::new(),
-                under_bridges,
-            },
+            roads,
         }
     }
 
@@ -340,6 +290,93 @@ impl OsmIndex {
     }
 }
 
+/// Whether a way is a stretch of coastline.
+pub fn is_coastline(tags: &super::Tags) -> bool {
+    tags.get("natural") == Some("coastline")
+}
+
+/// Every element of `data` in each cell of a grid of `n` × `n` tiles that its bounding box
+/// meets (a relation's box is its member ways', and theirs of its member relations).
+fn grid(data: &OsmData, n: f64) -> HashMap<(u32, u32), CellContent> {
+    let mut cells: HashMap<(u32, u32), CellContent> = HashMap::new();
+    let mut register = |bounds: Bounds, push: &mut dyn FnMut(&mut CellContent)| {
+        for cell in cells_of(&bounds, n) {
+            push(cells.entry(cell).or_default());
+        }
+    };
+    for (i, way) in data.ways.iter().enumerate() {
+        if let Some(bounds) = bounds_of(&way.positions) {
+            register(bounds, &mut |c| c.ways.push(i as u32));
+        }
+    }
+    for (i, node) in data.nodes.iter().enumerate() {
+        let bounds = bounds_of(&[node.position]).expect("one position has bounds");
+        register(bounds, &mut |c| c.nodes.push(i as u32));
+    }
+    for (i, relation) in data.relations.iter().enumerate() {
+        let member_positions: Vec<LonLat> = relation_ways(data, relation)
+            .iter()
+            .filter_map(|&id| data.way(id))
+            .flat_map(|w| w.positions.iter().copied())
+            .collect();
+        if let Some(bounds) = bounds_of(&member_positions) {
+            register(bounds, &mut |c| c.relations.push(i as u32));
+        }
+    }
+    cells
+}
+
+/// The ways of a relation: its member ways, and those of its member relations (a building's
+/// multipolygon outline).
+pub fn relation_ways(data: &OsmData, relation: &Relation) -> Vec<i64> {
+    let member_ways = |members: &'_ [super::Member]| -> Vec<i64> {
+        members
+            .iter()
+            .filter(|m| m.element.element_type == super::ElementType::Way)
+            .map(|m| m.element.id)
+            .collect()
+    };
+    let mut ways = member_ways(&relation.members);
+    for member in &relation.members {
+        if member.element.element_type == super::ElementType::Relation {
+            if let Some(inner) = data.relation(member.element.id) {
+                ways.extend(member_ways(&inner.members));
+            }
+        }
+    }
+    ways
+}
+
+/// By way id, where the bridges of `groups` pass over the ways of `ways` (the ways the groups'
+/// indices point into).
+pub fn under_bridges(ways: &[Way], groups: &[Group]) -> HashMap<i64, Vec<LonLat>> {
+    let mut under: HashMap<i64, Vec<LonLat>> = HashMap::new();
+    for group in groups {
+        for crossing in &group.crossings {
+            let chain = &group.chains[crossing.chain as usize];
+            let (structures::Crossed::Way(below), StructureKind::Bridge) =
+                (crossing.other, chain.kind)
+            else {
+                continue;
+            };
+            let k = crossing.segment as usize;
+            let (Some(a), Some(b), Some(way)) = (
+                chain.positions.get(k),
+                chain.positions.get(k + 1),
+                ways.get(below as usize),
+            ) else {
+                continue;
+            };
+            let t = crossing.t;
+            under.entry(way.id).or_default().push(LonLat {
+                lon: a.lon + t * (b.lon - a.lon),
+                lat: a.lat + t * (b.lat - a.lat),
+            });
+        }
+    }
+    under
+}
+
 /// How far (degrees) from a tunnel's line a building's vertex or a tree may stand and still
 /// reach down over it: about 40 m, a wide tunnel's half width and a building's size.
 pub const ABOVE_TUNNEL_DEG: f64 = 0.0004;
@@ -371,7 +408,8 @@ fn meets(a: &Bounds, b: &Bounds) -> bool {
 }
 
 /// The grid cells a box touches at `n` cells per axis.
-fn cells_of(bounds: &Bounds, n: f64) -> impl Iterator<Item = (u32, u32)> {
+/// The cells of a grid of `n` × `n` tiles that a box meets.
+pub fn cells_of(bounds: &Bounds, n: f64) -> impl Iterator<Item = (u32, u32)> {
     let max = n - 1.0;
     let (u0, v0) = lon_lat_to_uv(bounds.west, bounds.north, n);
     let (u1, v1) = lon_lat_to_uv(bounds.east, bounds.south, n);

@@ -7,19 +7,15 @@ use std::sync::Arc;
 use crate::source::fetch::{self, Download, FetchError, Fetcher};
 use crate::source::{osm_pbf, srtm};
 
-use crate::osm::index::Selection;
+use super::osm_source::{OsmSource, StoreOpenError, TileOsm};
 use crate::osm::{OsmData, OsmIndex};
+use crate::source::store::{import, StoreError};
 use crate::terrain::cell::CellId;
 use crate::terrain::Mosaic;
 use crate::tile::TileId;
 use srtm::{SrtmDirectory, SrtmError};
 
-/// How far around a tile elements are fetched, in degrees (220 m north–south, 160 m east–west at
-/// Monaco's latitude): wide enough for the widest road polygon, for buildings that straddle the
-/// edge, and for every way through a junction whose polygon or cut-back arms can reach the tile
-/// (a junction reaches at most 25 m plus a half width along its arms, and how far an arm is cut
-/// depends on whether the next node along it, up to 55 m on, is a junction too).
-pub const QUERY_MARGIN_DEG: f64 = 0.002;
+pub use super::osm_source::QUERY_MARGIN_DEG;
 
 /// How far around a tile SRTM files are opened, in degrees (about 110 m): the terrain methods
 /// reach a few samples beyond the tile.
@@ -37,6 +33,8 @@ pub enum SourceError {
     UrlWithoutName(String),
     #[error("two OSM source URLs end in the same file name {0}; downloads are kept by that name")]
     SameFileName(String),
+    #[error(transparent)]
+    Store(#[from] StoreOpenError),
 }
 
 /// Why the SRTM files a tile lacks could not be had.
@@ -72,10 +70,41 @@ pub fn index_osm(data: OsmData, zoom: u8) -> OsmIndex {
         .with_foundations(crate::features::structures::foundation_depth_m)
 }
 
+/// The extracts a configuration names as local files (those given by URL downloaded into
+/// the data directory when it lacks them), with the URLs among them.
+pub fn local_extracts(
+    config: &crate::config::SourcesConfig,
+    fetcher: &Fetcher,
+) -> Result<(Vec<PathBuf>, Vec<String>), SourceError> {
+    let mut osm_paths = Vec::new();
+    let mut osm_urls = Vec::new();
+    let mut osm_names = std::collections::HashMap::new();
+    for entry in &config.osm {
+        let text = entry.to_string_lossy();
+        if fetch::is_url(&text) {
+            let name = fetch::file_name_of(&text)
+                .ok_or_else(|| SourceError::UrlWithoutName(text.to_string()))?;
+            if osm_names.insert(name.clone(), text.to_string()).is_some() {
+                return Err(SourceError::SameFileName(name));
+            }
+            let path = fetcher.fetch(&Download {
+                url: &text,
+                name: &name,
+                source_name: "OSM",
+            })?;
+            osm_urls.push(text.to_string());
+            osm_paths.push(path);
+        } else {
+            osm_paths.push(entry.clone());
+        }
+    }
+    Ok((osm_paths, osm_urls))
+}
+
 /// The opened data sources.
 #[derive(Debug)]
 pub struct Inputs {
-    pub osm: OsmIndex,
+    pub osm: OsmSource,
     pub srtm: SrtmDirectory,
     pub osm_paths: Vec<PathBuf>,
     /// Each extract's version: a digest of its bytes.
@@ -99,30 +128,12 @@ impl Inputs {
         zoom: u8,
         fetcher: Arc<Fetcher>,
     ) -> Result<Inputs, SourceError> {
-        let mut osm_paths = Vec::new();
-        let mut osm_urls = Vec::new();
-        let mut osm_names = std::collections::HashMap::new();
-        for entry in &config.osm {
-            let text = entry.to_string_lossy();
-            if fetch::is_url(&text) {
-                let name = fetch::file_name_of(&text)
-                    .ok_or_else(|| SourceError::UrlWithoutName(text.to_string()))?;
-                if osm_names.insert(name.clone(), text.to_string()).is_some() {
-                    return Err(SourceError::SameFileName(name));
-                }
-                let path = fetcher.fetch(&Download {
-                    url: &text,
-                    name: &name,
-                    source_name: "OSM",
-                })?;
-                osm_urls.push(text.to_string());
-                osm_paths.push(path);
-            } else {
-                osm_paths.push(entry.clone());
-            }
-        }
+        let (osm_paths, osm_urls) = local_extracts(config, &fetcher)?;
         let srtm_extra = vec![config.downloads.clone()];
-        let mut sources = Inputs::open_with(&osm_paths, &config.srtm, &srtm_extra, zoom)?;
+        let mut sources = match &config.store {
+            Some(store) => Inputs::open_store(&osm_paths, store, &config.srtm, &srtm_extra, zoom)?,
+            None => Inputs::open_with(&osm_paths, &config.srtm, &srtm_extra, zoom)?,
+        };
         sources.osm_urls = osm_urls;
         sources.srtm_url = (!config.srtm_url.is_empty()).then(|| config.srtm_url.clone());
         sources.fetcher = Some(fetcher);
@@ -155,11 +166,47 @@ impl Inputs {
             .collect();
         let srtm = SrtmDirectory::open_all(srtm_dir, srtm_extra)?;
         Ok(Inputs {
-            osm: index_osm(data, zoom),
+            osm: OsmSource::Memory(Box::new(index_osm(data, zoom))),
             srtm,
             osm_paths: osm_paths.to_vec(),
             osm_versions,
             osm_files,
+            osm_urls: Vec::new(),
+            srtm_extra: srtm_extra.to_vec(),
+            srtm_url: None,
+            fetcher: None,
+        })
+    }
+
+    /// Opens the store of the extracts at `store` (importing them first when it is missing or
+    /// older than they are) and checks the SRTM directory.
+    pub fn open_store(
+        osm_paths: &[PathBuf],
+        store: &std::path::Path,
+        srtm_dir: &std::path::Path,
+        srtm_extra: &[PathBuf],
+        zoom: u8,
+    ) -> Result<Inputs, SourceError> {
+        let logged = std::sync::Mutex::new(None::<import::Phase>);
+        let progress = |p: &import::Progress| {
+            let mut last = logged.lock().unwrap_or_else(|e| e.into_inner());
+            if *last != Some(p.phase) {
+                tracing::info!(phase = p.phase.as_str(), "importing the OSM extracts");
+                *last = Some(p.phase);
+            }
+        };
+        let (store, _) = super::osm_source::open_store(store, osm_paths, zoom, &progress)?;
+        let srtm = SrtmDirectory::open_all(srtm_dir, srtm_extra)?;
+        Ok(Inputs {
+            osm_versions: store.extracts().iter().map(|e| e.digest.clone()).collect(),
+            osm_files: store
+                .extracts()
+                .iter()
+                .map(|e| e.file_version.clone())
+                .collect(),
+            osm_paths: osm_paths.to_vec(),
+            osm: OsmSource::Store(store),
+            srtm,
             osm_urls: Vec::new(),
             srtm_extra: srtm_extra.to_vec(),
             srtm_url: None,
@@ -282,7 +329,7 @@ impl Inputs {
         let mut digest = sha2::Sha256::new();
         // Only the extracts that reach the tile's query area count.
         let area = tile.bounds().expanded(QUERY_MARGIN_DEG);
-        let coverage = &self.osm.data().coverage;
+        let coverage = self.osm.coverage();
         for (i, version) in self.osm_versions.iter().enumerate() {
             if coverage.get(i).is_none_or(|c| c.intersects(&area)) {
                 digest.update(version.as_bytes());
@@ -343,7 +390,7 @@ impl Inputs {
         if missing.is_empty() {
             return Ok(());
         }
-        if !self.osm.data().covers(&tile.bounds()) {
+        if !self.osm.covers(&tile.bounds()) {
             return Err(Uncovered::Nothing { tile, missing });
         }
         Err(Uncovered::MissingSrtm {
@@ -392,8 +439,8 @@ impl Inputs {
         Ok(Mosaic::new(tiles))
     }
 
-    /// The OSM elements near a tile.
-    pub fn selection(&self, tile: TileId) -> Selection<'_> {
-        self.osm.query(tile, QUERY_MARGIN_DEG)
+    /// The OSM data a tile is made from (its [`TileOsm::selection`] is what is near it).
+    pub fn osm_for(&self, tile: TileId) -> Result<TileOsm<'_>, StoreError> {
+        self.osm.tile(tile)
     }
 }

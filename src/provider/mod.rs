@@ -8,6 +8,7 @@
 
 pub mod archive;
 pub mod inputs;
+pub mod osm_source;
 pub mod pipeline;
 pub mod renderer;
 

@@ -25,6 +25,8 @@ pub enum MakeError {
     Srtm(#[from] SrtmError),
     #[error(transparent)]
     Render(#[from] RenderError),
+    #[error(transparent)]
+    Store(#[from] crate::source::store::StoreError),
     /// The provider does not hold the tile and cannot make it.
     #[error("{0}")]
     NotHeld(String),
@@ -50,7 +52,8 @@ pub fn make(
     let mosaic = sources.mosaic(tile)?;
     match key.format {
         Format::Glb(variant) => {
-            let selection = sources.selection(tile);
+            let osm = sources.osm_for(tile)?;
+            let selection = osm.selection(tile);
             let rendered = crate::render::render_within(
                 tile, &selection, &mosaic, settings, variant, deadline,
             )?;
@@ -75,7 +78,7 @@ pub fn make(
             } else {
                 crate::render::render_terrain(
                     tile,
-                    &sources.selection(tile),
+                    &sources.osm_for(tile)?.selection(tile),
                     &mosaic,
                     settings,
                     extensions,

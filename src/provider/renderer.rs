@@ -82,7 +82,7 @@ impl TileProvider for Renderer {
     fn offer(&self) -> Offer {
         Offer {
             zoom: self.zoom,
-            coverage: self.inputs.osm.data().coverage.clone(),
+            coverage: self.inputs.osm.coverage(),
             only: None,
             open_ended: self.inputs.can_fetch_srtm(),
             terrain_cells: Some(self.inputs.srtm.cells()),
@@ -153,7 +153,8 @@ impl TileProvider for Renderer {
 
     fn explain(&self, tile: TileId) -> Result<Vec<u8>, MakeError> {
         let mosaic = self.inputs.mosaic(tile)?;
-        let selection = self.inputs.selection(tile);
+        let osm = self.inputs.osm_for(tile)?;
+        let selection = osm.selection(tile);
         let settled = crate::render::settle_structures(tile, &selection, &mosaic, &self.settings);
         let roads = crate::render::settle_road_profiles(tile, &selection, &mosaic, &self.settings);
         let margin = self.settings.mesh.max_error_m;

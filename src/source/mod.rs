@@ -3,5 +3,7 @@
 //! network are all it knows: what the data is for is decided above it.
 
 pub mod fetch;
+pub mod node_locations;
 pub mod osm_pbf;
 pub mod srtm;
+pub mod store;

@@ -172,33 +172,9 @@ fn read_one(path: &Path, acc: &mut Accumulator) -> Result<Bounds, OsmReadError> 
                             });
                         }
                         Element::Relation(relation) => {
-                            if acc.relations.contains_key(&relation.id()) {
-                                continue;
-                            }
-                            let members = relation
-                                .members()
-                                .map(|m| Member {
-                                    element: ElementRef {
-                                        element_type: match m.member_type {
-                                            osmpbf::RelMemberType::Node => ElementType::Node,
-                                            osmpbf::RelMemberType::Way => ElementType::Way,
-                                            osmpbf::RelMemberType::Relation => {
-                                                ElementType::Relation
-                                            }
-                                        },
-                                        id: m.member_id,
-                                    },
-                                    role: m.role().unwrap_or_default().to_string(),
-                                })
-                                .collect();
-                            acc.relations.insert(
-                                relation.id(),
-                                Relation {
-                                    id: relation.id(),
-                                    tags: Tags::from_pairs(relation.tags()),
-                                    members,
-                                },
-                            );
+                            acc.relations
+                                .entry(relation.id())
+                                .or_insert_with(|| relation_of(&relation));
                         }
                     }
                 }
@@ -211,6 +187,29 @@ fn read_one(path: &Path, acc: &mut Accumulator) -> Result<Bounds, OsmReadError> 
     header_bounds.or(extent).ok_or_else(|| OsmReadError::Empty {
         path: path.to_path_buf(),
     })
+}
+
+/// A relation as the model keeps it.
+pub(crate) fn relation_of(relation: &osmpbf::Relation<'_>) -> Relation {
+    let members = relation
+        .members()
+        .map(|m| Member {
+            element: ElementRef {
+                element_type: match m.member_type {
+                    osmpbf::RelMemberType::Node => ElementType::Node,
+                    osmpbf::RelMemberType::Way => ElementType::Way,
+                    osmpbf::RelMemberType::Relation => ElementType::Relation,
+                },
+                id: m.member_id,
+            },
+            role: m.role().unwrap_or_default().to_string(),
+        })
+        .collect();
+    Relation {
+        id: relation.id(),
+        tags: Tags::from_pairs(relation.tags()),
+        members,
+    }
 }
 
 fn add_node<'a>(

@@ -117,6 +117,19 @@ pub fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// The whole data's index of sources read into memory.
+pub fn whole(sources: &Inputs) -> &terrastitch::osm::OsmIndex {
+    sources
+        .osm
+        .index()
+        .expect("the sources are read into memory")
+}
+
+/// The elements near `tile`, of sources read into memory.
+pub fn selection(sources: &Inputs, tile: TileId) -> terrastitch::osm::index::Selection<'_> {
+    whole(sources).query(tile, terrastitch::provider::inputs::QUERY_MARGIN_DEG)
+}
+
 pub fn sample_osm() -> PathBuf {
     repo().join("data/monaco-osrm-2016.osm.pbf")
 }

@@ -1,0 +1,125 @@
+//! Where a tile's OSM elements come from: the whole extract indexed in memory, or the imported
+//! on-disk store, which gives each tile its closure indexed with the facts found over all the
+//! data. Both select the same elements for a tile, so a tile's bytes do not depend on which.
+
+use std::path::{Path, PathBuf};
+
+use crate::osm::index::Selection;
+use crate::osm::{Bounds, OsmIndex};
+use crate::source::store::import::{self, ImportError, Imported, Progress, Rules};
+use crate::source::store::{OsmStore, StoreError};
+use crate::tile::TileId;
+
+/// How far around a tile elements are fetched, in degrees (220 m north–south, 160 m east–west at
+/// Monaco's latitude): wide enough for the widest road polygon, for buildings that straddle the
+/// edge, and for every way through a junction whose polygon or cut-back arms can reach the tile
+/// (a junction reaches at most 25 m plus a half width along its arms, and how far an arm is cut
+/// depends on whether the next node along it, up to 55 m on, is a junction too).
+pub const QUERY_MARGIN_DEG: f64 = 0.002;
+
+/// The feature rules the extract-wide facts need: which ways are bridges and tunnels, which
+/// join the road network, what reaches down into the ground over a tunnel.
+pub fn rules() -> Rules {
+    Rules {
+        classify: crate::features::structures::classify,
+        joins: crate::features::roads::joins,
+        depth: crate::features::structures::foundation_depth_m,
+    }
+}
+
+/// The OSM data a server renders from.
+#[derive(Debug)]
+pub enum OsmSource {
+    /// The whole data, read at start and indexed in memory.
+    Memory(Box<OsmIndex>),
+    /// An imported store.
+    Store(OsmStore),
+}
+
+/// A tile's OSM data: a view of the whole index, or the tile's closure read from the store.
+#[derive(Debug)]
+pub enum TileOsm<'a> {
+    Whole(&'a OsmIndex),
+    Closure(Box<OsmIndex>),
+}
+
+impl TileOsm<'_> {
+    /// The elements near `tile`.
+    pub fn selection(&self, tile: TileId) -> Selection<'_> {
+        match self {
+            TileOsm::Whole(index) => index.query(tile, QUERY_MARGIN_DEG),
+            TileOsm::Closure(index) => index.query(tile, QUERY_MARGIN_DEG),
+        }
+    }
+}
+
+impl OsmSource {
+    /// The area each extract declares, in the order they were given.
+    pub fn coverage(&self) -> Vec<Bounds> {
+        match self {
+            OsmSource::Memory(index) => index.data().coverage.clone(),
+            OsmSource::Store(store) => store.coverage(),
+        }
+    }
+
+    /// True when some extract covers part of `bounds`.
+    pub fn covers(&self, bounds: &Bounds) -> bool {
+        self.coverage().iter().any(|c| c.intersects(bounds))
+    }
+
+    /// The OSM data a tile is made from.
+    pub fn tile(&self, tile: TileId) -> Result<TileOsm<'_>, StoreError> {
+        match self {
+            OsmSource::Memory(index) => Ok(TileOsm::Whole(index)),
+            OsmSource::Store(store) => Ok(TileOsm::Closure(Box::new(
+                store.tile_index(tile, QUERY_MARGIN_DEG)?,
+            ))),
+        }
+    }
+
+    /// The whole data's index, when it is in memory.
+    pub fn index(&self) -> Option<&OsmIndex> {
+        match self {
+            OsmSource::Memory(index) => Some(index),
+            OsmSource::Store(_) => None,
+        }
+    }
+}
+
+/// Why a store could not be had.
+#[derive(Debug, thiserror::Error)]
+pub enum StoreOpenError {
+    #[error(transparent)]
+    Import(#[from] ImportError),
+    #[error(transparent)]
+    Store(#[from] StoreError),
+}
+
+/// The store at `path` for `extracts` at `zoom`: opened when it was imported from exactly these
+/// files as they are now, else imported first (beside it, then swapped in).
+pub fn open_store(
+    path: &Path,
+    extracts: &[PathBuf],
+    zoom: u8,
+    progress: &dyn Fn(&Progress),
+) -> Result<(OsmStore, Option<Imported>), StoreOpenError> {
+    if let Ok(store) = OsmStore::open(path) {
+        if is_current(&store, extracts, zoom) {
+            return Ok((store, None));
+        }
+        tracing::info!(store = %path.display(), "the OSM store is older than its extracts; importing them again");
+    }
+    let imported = import::import(extracts, path, zoom, &rules(), progress)?;
+    Ok((OsmStore::open(path)?, Some(imported)))
+}
+
+/// Whether `store` holds `extracts` as they are on disk now, indexed at `zoom`.
+pub fn is_current(store: &OsmStore, extracts: &[PathBuf], zoom: u8) -> bool {
+    store.zoom() == zoom
+        && store.extracts().len() == extracts.len()
+        && store.extracts().iter().zip(extracts).all(|(record, path)| {
+            record.path == *path
+                && crate::source::srtm::file_version(path).ok().as_deref()
+                    == Some(record.file_version.as_str())
+        })
+}

@@ -1,0 +1,307 @@
+//! Node locations on disk while an extract is imported: every node's id and position, written
+//! as the extract gives them and read back when its ways are resolved, in bounded memory
+//! whatever the extract's size (the role of osm2pgsql's flat nodes and planetiler's node
+//! location store).
+//!
+//! Records of 16 bytes (id, longitude and latitude in 10⁻⁷ degrees) are appended to one file in
+//! *runs* of ascending ids; an extract sorted by type then id (as Geofabrik's and osmium's are)
+//! is one run, and another run starts where an id is not above the last. Memory holds the
+//! first id of every block of [`BLOCK_RECORDS`] records (1/256 of the file) and a fixed number
+//! of blocks read lately. A lookup tries the runs in the order they were written, so where
+//! several extracts hold a node, the first one's position is the one found.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::os::unix::fs::FileExt;
+use std::path::{Path, PathBuf};
+
+/// Records per block: one 4 KiB read.
+pub const BLOCK_RECORDS: usize = 256;
+const RECORD: usize = 16;
+const BLOCK: usize = BLOCK_RECORDS * RECORD;
+/// Blocks kept in memory (64 MiB).
+const CACHED_BLOCKS: usize = 16_384;
+
+#[derive(Debug, thiserror::Error)]
+pub enum NodeStoreError {
+    #[error("node locations file {path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(
+        "node {id} lies at {nano_lon}, {nano_lat} nanodegrees, finer than the 100 nanodegrees \
+         kept; extracts written with a coarser or the standard granularity are supported"
+    )]
+    Granularity {
+        id: i64,
+        nano_lon: i64,
+        nano_lat: i64,
+    },
+}
+
+/// A position as kept: 10⁻⁷ degrees.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Decimicro {
+    pub lon: i32,
+    pub lat: i32,
+}
+
+impl Decimicro {
+    /// From nanodegrees, as a PBF block gives them; an error when they are not whole steps
+    /// of 100.
+    pub fn from_nano(id: i64, nano_lon: i64, nano_lat: i64) -> Result<Decimicro, NodeStoreError> {
+        let fits = |nano: i64| nano % 100 == 0 && i32::try_from(nano / 100).is_ok();
+        if !fits(nano_lon) || !fits(nano_lat) {
+            return Err(NodeStoreError::Granularity {
+                id,
+                nano_lon,
+                nano_lat,
+            });
+        }
+        Ok(Decimicro {
+            lon: (nano_lon / 100) as i32,
+            lat: (nano_lat / 100) as i32,
+        })
+    }
+
+    /// Degrees, exactly as a PBF reader computes them from nanodegrees.
+    pub fn lon_lat(self) -> (f64, f64) {
+        let degrees = |d: i32| 1e-9 * (i64::from(d) * 100) as f64;
+        (degrees(self.lon), degrees(self.lat))
+    }
+}
+
+#[derive(Debug)]
+struct Run {
+    /// Index of its first record in the file.
+    start: u64,
+    len: u64,
+    /// First id of each of its blocks.
+    firsts: Vec<i64>,
+    last: i64,
+}
+
+/// Writes node locations; [`NodeWriter::finish`] turns it into a [`NodeLocations`].
+#[derive(Debug)]
+pub struct NodeWriter {
+    path: PathBuf,
+    out: BufWriter<File>,
+    runs: Vec<Run>,
+    written: u64,
+}
+
+impl NodeWriter {
+    /// A new file at `path` (replacing any there).
+    pub fn create(path: &Path) -> Result<NodeWriter, NodeStoreError> {
+        let file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(path)
+            .map_err(|source| NodeStoreError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        Ok(NodeWriter {
+            path: path.to_path_buf(),
+            out: BufWriter::with_capacity(1 << 20, file),
+            runs: Vec::new(),
+            written: 0,
+        })
+    }
+
+    fn io(&self, source: std::io::Error) -> NodeStoreError {
+        NodeStoreError::Io {
+            path: self.path.clone(),
+            source,
+        }
+    }
+
+    /// Appends one node.
+    pub fn push(&mut self, id: i64, at: Decimicro) -> Result<(), NodeStoreError> {
+        let continues = self.runs.last().is_some_and(|run| id > run.last);
+        if !continues {
+            // A new run starts on a block boundary, so that blocks never mix runs.
+            let pad =
+                (BLOCK_RECORDS as u64 - self.written % BLOCK_RECORDS as u64) % BLOCK_RECORDS as u64;
+            for _ in 0..pad {
+                self.out.write_all(&[0; RECORD]).map_err(|e| self.io(e))?;
+            }
+            self.written += pad;
+            self.runs.push(Run {
+                start: self.written,
+                len: 0,
+                firsts: Vec::new(),
+                last: id,
+            });
+        }
+        let mut record = [0u8; RECORD];
+        record[..8].copy_from_slice(&id.to_le_bytes());
+        record[8..12].copy_from_slice(&at.lon.to_le_bytes());
+        record[12..].copy_from_slice(&at.lat.to_le_bytes());
+        self.out.write_all(&record).map_err(|e| self.io(e))?;
+        self.written += 1;
+        if let Some(run) = self.runs.last_mut() {
+            if run.len % BLOCK_RECORDS as u64 == 0 {
+                run.firsts.push(id);
+            }
+            run.len += 1;
+            run.last = id;
+        }
+        Ok(())
+    }
+
+    /// Nodes written so far.
+    pub fn len(&self) -> u64 {
+        self.runs.iter().map(|r| r.len).sum()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The runs written; an extract not sorted by id makes many.
+    pub fn runs(&self) -> usize {
+        self.runs.len()
+    }
+
+    /// Ends writing; the locations can be read.
+    pub fn finish(mut self) -> Result<NodeLocations, NodeStoreError> {
+        self.out.flush().map_err(|e| self.io(e))?;
+        let file = self.out.into_inner().map_err(|e| NodeStoreError::Io {
+            path: self.path.clone(),
+            source: e.into_error(),
+        })?;
+        Ok(NodeLocations {
+            path: self.path,
+            file,
+            runs: self.runs,
+            cache: (0..CACHED_BLOCKS).map(|_| None).collect(),
+        })
+    }
+}
+
+/// Node locations to read, by id.
+#[derive(Debug)]
+pub struct NodeLocations {
+    path: PathBuf,
+    file: File,
+    runs: Vec<Run>,
+    /// Blocks read lately, by block number (direct-mapped).
+    cache: Vec<Option<(u64, Box<[u8]>)>>,
+}
+
+impl NodeLocations {
+    /// The position of node `id`, from the first run that holds it.
+    pub fn get(&mut self, id: i64) -> Result<Option<Decimicro>, NodeStoreError> {
+        for r in 0..self.runs.len() {
+            let run = &self.runs[r];
+            if run.firsts.first().is_none_or(|&first| id < first) || id > run.last {
+                continue;
+            }
+            let b = run.firsts.partition_point(|&first| first <= id) - 1;
+            let block_number = run.start / BLOCK_RECORDS as u64 + b as u64;
+            let records = (run.len - (b * BLOCK_RECORDS) as u64).min(BLOCK_RECORDS as u64);
+            let block = self.block(block_number)?;
+            let id_at = |k: usize| {
+                let mut bytes = [0u8; 8];
+                bytes.copy_from_slice(&block[k * RECORD..k * RECORD + 8]);
+                i64::from_le_bytes(bytes)
+            };
+            let (mut low, mut high) = (0usize, records as usize);
+            while low < high {
+                let mid = (low + high) / 2;
+                match id_at(mid).cmp(&id) {
+                    std::cmp::Ordering::Less => low = mid + 1,
+                    std::cmp::Ordering::Greater => high = mid,
+                    std::cmp::Ordering::Equal => {
+                        let at = &block[mid * RECORD + 8..(mid + 1) * RECORD];
+                        let mut lon = [0u8; 4];
+                        let mut lat = [0u8; 4];
+                        lon.copy_from_slice(&at[..4]);
+                        lat.copy_from_slice(&at[4..]);
+                        return Ok(Some(Decimicro {
+                            lon: i32::from_le_bytes(lon),
+                            lat: i32::from_le_bytes(lat),
+                        }));
+                    }
+                }
+            }
+        }
+        Ok(None)
+    }
+
+    /// Block `number`, from memory or the file.
+    fn block(&mut self, number: u64) -> Result<&[u8], NodeStoreError> {
+        let slot = (number % CACHED_BLOCKS as u64) as usize;
+        let held = matches!(&self.cache[slot], Some((n, _)) if *n == number);
+        if !held {
+            let mut buffer = vec![0u8; BLOCK].into_boxed_slice();
+            let offset = number * BLOCK as u64;
+            // The last block of the file may be short.
+            let mut filled = 0;
+            while filled < BLOCK {
+                let n = self
+                    .file
+                    .read_at(&mut buffer[filled..], offset + filled as u64)
+                    .map_err(|source| NodeStoreError::Io {
+                        path: self.path.clone(),
+                        source,
+                    })?;
+                if n == 0 {
+                    break;
+                }
+                filled += n;
+            }
+            self.cache[slot] = Some((number, buffer));
+        }
+        Ok(self.cache[slot].as_ref().map_or(&[][..], |(_, b)| &b[..]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(k: i64) -> Decimicro {
+        Decimicro {
+            lon: (k * 7) as i32,
+            lat: -(k as i32),
+        }
+    }
+
+    #[test]
+    fn every_node_written_is_found_and_no_other() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut writer = NodeWriter::create(&dir.path().join("nodes")).unwrap();
+        // Two sorted runs (as two extracts give), the second overlapping the first.
+        for id in (1..2000).step_by(3) {
+            writer.push(id, at(id)).unwrap();
+        }
+        for id in (1000..1300).step_by(2) {
+            writer.push(id, at(-id)).unwrap();
+        }
+        assert_eq!(writer.runs(), 2);
+        let mut nodes = writer.finish().unwrap();
+        for id in 0..2100 {
+            let expected = if id % 3 == 1 && id < 2000 {
+                Some(at(id))
+            } else if (1000..1300).contains(&id) && id % 2 == 0 {
+                Some(at(-id))
+            } else {
+                None
+            };
+            assert_eq!(nodes.get(id).unwrap(), expected, "node {id}");
+        }
+    }
+
+    #[test]
+    fn positions_come_back_as_a_pbf_reader_gives_them() {
+        let nano = (74_123_456_700_i64, 43_765_432_100_i64);
+        let kept = Decimicro::from_nano(1, nano.0, nano.1).unwrap();
+        assert_eq!(kept.lon_lat(), (1e-9 * nano.0 as f64, 1e-9 * nano.1 as f64));
+        assert!(Decimicro::from_nano(1, 74_123_456_701, 0).is_err());
+    }
+}

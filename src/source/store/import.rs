@@ -1,0 +1,773 @@
+//! `terrastitch import`: OSM extracts into the on-disk store, streaming, in bounded memory.
+//!
+//! 1. **Read** each extract once, block by block: node positions go to a file of
+//!    [`NodeLocations`], tagged nodes, raw ways (tags and node ids) and relations to SQLite.
+//!    Where several extracts hold an element, the first one listed wins.
+//! 2. **Resolve** the ways in id order: their positions from the node file (nodes missing from
+//!    the extracts are left out, and a way with fewer than two is dropped, as the in-memory
+//!    reader does); each way, tagged node and relation is registered in every zoom-14 cell its
+//!    box meets, and the node references of the ways that join the road network are kept.
+//! 3. **Find once over all the data** what a tile needs from beyond itself: the joints of the
+//!    road network (nodes met more than once by its ways), the bridge and tunnel groups with
+//!    what they cross and what stands over their tunnels, where bridges pass over ways, and
+//!    the coastlines. Groups are found among the elements near any bridge or tunnel, which are
+//!    all the elements that can take part in one.
+//!
+//! Everything is written to `PATH.partial` and renamed over the store when whole, so a store
+//! at its path is always a finished one; an import that stops leaves the old store in use.
+//! Memory holds SQLite's page cache, the node file's block cache and index, the ids of the
+//! bridge and tunnel ways, and the elements near them while their groups are found.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+
+use osmpbf::{BlobDecode, BlobReader, Element};
+use rusqlite::{params, Connection};
+
+use super::codec::{self, DecodeError};
+use super::{ExtractRecord, FORMAT, SCHEMA};
+use crate::osm::index::{cells_of, is_coastline};
+use crate::osm::structures::Classify;
+use crate::osm::{bounds_of, Bounds, LonLat, OsmData, OsmIndex, Tags, Way};
+use crate::source::node_locations::{Decimicro, NodeLocations, NodeStoreError, NodeWriter};
+
+/// The feature rules the store's extract-wide facts need (given by the layer that knows
+/// tags' meanings).
+#[derive(Debug, Clone, Copy)]
+pub struct Rules {
+    /// Which ways make up bridges and tunnels.
+    pub classify: Classify,
+    /// Which ways join the road network.
+    pub joins: fn(&Tags) -> bool,
+    /// How deep something reaches into the ground over a tunnel.
+    pub depth: fn(&Tags) -> Option<f64>,
+}
+
+/// What the import is doing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Phase {
+    #[default]
+    Reading,
+    Resolving,
+    Indexing,
+    Structures,
+    Finishing,
+}
+
+impl Phase {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Phase::Reading => "reading",
+            Phase::Resolving => "resolving ways",
+            Phase::Indexing => "indexing",
+            Phase::Structures => "bridges and tunnels",
+            Phase::Finishing => "finishing",
+        }
+    }
+}
+
+/// How far the import is.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Progress {
+    pub phase: Phase,
+    /// Bytes of the extracts read, of all of them.
+    pub bytes: u64,
+    pub total_bytes: u64,
+    pub nodes: u64,
+    pub ways: u64,
+    pub relations: u64,
+}
+
+/// What an import wrote.
+#[derive(Debug, Clone, Default)]
+pub struct Imported {
+    pub nodes: u64,
+    pub tagged_nodes: u64,
+    pub ways: u64,
+    pub relations: u64,
+    pub groups: u64,
+    pub joints: u64,
+    /// Bytes of the store file.
+    pub store_bytes: u64,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ImportError {
+    #[error("cannot read OSM extract {path} in the block that starts at byte {offset}: {message}")]
+    Pbf {
+        path: PathBuf,
+        offset: u64,
+        message: String,
+    },
+    #[error("cannot open OSM extract {path}: {source}")]
+    Open {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("OSM extract {path} holds no nodes")]
+    Empty { path: PathBuf },
+    #[error("OSM extract {path}: {source}")]
+    Nodes {
+        path: PathBuf,
+        source: NodeStoreError,
+    },
+    #[error(transparent)]
+    NodeFile(#[from] NodeStoreError),
+    #[error("writing the OSM store {path}: {source}")]
+    Sqlite {
+        path: PathBuf,
+        source: rusqlite::Error,
+    },
+    #[error("putting the OSM store in place at {path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Decode(#[from] DecodeError),
+}
+
+/// Counts the bytes read and digests them (an extract's version is the digest of its bytes).
+struct Counting<R> {
+    inner: R,
+    read: Arc<AtomicU64>,
+    digest: Arc<std::sync::Mutex<sha2::Sha256>>,
+}
+
+impl<R: Read> Read for Counting<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        use sha2::Digest;
+        let n = self.inner.read(buf)?;
+        self.digest
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .update(&buf[..n]);
+        self.read.fetch_add(n as u64, Ordering::Relaxed);
+        Ok(n)
+    }
+}
+
+/// The store being written.
+struct Partial {
+    path: PathBuf,
+    db: Connection,
+}
+
+impl Partial {
+    fn sqlite(&self) -> impl Fn(rusqlite::Error) -> ImportError + '_ {
+        move |source| ImportError::Sqlite {
+            path: self.path.clone(),
+            source,
+        }
+    }
+}
+
+/// Imports `extracts` into a store at `store` for tiles of zoom `zoom`, replacing the store
+/// there when done. `progress` is told how far it is, often.
+pub fn import(
+    extracts: &[PathBuf],
+    store: &Path,
+    zoom: u8,
+    rules: &Rules,
+    progress: &dyn Fn(&Progress),
+) -> Result<Imported, ImportError> {
+    let partial_path = with_suffix(store, ".partial");
+    let nodes_path = with_suffix(store, ".nodes");
+    for stale in [&partial_path, &nodes_path] {
+        let _ = std::fs::remove_file(stale);
+    }
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| ImportError::Io {
+            path: path.clone(),
+            source,
+        }
+    };
+    if let Some(dir) = store.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(io(dir))?;
+    }
+    let sqlite = |source| ImportError::Sqlite {
+        path: partial_path.clone(),
+        source,
+    };
+    let db = Connection::open(&partial_path).map_err(sqlite)?;
+    db.execute_batch(
+        "PRAGMA journal_mode = OFF; PRAGMA synchronous = OFF; PRAGMA cache_size = -131072;
+         PRAGMA temp_store = FILE;",
+    )
+    .map_err(sqlite)?;
+    db.execute_batch(SCHEMA).map_err(sqlite)?;
+    db.execute_batch(
+        "CREATE TEMP TABLE raw_ways (id INTEGER PRIMARY KEY, data BLOB NOT NULL);
+         CREATE TEMP TABLE joint_refs (node INTEGER NOT NULL, way INTEGER NOT NULL);",
+    )
+    .map_err(sqlite)?;
+    let mut partial = Partial {
+        path: partial_path.clone(),
+        db,
+    };
+    let outcome = write_all(&mut partial, extracts, &nodes_path, zoom, rules, progress);
+    let _ = std::fs::remove_file(&nodes_path);
+    let mut imported = match outcome {
+        Ok(imported) => imported,
+        Err(error) => {
+            drop(partial);
+            let _ = std::fs::remove_file(&partial_path);
+            return Err(error);
+        }
+    };
+    partial.db.execute_batch("ANALYZE;").map_err(sqlite)?;
+    drop(partial);
+    // Durable before it replaces the store.
+    std::fs::File::open(&partial_path)
+        .and_then(|f| f.sync_all())
+        .map_err(io(&partial_path))?;
+    std::fs::rename(&partial_path, store).map_err(io(store))?;
+    imported.store_bytes = std::fs::metadata(store).map_or(0, |m| m.len());
+    Ok(imported)
+}
+
+fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
+    let mut name = path.as_os_str().to_owned();
+    name.push(suffix);
+    PathBuf::from(name)
+}
+
+fn write_all(
+    partial: &mut Partial,
+    extracts: &[PathBuf],
+    nodes_path: &Path,
+    zoom: u8,
+    rules: &Rules,
+    progress: &dyn Fn(&Progress),
+) -> Result<Imported, ImportError> {
+    let total_bytes = extracts
+        .iter()
+        .map(|p| std::fs::metadata(p).map_or(0, |m| m.len()))
+        .sum();
+    let mut state = Progress {
+        total_bytes,
+        ..Progress::default()
+    };
+    let mut writer = NodeWriter::create(nodes_path)?;
+    let mut records = Vec::new();
+    for path in extracts {
+        records.push(read_extract(
+            partial,
+            path,
+            &mut writer,
+            &mut state,
+            progress,
+        )?);
+    }
+    let mut imported = Imported {
+        nodes: writer.len(),
+        ..Imported::default()
+    };
+    let mut locations = writer.finish()?;
+    state.phase = Phase::Resolving;
+    progress(&state);
+    let n = f64::from(1u32 << zoom);
+    let structure_ways = resolve_ways(partial, &mut locations, n, rules, &mut state, progress)?;
+    drop(locations);
+    state.phase = Phase::Indexing;
+    progress(&state);
+    imported.tagged_nodes = index_nodes(partial, n)?;
+    imported.relations = index_relations(partial, n)?;
+    imported.joints = find_joints(partial)?;
+    imported.ways = state.ways;
+    state.phase = Phase::Structures;
+    progress(&state);
+    imported.groups = find_structures(partial, &structure_ways, zoom, rules)?;
+    state.phase = Phase::Finishing;
+    progress(&state);
+    write_meta(partial, &records, zoom)?;
+    Ok(imported)
+}
+
+/// Reads one extract: node positions to the node file, the rest to the store.
+fn read_extract(
+    partial: &Partial,
+    path: &Path,
+    nodes: &mut NodeWriter,
+    state: &mut Progress,
+    progress: &dyn Fn(&Progress),
+) -> Result<ExtractRecord, ImportError> {
+    use sha2::Digest;
+    let file = std::fs::File::open(path).map_err(|source| ImportError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let read = Arc::new(AtomicU64::new(0));
+    let digest = Arc::new(std::sync::Mutex::new(sha2::Sha256::new()));
+    let counting = Counting {
+        inner: std::io::BufReader::with_capacity(1 << 20, file),
+        read: read.clone(),
+        digest: digest.clone(),
+    };
+    let before = state.bytes;
+    let mut reader = BlobReader::new(counting);
+    let pbf = |offset: u64, message: String| ImportError::Pbf {
+        path: path.to_path_buf(),
+        offset,
+        message,
+    };
+    let sqlite = partial.sqlite();
+    let mut insert_node = partial
+        .db
+        .prepare("INSERT OR IGNORE INTO nodes (id, lon, lat, tags) VALUES (?1, ?2, ?3, ?4)")
+        .map_err(&sqlite)?;
+    let mut insert_way = partial
+        .db
+        .prepare("INSERT OR IGNORE INTO raw_ways (id, data) VALUES (?1, ?2)")
+        .map_err(&sqlite)?;
+    let mut insert_relation = partial
+        .db
+        .prepare("INSERT OR IGNORE INTO relations (id, data) VALUES (?1, ?2)")
+        .map_err(&sqlite)?;
+    partial.db.execute_batch("BEGIN").map_err(&sqlite)?;
+    let mut header_bounds: Option<Bounds> = None;
+    let mut extent: Option<Bounds> = None;
+    loop {
+        let offset = read.load(Ordering::Relaxed);
+        let Some(blob) = reader.next() else { break };
+        let blob = blob.map_err(|e| pbf(offset, e.to_string()))?;
+        match blob.decode().map_err(|e| pbf(offset, e.to_string()))? {
+            BlobDecode::OsmHeader(header) => {
+                header_bounds = header.bbox().map(|b| Bounds {
+                    west: b.left,
+                    east: b.right,
+                    south: b.bottom,
+                    north: b.top,
+                });
+            }
+            BlobDecode::OsmData(block) => {
+                for element in block.elements() {
+                    let node = match &element {
+                        Element::Node(n) => Some((
+                            n.id(),
+                            n.nano_lon(),
+                            n.nano_lat(),
+                            n.lon(),
+                            n.lat(),
+                            Tags::from_pairs(n.tags()),
+                        )),
+                        Element::DenseNode(n) => Some((
+                            n.id(),
+                            n.nano_lon(),
+                            n.nano_lat(),
+                            n.lon(),
+                            n.lat(),
+                            Tags::from_pairs(n.tags()),
+                        )),
+                        _ => None,
+                    };
+                    if let Some((id, nano_lon, nano_lat, lon, lat, tags)) = node {
+                        let at =
+                            Decimicro::from_nano(id, nano_lon, nano_lat).map_err(|source| {
+                                ImportError::Nodes {
+                                    path: path.to_path_buf(),
+                                    source,
+                                }
+                            })?;
+                        nodes.push(id, at)?;
+                        grow(&mut extent, LonLat { lon, lat });
+                        if !tags.is_empty() {
+                            let mut w = codec::Writer::default();
+                            w.tags(&tags);
+                            insert_node
+                                .execute(params![id, lon, lat, w.0])
+                                .map_err(&sqlite)?;
+                        }
+                        state.nodes += 1;
+                        continue;
+                    }
+                    match element {
+                        Element::Way(way) => {
+                            let tags = Tags::from_pairs(way.tags());
+                            let refs: Vec<i64> = way.refs().collect();
+                            let mut w = codec::Writer::default();
+                            w.tags(&tags);
+                            w.ids(&refs);
+                            insert_way
+                                .execute(params![way.id(), w.0])
+                                .map_err(&sqlite)?;
+                            state.ways += 1;
+                        }
+                        Element::Relation(relation) => {
+                            let relation = crate::source::osm_pbf::relation_of(&relation);
+                            insert_relation
+                                .execute(params![relation.id, codec::encode_relation(&relation)])
+                                .map_err(&sqlite)?;
+                            state.relations += 1;
+                        }
+                        _ => {}
+                    }
+                }
+                state.bytes = before + read.load(Ordering::Relaxed);
+                progress(state);
+            }
+            BlobDecode::Unknown(_) => {}
+        }
+    }
+    partial.db.execute_batch("COMMIT").map_err(&sqlite)?;
+    drop(reader);
+    let digest = std::mem::take(&mut *digest.lock().unwrap_or_else(|p| p.into_inner()));
+    let digest: String = digest.finalize()[..8]
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    let bounds = header_bounds.or(extent).ok_or_else(|| ImportError::Empty {
+        path: path.to_path_buf(),
+    })?;
+    Ok(ExtractRecord {
+        path: path.to_path_buf(),
+        digest,
+        file_version: crate::source::srtm::file_version(path).unwrap_or_default(),
+        bounds: [bounds.west, bounds.south, bounds.east, bounds.north],
+    })
+}
+
+fn grow(extent: &mut Option<Bounds>, p: LonLat) {
+    let b = extent.get_or_insert(Bounds {
+        west: p.lon,
+        east: p.lon,
+        south: p.lat,
+        north: p.lat,
+    });
+    b.west = b.west.min(p.lon);
+    b.east = b.east.max(p.lon);
+    b.south = b.south.min(p.lat);
+    b.north = b.north.max(p.lat);
+}
+
+/// Resolves the raw ways into ways with positions, registers them in the cells, and keeps the
+/// node references of the road network. Returns the ids of the bridge and tunnel ways.
+fn resolve_ways(
+    partial: &Partial,
+    locations: &mut NodeLocations,
+    n: f64,
+    rules: &Rules,
+    state: &mut Progress,
+    progress: &dyn Fn(&Progress),
+) -> Result<Vec<i64>, ImportError> {
+    let sqlite = partial.sqlite();
+    let db = &partial.db;
+    db.execute_batch("BEGIN").map_err(&sqlite)?;
+    let mut read = db
+        .prepare("SELECT id, data FROM raw_ways ORDER BY id")
+        .map_err(&sqlite)?;
+    let mut insert_way = db
+        .prepare("INSERT INTO ways (id, data) VALUES (?1, ?2)")
+        .map_err(&sqlite)?;
+    let mut insert_cell = db
+        .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 1, ?3)")
+        .map_err(&sqlite)?;
+    let mut insert_ref = db
+        .prepare("INSERT INTO joint_refs (node, way) VALUES (?1, ?2)")
+        .map_err(&sqlite)?;
+    let mut insert_coast = db
+        .prepare("INSERT INTO coastlines (way) VALUES (?1)")
+        .map_err(&sqlite)?;
+    let mut structure_ways = Vec::new();
+    let mut rows = read.query([]).map_err(&sqlite)?;
+    let mut resolved = 0u64;
+    while let Some(row) = rows.next().map_err(&sqlite)? {
+        let id: i64 = row.get(0).map_err(&sqlite)?;
+        let data: Vec<u8> = row.get(1).map_err(&sqlite)?;
+        let mut r = codec::Reader::new(&data, "raw way");
+        let tags = r.tags()?;
+        let refs = r.ids()?;
+        let mut nodes = Vec::with_capacity(refs.len());
+        let mut at = Vec::with_capacity(refs.len());
+        for node in refs {
+            if let Some(p) = locations.get(node)? {
+                nodes.push(node);
+                at.push(p);
+            }
+        }
+        if nodes.len() < 2 {
+            continue;
+        }
+        let positions: Vec<LonLat> = at
+            .iter()
+            .map(|p| {
+                let (lon, lat) = p.lon_lat();
+                LonLat { lon, lat }
+            })
+            .collect();
+        insert_way
+            .execute(params![id, codec::encode_way(&tags, &nodes, &at)])
+            .map_err(&sqlite)?;
+        if let Some(bounds) = bounds_of(&positions) {
+            for (x, y) in cells_of(&bounds, n) {
+                insert_cell.execute(params![x, y, id]).map_err(&sqlite)?;
+            }
+        }
+        if (rules.joins)(&tags) {
+            for (k, &node) in nodes.iter().enumerate() {
+                // As the in-memory index counts: a node next to itself is a duplicated point.
+                if k > 0 && nodes[k - 1] == node {
+                    continue;
+                }
+                insert_ref.execute(params![node, id]).map_err(&sqlite)?;
+            }
+        }
+        if (rules.classify)(&tags).is_some() {
+            structure_ways.push(id);
+        }
+        if is_coastline(&tags) {
+            insert_coast.execute(params![id]).map_err(&sqlite)?;
+        }
+        resolved += 1;
+        if resolved % 10_000 == 0 {
+            progress(state);
+        }
+    }
+    drop(rows);
+    state.ways = resolved;
+    db.execute_batch("COMMIT; DROP TABLE raw_ways;")
+        .map_err(&sqlite)?;
+    Ok(structure_ways)
+}
+
+/// Registers the tagged nodes in their cells; returns how many there are.
+fn index_nodes(partial: &Partial, n: f64) -> Result<u64, ImportError> {
+    let sqlite = partial.sqlite();
+    let db = &partial.db;
+    db.execute_batch("BEGIN").map_err(&sqlite)?;
+    let mut read = db
+        .prepare("SELECT id, lon, lat FROM nodes")
+        .map_err(&sqlite)?;
+    let mut insert = db
+        .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 0, ?3)")
+        .map_err(&sqlite)?;
+    let mut rows = read.query([]).map_err(&sqlite)?;
+    let mut count = 0u64;
+    while let Some(row) = rows.next().map_err(&sqlite)? {
+        let id: i64 = row.get(0).map_err(&sqlite)?;
+        let position = LonLat {
+            lon: row.get(1).map_err(&sqlite)?,
+            lat: row.get(2).map_err(&sqlite)?,
+        };
+        if let Some(bounds) = bounds_of(&[position]) {
+            for (x, y) in cells_of(&bounds, n) {
+                insert.execute(params![x, y, id]).map_err(&sqlite)?;
+            }
+        }
+        count += 1;
+    }
+    drop(rows);
+    db.execute_batch("COMMIT").map_err(&sqlite)?;
+    Ok(count)
+}
+
+/// Registers each relation in the cells of its ways' box (and its member relations' ways');
+/// returns how many relations there are.
+fn index_relations(partial: &Partial, n: f64) -> Result<u64, ImportError> {
+    let sqlite = partial.sqlite();
+    let db = &partial.db;
+    db.execute_batch("BEGIN").map_err(&sqlite)?;
+    let mut read = db
+        .prepare("SELECT id, data FROM relations")
+        .map_err(&sqlite)?;
+    let mut insert = db
+        .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 2, ?3)")
+        .map_err(&sqlite)?;
+    let mut rows = read.query([]).map_err(&sqlite)?;
+    let mut count = 0u64;
+    while let Some(row) = rows.next().map_err(&sqlite)? {
+        let id: i64 = row.get(0).map_err(&sqlite)?;
+        let data: Vec<u8> = row.get(1).map_err(&sqlite)?;
+        let relation = codec::decode_relation(id, &data)?;
+        let mut positions = Vec::new();
+        for way in super::relation_ways(db, &relation).map_err(&sqlite)? {
+            if let Some(way) = super::way(db, way)? {
+                positions.extend(way.positions);
+            }
+        }
+        if let Some(bounds) = bounds_of(&positions) {
+            for (x, y) in cells_of(&bounds, n) {
+                insert.execute(params![x, y, id]).map_err(&sqlite)?;
+            }
+        }
+        count += 1;
+    }
+    drop(rows);
+    db.execute_batch("COMMIT; CREATE INDEX cells_at ON cells (x, y, kind, id);")
+        .map_err(&sqlite)?;
+    Ok(count)
+}
+
+/// The joints: nodes the road network's ways meet more than once, with the ways through each;
+/// and for each way, its joints with the ways through them. Returns how many joints there are.
+fn find_joints(partial: &Partial) -> Result<u64, ImportError> {
+    let sqlite = partial.sqlite();
+    let db = &partial.db;
+    db.execute_batch(
+        "INSERT INTO joints (node, way)
+             SELECT DISTINCT node, way FROM joint_refs WHERE node IN
+                 (SELECT node FROM joint_refs GROUP BY node HAVING count(*) > 1);
+         DROP TABLE joint_refs;
+         BEGIN;",
+    )
+    .map_err(&sqlite)?;
+    {
+        let mut read = db
+            .prepare(
+                "SELECT j1.way, j1.node, j2.way FROM joints j1 JOIN joints j2 ON j2.node = j1.node
+                 ORDER BY j1.way, j1.node, j2.way",
+            )
+            .map_err(&sqlite)?;
+        let mut insert = db
+            .prepare("INSERT INTO way_facts (way, joints) VALUES (?1, ?2)")
+            .map_err(&sqlite)?;
+        let mut rows = read.query([]).map_err(&sqlite)?;
+        let mut current: Option<(i64, codec::WayJoints)> = None;
+        while let Some(row) = rows.next().map_err(&sqlite)? {
+            let (way, node, through): (i64, i64, i64) = (
+                row.get(0).map_err(&sqlite)?,
+                row.get(1).map_err(&sqlite)?,
+                row.get(2).map_err(&sqlite)?,
+            );
+            if current.as_ref().is_some_and(|(w, _)| *w != way) {
+                if let Some((w, joints)) = current.take() {
+                    insert
+                        .execute(params![w, codec::encode_joints(&joints)])
+                        .map_err(&sqlite)?;
+                }
+            }
+            let (_, joints) = current.get_or_insert_with(|| (way, Vec::new()));
+            match joints.last_mut() {
+                Some((n, ways)) if *n == node => ways.push(through),
+                _ => joints.push((node, vec![through])),
+            }
+        }
+        if let Some((w, joints)) = current {
+            insert
+                .execute(params![w, codec::encode_joints(&joints)])
+                .map_err(&sqlite)?;
+        }
+    }
+    db.execute_batch("COMMIT").map_err(&sqlite)?;
+    db.query_row("SELECT count(DISTINCT node) FROM joints", [], |row| {
+        row.get::<_, i64>(0)
+    })
+    .map(|n| n as u64)
+    .map_err(&sqlite)
+}
+
+/// Finds the bridge and tunnel groups among the elements near the bridge and tunnel ways, and
+/// stores them with where bridges pass over ways; returns how many groups there are.
+fn find_structures(
+    partial: &Partial,
+    structure_ways: &[i64],
+    zoom: u8,
+    rules: &Rules,
+) -> Result<u64, ImportError> {
+    let sqlite = partial.sqlite();
+    let db = &partial.db;
+    let n = f64::from(1u32 << zoom);
+    // Every cell near a bridge or tunnel way: what it crosses, and what stands over it, is
+    // registered there.
+    let mut cells = std::collections::BTreeSet::new();
+    for &id in structure_ways {
+        if let Some(way) = super::way(db, id)? {
+            if let Some(bounds) = bounds_of(&way.positions) {
+                let near = bounds.expanded(crate::osm::index::ABOVE_TUNNEL_DEG);
+                cells.extend(cells_of(&near, n));
+            }
+        }
+    }
+    let (mut way_ids, mut node_ids) = (Vec::new(), Vec::new());
+    {
+        let mut in_cell = db
+            .prepare("SELECT kind, id FROM cells WHERE x = ?1 AND y = ?2 AND kind < 2")
+            .map_err(&sqlite)?;
+        for (x, y) in cells {
+            let rows = in_cell
+                .query_map(params![x, y], |row| {
+                    Ok((row.get::<_, i64>(0)?, row.get::<_, i64>(1)?))
+                })
+                .map_err(&sqlite)?;
+            for row in rows {
+                match row.map_err(&sqlite)? {
+                    (0, id) => node_ids.push(id),
+                    (_, id) => way_ids.push(id),
+                }
+            }
+        }
+    }
+    for ids in [&mut way_ids, &mut node_ids] {
+        ids.sort_unstable();
+        ids.dedup();
+    }
+    let mut data = OsmData::default();
+    for id in way_ids {
+        if let Some(way) = super::way(db, id)? {
+            data.ways.push(way);
+        }
+    }
+    for id in node_ids {
+        if let Some(node) = super::node(db, id)? {
+            data.nodes.push(node);
+        }
+    }
+    let index = OsmIndex::new(data, zoom, rules.classify).with_foundations(rules.depth);
+    let ways: &[Way] = &index.data().ways;
+    let way_id = |i: u32| ways.get(i as usize).map_or(0, |w| w.id);
+    db.execute_batch("BEGIN").map_err(&sqlite)?;
+    {
+        let mut insert_group = db
+            .prepare("INSERT INTO groups (id, data) VALUES (?1, ?2)")
+            .map_err(&sqlite)?;
+        let mut insert_cell = db
+            .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 3, ?3)")
+            .map_err(&sqlite)?;
+        for (g, group) in index.structures().iter().enumerate() {
+            insert_group
+                .execute(params![g as i64, codec::encode_group(group, &way_id)])
+                .map_err(&sqlite)?;
+            for (x, y) in cells_of(&group.bounds, n) {
+                insert_cell
+                    .execute(params![x, y, g as i64])
+                    .map_err(&sqlite)?;
+            }
+        }
+        let mut insert_under = db
+            .prepare(
+                "INSERT INTO way_facts (way, under_bridges) VALUES (?1, ?2)
+                 ON CONFLICT (way) DO UPDATE SET under_bridges = excluded.under_bridges",
+            )
+            .map_err(&sqlite)?;
+        for (way, positions) in &index.roads().under_bridges {
+            insert_under
+                .execute(params![way, codec::encode_positions(positions)])
+                .map_err(&sqlite)?;
+        }
+    }
+    db.execute_batch("COMMIT").map_err(&sqlite)?;
+    Ok(index.structures().len() as u64)
+}
+
+fn write_meta(partial: &Partial, records: &[ExtractRecord], zoom: u8) -> Result<(), ImportError> {
+    let sqlite = partial.sqlite();
+    let extracts = serde_json::to_string(records).unwrap_or_default();
+    for (key, value) in [
+        ("format", FORMAT.to_string()),
+        ("zoom", zoom.to_string()),
+        ("extracts", extracts),
+        ("program", env!("CARGO_PKG_VERSION").to_string()),
+    ] {
+        partial
+            .db
+            .execute(
+                "INSERT INTO meta (key, value) VALUES (?1, ?2)",
+                params![key, value],
+            )
+            .map_err(&sqlite)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,456 @@
+//! The imported OSM store: extracts read once ([`import`]) into SQLite, indexed by zoom-14
+//! cell, with what was found once over all the data (road joints, bridge and tunnel groups,
+//! where bridges pass over ways, coastlines). A tile reads what it needs from it and nothing
+//! else: memory does not grow with the extract.
+//!
+//! [`OsmStore::tile_index`] gives the *closure* of a tile: every element near it (as the
+//! in-memory index would select it), the whole of each bridge and tunnel group that reaches
+//! near it with what the group crosses, the ways of its relations, the ways that meet its
+//! ways at their joints, and the coastlines; indexed with the facts found over the whole data,
+//! so a tile comes out byte for byte as from the extract in memory.
+
+pub mod codec;
+pub mod import;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use rusqlite::{params, Connection, OpenFlags, OptionalExtension};
+
+use crate::osm::index::{cells_of, relation_ways as model_relation_ways};
+use crate::osm::{
+    bounds_of, Bounds, ElementType, LonLat, Node, OsmData, OsmIndex, Relation, RoadGraph, Way,
+};
+use crate::tile::TileId;
+use codec::DecodeError;
+
+/// The schema of a store.
+pub const SCHEMA: &str = include_str!("../../../migrations/osm_store.sql");
+/// The store's format: a store of another is imported again.
+pub const FORMAT: u32 = 1;
+
+/// One extract as imported.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ExtractRecord {
+    pub path: PathBuf,
+    /// A digest of its bytes.
+    pub digest: String,
+    /// Its size and modification time when it was read.
+    pub file_version: String,
+    /// West, south, east, north: its header's box, else its nodes' extent.
+    pub bounds: [f64; 4],
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum StoreError {
+    #[error("OSM store {path}: {source}")]
+    Sqlite {
+        path: PathBuf,
+        source: rusqlite::Error,
+    },
+    #[error("OSM store {path} is not a finished store of format {FORMAT}: {why}")]
+    Format { path: PathBuf, why: String },
+    #[error("OSM store {path}: {source}")]
+    Decode { path: PathBuf, source: DecodeError },
+}
+
+/// An opened store.
+#[derive(Debug)]
+pub struct OsmStore {
+    path: PathBuf,
+    zoom: u8,
+    extracts: Vec<ExtractRecord>,
+    /// The coastline ways, whole: which side of the coast a tile lies on is decided by the
+    /// nearest one, wherever it is.
+    coastlines: Vec<Way>,
+    /// Read-only connections not in use.
+    idle: Mutex<Vec<Connection>>,
+}
+
+impl OsmStore {
+    /// Opens a store; one of another format, or not finished, is an error naming it.
+    pub fn open(path: &Path) -> Result<OsmStore, StoreError> {
+        let db = connect(path)?;
+        let sqlite = |source| StoreError::Sqlite {
+            path: path.to_path_buf(),
+            source,
+        };
+        let format_error = |why: String| StoreError::Format {
+            path: path.to_path_buf(),
+            why,
+        };
+        let meta = |key: &str| -> Result<Option<String>, StoreError> {
+            db.query_row("SELECT value FROM meta WHERE key = ?1", [key], |row| {
+                row.get(0)
+            })
+            .optional()
+            .map_err(sqlite)
+        };
+        let format = meta("format").map_err(|e| format_error(e.to_string()))?;
+        if format.as_deref() != Some(&FORMAT.to_string()) {
+            return Err(format_error(format!("its format is {format:?}")));
+        }
+        let zoom = meta("zoom")?
+            .and_then(|z| z.parse().ok())
+            .ok_or_else(|| format_error("it names no zoom".to_string()))?;
+        let extracts: Vec<ExtractRecord> = meta("extracts")?
+            .and_then(|e| serde_json::from_str(&e).ok())
+            .ok_or_else(|| format_error("it names no extracts".to_string()))?;
+        let ids: Vec<i64> = {
+            let mut statement = db
+                .prepare("SELECT way FROM coastlines ORDER BY way")
+                .map_err(sqlite)?;
+            let rows = statement.query_map([], |row| row.get(0)).map_err(sqlite)?;
+            rows.collect::<Result<_, _>>().map_err(sqlite)?
+        };
+        let decode = |source| StoreError::Decode {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut coastlines = Vec::with_capacity(ids.len());
+        for id in ids {
+            if let Some(way) = way(&db, id).map_err(decode)? {
+                coastlines.push(way);
+            }
+        }
+        Ok(OsmStore {
+            path: path.to_path_buf(),
+            zoom,
+            extracts,
+            coastlines,
+            idle: Mutex::new(vec![db]),
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The zoom of the cells it is indexed by.
+    pub fn zoom(&self) -> u8 {
+        self.zoom
+    }
+
+    /// The extracts it was imported from, in the order given.
+    pub fn extracts(&self) -> &[ExtractRecord] {
+        &self.extracts
+    }
+
+    /// The area each extract declares.
+    pub fn coverage(&self) -> Vec<Bounds> {
+        self.extracts
+            .iter()
+            .map(|e| Bounds {
+                west: e.bounds[0],
+                south: e.bounds[1],
+                east: e.bounds[2],
+                north: e.bounds[3],
+            })
+            .collect()
+    }
+
+    fn sqlite(&self) -> impl Fn(rusqlite::Error) -> StoreError + '_ {
+        |source| StoreError::Sqlite {
+            path: self.path.clone(),
+            source,
+        }
+    }
+
+    fn decode(&self) -> impl Fn(DecodeError) -> StoreError + '_ {
+        |source| StoreError::Decode {
+            path: self.path.clone(),
+            source,
+        }
+    }
+
+    /// Runs `read` on a connection of its own (one per thread reading at once).
+    fn with_connection<T>(
+        &self,
+        read: impl FnOnce(&Connection) -> Result<T, StoreError>,
+    ) -> Result<T, StoreError> {
+        let taken = self.idle.lock().unwrap_or_else(|p| p.into_inner()).pop();
+        let db = match taken {
+            Some(db) => db,
+            None => connect(&self.path)?,
+        };
+        let result = read(&db);
+        self.idle.lock().unwrap_or_else(|p| p.into_inner()).push(db);
+        result
+    }
+
+    /// The closure of `tile` (see the module's notes), indexed: its query for the tile with
+    /// `margin_deg` selects what the whole data's index would.
+    pub fn tile_index(&self, tile: TileId, margin_deg: f64) -> Result<OsmIndex, StoreError> {
+        self.with_connection(|db| self.closure(db, tile, margin_deg))
+    }
+
+    /// What the cells around `area` hold, by kind (node, way, relation, group).
+    fn in_cells(&self, db: &Connection, area: &Bounds) -> Result<[BTreeSet<i64>; 4], StoreError> {
+        let sqlite = self.sqlite();
+        let n = f64::from(1u32 << self.zoom);
+        let mut found: [BTreeSet<i64>; 4] = Default::default();
+        let mut in_cell = db
+            .prepare_cached("SELECT kind, id FROM cells WHERE x = ?1 AND y = ?2")
+            .map_err(&sqlite)?;
+        for (x, y) in cells_of(area, n) {
+            let rows = in_cell
+                .query_map(params![x, y], |row| {
+                    Ok((row.get::<_, i64>(0)?, row.get::<_, i64>(1)?))
+                })
+                .map_err(&sqlite)?;
+            for row in rows {
+                let (kind, id) = row.map_err(&sqlite)?;
+                if let Some(set) = found.get_mut(kind as usize) {
+                    set.insert(id);
+                }
+            }
+        }
+        Ok(found)
+    }
+
+    fn closure(
+        &self,
+        db: &Connection,
+        tile: TileId,
+        margin_deg: f64,
+    ) -> Result<OsmIndex, StoreError> {
+        let sqlite = self.sqlite();
+        let decode = self.decode();
+        let area = tile.bounds().expanded(margin_deg);
+        let [node_ids, way_ids, relation_ids, group_ids] = self.in_cells(db, &area)?;
+        let mut ways: BTreeMap<i64, Way> = BTreeMap::new();
+        let load = |ways: &mut BTreeMap<i64, Way>, id: i64| {
+            if let std::collections::btree_map::Entry::Vacant(slot) = ways.entry(id) {
+                if let Some(w) = way(db, id).map_err(&decode)? {
+                    slot.insert(w);
+                }
+            }
+            Ok::<_, StoreError>(())
+        };
+        // The ways the tile's query selects: in its cells, their box meeting its area.
+        let mut near = Vec::new();
+        for id in way_ids {
+            if let Some(w) = way(db, id).map_err(&decode)? {
+                if bounds_of(&w.positions).is_some_and(|b| b.intersects(&area)) {
+                    near.push(id);
+                    ways.insert(id, w);
+                }
+            }
+        }
+        // Relations (the query takes every one in its cells), with the relations they hold,
+        // and all their ways.
+        let mut relations: BTreeMap<i64, Relation> = BTreeMap::new();
+        for id in relation_ids {
+            let Some(relation) = relation(db, id).map_err(&decode)? else {
+                continue;
+            };
+            for member in &relation.members {
+                if member.element.element_type == ElementType::Relation {
+                    if let Some(inner) = self::relation(db, member.element.id).map_err(&decode)? {
+                        relations.insert(inner.id, inner);
+                    }
+                }
+            }
+            for id in relation_ways(db, &relation).map_err(&sqlite)? {
+                load(&mut ways, id)?;
+            }
+            relations.insert(relation.id, relation);
+        }
+        // Groups, whole, with what they cross.
+        let mut groups = Vec::new();
+        for id in group_ids {
+            let data: Option<Vec<u8>> = db
+                .prepare_cached("SELECT data FROM groups WHERE id = ?1")
+                .and_then(|mut s| s.query_row([id], |row| row.get(0)).optional())
+                .map_err(&sqlite)?;
+            let Some(data) = data else { continue };
+            for way_id in codec::group_ways(&data).map_err(&decode)? {
+                load(&mut ways, way_id)?;
+            }
+            groups.push(data);
+        }
+        // The ways that meet the selected ways at their joints.
+        for id in near {
+            for (_, through) in facts(db, id).map_err(&decode)?.joints {
+                for other in through {
+                    load(&mut ways, other)?;
+                }
+            }
+        }
+        for coast in &self.coastlines {
+            ways.entry(coast.id).or_insert_with(|| coast.clone());
+        }
+        let mut nodes = Vec::with_capacity(node_ids.len());
+        for id in node_ids {
+            if let Some(n) = node(db, id).map_err(&decode)? {
+                nodes.push(n);
+            }
+        }
+        let data = OsmData {
+            nodes,
+            ways: ways.into_values().collect(),
+            relations: relations.into_values().collect(),
+            coverage: self.coverage(),
+        };
+        self.index(db, data, &groups)
+    }
+
+    /// Indexes a closure with the facts found over the whole data.
+    fn index(
+        &self,
+        db: &Connection,
+        data: OsmData,
+        groups: &[Vec<u8>],
+    ) -> Result<OsmIndex, StoreError> {
+        let decode = self.decode();
+        let index_of = |id: i64| -> Option<u32> {
+            data.ways
+                .binary_search_by_key(&id, |w| w.id)
+                .ok()
+                .map(|i| i as u32)
+        };
+        let mut structures = Vec::with_capacity(groups.len());
+        for bytes in groups {
+            structures.push(codec::decode_group(bytes, &mut |id| index_of(id)).map_err(&decode)?);
+        }
+        let mut roads = RoadGraph::default();
+        for way in &data.ways {
+            let facts = facts(db, way.id).map_err(&decode)?;
+            for (node, through) in facts.joints {
+                roads
+                    .joints
+                    .entry(node)
+                    .or_insert_with(|| through.into_iter().filter_map(index_of).collect());
+            }
+            if let Some(under) = facts.under_bridges {
+                roads.under_bridges.insert(way.id, under);
+            }
+        }
+        let coastlines: Vec<u32> = self
+            .coastlines
+            .iter()
+            .filter_map(|w| index_of(w.id))
+            .collect();
+        Ok(OsmIndex::from_parts(
+            data, self.zoom, structures, roads, coastlines,
+        ))
+    }
+}
+
+/// A read-only connection.
+fn connect(path: &Path) -> Result<Connection, StoreError> {
+    let db = Connection::open_with_flags(
+        path,
+        OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+    )
+    .map_err(|source| StoreError::Sqlite {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    // A failed pragma leaves SQLite's default page cache: slower, not wrong.
+    let _ = db.execute_batch("PRAGMA cache_size = -32768;");
+    Ok(db)
+}
+
+/// A stored way.
+pub(crate) fn way(db: &Connection, id: i64) -> Result<Option<Way>, DecodeError> {
+    let bytes: Option<Vec<u8>> = db
+        .prepare_cached("SELECT data FROM ways WHERE id = ?1")
+        .and_then(|mut s| s.query_row([id], |row| row.get(0)).optional())
+        .map_err(|_| DecodeError {
+            what: "way",
+            why: "it cannot be read",
+        })?;
+    bytes.map(|b| codec::decode_way(id, &b)).transpose()
+}
+
+/// What was found over the whole data about one way.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct WayFacts {
+    /// Its nodes that are joints, each with every way through it (ascending ids).
+    pub joints: codec::WayJoints,
+    /// Where bridges pass over it.
+    pub under_bridges: Option<Vec<LonLat>>,
+}
+
+/// The facts of a way (none for most).
+pub(crate) fn facts(db: &Connection, id: i64) -> Result<WayFacts, DecodeError> {
+    type Row = (Option<Vec<u8>>, Option<Vec<u8>>);
+    let row: Option<Row> = db
+        .prepare_cached("SELECT joints, under_bridges FROM way_facts WHERE way = ?1")
+        .and_then(|mut s| {
+            s.query_row([id], |row| Ok((row.get(0)?, row.get(1)?)))
+                .optional()
+        })
+        .map_err(|_| DecodeError {
+            what: "way's facts",
+            why: "they cannot be read",
+        })?;
+    let Some((joints, under)) = row else {
+        return Ok(WayFacts::default());
+    };
+    Ok(WayFacts {
+        joints: joints
+            .map(|bytes| codec::decode_joints(&bytes))
+            .transpose()?
+            .unwrap_or_default(),
+        under_bridges: under.map(|b| codec::decode_positions(&b)).transpose()?,
+    })
+}
+
+/// A stored tagged node.
+pub(crate) fn node(db: &Connection, id: i64) -> Result<Option<Node>, DecodeError> {
+    let row: Option<(f64, f64, Vec<u8>)> = db
+        .prepare_cached("SELECT lon, lat, tags FROM nodes WHERE id = ?1")
+        .and_then(|mut s| {
+            s.query_row([id], |row| Ok((row.get(0)?, row.get(1)?, row.get(2)?)))
+                .optional()
+        })
+        .map_err(|_| DecodeError {
+            what: "node",
+            why: "it cannot be read",
+        })?;
+    let Some((lon, lat, tags)) = row else {
+        return Ok(None);
+    };
+    let mut r = codec::Reader::new(&tags, "node");
+    let tags = r.tags()?;
+    r.done()?;
+    Ok(Some(Node {
+        id,
+        position: LonLat { lon, lat },
+        tags,
+    }))
+}
+
+/// A stored relation.
+pub(crate) fn relation(db: &Connection, id: i64) -> Result<Option<Relation>, DecodeError> {
+    let bytes: Option<Vec<u8>> = db
+        .prepare_cached("SELECT data FROM relations WHERE id = ?1")
+        .and_then(|mut s| s.query_row([id], |row| row.get(0)).optional())
+        .map_err(|_| DecodeError {
+            what: "relation",
+            why: "it cannot be read",
+        })?;
+    bytes.map(|b| codec::decode_relation(id, &b)).transpose()
+}
+
+/// The ways of a relation, with those of its member relations, as the in-memory index counts
+/// them.
+pub(crate) fn relation_ways(
+    db: &Connection,
+    relation: &Relation,
+) -> Result<Vec<i64>, rusqlite::Error> {
+    let mut data = OsmData::default();
+    for member in &relation.members {
+        if member.element.element_type == ElementType::Relation {
+            if let Ok(Some(inner)) = self::relation(db, member.element.id) {
+                data.relations.push(inner);
+            }
+        }
+    }
+    data.relations.sort_by_key(|r| r.id);
+    data.relations.dedup_by_key(|r| r.id);
+    Ok(model_relation_ways(&data, relation))
+}
