@@ -118,8 +118,16 @@ pub fn is_current(store: &OsmStore, extracts: &[PathBuf], zoom: u8) -> bool {
     store.zoom() == zoom
         && store.extracts().len() == extracts.len()
         && store.extracts().iter().zip(extracts).all(|(record, path)| {
-            record.path == *path
+            same_file(&record.path, path)
                 && crate::source::srtm::file_version(path).ok().as_deref()
                     == Some(record.file_version.as_str())
         })
+}
+
+/// Whether two paths name one file (one may be relative, the other not).
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => a == b,
+    }
 }

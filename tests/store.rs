@@ -1,0 +1,150 @@
+//! The imported OSM store: `import` makes it whole or not at all, a bad extract leaves the store
+//! in use as it was, and the commands that read it import again when the extract changed.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use common::{sample_osm, terrastitch};
+use sha2::{Digest, Sha256};
+
+fn import(store: &Path, extracts: &[PathBuf]) -> Output {
+    let mut command = terrastitch();
+    command.arg("import").arg("--store").arg(store);
+    for extract in extracts {
+        command.arg("--osm").arg(extract);
+    }
+    command.output().unwrap()
+}
+
+fn digest(path: &Path) -> Vec<u8> {
+    Sha256::digest(std::fs::read(path).unwrap()).to_vec()
+}
+
+fn stderr(output: &Output) -> String {
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
+/// The files in `dir` besides `keep`.
+fn others(dir: &Path, keep: &Path) -> Vec<PathBuf> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p != keep)
+        .collect()
+}
+
+#[test]
+fn a_truncated_extract_is_named_with_its_position_and_the_store_stays_as_it_was() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("osm.sqlite");
+    let good = import(&store, &[sample_osm()]);
+    assert!(good.status.success(), "{}", stderr(&good));
+    let before = digest(&store);
+
+    let bytes = std::fs::read(sample_osm()).unwrap();
+    let truncated = dir.path().join("cut.osm.pbf");
+    std::fs::write(&truncated, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let failed = import(&store, &[truncated]);
+    assert!(!failed.status.success());
+    let message = stderr(&failed);
+    assert!(
+        message.contains("cut.osm.pbf") && message.contains("at byte"),
+        "{message}"
+    );
+    assert_eq!(digest(&store), before, "the store in use is untouched");
+    let left: Vec<PathBuf> = others(dir.path(), &store)
+        .into_iter()
+        .filter(|p| !p.ends_with("cut.osm.pbf"))
+        .collect();
+    assert!(left.is_empty(), "nothing half-written is left: {left:?}");
+}
+
+#[test]
+fn an_import_killed_midway_leaves_the_previous_store_in_use() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("osm.sqlite");
+    assert!(import(&store, &[sample_osm()]).status.success());
+    let before = digest(&store);
+    // Eight copies of the sample under other names: an import long enough to stop midway.
+    let copies: Vec<PathBuf> = (0..8)
+        .map(|k| {
+            let copy = dir.path().join(format!("copy{k}.osm.pbf"));
+            std::fs::copy(sample_osm(), &copy).unwrap();
+            copy
+        })
+        .collect();
+    let mut command = terrastitch();
+    command.arg("import").arg("--store").arg(&store);
+    for copy in &copies {
+        command.arg("--osm").arg(copy);
+    }
+    let mut child = command.stderr(std::process::Stdio::null()).spawn().unwrap();
+    let partial = dir.path().join("osm.sqlite.partial");
+    while !partial.exists() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the import ended before it could be stopped"
+        );
+        std::thread::yield_now();
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert_eq!(digest(&store), before, "the store in use is untouched");
+
+    // The store still serves tiles, from the extract it was imported from.
+    let out = dir.path().join("tile.glb");
+    let render = terrastitch()
+        .args(["render", "14/8529/5973", "--store"])
+        .arg(&store)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(render.status.success(), "{}", stderr(&render));
+    assert_eq!(
+        digest(&store),
+        before,
+        "the store was current: not imported again"
+    );
+
+    // A new import starts over, leaving no part of the stopped one.
+    assert!(import(&store, &copies[..1]).status.success());
+    assert!(!partial.exists());
+}
+
+#[test]
+fn a_store_older_than_its_extract_is_imported_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("osm.sqlite");
+    let extract = dir.path().join("region.osm.pbf");
+    std::fs::copy(sample_osm(), &extract).unwrap();
+    let render = |name: &str| {
+        let out = dir.path().join(name);
+        let output = terrastitch()
+            .args(["render", "14/8529/5973", "--store"])
+            .arg(&store)
+            .arg("--osm")
+            .arg(&extract)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", stderr(&output));
+        std::fs::read(out).unwrap()
+    };
+    let first = render("first.glb");
+    let imported = digest(&store);
+    assert_eq!(render("again.glb"), first);
+    assert_eq!(digest(&store), imported, "a current store is read as it is");
+
+    std::fs::copy(
+        common::repo().join("tests/data/monaco-planetiler-2021.osm.pbf"),
+        &extract,
+    )
+    .unwrap();
+    let changed = render("changed.glb");
+    assert_ne!(digest(&store), imported, "the new extract was imported");
+    assert_ne!(changed, first, "the tile is made from the new extract");
+}
