@@ -5,7 +5,7 @@
 CARGO ?= cargo
 NPM ?= npm
 
-.PHONY: run test check lint bench bench-terrain bench-roofs bench-elevation clean-cache
+.PHONY: run test check lint bench bench-terrain bench-roofs bench-elevation bench-scale clean-cache
 
 run: static/vendor/.installed
 	$(CARGO) run --release -- serve
@@ -67,6 +67,13 @@ bench-terrain: tests/py/.venv/.installed
 
 # Roof figures: building shells per second over the Monaco tiles of both extracts, with the
 # roofs as tagged and with every footprint given one shape, and the roofs that fell back.
+# Country scale: import, serve and render on extracts of 1, 100 and 400 copies of Monaco
+# (COPIES="1 25" for others); the extracts are made once into target/scale/.
+bench-scale: tests/py/.venv/.installed
+	$(CARGO) build --release
+	tests/py/.venv/bin/python -m pip install --quiet --disable-pip-version-check -r tests/py/requirements-bench.txt
+	scripts/bench_scale.sh $(COPIES)
+
 bench-roofs:
 	$(CARGO) build --release --examples
 	for osm in data/monaco-osrm-2016.osm.pbf tests/data/monaco-planetiler-2021.osm.pbf; do \

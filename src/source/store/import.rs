@@ -18,6 +18,7 @@
 //! Memory holds SQLite's page cache, the node file's block cache and index, the ids of the
 //! bridge and tunnel ways, and the elements near them while their groups are found.
 
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -229,6 +230,24 @@ pub fn import(
     Ok(imported)
 }
 
+/// Logs how long each phase took.
+struct PhaseClock(std::time::Instant);
+
+impl PhaseClock {
+    fn start() -> PhaseClock {
+        PhaseClock(std::time::Instant::now())
+    }
+
+    fn done(&mut self, phase: Phase) {
+        tracing::info!(
+            phase = phase.as_str(),
+            ms = self.0.elapsed().as_millis() as u64,
+            "import phase done"
+        );
+        self.0 = std::time::Instant::now();
+    }
+}
+
 fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
     let mut name = path.as_os_str().to_owned();
     name.push(suffix);
@@ -253,6 +272,7 @@ fn write_all(
     };
     let mut writer = NodeWriter::create(nodes_path)?;
     let mut records = Vec::new();
+    let mut clock = PhaseClock::start();
     for path in extracts {
         records.push(read_extract(
             partial,
@@ -267,20 +287,24 @@ fn write_all(
         ..Imported::default()
     };
     let mut locations = writer.finish()?;
+    clock.done(Phase::Reading);
     state.phase = Phase::Resolving;
     progress(&state);
     let n = f64::from(1u32 << zoom);
     let structure_ways = resolve_ways(partial, &mut locations, n, rules, &mut state, progress)?;
     drop(locations);
+    clock.done(Phase::Resolving);
     state.phase = Phase::Indexing;
     progress(&state);
     imported.tagged_nodes = index_nodes(partial, n)?;
     imported.relations = index_relations(partial, n)?;
     imported.joints = find_joints(partial)?;
     imported.ways = state.ways;
+    clock.done(Phase::Indexing);
     state.phase = Phase::Structures;
     progress(&state);
     imported.groups = find_structures(partial, &structure_ways, zoom, rules)?;
+    clock.done(Phase::Structures);
     state.phase = Phase::Finishing;
     progress(&state);
     write_meta(partial, &records, zoom)?;
@@ -659,34 +683,136 @@ fn find_joints(partial: &Partial) -> Result<u64, ImportError> {
     .map_err(&sqlite)
 }
 
-/// Finds the bridge and tunnel groups among the elements near the bridge and tunnel ways, and
-/// stores them with where bridges pass over ways; returns how many groups there are.
+/// A group found, ready to store: its place in the order of the whole data (its smallest
+/// structure way id), its row, its box, and where its bridges pass over ways.
+struct FoundGroup {
+    first_way: i64,
+    row: Vec<u8>,
+    bounds: Bounds,
+    under: std::collections::HashMap<i64, Vec<LonLat>>,
+}
+
+/// Finds the bridge and tunnel groups, a cluster of nearby structure ways at a time, among
+/// the elements near them, and stores them in the order the whole data's index finds them,
+/// with where bridges pass over ways; returns how many groups there are.
+///
+/// A group's chains share nodes or cross, so its ways share cells: the clusters of structure
+/// ways whose cells (their boxes grown by what may stand over a tunnel) meet hold whole
+/// groups, and memory holds one cluster's surroundings at a time.
 fn find_structures(
     partial: &Partial,
     structure_ways: &[i64],
     zoom: u8,
     rules: &Rules,
 ) -> Result<u64, ImportError> {
+    let n = f64::from(1u32 << zoom);
+    let mut found: Vec<FoundGroup> = Vec::new();
+    for cells in clusters(&partial.db, structure_ways, n)? {
+        found.extend(groups_in(partial, &cells, zoom, rules)?);
+    }
+    found.sort_by_key(|g| g.first_way);
     let sqlite = partial.sqlite();
     let db = &partial.db;
-    let n = f64::from(1u32 << zoom);
-    // Every cell near a bridge or tunnel way: what it crosses, and what stands over it, is
-    // registered there.
-    let mut cells = std::collections::BTreeSet::new();
+    let mut under: std::collections::HashMap<i64, Vec<LonLat>> = Default::default();
+    db.execute_batch("BEGIN").map_err(&sqlite)?;
+    {
+        let mut insert_group = db
+            .prepare("INSERT INTO groups (id, data) VALUES (?1, ?2)")
+            .map_err(&sqlite)?;
+        let mut insert_cell = db
+            .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 3, ?3)")
+            .map_err(&sqlite)?;
+        for (g, group) in found.iter().enumerate() {
+            insert_group
+                .execute(params![g as i64, group.row])
+                .map_err(&sqlite)?;
+            for (x, y) in cells_of(&group.bounds, n) {
+                insert_cell
+                    .execute(params![x, y, g as i64])
+                    .map_err(&sqlite)?;
+            }
+            let mut ways: Vec<_> = group.under.iter().collect();
+            ways.sort_by_key(|(way, _)| **way);
+            for (way, positions) in ways {
+                under.entry(*way).or_default().extend(positions);
+            }
+        }
+        let mut insert_under = db
+            .prepare(
+                "INSERT INTO way_facts (way, under_bridges) VALUES (?1, ?2)
+                 ON CONFLICT (way) DO UPDATE SET under_bridges = excluded.under_bridges",
+            )
+            .map_err(&sqlite)?;
+        for (way, positions) in &under {
+            insert_under
+                .execute(params![way, codec::encode_positions(positions)])
+                .map_err(&sqlite)?;
+        }
+    }
+    db.execute_batch("COMMIT").map_err(&sqlite)?;
+    Ok(found.len() as u64)
+}
+
+/// The cells near each cluster of structure ways: ways whose grown boxes share a cell are in
+/// one cluster.
+fn clusters(
+    db: &Connection,
+    structure_ways: &[i64],
+    n: f64,
+) -> Result<Vec<BTreeSet<(u32, u32)>>, ImportError> {
+    let mut near: Vec<Vec<(u32, u32)>> = Vec::with_capacity(structure_ways.len());
     for &id in structure_ways {
-        if let Some(way) = super::way(db, id)? {
-            if let Some(bounds) = bounds_of(&way.positions) {
-                let near = bounds.expanded(crate::osm::index::ABOVE_TUNNEL_DEG);
-                cells.extend(cells_of(&near, n));
+        let cells = super::way(db, id)?
+            .and_then(|way| bounds_of(&way.positions))
+            .map(|b| cells_of(&b.expanded(crate::osm::index::ABOVE_TUNNEL_DEG), n).collect())
+            .unwrap_or_default();
+        near.push(cells);
+    }
+    let mut parent: Vec<usize> = (0..near.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut owner: HashMap<(u32, u32), usize> = HashMap::new();
+    for (i, cells) in near.iter().enumerate() {
+        for cell in cells {
+            match owner.get(cell) {
+                Some(&other) => {
+                    let (a, b) = (root(&mut parent, i), root(&mut parent, other));
+                    parent[a] = b;
+                }
+                None => {
+                    owner.insert(*cell, i);
+                }
             }
         }
     }
+    let mut by_root: BTreeMap<usize, BTreeSet<(u32, u32)>> = BTreeMap::new();
+    for (i, cells) in near.into_iter().enumerate() {
+        let r = root(&mut parent, i);
+        by_root.entry(r).or_default().extend(cells);
+    }
+    Ok(by_root.into_values().collect())
+}
+
+/// The groups among the elements in `cells`.
+fn groups_in(
+    partial: &Partial,
+    cells: &BTreeSet<(u32, u32)>,
+    zoom: u8,
+    rules: &Rules,
+) -> Result<Vec<FoundGroup>, ImportError> {
+    let sqlite = partial.sqlite();
+    let db = &partial.db;
     let (mut way_ids, mut node_ids) = (Vec::new(), Vec::new());
     {
         let mut in_cell = db
-            .prepare("SELECT kind, id FROM cells WHERE x = ?1 AND y = ?2 AND kind < 2")
+            .prepare_cached("SELECT kind, id FROM cells WHERE x = ?1 AND y = ?2 AND kind < 2")
             .map_err(&sqlite)?;
-        for (x, y) in cells {
+        for &(x, y) in cells {
             let rows = in_cell
                 .query_map(params![x, y], |row| {
                     Ok((row.get::<_, i64>(0)?, row.get::<_, i64>(1)?))
@@ -718,38 +844,21 @@ fn find_structures(
     let index = OsmIndex::new(data, zoom, rules.classify).with_foundations(rules.depth);
     let ways: &[Way] = &index.data().ways;
     let way_id = |i: u32| ways.get(i as usize).map_or(0, |w| w.id);
-    db.execute_batch("BEGIN").map_err(&sqlite)?;
-    {
-        let mut insert_group = db
-            .prepare("INSERT INTO groups (id, data) VALUES (?1, ?2)")
-            .map_err(&sqlite)?;
-        let mut insert_cell = db
-            .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 3, ?3)")
-            .map_err(&sqlite)?;
-        for (g, group) in index.structures().iter().enumerate() {
-            insert_group
-                .execute(params![g as i64, codec::encode_group(group, &way_id)])
-                .map_err(&sqlite)?;
-            for (x, y) in cells_of(&group.bounds, n) {
-                insert_cell
-                    .execute(params![x, y, g as i64])
-                    .map_err(&sqlite)?;
-            }
-        }
-        let mut insert_under = db
-            .prepare(
-                "INSERT INTO way_facts (way, under_bridges) VALUES (?1, ?2)
-                 ON CONFLICT (way) DO UPDATE SET under_bridges = excluded.under_bridges",
-            )
-            .map_err(&sqlite)?;
-        for (way, positions) in &index.roads().under_bridges {
-            insert_under
-                .execute(params![way, codec::encode_positions(positions)])
-                .map_err(&sqlite)?;
-        }
-    }
-    db.execute_batch("COMMIT").map_err(&sqlite)?;
-    Ok(index.structures().len() as u64)
+    Ok(index
+        .structures()
+        .iter()
+        .map(|group| FoundGroup {
+            first_way: group
+                .chains
+                .iter()
+                .flat_map(|c| c.ways.iter().map(|w| way_id(w.way)))
+                .min()
+                .unwrap_or(i64::MAX),
+            row: codec::encode_group(group, &way_id),
+            bounds: group.bounds,
+            under: crate::osm::index::under_bridges(ways, std::slice::from_ref(group)),
+        })
+        .collect())
 }
 
 fn write_meta(partial: &Partial, records: &[ExtractRecord], zoom: u8) -> Result<(), ImportError> {
