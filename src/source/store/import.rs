@@ -196,7 +196,7 @@ pub fn import(
     let db = Connection::open(&partial_path).map_err(sqlite)?;
     db.execute_batch(
         "PRAGMA journal_mode = OFF; PRAGMA synchronous = OFF; PRAGMA cache_size = -131072;
-         PRAGMA temp_store = FILE;",
+         PRAGMA temp_store = FILE; PRAGMA locking_mode = EXCLUSIVE;",
     )
     .map_err(sqlite)?;
     db.execute_batch(SCHEMA).map_err(sqlite)?;
@@ -707,8 +707,8 @@ fn find_structures(
 ) -> Result<u64, ImportError> {
     let n = f64::from(1u32 << zoom);
     let mut found: Vec<FoundGroup> = Vec::new();
-    for cells in clusters(&partial.db, structure_ways, n)? {
-        found.extend(groups_in(partial, &cells, zoom, rules)?);
+    for cluster in clusters(&partial.db, structure_ways, n, rules)? {
+        found.extend(groups_in(partial, &cluster, zoom, rules)?);
     }
     found.sort_by_key(|g| g.first_way);
     let sqlite = partial.sqlite();
@@ -753,20 +753,35 @@ fn find_structures(
     Ok(found.len() as u64)
 }
 
-/// The cells near each cluster of structure ways: ways whose grown boxes share a cell are in
-/// one cluster.
+/// The cells of a cluster of structure ways: those their boxes meet, grown by what may stand
+/// over a tunnel, and among them those near its tunnels.
+#[derive(Debug, Default)]
+struct Cluster {
+    cells: BTreeSet<(u32, u32)>,
+    near_tunnels: BTreeSet<(u32, u32)>,
+}
+
+/// The clusters of structure ways: ways whose grown boxes share a cell are in one cluster.
 fn clusters(
     db: &Connection,
     structure_ways: &[i64],
     n: f64,
-) -> Result<Vec<BTreeSet<(u32, u32)>>, ImportError> {
-    let mut near: Vec<Vec<(u32, u32)>> = Vec::with_capacity(structure_ways.len());
+    rules: &Rules,
+) -> Result<Vec<Cluster>, ImportError> {
+    use crate::osm::structures::StructureKind;
+    let mut near: Vec<(Vec<(u32, u32)>, bool)> = Vec::with_capacity(structure_ways.len());
     for &id in structure_ways {
-        let cells = super::way(db, id)?
-            .and_then(|way| bounds_of(&way.positions))
+        let Some(way) = super::way(db, id)? else {
+            continue;
+        };
+        let tunnel = matches!(
+            (rules.classify)(&way.tags),
+            Some((StructureKind::Tunnel, _))
+        );
+        let cells = bounds_of(&way.positions)
             .map(|b| cells_of(&b.expanded(crate::osm::index::ABOVE_TUNNEL_DEG), n).collect())
             .unwrap_or_default();
-        near.push(cells);
+        near.push((cells, tunnel));
     }
     let mut parent: Vec<usize> = (0..near.len()).collect();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
@@ -777,7 +792,7 @@ fn clusters(
         i
     }
     let mut owner: HashMap<(u32, u32), usize> = HashMap::new();
-    for (i, cells) in near.iter().enumerate() {
+    for (i, (cells, _)) in near.iter().enumerate() {
         for cell in cells {
             match owner.get(cell) {
                 Some(&other) => {
@@ -790,55 +805,74 @@ fn clusters(
             }
         }
     }
-    let mut by_root: BTreeMap<usize, BTreeSet<(u32, u32)>> = BTreeMap::new();
-    for (i, cells) in near.into_iter().enumerate() {
-        let r = root(&mut parent, i);
-        by_root.entry(r).or_default().extend(cells);
+    let mut by_root: BTreeMap<usize, Cluster> = BTreeMap::new();
+    for (i, (cells, tunnel)) in near.into_iter().enumerate() {
+        let cluster = by_root.entry(root(&mut parent, i)).or_default();
+        if tunnel {
+            cluster.near_tunnels.extend(cells.iter().copied());
+        }
+        cluster.cells.extend(cells);
     }
     Ok(by_root.into_values().collect())
 }
 
-/// The groups among the elements in `cells`.
+/// The groups of a cluster, found among what can take part in one: the structure ways, the
+/// ways they may cross, and near tunnels what reaches down into the ground.
 fn groups_in(
     partial: &Partial,
-    cells: &BTreeSet<(u32, u32)>,
+    cluster: &Cluster,
     zoom: u8,
     rules: &Rules,
 ) -> Result<Vec<FoundGroup>, ImportError> {
+    use crate::osm::structures::may_be_crossed;
     let sqlite = partial.sqlite();
     let db = &partial.db;
-    let (mut way_ids, mut node_ids) = (Vec::new(), Vec::new());
+    // Each element in the cluster's cells, and whether it is near a tunnel.
+    let mut way_ids: Vec<(i64, bool)> = Vec::new();
+    let mut node_ids: Vec<(i64, bool)> = Vec::new();
     {
         let mut in_cell = db
             .prepare_cached("SELECT kind, id FROM cells WHERE x = ?1 AND y = ?2 AND kind < 2")
             .map_err(&sqlite)?;
-        for &(x, y) in cells {
+        for &cell in &cluster.cells {
+            let tunnel = cluster.near_tunnels.contains(&cell);
             let rows = in_cell
-                .query_map(params![x, y], |row| {
+                .query_map(params![cell.0, cell.1], |row| {
                     Ok((row.get::<_, i64>(0)?, row.get::<_, i64>(1)?))
                 })
                 .map_err(&sqlite)?;
             for row in rows {
                 match row.map_err(&sqlite)? {
-                    (0, id) => node_ids.push(id),
-                    (_, id) => way_ids.push(id),
+                    (0, id) => node_ids.push((id, tunnel)),
+                    (_, id) => way_ids.push((id, tunnel)),
                 }
             }
         }
     }
     for ids in [&mut way_ids, &mut node_ids] {
-        ids.sort_unstable();
-        ids.dedup();
+        // Near a tunnel in any of its cells counts.
+        ids.sort_unstable_by_key(|&(id, tunnel)| (id, !tunnel));
+        ids.dedup_by_key(|(id, _)| *id);
     }
     let mut data = OsmData::default();
-    for id in way_ids {
+    for (id, tunnel) in way_ids {
         if let Some(way) = super::way(db, id)? {
-            data.ways.push(way);
+            let takes_part = (rules.classify)(&way.tags).is_some()
+                || may_be_crossed(&way.tags)
+                || (tunnel && (rules.depth)(&way.tags).is_some());
+            if takes_part {
+                data.ways.push(way);
+            }
         }
     }
-    for id in node_ids {
+    for (id, tunnel) in node_ids {
+        if !tunnel {
+            continue;
+        }
         if let Some(node) = super::node(db, id)? {
-            data.nodes.push(node);
+            if (rules.depth)(&node.tags).is_some() {
+                data.nodes.push(node);
+            }
         }
     }
     let index = OsmIndex::new(data, zoom, rules.classify).with_foundations(rules.depth);
