@@ -311,6 +311,127 @@ fn write_all(
     Ok(imported)
 }
 
+/// One block's elements, ready to write.
+#[derive(Default)]
+struct Rows {
+    header: Option<Bounds>,
+    nodes: Vec<NodeRow>,
+    ways: Vec<(i64, Vec<u8>)>,
+    relations: Vec<(i64, Vec<u8>)>,
+}
+
+struct NodeRow {
+    id: i64,
+    at: Decimicro,
+    position: LonLat,
+    /// Its tags' row, when it has tags.
+    tags: Option<Vec<u8>>,
+}
+
+enum RowsError {
+    Pbf(String),
+    Nodes(NodeStoreError),
+}
+
+/// Blobs decoded at once, spread over the cores.
+const BATCH: usize = 32;
+
+/// Decodes a blob into rows.
+fn rows_of(blob: &osmpbf::Blob) -> Result<Rows, RowsError> {
+    let mut rows = Rows::default();
+    match blob.decode().map_err(|e| RowsError::Pbf(e.to_string()))? {
+        BlobDecode::OsmHeader(header) => {
+            rows.header = header.bbox().map(|b| Bounds {
+                west: b.left,
+                east: b.right,
+                south: b.bottom,
+                north: b.top,
+            });
+        }
+        BlobDecode::OsmData(block) => {
+            for element in block.elements() {
+                let (id, nano, position, tags) = match &element {
+                    Element::Node(n) => (
+                        n.id(),
+                        (n.nano_lon(), n.nano_lat()),
+                        LonLat {
+                            lon: n.lon(),
+                            lat: n.lat(),
+                        },
+                        Tags::from_pairs(n.tags()),
+                    ),
+                    Element::DenseNode(n) => (
+                        n.id(),
+                        (n.nano_lon(), n.nano_lat()),
+                        LonLat {
+                            lon: n.lon(),
+                            lat: n.lat(),
+                        },
+                        Tags::from_pairs(n.tags()),
+                    ),
+                    Element::Way(way) => {
+                        let mut w = codec::Writer::default();
+                        w.tags(&Tags::from_pairs(way.tags()));
+                        w.ids(&way.refs().collect::<Vec<i64>>());
+                        rows.ways.push((way.id(), w.0));
+                        continue;
+                    }
+                    Element::Relation(relation) => {
+                        let relation = crate::source::osm_pbf::relation_of(relation);
+                        rows.relations
+                            .push((relation.id, codec::encode_relation(&relation)));
+                        continue;
+                    }
+                };
+                let at = Decimicro::from_nano(id, nano.0, nano.1).map_err(RowsError::Nodes)?;
+                let tags = (!tags.is_empty()).then(|| {
+                    let mut w = codec::Writer::default();
+                    w.tags(&tags);
+                    w.0
+                });
+                rows.nodes.push(NodeRow {
+                    id,
+                    at,
+                    position,
+                    tags,
+                });
+            }
+        }
+        BlobDecode::Unknown(_) => {}
+    }
+    Ok(rows)
+}
+
+/// Decodes blobs on every core, in their order.
+fn decode_all(blobs: &[(u64, osmpbf::Blob)]) -> Vec<Result<Rows, (u64, RowsError)>> {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let per_thread = blobs.len().div_ceil(threads.max(1)).max(1);
+    std::thread::scope(|scope| {
+        let workers: Vec<_> = blobs
+            .chunks(per_thread)
+            .map(|chunk| {
+                scope.spawn(move || {
+                    chunk
+                        .iter()
+                        .map(|(offset, blob)| rows_of(blob).map_err(|e| (*offset, e)))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| {
+                w.join().unwrap_or_else(|_| {
+                    vec![Err((
+                        0,
+                        RowsError::Pbf("decoding a block panicked".to_string()),
+                    ))]
+                })
+            })
+            .collect()
+    })
+}
+
 /// Reads one extract: node positions to the node file, the rest to the store.
 fn read_extract(
     partial: &Partial,
@@ -333,117 +454,54 @@ fn read_extract(
     };
     let before = state.bytes;
     let mut reader = BlobReader::new(counting);
-    let pbf = |offset: u64, message: String| ImportError::Pbf {
-        path: path.to_path_buf(),
-        offset,
-        message,
+    let failed = |offset: u64, error: RowsError| match error {
+        RowsError::Pbf(message) => ImportError::Pbf {
+            path: path.to_path_buf(),
+            offset,
+            message,
+        },
+        RowsError::Nodes(source) => ImportError::Nodes {
+            path: path.to_path_buf(),
+            source,
+        },
     };
-    let sqlite = partial.sqlite();
-    let mut insert_node = partial
+    let mut writer = RowWriter::new(partial)?;
+    partial
         .db
-        .prepare("INSERT OR IGNORE INTO nodes (id, lon, lat, tags) VALUES (?1, ?2, ?3, ?4)")
-        .map_err(&sqlite)?;
-    let mut insert_way = partial
-        .db
-        .prepare("INSERT OR IGNORE INTO raw_ways (id, data) VALUES (?1, ?2)")
-        .map_err(&sqlite)?;
-    let mut insert_relation = partial
-        .db
-        .prepare("INSERT OR IGNORE INTO relations (id, data) VALUES (?1, ?2)")
-        .map_err(&sqlite)?;
-    partial.db.execute_batch("BEGIN").map_err(&sqlite)?;
-    let mut header_bounds: Option<Bounds> = None;
-    let mut extent: Option<Bounds> = None;
+        .execute_batch("BEGIN")
+        .map_err(partial.sqlite())?;
+    let (mut header, mut extent) = (None, None);
     loop {
-        let offset = read.load(Ordering::Relaxed);
-        let Some(blob) = reader.next() else { break };
-        let blob = blob.map_err(|e| pbf(offset, e.to_string()))?;
-        match blob.decode().map_err(|e| pbf(offset, e.to_string()))? {
-            BlobDecode::OsmHeader(header) => {
-                header_bounds = header.bbox().map(|b| Bounds {
-                    west: b.left,
-                    east: b.right,
-                    south: b.bottom,
-                    north: b.top,
-                });
-            }
-            BlobDecode::OsmData(block) => {
-                for element in block.elements() {
-                    let node = match &element {
-                        Element::Node(n) => Some((
-                            n.id(),
-                            n.nano_lon(),
-                            n.nano_lat(),
-                            n.lon(),
-                            n.lat(),
-                            Tags::from_pairs(n.tags()),
-                        )),
-                        Element::DenseNode(n) => Some((
-                            n.id(),
-                            n.nano_lon(),
-                            n.nano_lat(),
-                            n.lon(),
-                            n.lat(),
-                            Tags::from_pairs(n.tags()),
-                        )),
-                        _ => None,
-                    };
-                    if let Some((id, nano_lon, nano_lat, lon, lat, tags)) = node {
-                        let at =
-                            Decimicro::from_nano(id, nano_lon, nano_lat).map_err(|source| {
-                                ImportError::Nodes {
-                                    path: path.to_path_buf(),
-                                    source,
-                                }
-                            })?;
-                        nodes.push(id, at)?;
-                        grow(&mut extent, LonLat { lon, lat });
-                        if !tags.is_empty() {
-                            let mut w = codec::Writer::default();
-                            w.tags(&tags);
-                            insert_node
-                                .execute(params![id, lon, lat, w.0])
-                                .map_err(&sqlite)?;
-                        }
-                        state.nodes += 1;
-                        continue;
-                    }
-                    match element {
-                        Element::Way(way) => {
-                            let tags = Tags::from_pairs(way.tags());
-                            let refs: Vec<i64> = way.refs().collect();
-                            let mut w = codec::Writer::default();
-                            w.tags(&tags);
-                            w.ids(&refs);
-                            insert_way
-                                .execute(params![way.id(), w.0])
-                                .map_err(&sqlite)?;
-                            state.ways += 1;
-                        }
-                        Element::Relation(relation) => {
-                            let relation = crate::source::osm_pbf::relation_of(&relation);
-                            insert_relation
-                                .execute(params![relation.id, codec::encode_relation(&relation)])
-                                .map_err(&sqlite)?;
-                            state.relations += 1;
-                        }
-                        _ => {}
-                    }
-                }
-                state.bytes = before + read.load(Ordering::Relaxed);
-                progress(state);
-            }
-            BlobDecode::Unknown(_) => {}
+        let mut batch = Vec::with_capacity(BATCH);
+        while batch.len() < BATCH {
+            let offset = read.load(Ordering::Relaxed);
+            let Some(blob) = reader.next() else { break };
+            let blob = blob.map_err(|e| failed(offset, RowsError::Pbf(e.to_string())))?;
+            batch.push((offset, blob));
         }
+        if batch.is_empty() {
+            break;
+        }
+        for rows in decode_all(&batch) {
+            let rows = rows.map_err(|(offset, e)| failed(offset, e))?;
+            header = header.or(rows.header);
+            writer.write(rows, nodes, &mut extent, state)?;
+        }
+        state.bytes = before + read.load(Ordering::Relaxed);
+        progress(state);
     }
-    partial.db.execute_batch("COMMIT").map_err(&sqlite)?;
+    drop(writer);
+    partial
+        .db
+        .execute_batch("COMMIT")
+        .map_err(partial.sqlite())?;
     drop(reader);
     let digest = std::mem::take(&mut *digest.lock().unwrap_or_else(|p| p.into_inner()));
     let digest: String = digest.finalize()[..8]
         .iter()
         .map(|b| format!("{b:02x}"))
         .collect();
-    let bounds = header_bounds.or(extent).ok_or_else(|| ImportError::Empty {
+    let bounds = header.or(extent).ok_or_else(|| ImportError::Empty {
         path: path.to_path_buf(),
     })?;
     Ok(ExtractRecord {
@@ -452,6 +510,64 @@ fn read_extract(
         file_version: crate::source::srtm::file_version(path).unwrap_or_default(),
         bounds: [bounds.west, bounds.south, bounds.east, bounds.north],
     })
+}
+
+/// Writes decoded rows: where an element is already stored (from an extract listed before),
+/// the first one stays.
+struct RowWriter<'a> {
+    partial: &'a Partial,
+    node: rusqlite::Statement<'a>,
+    way: rusqlite::Statement<'a>,
+    relation: rusqlite::Statement<'a>,
+}
+
+impl<'a> RowWriter<'a> {
+    fn new(partial: &'a Partial) -> Result<RowWriter<'a>, ImportError> {
+        let sqlite = partial.sqlite();
+        let db = &partial.db;
+        Ok(RowWriter {
+            partial,
+            node: db
+                .prepare("INSERT OR IGNORE INTO nodes (id, lon, lat, tags) VALUES (?1, ?2, ?3, ?4)")
+                .map_err(&sqlite)?,
+            way: db
+                .prepare("INSERT OR IGNORE INTO raw_ways (id, data) VALUES (?1, ?2)")
+                .map_err(&sqlite)?,
+            relation: db
+                .prepare("INSERT OR IGNORE INTO relations (id, data) VALUES (?1, ?2)")
+                .map_err(&sqlite)?,
+        })
+    }
+
+    fn write(
+        &mut self,
+        rows: Rows,
+        nodes: &mut NodeWriter,
+        extent: &mut Option<Bounds>,
+        state: &mut Progress,
+    ) -> Result<(), ImportError> {
+        let sqlite = self.partial.sqlite();
+        for node in rows.nodes {
+            nodes.push(node.id, node.at)?;
+            grow(extent, node.position);
+            if let Some(tags) = node.tags {
+                let p = node.position;
+                self.node
+                    .execute(params![node.id, p.lon, p.lat, tags])
+                    .map_err(&sqlite)?;
+            }
+            state.nodes += 1;
+        }
+        for (id, row) in rows.ways {
+            self.way.execute(params![id, row]).map_err(&sqlite)?;
+            state.ways += 1;
+        }
+        for (id, row) in rows.relations {
+            self.relation.execute(params![id, row]).map_err(&sqlite)?;
+            state.relations += 1;
+        }
+        Ok(())
+    }
 }
 
 fn grow(extent: &mut Option<Bounds>, p: LonLat) {
