@@ -44,7 +44,9 @@ for n in "${copies[@]}"; do
     pbf=$work/c$n.osm.pbf
     srtm=$work/srtm-c$n
     if [ ! -s "$pbf" ]; then
-        "$python" scripts/scale_extract.py data/monaco-osrm-2016.osm.pbf "$n" "$pbf" 2>"$work/c$n.cells"
+        "$python" scripts/scale_extract.py data/monaco-osrm-2016.osm.pbf "$n" "$pbf.partial.pbf" \
+            2>"$work/c$n.cells"
+        mv "$pbf.partial.pbf" "$pbf"
     fi
     rm -rf "$srtm" && mkdir -p "$srtm"
     while read -r cell; do

@@ -570,11 +570,10 @@ fn import(config: Config) -> Result<()> {
             p.nodes, p.ways, p.relations
         ));
     };
-    let imported = terrastitch::source::store::import::import(
-        &extracts,
+    let imported = terrastitch::provider::osm_source::import_locked(
         &store,
+        &extracts,
         config.server.zoom,
-        &terrastitch::provider::osm_source::rules(),
         &progress,
     )?;
     bar.finish_and_clear();

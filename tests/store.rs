@@ -56,7 +56,7 @@ fn a_truncated_extract_is_named_with_its_position_and_the_store_stays_as_it_was(
     assert_eq!(digest(&store), before, "the store in use is untouched");
     let left: Vec<PathBuf> = others(dir.path(), &store)
         .into_iter()
-        .filter(|p| !p.ends_with("cut.osm.pbf"))
+        .filter(|p| !p.ends_with("cut.osm.pbf") && !p.ends_with("osm.sqlite.lock"))
         .collect();
     assert!(left.is_empty(), "nothing half-written is left: {left:?}");
 }
@@ -147,4 +147,37 @@ fn a_store_older_than_its_extract_is_imported_again() {
     let changed = render("changed.glb");
     assert_ne!(digest(&store), imported, "the new extract was imported");
     assert_ne!(changed, first, "the tile is made from the new extract");
+}
+
+#[test]
+fn two_commands_that_need_a_missing_store_import_it_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("osm.sqlite");
+    let children: Vec<_> = (0..2)
+        .map(|k| {
+            terrastitch()
+                .args(["render", "14/8529/5973", "--store"])
+                .arg(&store)
+                .arg("-o")
+                .arg(dir.path().join(format!("tile{k}.glb")))
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    let mut imports = 0;
+    for child in children {
+        let output = child.wait_with_output().unwrap();
+        let text = stderr(&output);
+        assert!(output.status.success(), "{text}");
+        imports += text.matches("importing them").count();
+    }
+    assert_eq!(
+        imports, 1,
+        "one command imported, the other waited and read it"
+    );
+    assert_eq!(
+        std::fs::read(dir.path().join("tile0.glb")).unwrap(),
+        std::fs::read(dir.path().join("tile1.glb")).unwrap()
+    );
 }

@@ -93,6 +93,11 @@ pub enum StoreOpenError {
     Import(#[from] ImportError),
     #[error(transparent)]
     Store(#[from] StoreError),
+    #[error("cannot lock {path} to import the OSM store: {source}")]
+    Lock {
+        path: PathBuf,
+        source: std::io::Error,
+    },
 }
 
 /// The store at `path` for `extracts` at `zoom`: opened when it was imported from exactly these
@@ -103,14 +108,70 @@ pub fn open_store(
     zoom: u8,
     progress: &dyn Fn(&Progress),
 ) -> Result<(OsmStore, Option<Imported>), StoreOpenError> {
-    if let Ok(store) = OsmStore::open(path) {
-        if is_current(&store, extracts, zoom) {
-            return Ok((store, None));
-        }
-        tracing::info!(store = %path.display(), "the OSM store is older than its extracts; importing them again");
+    if let Some(store) = current_store(path, extracts, zoom) {
+        return Ok((store, None));
     }
+    // One import at a time (a server and a seed may start together); whoever waited finds
+    // the store the other imported.
+    let lock = lock_file(path)?;
+    if let Some(store) = current_store(path, extracts, zoom) {
+        return Ok((store, None));
+    }
+    tracing::info!(store = %path.display(), "the OSM store is missing or older than its extracts; importing them");
     let imported = import::import(extracts, path, zoom, &rules(), progress)?;
+    drop(lock);
     Ok((OsmStore::open(path)?, Some(imported)))
+}
+
+/// Imports `extracts` into the store at `path`, one import of that store at a time.
+pub fn import_locked(
+    path: &Path,
+    extracts: &[PathBuf],
+    zoom: u8,
+    progress: &dyn Fn(&Progress),
+) -> Result<Imported, StoreOpenError> {
+    let _lock = lock_file(path)?;
+    Ok(import::import(extracts, path, zoom, &rules(), progress)?)
+}
+
+fn current_store(path: &Path, extracts: &[PathBuf], zoom: u8) -> Option<OsmStore> {
+    OsmStore::open(path)
+        .ok()
+        .filter(|store| is_current(store, extracts, zoom))
+}
+
+/// Holds `PATH.lock` locked until dropped.
+fn lock_file(path: &Path) -> Result<std::fs::File, StoreOpenError> {
+    let mut name = path.as_os_str().to_owned();
+    name.push(".lock");
+    let lock_path = PathBuf::from(name);
+    let failed = |source| StoreOpenError::Lock {
+        path: lock_path.clone(),
+        source,
+    };
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(failed)?;
+    }
+    let file = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock_path)
+        .map_err(failed)?;
+    lock_exclusively(&file).map_err(failed)?;
+    Ok(file)
+}
+
+/// Waits for an exclusive advisory lock on `file`, released when it is closed.
+fn lock_exclusively(file: &std::fs::File) -> std::io::Result<()> {
+    use std::os::unix::io::AsRawFd;
+    // SAFETY: flock takes a file descriptor `file` owns and keeps open for the call.
+    let done = unsafe { libc::flock(file.as_raw_fd(), libc::LOCK_EX) };
+    if done == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
 }
 
 /// Whether `store` holds `extracts` as they are on disk now, indexed at `zoom`.

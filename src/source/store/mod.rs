@@ -64,8 +64,15 @@ pub struct OsmStore {
     /// The coastline ways, whole: which side of the coast a tile lies on is decided by the
     /// nearest one, wherever it is.
     coastlines: Vec<Way>,
-    /// Read-only connections not in use.
+    /// Read-only connections not in use, all opened with the store: a store imported again
+    /// is renamed over this one's path, and what was opened before reads on from the old file.
     idle: Mutex<Vec<Connection>>,
+    returned: std::sync::Condvar,
+}
+
+/// Connections to a store: as many reads as may run at once.
+fn connections() -> usize {
+    2 * std::thread::available_parallelism().map_or(2, |n| n.get()) + 2
 }
 
 impl OsmStore {
@@ -114,12 +121,17 @@ impl OsmStore {
                 coastlines.push(way);
             }
         }
+        let mut idle = vec![db];
+        for _ in 1..connections() {
+            idle.push(connect(path)?);
+        }
         Ok(OsmStore {
             path: path.to_path_buf(),
             zoom,
             extracts,
             coastlines,
-            idle: Mutex::new(vec![db]),
+            idle: Mutex::new(idle),
+            returned: std::sync::Condvar::new(),
         })
     }
 
@@ -164,18 +176,23 @@ impl OsmStore {
         }
     }
 
-    /// Runs `read` on a connection of its own (one per thread reading at once).
+    /// Runs `read` on a connection of its own, waiting for one when all are in use.
     fn with_connection<T>(
         &self,
         read: impl FnOnce(&Connection) -> Result<T, StoreError>,
     ) -> Result<T, StoreError> {
-        let taken = self.idle.lock().unwrap_or_else(|p| p.into_inner()).pop();
-        let db = match taken {
-            Some(db) => db,
-            None => connect(&self.path)?,
+        let db = {
+            let mut idle = self.idle.lock().unwrap_or_else(|p| p.into_inner());
+            loop {
+                if let Some(db) = idle.pop() {
+                    break db;
+                }
+                idle = self.returned.wait(idle).unwrap_or_else(|p| p.into_inner());
+            }
         };
         let result = read(&db);
         self.idle.lock().unwrap_or_else(|p| p.into_inner()).push(db);
+        self.returned.notify_one();
         result
     }
 
