@@ -822,10 +822,28 @@ fn find_structures(
     rules: &Rules,
 ) -> Result<u64, ImportError> {
     let n = f64::from(1u32 << zoom);
-    let mut found: Vec<FoundGroup> = Vec::new();
-    for cluster in clusters(&partial.db, structure_ways, n, rules)? {
-        found.extend(groups_in(partial, &cluster, zoom, rules)?);
-    }
+    // The store is read for one cluster while the groups of the one before are found.
+    let clusters = clusters(&partial.db, structure_ways, n, rules)?;
+    let mut found: Vec<FoundGroup> = std::thread::scope(|scope| {
+        let (send, receive) = std::sync::mpsc::sync_channel::<OsmData>(1);
+        let finder = scope.spawn(move || {
+            receive
+                .into_iter()
+                .flat_map(|data| found_groups(data, zoom, rules))
+                .collect::<Vec<_>>()
+        });
+        for cluster in &clusters {
+            let data = cluster_data(partial, cluster, rules)?;
+            if send.send(data).is_err() {
+                break;
+            }
+        }
+        drop(send);
+        finder.join().map_err(|_| ImportError::Io {
+            path: partial.path.clone(),
+            source: std::io::Error::other("finding bridge and tunnel groups panicked"),
+        })
+    })?;
     found.sort_by_key(|g| g.first_way);
     let sqlite = partial.sqlite();
     let db = &partial.db;
@@ -932,14 +950,13 @@ fn clusters(
     Ok(by_root.into_values().collect())
 }
 
-/// The groups of a cluster, found among what can take part in one: the structure ways, the
-/// ways they may cross, and near tunnels what reaches down into the ground.
-fn groups_in(
+/// What can take part in a cluster's groups: the structure ways, the ways they may cross, and
+/// near tunnels what reaches down into the ground.
+fn cluster_data(
     partial: &Partial,
     cluster: &Cluster,
-    zoom: u8,
     rules: &Rules,
-) -> Result<Vec<FoundGroup>, ImportError> {
+) -> Result<OsmData, ImportError> {
     use crate::osm::structures::may_be_crossed;
     let sqlite = partial.sqlite();
     let db = &partial.db;
@@ -991,10 +1008,15 @@ fn groups_in(
             }
         }
     }
+    Ok(data)
+}
+
+/// The groups among a cluster's elements, as they will be stored.
+fn found_groups(data: OsmData, zoom: u8, rules: &Rules) -> Vec<FoundGroup> {
     let index = OsmIndex::new(data, zoom, rules.classify).with_foundations(rules.depth);
     let ways: &[Way] = &index.data().ways;
     let way_id = |i: u32| ways.get(i as usize).map_or(0, |w| w.id);
-    Ok(index
+    index
         .structures()
         .iter()
         .map(|group| FoundGroup {
@@ -1008,7 +1030,7 @@ fn groups_in(
             bounds: group.bounds,
             under: crate::osm::index::under_bridges(ways, std::slice::from_ref(group)),
         })
-        .collect())
+        .collect()
 }
 
 fn write_meta(partial: &Partial, records: &[ExtractRecord], zoom: u8) -> Result<(), ImportError> {
