@@ -121,29 +121,12 @@ fn read_one(path: &Path, acc: &mut Accumulator) -> Result<Bounds, OsmReadError> 
     let reader = BlobReader::from_path(path).map_err(|e| error(e.to_string()))?;
     let mut header_bounds: Option<Bounds> = None;
     let mut extent: Option<Bounds> = None;
-    let mut grow = |p: LonLat| {
-        let b = extent.get_or_insert(Bounds {
-            west: p.lon,
-            east: p.lon,
-            south: p.lat,
-            north: p.lat,
-        });
-        b.west = b.west.min(p.lon);
-        b.east = b.east.max(p.lon);
-        b.south = b.south.min(p.lat);
-        b.north = b.north.max(p.lat);
-    };
     for blob in reader {
         let blob = blob.map_err(|e| error(e.to_string()))?;
         match blob.decode().map_err(|e| error(e.to_string()))? {
             BlobDecode::OsmHeader(header) => {
-                if let Some(b) = header.bbox() {
-                    header_bounds = Some(Bounds {
-                        west: b.left,
-                        east: b.right,
-                        south: b.bottom,
-                        north: b.top,
-                    });
+                if let Some(b) = bounds_in(&header) {
+                    header_bounds = Some(b);
                 }
             }
             BlobDecode::OsmData(block) => {
@@ -154,7 +137,7 @@ fn read_one(path: &Path, acc: &mut Accumulator) -> Result<Bounds, OsmReadError> 
                                 lon: node.lon(),
                                 lat: node.lat(),
                             };
-                            grow(position);
+                            grow(&mut extent, position);
                             add_node(acc, node.id(), position, node.tags());
                         }
                         Element::DenseNode(node) => {
@@ -162,7 +145,7 @@ fn read_one(path: &Path, acc: &mut Accumulator) -> Result<Bounds, OsmReadError> 
                                 lon: node.lon(),
                                 lat: node.lat(),
                             };
-                            grow(position);
+                            grow(&mut extent, position);
                             add_node(acc, node.id(), position, node.tags());
                         }
                         Element::Way(way) => {
@@ -187,6 +170,30 @@ fn read_one(path: &Path, acc: &mut Accumulator) -> Result<Bounds, OsmReadError> 
     header_bounds.or(extent).ok_or_else(|| OsmReadError::Empty {
         path: path.to_path_buf(),
     })
+}
+
+/// The box a header declares.
+pub(crate) fn bounds_in(header: &osmpbf::HeaderBlock) -> Option<Bounds> {
+    header.bbox().map(|b| Bounds {
+        west: b.left,
+        east: b.right,
+        south: b.bottom,
+        north: b.top,
+    })
+}
+
+/// Grows `extent` to hold `p`.
+pub(crate) fn grow(extent: &mut Option<Bounds>, p: LonLat) {
+    let b = extent.get_or_insert(Bounds {
+        west: p.lon,
+        east: p.lon,
+        south: p.lat,
+        north: p.lat,
+    });
+    b.west = b.west.min(p.lon);
+    b.east = b.east.max(p.lon);
+    b.south = b.south.min(p.lat);
+    b.north = b.north.max(p.lat);
 }
 
 /// A relation as the model keeps it.

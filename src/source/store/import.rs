@@ -341,12 +341,7 @@ fn rows_of(blob: &osmpbf::Blob) -> Result<Rows, RowsError> {
     let mut rows = Rows::default();
     match blob.decode().map_err(|e| RowsError::Pbf(e.to_string()))? {
         BlobDecode::OsmHeader(header) => {
-            rows.header = header.bbox().map(|b| Bounds {
-                west: b.left,
-                east: b.right,
-                south: b.bottom,
-                north: b.top,
-            });
+            rows.header = crate::source::osm_pbf::bounds_in(&header);
         }
         BlobDecode::OsmData(block) => {
             for element in block.elements() {
@@ -484,7 +479,7 @@ fn read_extract(
         }
         for rows in decode_all(&batch) {
             let rows = rows.map_err(|(offset, e)| failed(offset, e))?;
-            header = header.or(rows.header);
+            header = rows.header.or(header);
             writer.write(rows, nodes, &mut extent, state)?;
         }
         state.bytes = before + read.load(Ordering::Relaxed);
@@ -549,7 +544,7 @@ impl<'a> RowWriter<'a> {
         let sqlite = self.partial.sqlite();
         for node in rows.nodes {
             nodes.push(node.id, node.at)?;
-            grow(extent, node.position);
+            crate::source::osm_pbf::grow(extent, node.position);
             if let Some(tags) = node.tags {
                 let p = node.position;
                 self.node
@@ -568,19 +563,6 @@ impl<'a> RowWriter<'a> {
         }
         Ok(())
     }
-}
-
-fn grow(extent: &mut Option<Bounds>, p: LonLat) {
-    let b = extent.get_or_insert(Bounds {
-        west: p.lon,
-        east: p.lon,
-        south: p.lat,
-        north: p.lat,
-    });
-    b.west = b.west.min(p.lon);
-    b.east = b.east.max(p.lon);
-    b.south = b.south.min(p.lat);
-    b.north = b.north.max(p.lat);
 }
 
 /// Resolves the raw ways into ways with positions, registers them in the cells, and keeps the
@@ -673,28 +655,29 @@ fn resolve_ways(
     Ok(structure_ways)
 }
 
-/// Registers the tagged nodes in their cells; returns how many there are.
-fn index_nodes(partial: &Partial, n: f64) -> Result<u64, ImportError> {
+/// Registers every row `select` gives (an id and a blob or two coordinates) as an element of
+/// `kind` in the cells of the box `bounds` makes of it; returns how many rows there were.
+fn register(
+    partial: &Partial,
+    n: f64,
+    select: &str,
+    kind: i64,
+    bounds: &dyn Fn(&rusqlite::Row<'_>) -> Result<Option<Bounds>, ImportError>,
+) -> Result<u64, ImportError> {
     let sqlite = partial.sqlite();
     let db = &partial.db;
     db.execute_batch("BEGIN").map_err(&sqlite)?;
-    let mut read = db
-        .prepare("SELECT id, lon, lat FROM nodes")
-        .map_err(&sqlite)?;
+    let mut read = db.prepare(select).map_err(&sqlite)?;
     let mut insert = db
-        .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 0, ?3)")
+        .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, ?3, ?4)")
         .map_err(&sqlite)?;
     let mut rows = read.query([]).map_err(&sqlite)?;
     let mut count = 0u64;
     while let Some(row) = rows.next().map_err(&sqlite)? {
         let id: i64 = row.get(0).map_err(&sqlite)?;
-        let position = LonLat {
-            lon: row.get(1).map_err(&sqlite)?,
-            lat: row.get(2).map_err(&sqlite)?,
-        };
-        if let Some(bounds) = bounds_of(&[position]) {
-            for (x, y) in cells_of(&bounds, n) {
-                insert.execute(params![x, y, id]).map_err(&sqlite)?;
+        if let Some(b) = bounds(row)? {
+            for (x, y) in cells_of(&b, n) {
+                insert.execute(params![x, y, kind, id]).map_err(&sqlite)?;
             }
         }
         count += 1;
@@ -704,21 +687,24 @@ fn index_nodes(partial: &Partial, n: f64) -> Result<u64, ImportError> {
     Ok(count)
 }
 
-/// Registers each relation in the cells of its ways' box (and its member relations' ways');
-/// returns how many relations there are.
+/// Registers the tagged nodes in their cells; returns how many there are.
+fn index_nodes(partial: &Partial, n: f64) -> Result<u64, ImportError> {
+    let sqlite = partial.sqlite();
+    register(partial, n, "SELECT id, lon, lat FROM nodes", 0, &|row| {
+        let position = LonLat {
+            lon: row.get(1).map_err(&sqlite)?,
+            lat: row.get(2).map_err(&sqlite)?,
+        };
+        Ok(bounds_of(&[position]))
+    })
+}
+
+/// Registers each relation in the cells of its ways' box (and its member relations' ways'),
+/// then indexes the cells; returns how many relations there are.
 fn index_relations(partial: &Partial, n: f64) -> Result<u64, ImportError> {
     let sqlite = partial.sqlite();
     let db = &partial.db;
-    db.execute_batch("BEGIN").map_err(&sqlite)?;
-    let mut read = db
-        .prepare("SELECT id, data FROM relations")
-        .map_err(&sqlite)?;
-    let mut insert = db
-        .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 2, ?3)")
-        .map_err(&sqlite)?;
-    let mut rows = read.query([]).map_err(&sqlite)?;
-    let mut count = 0u64;
-    while let Some(row) = rows.next().map_err(&sqlite)? {
+    let count = register(partial, n, "SELECT id, data FROM relations", 2, &|row| {
         let id: i64 = row.get(0).map_err(&sqlite)?;
         let data: Vec<u8> = row.get(1).map_err(&sqlite)?;
         let relation = codec::decode_relation(id, &data)?;
@@ -728,15 +714,9 @@ fn index_relations(partial: &Partial, n: f64) -> Result<u64, ImportError> {
                 positions.extend(way.positions);
             }
         }
-        if let Some(bounds) = bounds_of(&positions) {
-            for (x, y) in cells_of(&bounds, n) {
-                insert.execute(params![x, y, id]).map_err(&sqlite)?;
-            }
-        }
-        count += 1;
-    }
-    drop(rows);
-    db.execute_batch("COMMIT; CREATE INDEX cells_at ON cells (x, y, kind, id);")
+        Ok(bounds_of(&positions))
+    })?;
+    db.execute_batch("CREATE INDEX cells_at ON cells (x, y, kind, id);")
         .map_err(&sqlite)?;
     Ok(count)
 }
