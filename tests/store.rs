@@ -181,3 +181,76 @@ fn two_commands_that_need_a_missing_store_import_it_once() {
         std::fs::read(dir.path().join("tile1.glb")).unwrap()
     );
 }
+
+/// What a selection names: its elements by id, its groups by their chains' way ids, and the
+/// joints at the nodes of its road network's ways (the ways whose profiles use them) with the
+/// ways through them.
+fn named(selection: &terrastitch::osm::index::Selection<'_>) -> Vec<String> {
+    let all = selection.all_ways;
+    let mut names: Vec<String> = Vec::new();
+    names.extend(selection.ways.iter().map(|w| format!("way {}", w.id)));
+    names.extend(selection.nodes.iter().map(|n| format!("node {}", n.id)));
+    names.extend(
+        selection
+            .relations
+            .iter()
+            .map(|r| format!("relation {}", r.id)),
+    );
+    names.extend(
+        selection
+            .coastlines
+            .iter()
+            .map(|w| format!("coast {}", w.id)),
+    );
+    for group in &selection.structures {
+        let ways: Vec<i64> = group
+            .chains
+            .iter()
+            .flat_map(|c| c.ways.iter().map(|w| all[w.way as usize].id))
+            .collect();
+        names.push(format!("group {ways:?} crossing {}", group.crossings.len()));
+    }
+    if let Some(roads) = selection.roads {
+        for way in &selection.ways {
+            if !terrastitch::features::roads::joins(&way.tags) {
+                continue;
+            }
+            for node in &way.nodes {
+                if let Some(through) = roads.joints.get(node) {
+                    let ids: Vec<i64> = through.iter().map(|&i| all[i as usize].id).collect();
+                    names.push(format!("joint {node} {ids:?}"));
+                }
+            }
+            if let Some(under) = roads.under_bridges.get(&way.id) {
+                names.push(format!("under {} {}", way.id, under.len()));
+            }
+        }
+    }
+    names
+}
+
+#[test]
+fn every_tile_of_the_sample_selects_from_the_store_what_it_selects_from_memory() {
+    use terrastitch::provider::osm_source::rules;
+    use terrastitch::source::store::{import::import, OsmStore};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("osm.sqlite");
+    import(&[sample_osm()], &path, 14, &rules(), &|_| {}).unwrap();
+    let store = OsmStore::open(&path).unwrap();
+    let memory =
+        terrastitch::provider::Inputs::open(&[sample_osm()], &common::sample_srtm(), 14).unwrap();
+    let whole = common::whole(&memory);
+    let margin = terrastitch::provider::inputs::QUERY_MARGIN_DEG;
+    let mut tiles = 0;
+    for x in 8526..=8533 {
+        for y in 5972..=5976 {
+            let tile = terrastitch::TileId { z: 14, x, y };
+            let from_memory = named(&whole.query(tile, margin));
+            let closure = store.tile_index(tile, margin).unwrap();
+            let from_store = named(&closure.query(tile, margin));
+            assert_eq!(from_store, from_memory, "tile {tile}");
+            tiles += usize::from(!from_memory.is_empty());
+        }
+    }
+    assert!(tiles >= 20, "{tiles} tiles hold data");
+}

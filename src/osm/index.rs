@@ -403,7 +403,7 @@ fn degrees_to_segment(p: LonLat, a: LonLat, b: LonLat) -> f64 {
 }
 
 /// Like [`Bounds::intersects`], but a box of zero width (a node, a north–south way) counts.
-fn meets(a: &Bounds, b: &Bounds) -> bool {
+pub fn meets(a: &Bounds, b: &Bounds) -> bool {
     a.west <= b.east && b.west <= a.east && a.south <= b.north && b.south <= a.north
 }
 

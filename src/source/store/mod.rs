@@ -18,7 +18,7 @@ use std::sync::Mutex;
 
 use rusqlite::{params, Connection, OpenFlags, OptionalExtension};
 
-use crate::osm::index::{cells_of, relation_ways as model_relation_ways};
+use crate::osm::index::{cells_of, meets, relation_ways as model_relation_ways};
 use crate::osm::{
     bounds_of, Bounds, ElementType, LonLat, Node, OsmData, OsmIndex, Relation, RoadGraph, Way,
 };
@@ -249,7 +249,7 @@ impl OsmStore {
         let mut near = Vec::new();
         for id in way_ids {
             if let Some(w) = way(db, id).map_err(&decode)? {
-                if bounds_of(&w.positions).is_some_and(|b| b.intersects(&area)) {
+                if bounds_of(&w.positions).is_some_and(|b| meets(&b, &area)) {
                     near.push(id);
                     ways.insert(id, w);
                 }
