@@ -10,13 +10,15 @@
 //! 3. **Find once over all the data** what a tile needs from beyond itself: the joints of the
 //!    road network (nodes met more than once by its ways), the bridge and tunnel groups with
 //!    what they cross and what stands over their tunnels, where bridges pass over ways, and
-//!    the coastlines. Groups are found among the elements near any bridge or tunnel, which are
-//!    all the elements that can take part in one.
+//!    the coastlines. Groups are found a cluster of bridge and tunnel ways at a time (ways
+//!    whose surroundings share a cell), among what can take part in one: the structure ways,
+//!    the ways they may cross, and near tunnels what reaches into the ground.
 //!
 //! Everything is written to `PATH.partial` and renamed over the store when whole, so a store
 //! at its path is always a finished one; an import that stops leaves the old store in use.
 //! Memory holds SQLite's page cache, the node file's block cache and index, the ids of the
-//! bridge and tunnel ways, and the elements near them while their groups are found.
+//! bridge and tunnel ways, one cluster's surroundings while its groups are found, and the
+//! groups found until they are written.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::io::Read;
