@@ -174,9 +174,11 @@ fn lock_exclusively(file: &std::fs::File) -> std::io::Result<()> {
     }
 }
 
-/// Whether `store` holds `extracts` as they are on disk now, indexed at `zoom`.
+/// Whether `store` holds `extracts` as they are on disk now, indexed at `zoom` by this version
+/// of the program (another may find bridges, tunnels and joints by other rules).
 pub fn is_current(store: &OsmStore, extracts: &[PathBuf], zoom: u8) -> bool {
     store.zoom() == zoom
+        && store.program() == env!("CARGO_PKG_VERSION")
         && store.extracts().len() == extracts.len()
         && store.extracts().iter().zip(extracts).all(|(record, path)| {
             same_file(&record.path, path)

@@ -178,8 +178,12 @@ pub fn decode_way(id: i64, bytes: &[u8]) -> Result<Way, DecodeError> {
     let mut positions = Vec::with_capacity(nodes.len());
     let (mut lon, mut lat) = (0i64, 0i64);
     for _ in 0..nodes.len() {
-        lon += r.signed()?;
-        lat += r.signed()?;
+        let out_of_range = DecodeError {
+            what: "way",
+            why: "a position is out of range",
+        };
+        lon = lon.checked_add(r.signed()?).ok_or(out_of_range.clone())?;
+        lat = lat.checked_add(r.signed()?).ok_or(out_of_range)?;
         let at = Decimicro {
             lon: i32::try_from(lon).map_err(|_| r.damaged("a longitude is out of range"))?,
             lat: i32::try_from(lat).map_err(|_| r.damaged("a latitude is out of range"))?,

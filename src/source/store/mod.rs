@@ -61,6 +61,8 @@ pub struct OsmStore {
     path: PathBuf,
     zoom: u8,
     extracts: Vec<ExtractRecord>,
+    /// The version of the program that imported it (its facts follow that version's rules).
+    program: String,
     /// The coastline ways, whole: which side of the coast a tile lies on is decided by the
     /// nearest one, wherever it is.
     coastlines: Vec<Way>,
@@ -101,6 +103,7 @@ impl OsmStore {
         let zoom = meta("zoom")?
             .and_then(|z| z.parse().ok())
             .ok_or_else(|| format_error("it names no zoom".to_string()))?;
+        let program = meta("program")?.unwrap_or_default();
         let extracts: Vec<ExtractRecord> = meta("extracts")?
             .and_then(|e| serde_json::from_str(&e).ok())
             .ok_or_else(|| format_error("it names no extracts".to_string()))?;
@@ -129,6 +132,7 @@ impl OsmStore {
             path: path.to_path_buf(),
             zoom,
             extracts,
+            program,
             coastlines,
             idle: Mutex::new(idle),
             returned: std::sync::Condvar::new(),
@@ -142,6 +146,11 @@ impl OsmStore {
     /// The zoom of the cells it is indexed by.
     pub fn zoom(&self) -> u8 {
         self.zoom
+    }
+
+    /// The version of the program that imported it.
+    pub fn program(&self) -> &str {
+        &self.program
     }
 
     /// The extracts it was imported from, in the order given.
@@ -176,11 +185,28 @@ impl OsmStore {
         }
     }
 
-    /// Runs `read` on a connection of its own, waiting for one when all are in use.
+    /// Runs `read` on a connection of its own, waiting for one when all are in use; the
+    /// connection goes back to the pool however `read` ends, a panic included.
     fn with_connection<T>(
         &self,
         read: impl FnOnce(&Connection) -> Result<T, StoreError>,
     ) -> Result<T, StoreError> {
+        struct Lent<'a> {
+            store: &'a OsmStore,
+            db: Option<Connection>,
+        }
+        impl Drop for Lent<'_> {
+            fn drop(&mut self) {
+                if let Some(db) = self.db.take() {
+                    self.store
+                        .idle
+                        .lock()
+                        .unwrap_or_else(|p| p.into_inner())
+                        .push(db);
+                    self.store.returned.notify_one();
+                }
+            }
+        }
         let db = {
             let mut idle = self.idle.lock().unwrap_or_else(|p| p.into_inner());
             loop {
@@ -190,10 +216,14 @@ impl OsmStore {
                 idle = self.returned.wait(idle).unwrap_or_else(|p| p.into_inner());
             }
         };
-        let result = read(&db);
-        self.idle.lock().unwrap_or_else(|p| p.into_inner()).push(db);
-        self.returned.notify_one();
-        result
+        let lent = Lent {
+            store: self,
+            db: Some(db),
+        };
+        match &lent.db {
+            Some(db) => read(db),
+            None => unreachable!("a lent connection is held until it is dropped"),
+        }
     }
 
     /// The closure of `tile` (see the module's notes), indexed: its query for the tile with
