@@ -139,14 +139,6 @@ fn one_slot_no_queue() -> ServerConfig {
     }
 }
 
-async fn get(server: &TestServer, path: &str, headers: &[(&str, &str)]) -> reqwest::Response {
-    let mut request = reqwest::Client::new().get(server.url(path));
-    for (name, value) in headers {
-        request = request.header(*name, *value);
-    }
-    request.send().await.expect("request reaches the server")
-}
-
 /// Waits until the background work has nothing in line (polling: no deadline is asserted).
 async fn background_done(server: &TestServer) {
     for _ in 0..20_000 {
@@ -162,12 +154,12 @@ async fn background_done(server: &TestServer) {
 async fn a_stale_tile_is_served_then_swapped() {
     let fake = Arc::new(Fake::default());
     let (server, _dir) = start(&fake, ServerConfig::default()).await;
-    let first = get(&server, &path(tile(1)), &[]).await;
+    let first = server.get(&path(tile(1)), &[]).await;
     assert_eq!(first.headers()["x-cache"], "miss");
     assert_eq!(first.bytes().await.unwrap(), Fake::body(tile(1), 0));
 
     fake.version.store(1, Ordering::SeqCst);
-    let stale = get(&server, &path(tile(1)), &[]).await;
+    let stale = server.get(&path(tile(1)), &[]).await;
     assert_eq!(stale.headers()["x-cache"], "stale");
     assert_eq!(
         stale.bytes().await.unwrap(),
@@ -175,7 +167,7 @@ async fn a_stale_tile_is_served_then_swapped() {
         "the old tile while the new one is made"
     );
     background_done(&server).await;
-    let fresh = get(&server, &path(tile(1)), &[]).await;
+    let fresh = server.get(&path(tile(1)), &[]).await;
     assert_eq!(fresh.headers()["x-cache"], "hit");
     assert_eq!(fresh.bytes().await.unwrap(), Fake::body(tile(1), 1));
     assert_eq!(fake.made.load(Ordering::SeqCst), 2);
@@ -186,7 +178,7 @@ async fn a_stale_tile_is_served_then_swapped() {
 async fn a_request_past_the_queue_gets_503_with_retry_after() {
     let fake = Arc::new(Fake::default());
     let (server, _dir) = start(&fake, one_slot_no_queue()).await;
-    let cached = get(&server, &path(tile(3)), &[]).await;
+    let cached = server.get(&path(tile(3)), &[]).await;
     assert_eq!(cached.status(), 200);
 
     let mut started = fake.gate(tile(1));
@@ -197,7 +189,7 @@ async fn a_request_past_the_queue_gets_503_with_retry_after() {
         "the first render holds the slot"
     );
 
-    let refused = get(&server, &path(tile(2)), &[]).await;
+    let refused = server.get(&path(tile(2)), &[]).await;
     assert_eq!(refused.status(), 503);
     assert_eq!(refused.headers()["retry-after"], "5");
     let json: serde_json::Value = refused.json().await.unwrap();
@@ -205,7 +197,7 @@ async fn a_request_past_the_queue_gets_503_with_retry_after() {
         json["error"].as_str().unwrap().contains("render slot"),
         "{json}"
     );
-    let hit = get(&server, &path(tile(3)), &[]).await;
+    let hit = server.get(&path(tile(3)), &[]).await;
     assert_eq!(hit.status(), 200, "a stored tile needs no slot");
     assert_eq!(hit.headers()["x-cache"], "hit");
 
@@ -220,17 +212,17 @@ async fn a_304_only_for_the_coding_asked() {
     let fake = Arc::new(Fake::default());
     let (server, _dir) = start(&fake, ServerConfig::default()).await;
     let url = path(tile(1));
-    let gzip = get(&server, &url, &[("accept-encoding", "gzip")]).await;
+    let gzip = server.get(&url, &[("accept-encoding", "gzip")]).await;
     assert_eq!(gzip.headers()["content-encoding"], "gzip");
     let etag = gzip.headers()["etag"].to_str().unwrap().to_string();
 
     for (accept, expected) in [("gzip", 304), ("", 200), ("br", 200), ("br;q=0, gzip", 304)] {
-        let response = get(
-            &server,
-            &url,
-            &[("if-none-match", &etag), ("accept-encoding", accept)],
-        )
-        .await;
+        let response = server
+            .get(
+                &url,
+                &[("if-none-match", &etag), ("accept-encoding", accept)],
+            )
+            .await;
         assert_eq!(response.status(), expected, "Accept-Encoding: {accept}");
         if expected == 304 {
             assert_eq!(response.headers()["etag"], etag.as_str());
@@ -266,7 +258,7 @@ async fn a_failed_tile_is_answered_with_its_error_without_trying_again() {
     let (server, _dir) = start(&fake, ServerConfig::default()).await;
     let failing = path(tile(FAILING_X));
     for attempt in 0..3 {
-        let response = get(&server, &failing, &[]).await;
+        let response = server.get(&failing, &[]).await;
         assert_eq!(response.status(), 500, "attempt {attempt}");
         let json: serde_json::Value = response.json().await.unwrap();
         assert!(
@@ -285,7 +277,7 @@ async fn a_failed_tile_is_answered_with_its_error_without_trying_again() {
 async fn a_zoom_the_provider_does_not_offer_is_a_404_with_a_json_body() {
     let fake = Arc::new(Fake::default());
     let (server, _dir) = start(&fake, ServerConfig::default()).await;
-    let response = get(&server, "/tiles/13/4264/2986.glb", &[]).await;
+    let response = server.get("/tiles/13/4264/2986.glb", &[]).await;
     assert_eq!(response.status(), 404);
     let json: serde_json::Value = response.json().await.unwrap();
     assert_eq!(json["error"], "zoom 13 is not served");
@@ -298,17 +290,17 @@ async fn tiles_are_refused_with_503_until_a_provider_is_in_place() {
     let dir = tempfile::tempdir().unwrap();
     let state = TestServer::state(&dir.path().join("cache.sqlite"), &ServerConfig::default());
     let server = TestServer::start_state(state).await;
-    let waiting = get(&server, &path(tile(1)), &[]).await;
+    let waiting = server.get(&path(tile(1)), &[]).await;
     assert_eq!(waiting.status(), 503);
     assert!(waiting.headers().contains_key("retry-after"));
-    assert_eq!(get(&server, "/ready", &[]).await.status(), 503);
+    assert_eq!(server.get("/ready", &[]).await.status(), 503);
 
     server.state.provide(Arc::new(Fake::default()));
-    let ready: serde_json::Value = get(&server, "/ready", &[]).await.json().await.unwrap();
+    let ready: serde_json::Value = server.get("/ready", &[]).await.json().await.unwrap();
     assert_eq!(
         ready,
         serde_json::json!({ "status": "ready", "fake": true })
     );
-    assert_eq!(get(&server, &path(tile(1)), &[]).await.status(), 200);
+    assert_eq!(server.get(&path(tile(1)), &[]).await.status(), 200);
     server.stop().await;
 }

@@ -32,14 +32,6 @@ fn two_threads() -> ServerConfig {
     }
 }
 
-async fn get_with(server: &TestServer, path: &str, headers: &[(&str, &str)]) -> reqwest::Response {
-    let mut request = reqwest::Client::new().get(server.url(path));
-    for (name, value) in headers {
-        request = request.header(*name, *value);
-    }
-    request.send().await.expect("request reaches the server")
-}
-
 async fn wait_for_metric(server: &TestServer, name: &str, at_least: f64) {
     let deadline = Instant::now() + Duration::from_secs(60);
     while server.metric(name).await < at_least {
@@ -59,7 +51,7 @@ async fn codings_are_negotiated_and_each_has_its_own_validator() {
     let mut bodies = Vec::new();
     let mut etags = Vec::new();
     for accept in ["", "gzip", "br", "gzip, deflate, br", "br;q=0, gzip"] {
-        let response = get_with(&server, path, &[("accept-encoding", accept)]).await;
+        let response = server.get(path, &[("accept-encoding", accept)]).await;
         assert_eq!(response.status(), 200);
         let headers = response.headers().clone();
         let vary = headers["vary"].to_str().unwrap().to_lowercase();
@@ -112,12 +104,12 @@ async fn codings_are_negotiated_and_each_has_its_own_validator() {
     assert_eq!(distinct.len(), 3, "{etags:?}");
     for (held, etag) in etags[..3].iter().enumerate() {
         for (asked, accept) in ["", "gzip", "br"].iter().enumerate() {
-            let response = get_with(
-                &server,
-                path,
-                &[("if-none-match", etag), ("accept-encoding", accept)],
-            )
-            .await;
+            let response = server
+                .get(
+                    path,
+                    &[("if-none-match", etag), ("accept-encoding", accept)],
+                )
+                .await;
             let expected = if held == asked { 304 } else { 200 };
             assert_eq!(response.status(), expected, "{etag} / {accept}");
             if expected == 304 {
@@ -138,7 +130,7 @@ async fn a_render_past_its_time_limit_is_stopped_with_a_503() {
         ..ServerConfig::default()
     };
     let server = start(dir.path(), config).await;
-    let response = get_with(&server, "/tiles/14/8529/5973.glb", &[]).await;
+    let response = server.get("/tiles/14/8529/5973.glb", &[]).await;
     assert_eq!(response.status(), 503);
     assert!(response.headers().contains_key("retry-after"));
     let body = response.text().await.unwrap();
@@ -149,7 +141,7 @@ async fn a_render_past_its_time_limit_is_stopped_with_a_503() {
     );
     assert_eq!(server.state.cache.store().usage().unwrap().tiles, 0);
     // Asked again, the tile is not tried again: the same error, at once.
-    let again = get_with(&server, "/tiles/14/8529/5973.glb", &[]).await;
+    let again = server.get("/tiles/14/8529/5973.glb", &[]).await;
     assert_eq!(again.status(), 503);
     let body = again.text().await.unwrap();
     assert!(
@@ -193,7 +185,7 @@ async fn a_stale_tile_is_served_while_it_is_made_again() {
             .unwrap();
     }
     let server = TestServer::start_with(&cache, sources(), &two_threads()).await;
-    let stale = get_with(&server, "/tiles/14/8527/5974.glb", &[]).await;
+    let stale = server.get("/tiles/14/8527/5974.glb", &[]).await;
     assert_eq!(stale.status(), 200);
     assert_eq!(stale.headers()["x-cache"], "stale");
     assert_eq!(
@@ -201,7 +193,7 @@ async fn a_stale_tile_is_served_while_it_is_made_again() {
         b"a tile from an older pipeline"
     );
     wait_for_metric(&server, "terrastitch_regenerations_total", 1.0).await;
-    let fresh = get_with(&server, "/tiles/14/8527/5974.glb", &[]).await;
+    let fresh = server.get("/tiles/14/8527/5974.glb", &[]).await;
     assert_eq!(fresh.headers()["x-cache"], "hit");
     assert_eq!(&fresh.bytes().await.unwrap()[..4], b"glTF");
     let stored = server.state.cache.store().list(&TileFilter::All).unwrap();
@@ -256,7 +248,7 @@ async fn admin_routes_need_the_token_then_purge_and_regenerate() {
     let _ = response.bytes().await;
 
     for tile in ["8527/5974", "8528/5974"] {
-        let response = get_with(&server, &format!("/tiles/14/{tile}.glb"), &[]).await;
+        let response = server.get(&format!("/tiles/14/{tile}.glb"), &[]).await;
         assert_eq!(response.headers()["x-cache"], "miss");
         let _ = response.bytes().await;
     }
@@ -294,9 +286,9 @@ async fn admin_routes_need_the_token_then_purge_and_regenerate() {
     assert_eq!(response.status(), 200);
     let json: serde_json::Value = response.json().await.unwrap();
     assert_eq!(json["removed"], 1);
-    let again = get_with(&server, "/tiles/14/8527/5974.glb", &[]).await;
+    let again = server.get("/tiles/14/8527/5974.glb", &[]).await;
     assert_eq!(again.headers()["x-cache"], "miss");
-    let kept = get_with(&server, "/tiles/14/8528/5974.glb", &[]).await;
+    let kept = server.get("/tiles/14/8528/5974.glb", &[]).await;
     assert_eq!(kept.headers()["x-cache"], "hit");
     server.stop().await;
 }
@@ -306,18 +298,18 @@ async fn not_ready_until_the_sources_are_loaded() {
     let dir = tempfile::tempdir().unwrap();
     let state = TestServer::state(&dir.path().join("cache.sqlite"), &two_threads());
     let server = TestServer::start_state(state).await;
-    assert_eq!(get_with(&server, "/health", &[]).await.status(), 200);
-    let ready = get_with(&server, "/ready", &[]).await;
+    assert_eq!(server.get("/health", &[]).await.status(), 200);
+    let ready = server.get("/ready", &[]).await;
     assert_eq!(ready.status(), 503);
     let json: serde_json::Value = ready.json().await.unwrap();
     assert_eq!(json["status"], "not ready");
-    let tile = get_with(&server, "/tiles/14/8527/5974.glb", &[]).await;
+    let tile = server.get("/tiles/14/8527/5974.glb", &[]).await;
     assert_eq!(tile.status(), 503);
     assert!(tile.headers().contains_key("retry-after"));
     let _ = tile.bytes().await;
     let renderer = Renderer::new(sources(), Config::default().render, 14);
     server.state.provide(std::sync::Arc::new(renderer));
-    let ready = get_with(&server, "/ready", &[]).await;
+    let ready = server.get("/ready", &[]).await;
     assert_eq!(ready.status(), 200);
     let json: serde_json::Value = ready.json().await.unwrap();
     assert_eq!(json["srtm_files"], 1);
@@ -330,7 +322,7 @@ async fn not_ready_until_the_sources_are_loaded() {
 async fn metrics_count_routes_and_stages_and_responses_carry_request_ids() {
     let dir = tempfile::tempdir().unwrap();
     let server = start(dir.path(), two_threads()).await;
-    let tile = get_with(&server, "/tiles/14/8527/5974.glb", &[]).await;
+    let tile = server.get("/tiles/14/8527/5974.glb", &[]).await;
     let generated = tile.headers()["x-request-id"].to_str().unwrap().to_string();
     assert!(!generated.is_empty());
     let _ = tile.bytes().await;
@@ -342,17 +334,15 @@ async fn metrics_count_routes_and_stages_and_responses_carry_request_ids() {
     assert_eq!(wrong_method.status(), 405);
     let json: serde_json::Value = wrong_method.json().await.unwrap();
     assert!(json["error"].as_str().unwrap().contains("DELETE"), "{json}");
-    let echoed = get_with(&server, "/nowhere", &[("x-request-id", "client-chosen-42")]).await;
+    let echoed = server
+        .get("/nowhere", &[("x-request-id", "client-chosen-42")])
+        .await;
     assert_eq!(echoed.status(), 404);
     assert_eq!(echoed.headers()["x-request-id"], "client-chosen-42");
-    let other = get_with(&server, "/health", &[]).await;
+    let other = server.get("/health", &[]).await;
     assert_ne!(other.headers()["x-request-id"].to_str().unwrap(), generated);
 
-    let text = get_with(&server, "/metrics", &[])
-        .await
-        .text()
-        .await
-        .unwrap();
+    let text = server.get("/metrics", &[]).await.text().await.unwrap();
     for line in [
         "terrastitch_http_requests_total{route=\"/tiles/{z}/{x}/{file}\",status=\"200\"} 1",
         "terrastitch_http_requests_total{route=\"unmatched\",status=\"404\"} 1",
@@ -401,7 +391,7 @@ async fn the_3d_tiles_routes_walk_down_to_content_and_refuse_what_is_not_there()
     };
 
     // The root, then a child tileset, then a content tile it names, all as the URIs say.
-    let (status, root) = json(get_with(&server, "/tileset.json?compress=meshopt", &[]).await).await;
+    let (status, root) = json(server.get("/tileset.json?compress=meshopt", &[]).await).await;
     assert_eq!(status, 200, "{root}");
     assert_eq!(root["asset"]["version"], "1.1");
     let child = root["root"]["children"][0]["content"]["uri"]
@@ -410,7 +400,7 @@ async fn the_3d_tiles_routes_walk_down_to_content_and_refuse_what_is_not_there()
         .to_string();
     assert!(child.starts_with("3dtiles/") && child.ends_with(".json?compress=meshopt"));
     // The same root in the folder of the files it names: its URIs start there.
-    let (status, in_folder) = json(get_with(&server, "/3dtiles/tileset.json", &[]).await).await;
+    let (status, in_folder) = json(server.get("/3dtiles/tileset.json", &[]).await).await;
     assert_eq!(status, 200, "{in_folder}");
     assert_eq!(
         format!(
@@ -421,7 +411,7 @@ async fn the_3d_tiles_routes_walk_down_to_content_and_refuse_what_is_not_there()
         ),
         child.trim_end_matches("?compress=meshopt"),
     );
-    let (status, subtree) = json(get_with(&server, &format!("/{child}"), &[]).await).await;
+    let (status, subtree) = json(server.get(&format!("/{child}"), &[]).await).await;
     assert_eq!(status, 200, "{subtree}");
     let leaves = subtree["root"]["children"].as_array().unwrap();
     assert!(!leaves.is_empty());
@@ -449,7 +439,7 @@ async fn the_3d_tiles_routes_walk_down_to_content_and_refuse_what_is_not_there()
     }
     let uri = leaves[0]["content"]["uri"].as_str().unwrap();
     let content = format!("/3dtiles/{}", uri.trim_start_matches("../../"));
-    let response = get_with(&server, &content, &[]).await;
+    let response = server.get(&content, &[]).await;
     assert_eq!(response.status(), 200);
     assert_eq!(
         response.headers()["content-type"].to_str().unwrap(),
@@ -467,7 +457,7 @@ async fn the_3d_tiles_routes_walk_down_to_content_and_refuse_what_is_not_there()
         ("/tileset.json?compress=draco", 400),
         ("/3dtiles/14/8529/5973.glb?compress=zstd", 400),
     ] {
-        let (status, body) = json(get_with(&server, path, &[]).await).await;
+        let (status, body) = json(server.get(path, &[]).await).await;
         assert_eq!(status, expected, "{path}: {body}");
         assert!(body["error"].is_string(), "{path}: {body}");
     }
