@@ -317,13 +317,17 @@ impl OsmStore {
             }
             groups.push(data);
         }
-        // The ways that meet the selected ways at their joints.
+        // The ways that meet the selected ways at their joints (their facts, read here, are
+        // not read again when the closure is indexed).
+        let mut known = std::collections::HashMap::with_capacity(near.len());
         for id in near {
-            for (_, through) in facts(db, id).map_err(&decode)?.joints {
-                for other in through {
+            let found = facts(db, id).map_err(&decode)?;
+            for (_, through) in &found.joints {
+                for &other in through {
                     load(&mut ways, other)?;
                 }
             }
+            known.insert(id, found);
         }
         for coast in &self.coastlines {
             ways.entry(coast.id).or_insert_with(|| coast.clone());
@@ -340,7 +344,7 @@ impl OsmStore {
             relations: relations.into_values().collect(),
             coverage: self.coverage(),
         };
-        self.index(db, data, &groups)
+        self.index(db, data, &groups, known)
     }
 
     /// Indexes a closure with the facts found over the whole data.
@@ -349,6 +353,7 @@ impl OsmStore {
         db: &Connection,
         data: OsmData,
         groups: &[Vec<u8>],
+        mut known: std::collections::HashMap<i64, WayFacts>,
     ) -> Result<OsmIndex, StoreError> {
         let decode = self.decode();
         let index_of = |id: i64| -> Option<u32> {
@@ -363,7 +368,10 @@ impl OsmStore {
         }
         let mut roads = RoadGraph::default();
         for way in &data.ways {
-            let facts = facts(db, way.id).map_err(&decode)?;
+            let facts = match known.remove(&way.id) {
+                Some(facts) => facts,
+                None => facts(db, way.id).map_err(&decode)?,
+            };
             for (node, through) in facts.joints {
                 roads
                     .joints
