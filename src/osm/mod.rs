@@ -118,7 +118,7 @@ pub struct Member {
     pub role: String,
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Relation {
     pub id: i64,
     pub tags: Tags,

@@ -4,6 +4,7 @@
 
 pub mod fetch;
 pub mod node_locations;
+pub mod osc;
 pub mod osm_pbf;
 pub mod srtm;
 pub mod store;
