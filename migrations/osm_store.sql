@@ -1,6 +1,7 @@
 -- The imported OSM store: the extracts' elements with their positions resolved, a grid index
 -- of zoom-14 cells, and what was found once over all of them. Written whole by an import,
--- beside the store it replaces; its format is `meta.format`.
+-- beside the store it replaces, then changed in place by OSM diffs; its format is
+-- `meta.format`.
 
 CREATE TABLE meta (
     key TEXT PRIMARY KEY,
@@ -35,11 +36,21 @@ CREATE TABLE cells (
     id INTEGER NOT NULL
 );
 
--- Bridges and tunnels found over all the data: one row a group, in the order found.
+-- Bridges and tunnels found over all the data: one row a group, named by the smallest id of
+-- its structure ways (the order the whole data's index finds them in).
 CREATE TABLE groups (
     id INTEGER PRIMARY KEY,
     data BLOB NOT NULL
 );
+
+-- Where each group's bridges pass over a way (see codec.rs); `way_facts.under_bridges` is
+-- each way's rows here in the order of the groups.
+CREATE TABLE group_under (
+    way INTEGER NOT NULL,
+    grp INTEGER NOT NULL,
+    positions BLOB NOT NULL,
+    PRIMARY KEY (way, grp)
+) WITHOUT ROWID;
 
 -- The nodes where ways of the road network join, with the ways through each.
 CREATE TABLE joints (
@@ -59,3 +70,31 @@ CREATE TABLE way_facts (
 CREATE TABLE coastlines (
     way INTEGER PRIMARY KEY
 );
+
+-- Every node's position is in the node file `meta.nodes_file` beside the store (16-byte
+-- records in runs of ascending ids); these are its runs, to read it again.
+CREATE TABLE node_runs (
+    run INTEGER PRIMARY KEY,
+    start INTEGER NOT NULL,
+    len INTEGER NOT NULL,
+    last INTEGER NOT NULL,
+    firsts BLOB NOT NULL
+);
+
+-- Nodes diffs created, moved or deleted since the import, in 10^-7 degrees; NULL for deleted.
+-- They come before the node file.
+CREATE TABLE node_moves (
+    id INTEGER PRIMARY KEY,
+    lon INTEGER,
+    lat INTEGER
+);
+
+-- Tiles of the store's zoom whose elements a diff changed, with the last such diff
+-- (`meta.generation` counts the diffs applied).
+CREATE TABLE expired (
+    x INTEGER NOT NULL,
+    y INTEGER NOT NULL,
+    generation INTEGER NOT NULL,
+    PRIMARY KEY (x, y)
+) WITHOUT ROWID;
+CREATE INDEX expired_by_generation ON expired (generation);

@@ -42,6 +42,8 @@ enum Command {
     Export(ExportArgs),
     /// Read the OSM extracts once into the on-disk store the other commands read.
     Import(ImportArgs),
+    /// Apply OSM change files (.osc, .osc.gz) to the store and list the tiles they expire.
+    Update(UpdateArgs),
 }
 
 /// Where the data comes from; flags override the configuration file.
@@ -66,6 +68,25 @@ struct SourceArgs {
 struct ImportArgs {
     #[command(flatten)]
     sources: SourceArgs,
+}
+
+#[derive(Args)]
+struct UpdateArgs {
+    #[command(flatten)]
+    sources: SourceArgs,
+    /// OSM change file (.osc or .osc.gz); repeat for several, applied in the order given
+    #[arg(long = "osc", value_name = "FILE", required = true)]
+    osc: Vec<PathBuf>,
+    /// Write the expired tiles, one Z/X/Y a line, to this file (- for standard output)
+    #[arg(long, value_name = "FILE")]
+    expired: Option<PathBuf>,
+    /// A running server to tell: its stored tiles that expired are made again in the
+    /// background and served until then (needs the admin token, TERRASTITCH_ADMIN_TOKEN)
+    #[arg(long, value_name = "URL")]
+    server: Option<String>,
+    /// The server's admin token
+    #[arg(long, env = "TERRASTITCH_ADMIN_TOKEN", hide_env_values = true)]
+    token: Option<String>,
 }
 
 #[derive(Args)]
@@ -200,6 +221,7 @@ fn main() -> Result<()> {
         Command::Seed(args) => &args.sources,
         Command::Export(args) => &args.sources,
         Command::Import(args) => &args.sources,
+        Command::Update(args) => &args.sources,
     };
     let config = load_config(sources)?;
     init_logging(config.log.format);
@@ -209,6 +231,7 @@ fn main() -> Result<()> {
         Command::Seed(args) => seed(args, config),
         Command::Export(args) => export(args, config),
         Command::Import(_) => import(config),
+        Command::Update(args) => update(args, config),
     }
 }
 
@@ -596,5 +619,78 @@ fn import(config: Config) -> Result<()> {
         store.display(),
         imported.store_bytes
     );
+    Ok(())
+}
+
+fn update(args: UpdateArgs, config: Config) -> Result<()> {
+    let store = config
+        .sources
+        .store
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(DEFAULT_STORE));
+    let started = Instant::now();
+    let applied = terrastitch::provider::osm_source::update_locked(&store, &args.osc, None)?;
+    let tiles: Vec<String> = applied.expired.iter().map(|t| t.to_string()).collect();
+    eprintln!(
+        "applied diff {} ({} nodes, {} ways, {} relations changed; {} bridge and tunnel groups found again) \
+         in {:.2} s; {} of {} tiles read expired",
+        applied.generation,
+        applied.nodes,
+        applied.ways,
+        applied.relations,
+        applied.groups,
+        started.elapsed().as_secs_f64(),
+        tiles.len(),
+        applied.candidates
+    );
+    match args.expired.as_deref() {
+        Some(path) if path == std::path::Path::new("-") => {
+            for tile in &tiles {
+                println!("{tile}");
+            }
+        }
+        Some(path) => {
+            let mut text = tiles.join("\n");
+            if !text.is_empty() {
+                text.push('\n');
+            }
+            std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+        }
+        None => {}
+    }
+    if let Some(server) = &args.server {
+        tell_server(server, args.token.as_deref(), &applied.expired)?;
+    }
+    Ok(())
+}
+
+/// Asks a running server to make the expired tiles again, with their coarser ancestors.
+fn tell_server(server: &str, token: Option<&str>, expired: &[TileId]) -> Result<()> {
+    let Some(token) = token else {
+        anyhow::bail!("--server needs the admin token (--token or TERRASTITCH_ADMIN_TOKEN)");
+    };
+    let mut tiles = std::collections::BTreeSet::new();
+    for &tile in expired {
+        let mut t = tile;
+        tiles.insert(t);
+        while t.z > 0 {
+            t = TileId {
+                z: t.z - 1,
+                x: t.x / 2,
+                y: t.y / 2,
+            };
+            tiles.insert(t);
+        }
+    }
+    let names: Vec<String> = tiles.iter().map(|t| t.to_string()).collect();
+    let url = format!("{}/admin/regenerate", server.trim_end_matches('/'));
+    let body = serde_json::json!({ "tiles": names }).to_string();
+    let mut response = ureq::post(&url)
+        .header("Authorization", &format!("Bearer {token}"))
+        .header("Content-Type", "application/json")
+        .send(body.as_bytes())
+        .with_context(|| format!("telling {url} of the expired tiles"))?;
+    let answer = response.body_mut().read_to_string().unwrap_or_default();
+    eprintln!("{url}: {answer}");
     Ok(())
 }

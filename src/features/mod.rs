@@ -524,6 +524,12 @@ pub struct Area<'a> {
     pub polygons: Vec<AreaPolygon>,
 }
 
+/// Whether features are made from a relation: multipolygons (areas) and buildings (their
+/// outlines and parts). Routes, boundaries and the like take no part in a tile.
+pub fn reads_relation(tags: &Tags) -> bool {
+    matches!(tags.get("type"), Some("multipolygon" | "building"))
+}
+
 /// The areas among the selected elements, in id order (ways, then relations).
 fn areas_of<'a>(selection: &Selection<'a>) -> Vec<Area<'a>> {
     let mut areas = Vec::new();

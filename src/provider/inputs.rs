@@ -63,8 +63,11 @@ pub enum Uncovered {
 
 /// Indexes OSM data at `zoom` with the feature rules the index needs over the whole extract:
 /// which ways are bridges and tunnels, which join the road network, what reaches down into the
-/// ground over a tunnel.
-pub fn index_osm(data: OsmData, zoom: u8) -> OsmIndex {
+/// ground over a tunnel, which relations make features.
+pub fn index_osm(mut data: OsmData, zoom: u8) -> OsmIndex {
+    // The relations tiles are not made from are dropped, as the store does.
+    data.relations
+        .retain(|r| crate::features::reads_relation(&r.tags));
     OsmIndex::new(data, zoom, crate::features::structures::classify)
         .with_joints(crate::features::roads::joins)
         .with_foundations(crate::features::structures::foundation_depth_m)
@@ -306,6 +309,15 @@ impl Inputs {
                 changed.push(path.display().to_string());
             }
         }
+        if let OsmSource::Store(store) = &self.osm {
+            match store.current_generation() {
+                Ok(now) if now != store.generation() => {
+                    changed.push(format!("{} (diff {now} applied)", store.path().display()))
+                }
+                Ok(_) => {}
+                Err(error) => tracing::warn!(%error, "checking the OSM store for diffs failed"),
+            }
+        }
         match SrtmDirectory::open_all(self.srtm.root(), &self.srtm_extra) {
             Ok(now) => {
                 let cells: std::collections::BTreeSet<CellId> =
@@ -334,6 +346,14 @@ impl Inputs {
             if coverage.get(i).is_none_or(|c| c.intersects(&area)) {
                 digest.update(version.as_bytes());
                 digest.update(b";");
+            }
+        }
+        // The last diff that changed what the tile reads.
+        if let OsmSource::Store(store) = &self.osm {
+            match store.tile_generation(tile) {
+                Ok(0) => {}
+                Ok(generation) => digest.update(format!("diff {generation};").as_bytes()),
+                Err(error) => tracing::warn!(%tile, %error, "no diff generation for the tile"),
             }
         }
         // The files there are in the mosaic's cells (a coarse tile spans many cells, few with a

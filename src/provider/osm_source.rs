@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 
 use crate::osm::index::Selection;
 use crate::osm::{Bounds, OsmIndex};
+use crate::source::osc::{self, OscError, OsmChange};
 use crate::source::store::import::{self, ImportError, Imported, Progress, Rules};
+use crate::source::store::update::{self, Applied, DiffOrigin, UpdateError};
 use crate::source::store::{OsmStore, StoreError};
 use crate::tile::TileId;
 
@@ -24,6 +26,7 @@ pub fn rules() -> Rules {
         classify: crate::features::structures::classify,
         joins: crate::features::roads::joins,
         depth: crate::features::structures::foundation_depth_m,
+        relation: crate::features::reads_relation,
     }
 }
 
@@ -93,6 +96,10 @@ pub enum StoreOpenError {
     Import(#[from] ImportError),
     #[error(transparent)]
     Store(#[from] StoreError),
+    #[error(transparent)]
+    Update(#[from] UpdateError),
+    #[error(transparent)]
+    Osc(#[from] OscError),
     #[error("cannot lock {path} to import the OSM store: {source}")]
     Lock {
         path: PathBuf,
@@ -132,6 +139,44 @@ pub fn import_locked(
 ) -> Result<Imported, StoreOpenError> {
     let _lock = lock_file(path)?;
     Ok(import::import(extracts, path, zoom, &rules(), progress)?)
+}
+
+/// Applies OSM change files, in the order given, to the store at `path` in one transaction
+/// (one change to the store at a time); `sequence` is the replication sequence of the last.
+pub fn update_locked(
+    path: &Path,
+    files: &[PathBuf],
+    sequence: Option<u64>,
+) -> Result<Applied, StoreOpenError> {
+    let mut change = OsmChange::default();
+    for file in files {
+        change.merge(osc::read_osc(file)?);
+    }
+    let origin = DiffOrigin {
+        name: files
+            .iter()
+            .map(|f| f.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", "),
+        sequence,
+    };
+    apply_locked(path, &change, &origin)
+}
+
+/// Applies one change, read already, to the store at `path`.
+pub fn apply_locked(
+    path: &Path,
+    change: &OsmChange,
+    origin: &DiffOrigin,
+) -> Result<Applied, StoreOpenError> {
+    let _lock = lock_file(path)?;
+    Ok(update::apply(
+        path,
+        change,
+        origin,
+        &rules(),
+        QUERY_MARGIN_DEG,
+    )?)
 }
 
 fn current_store(path: &Path, extracts: &[PathBuf], zoom: u8) -> Option<OsmStore> {

@@ -72,7 +72,7 @@ impl Decimicro {
     }
 }
 
-#[derive(Debug)]
+#[derive(Debug, Clone, PartialEq)]
 struct Run {
     /// Index of its first record in the file.
     start: u64,
@@ -183,6 +183,16 @@ impl NodeWriter {
     }
 }
 
+/// Where one run lies in the file, as kept beside it: its first record, its length, its last
+/// id and the first id of each of its blocks (little-endian).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunIndex {
+    pub start: u64,
+    pub len: u64,
+    pub last: i64,
+    pub firsts: Vec<u8>,
+}
+
 /// Node locations to read, by id.
 #[derive(Debug)]
 pub struct NodeLocations {
@@ -194,6 +204,54 @@ pub struct NodeLocations {
 }
 
 impl NodeLocations {
+    /// Opens a file written before, with the index of its runs.
+    pub fn open(path: &Path, index: &[RunIndex]) -> Result<NodeLocations, NodeStoreError> {
+        let file = File::open(path).map_err(|source| NodeStoreError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let runs = index
+            .iter()
+            .map(|run| Run {
+                start: run.start,
+                len: run.len,
+                last: run.last,
+                firsts: run
+                    .firsts
+                    .chunks_exact(8)
+                    .map(|c| i64::from_le_bytes(c.try_into().unwrap_or([0; 8])))
+                    .collect(),
+            })
+            .collect();
+        Ok(NodeLocations {
+            path: path.to_path_buf(),
+            file,
+            runs,
+            cache: (0..CACHED_BLOCKS).map(|_| None).collect(),
+        })
+    }
+
+    /// The index of its runs, to open it again.
+    pub fn index(&self) -> Vec<RunIndex> {
+        self.runs
+            .iter()
+            .map(|run| RunIndex {
+                start: run.start,
+                len: run.len,
+                last: run.last,
+                firsts: run.firsts.iter().flat_map(|id| id.to_le_bytes()).collect(),
+            })
+            .collect()
+    }
+
+    /// Makes what was written durable.
+    pub fn sync(&self) -> Result<(), NodeStoreError> {
+        self.file.sync_all().map_err(|source| NodeStoreError::Io {
+            path: self.path.clone(),
+            source,
+        })
+    }
+
     /// The position of node `id`, from the first run that holds it.
     pub fn get(&mut self, id: i64) -> Result<Option<Decimicro>, NodeStoreError> {
         for r in 0..self.runs.len() {
@@ -273,7 +331,7 @@ mod tests {
     }
 
     #[test]
-    fn every_node_written_is_found_and_no_other() {
+    fn every_node_written_is_found_again_when_the_file_is_opened_anew() {
         let dir = tempfile::tempdir().unwrap();
         let mut writer = NodeWriter::create(&dir.path().join("nodes")).unwrap();
         // Two sorted runs (as two extracts give), the second overlapping the first.
@@ -284,7 +342,10 @@ mod tests {
             writer.push(id, at(-id)).unwrap();
         }
         assert_eq!(writer.runs(), 2);
-        let mut nodes = writer.finish().unwrap();
+        let written = writer.finish().unwrap();
+        let index = written.index();
+        drop(written);
+        let mut nodes = NodeLocations::open(&dir.path().join("nodes"), &index).unwrap();
         for id in 0..2100 {
             let expected = if id % 3 == 1 && id < 2000 {
                 Some(at(id))

@@ -321,18 +321,6 @@ pub fn encode_group(group: &Group, way_id: &dyn Fn(u32) -> i64) -> Vec<u8> {
     w.0
 }
 
-/// The ways a stored group names, by id: its chains' and those it crosses.
-pub fn group_ways(bytes: &[u8]) -> Result<Vec<i64>, DecodeError> {
-    let mut ids = Vec::new();
-    decode_group(bytes, &mut |id| {
-        ids.push(id);
-        Some(0)
-    })?;
-    ids.sort_unstable();
-    ids.dedup();
-    Ok(ids)
-}
-
 /// A stored group, its ways given as indices by `index_of` (a way it has no index for is a
 /// damaged store: the closure of a tile always holds a group's ways).
 pub fn decode_group(

@@ -46,6 +46,8 @@ pub struct Rules {
     pub joins: fn(&Tags) -> bool,
     /// How deep something reaches into the ground over a tunnel.
     pub depth: fn(&Tags) -> Option<f64>,
+    /// Which relations tiles are made from (the others are not kept).
+    pub relation: fn(&Tags) -> bool,
 }
 
 /// What the import is doing.
@@ -177,10 +179,8 @@ pub fn import(
     progress: &dyn Fn(&Progress),
 ) -> Result<Imported, ImportError> {
     let partial_path = with_suffix(store, ".partial");
-    let nodes_path = with_suffix(store, ".nodes");
-    for stale in [&partial_path, &nodes_path] {
-        let _ = std::fs::remove_file(stale);
-    }
+    let _ = std::fs::remove_file(&partial_path);
+    let nodes_path = new_nodes_path(store);
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |source| ImportError::Io {
@@ -212,12 +212,12 @@ pub fn import(
         db,
     };
     let outcome = write_all(&mut partial, extracts, &nodes_path, zoom, rules, progress);
-    let _ = std::fs::remove_file(&nodes_path);
     let mut imported = match outcome {
         Ok(imported) => imported,
         Err(error) => {
             drop(partial);
             let _ = std::fs::remove_file(&partial_path);
+            let _ = std::fs::remove_file(&nodes_path);
             return Err(error);
         }
     };
@@ -228,8 +228,41 @@ pub fn import(
         .and_then(|f| f.sync_all())
         .map_err(io(&partial_path))?;
     std::fs::rename(&partial_path, store).map_err(io(store))?;
-    imported.store_bytes = std::fs::metadata(store).map_or(0, |m| m.len());
+    remove_other_node_files(store, &nodes_path);
+    imported.store_bytes = std::fs::metadata(store).map_or(0, |m| m.len())
+        + std::fs::metadata(&nodes_path).map_or(0, |m| m.len());
     Ok(imported)
+}
+
+/// A new name for the node file of the store at `store`: the store names the one it reads, so
+/// a new import never writes over the file of the store in place.
+fn new_nodes_path(store: &Path) -> PathBuf {
+    let stamp = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    with_suffix(store, &format!(".nodes-{stamp:x}-{}", std::process::id()))
+}
+
+/// Removes the node files of stores replaced or never finished, all but `keep`.
+fn remove_other_node_files(store: &Path, keep: &Path) {
+    let (Some(dir), Some(name)) = (store.parent(), store.file_name()) else {
+        return;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!("{}.nodes-", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let ours = entry.file_name().to_string_lossy().starts_with(&prefix);
+        if ours && entry.file_name() != keep.file_name().unwrap_or_default() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 /// Logs how long each phase took.
@@ -279,6 +312,7 @@ fn write_all(
         records.push(read_extract(
             partial,
             path,
+            rules,
             &mut writer,
             &mut state,
             progress,
@@ -289,11 +323,13 @@ fn write_all(
         ..Imported::default()
     };
     let mut locations = writer.finish()?;
+    write_node_runs(partial, &locations, nodes_path)?;
     clock.done(Phase::Reading);
     state.phase = Phase::Resolving;
     progress(&state);
     let n = f64::from(1u32 << zoom);
     let structure_ways = resolve_ways(partial, &mut locations, n, rules, &mut state, progress)?;
+    locations.sync()?;
     drop(locations);
     clock.done(Phase::Resolving);
     state.phase = Phase::Indexing;
@@ -339,7 +375,7 @@ enum RowsError {
 const BATCH: usize = 32;
 
 /// Decodes a blob into rows.
-fn rows_of(blob: &osmpbf::Blob) -> Result<Rows, RowsError> {
+fn rows_of(blob: &osmpbf::Blob, keep_relation: fn(&Tags) -> bool) -> Result<Rows, RowsError> {
     let mut rows = Rows::default();
     match blob.decode().map_err(|e| RowsError::Pbf(e.to_string()))? {
         BlobDecode::OsmHeader(header) => {
@@ -375,6 +411,9 @@ fn rows_of(blob: &osmpbf::Blob) -> Result<Rows, RowsError> {
                     }
                     Element::Relation(relation) => {
                         let relation = crate::source::osm_pbf::relation_of(relation);
+                        if !keep_relation(&relation.tags) {
+                            continue;
+                        }
                         rows.relations
                             .push((relation.id, codec::encode_relation(&relation)));
                         continue;
@@ -400,7 +439,10 @@ fn rows_of(blob: &osmpbf::Blob) -> Result<Rows, RowsError> {
 }
 
 /// Decodes blobs on every core, in their order.
-fn decode_all(blobs: &[(u64, osmpbf::Blob)]) -> Vec<Result<Rows, (u64, RowsError)>> {
+fn decode_all(
+    blobs: &[(u64, osmpbf::Blob)],
+    keep_relation: fn(&Tags) -> bool,
+) -> Vec<Result<Rows, (u64, RowsError)>> {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let per_thread = blobs.len().div_ceil(threads.max(1)).max(1);
     std::thread::scope(|scope| {
@@ -410,7 +452,9 @@ fn decode_all(blobs: &[(u64, osmpbf::Blob)]) -> Vec<Result<Rows, (u64, RowsError
                 scope.spawn(move || {
                     chunk
                         .iter()
-                        .map(|(offset, blob)| rows_of(blob).map_err(|e| (*offset, e)))
+                        .map(|(offset, blob)| {
+                            rows_of(blob, keep_relation).map_err(|e| (*offset, e))
+                        })
                         .collect::<Vec<_>>()
                 })
             })
@@ -433,6 +477,7 @@ fn decode_all(blobs: &[(u64, osmpbf::Blob)]) -> Vec<Result<Rows, (u64, RowsError
 fn read_extract(
     partial: &Partial,
     path: &Path,
+    rules: &Rules,
     nodes: &mut NodeWriter,
     state: &mut Progress,
     progress: &dyn Fn(&Progress),
@@ -479,7 +524,7 @@ fn read_extract(
         if batch.is_empty() {
             break;
         }
-        for rows in decode_all(&batch) {
+        for rows in decode_all(&batch, rules.relation) {
             let rows = rows.map_err(|(offset, e)| failed(offset, e))?;
             header = rows.header.or(header);
             writer.write(rows, nodes, &mut extent, state)?;
@@ -783,11 +828,11 @@ fn find_joints(partial: &Partial) -> Result<u64, ImportError> {
 
 /// A group found, ready to store: its place in the order of the whole data (its smallest
 /// structure way id), its row, its box, and where its bridges pass over ways.
-struct FoundGroup {
-    first_way: i64,
-    row: Vec<u8>,
-    bounds: Bounds,
-    under: std::collections::HashMap<i64, Vec<LonLat>>,
+pub(super) struct FoundGroup {
+    pub first_way: i64,
+    pub row: Vec<u8>,
+    pub bounds: Bounds,
+    pub under: std::collections::HashMap<i64, Vec<LonLat>>,
 }
 
 /// Finds the bridge and tunnel groups, a cluster of nearby structure ways at a time, among
@@ -815,7 +860,7 @@ fn find_structures(
                 .collect::<Vec<_>>()
         });
         for cluster in &clusters {
-            let data = cluster_data(partial, cluster, rules)?;
+            let data = cluster_data(&partial.db, &partial.path, cluster, rules)?;
             if send.send(data).is_err() {
                 break;
             }
@@ -838,19 +883,24 @@ fn find_structures(
         let mut insert_cell = db
             .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 3, ?3)")
             .map_err(&sqlite)?;
-        for (g, group) in found.iter().enumerate() {
+        let mut insert_under = db
+            .prepare("INSERT INTO group_under (way, grp, positions) VALUES (?1, ?2, ?3)")
+            .map_err(&sqlite)?;
+        for group in &found {
+            let g = group.first_way;
             insert_group
-                .execute(params![g as i64, group.row])
+                .execute(params![g, group.row])
                 .map_err(&sqlite)?;
             for (x, y) in cells_of(&group.bounds, n) {
-                insert_cell
-                    .execute(params![x, y, g as i64])
-                    .map_err(&sqlite)?;
+                insert_cell.execute(params![x, y, g]).map_err(&sqlite)?;
             }
             let mut ways: Vec<_> = group.under.iter().collect();
             ways.sort_by_key(|(way, _)| **way);
             for (way, positions) in ways {
                 under.entry(*way).or_default().extend(positions);
+                insert_under
+                    .execute(params![way, g, codec::encode_positions(positions)])
+                    .map_err(&sqlite)?;
             }
         }
         let mut insert_under = db
@@ -872,13 +922,13 @@ fn find_structures(
 /// The cells of a cluster of structure ways: those their boxes meet, grown by what may stand
 /// over a tunnel, and among them those near its tunnels.
 #[derive(Debug, Default)]
-struct Cluster {
-    cells: BTreeSet<(u32, u32)>,
-    near_tunnels: BTreeSet<(u32, u32)>,
+pub(super) struct Cluster {
+    pub cells: BTreeSet<(u32, u32)>,
+    pub near_tunnels: BTreeSet<(u32, u32)>,
 }
 
 /// The clusters of structure ways: ways whose grown boxes share a cell are in one cluster.
-fn clusters(
+pub(super) fn clusters(
     db: &Connection,
     structure_ways: &[i64],
     n: f64,
@@ -934,14 +984,17 @@ fn clusters(
 
 /// What can take part in a cluster's groups: the structure ways, the ways they may cross, and
 /// near tunnels what reaches down into the ground.
-fn cluster_data(
-    partial: &Partial,
+pub(super) fn cluster_data(
+    db: &Connection,
+    path: &Path,
     cluster: &Cluster,
     rules: &Rules,
 ) -> Result<OsmData, ImportError> {
     use crate::osm::structures::may_be_crossed;
-    let sqlite = partial.sqlite();
-    let db = &partial.db;
+    let sqlite = |source| ImportError::Sqlite {
+        path: path.to_path_buf(),
+        source,
+    };
     // Each element in the cluster's cells, and whether it is near a tunnel.
     let mut way_ids: Vec<(i64, bool)> = Vec::new();
     let mut node_ids: Vec<(i64, bool)> = Vec::new();
@@ -994,7 +1047,7 @@ fn cluster_data(
 }
 
 /// The groups among a cluster's elements, as they will be stored.
-fn found_groups(data: OsmData, zoom: u8, rules: &Rules) -> Vec<FoundGroup> {
+pub(super) fn found_groups(data: OsmData, zoom: u8, rules: &Rules) -> Vec<FoundGroup> {
     let index = OsmIndex::new(data, zoom, rules.classify).with_foundations(rules.depth);
     let ways: &[Way] = &index.data().ways;
     let way_id = |i: u32| ways.get(i as usize).map_or(0, |w| w.id);
@@ -1015,6 +1068,44 @@ fn found_groups(data: OsmData, zoom: u8, rules: &Rules) -> Vec<FoundGroup> {
         .collect()
 }
 
+/// Keeps the node file and the index of its runs, for diffs to read.
+fn write_node_runs(
+    partial: &Partial,
+    locations: &NodeLocations,
+    nodes_path: &Path,
+) -> Result<(), ImportError> {
+    let sqlite = partial.sqlite();
+    let mut insert = partial
+        .db
+        .prepare(
+            "INSERT INTO node_runs (run, start, len, last, firsts) VALUES (?1, ?2, ?3, ?4, ?5)",
+        )
+        .map_err(&sqlite)?;
+    for (k, run) in locations.index().iter().enumerate() {
+        insert
+            .execute(params![
+                k as i64,
+                run.start as i64,
+                run.len as i64,
+                run.last,
+                run.firsts
+            ])
+            .map_err(&sqlite)?;
+    }
+    let name = nodes_path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    partial
+        .db
+        .execute(
+            "INSERT INTO meta (key, value) VALUES ('nodes_file', ?1)",
+            params![name],
+        )
+        .map_err(&sqlite)?;
+    Ok(())
+}
+
 fn write_meta(partial: &Partial, records: &[ExtractRecord], zoom: u8) -> Result<(), ImportError> {
     let sqlite = partial.sqlite();
     let extracts = serde_json::to_string(records).unwrap_or_default();
@@ -1023,6 +1114,7 @@ fn write_meta(partial: &Partial, records: &[ExtractRecord], zoom: u8) -> Result<
         ("zoom", zoom.to_string()),
         ("extracts", extracts),
         ("program", env!("CARGO_PKG_VERSION").to_string()),
+        ("generation", "0".to_string()),
     ] {
         partial
             .db

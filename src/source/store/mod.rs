@@ -11,6 +11,7 @@
 
 pub mod codec;
 pub mod import;
+pub mod update;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -28,7 +29,7 @@ use codec::DecodeError;
 /// The schema of a store.
 pub const SCHEMA: &str = include_str!("../../../migrations/osm_store.sql");
 /// The store's format: a store of another is imported again.
-pub const FORMAT: u32 = 1;
+pub const FORMAT: u32 = 2;
 
 /// One extract as imported.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -63,6 +64,8 @@ pub struct OsmStore {
     extracts: Vec<ExtractRecord>,
     /// The version of the program that imported it (its facts follow that version's rules).
     program: String,
+    /// How many diffs had been applied to it when it was opened.
+    generation: u64,
     /// The coastline ways, whole: which side of the coast a tile lies on is decided by the
     /// nearest one, wherever it is.
     coastlines: Vec<Way>,
@@ -104,6 +107,9 @@ impl OsmStore {
             .and_then(|z| z.parse().ok())
             .ok_or_else(|| format_error("it names no zoom".to_string()))?;
         let program = meta("program")?.unwrap_or_default();
+        let generation = meta("generation")?
+            .and_then(|g| g.parse().ok())
+            .unwrap_or(0);
         let extracts: Vec<ExtractRecord> = meta("extracts")?
             .and_then(|e| serde_json::from_str(&e).ok())
             .ok_or_else(|| format_error("it names no extracts".to_string()))?;
@@ -133,6 +139,7 @@ impl OsmStore {
             zoom,
             extracts,
             program,
+            generation,
             coastlines,
             idle: Mutex::new(idle),
             returned: std::sync::Condvar::new(),
@@ -153,6 +160,52 @@ impl OsmStore {
         &self.program
     }
 
+    /// How many diffs had been applied to it when it was opened.
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+
+    /// How many diffs have been applied to it by now (another process may apply them).
+    pub fn current_generation(&self) -> Result<u64, StoreError> {
+        self.with_connection(|db| {
+            let value: Option<String> = db
+                .query_row("SELECT value FROM meta WHERE key = 'generation'", [], |r| {
+                    r.get(0)
+                })
+                .optional()
+                .map_err(sqlite_error(&self.path))?;
+            Ok(value.and_then(|g| g.parse().ok()).unwrap_or(0))
+        })
+    }
+
+    /// The last diff that changed what a tile of the store's zoom inside `tile` reads, 0 when
+    /// none did.
+    pub fn tile_generation(&self, tile: TileId) -> Result<u64, StoreError> {
+        let (x0, y0, x1, y1) = if tile.z >= self.zoom {
+            let shift = tile.z - self.zoom;
+            let (x, y) = (tile.x >> shift, tile.y >> shift);
+            (x, y, x, y)
+        } else {
+            let shift = self.zoom - tile.z;
+            let span = (1u32 << shift) - 1;
+            (
+                tile.x << shift,
+                tile.y << shift,
+                (tile.x << shift) + span,
+                (tile.y << shift) + span,
+            )
+        };
+        self.with_connection(|db| {
+            db.prepare_cached(
+                "SELECT coalesce(max(generation), 0) FROM expired
+                 WHERE x BETWEEN ?1 AND ?3 AND y BETWEEN ?2 AND ?4",
+            )
+            .and_then(|mut s| s.query_row(params![x0, y0, x1, y1], |r| r.get::<_, i64>(0)))
+            .map(|g| g as u64)
+            .map_err(sqlite_error(&self.path))
+        })
+    }
+
     /// The extracts it was imported from, in the order given.
     pub fn extracts(&self) -> &[ExtractRecord] {
         &self.extracts
@@ -169,13 +222,6 @@ impl OsmStore {
                 north: e.bounds[3],
             })
             .collect()
-    }
-
-    fn sqlite(&self) -> impl Fn(rusqlite::Error) -> StoreError + '_ {
-        |source| StoreError::Sqlite {
-            path: self.path.clone(),
-            source,
-        }
     }
 
     fn decode(&self) -> impl Fn(DecodeError) -> StoreError + '_ {
@@ -232,111 +278,21 @@ impl OsmStore {
         self.with_connection(|db| self.closure(db, tile, margin_deg))
     }
 
-    /// What the cells around `area` hold, by kind (node, way, relation, group).
-    fn in_cells(&self, db: &Connection, area: &Bounds) -> Result<[BTreeSet<i64>; 4], StoreError> {
-        let sqlite = self.sqlite();
-        let n = f64::from(1u32 << self.zoom);
-        let mut found: [BTreeSet<i64>; 4] = Default::default();
-        let mut in_cell = db
-            .prepare_cached("SELECT kind, id FROM cells WHERE x = ?1 AND y = ?2")
-            .map_err(&sqlite)?;
-        for (x, y) in cells_of(area, n) {
-            let rows = in_cell
-                .query_map(params![x, y], |row| {
-                    Ok((row.get::<_, i64>(0)?, row.get::<_, i64>(1)?))
-                })
-                .map_err(&sqlite)?;
-            for row in rows {
-                let (kind, id) = row.map_err(&sqlite)?;
-                if let Some(set) = found.get_mut(kind as usize) {
-                    set.insert(id);
-                }
-            }
-        }
-        Ok(found)
-    }
-
     fn closure(
         &self,
         db: &Connection,
         tile: TileId,
         margin_deg: f64,
     ) -> Result<OsmIndex, StoreError> {
-        let sqlite = self.sqlite();
-        let decode = self.decode();
-        let area = tile.bounds().expanded(margin_deg);
-        let [node_ids, way_ids, relation_ids, group_ids] = self.in_cells(db, &area)?;
-        let mut ways: BTreeMap<i64, Way> = BTreeMap::new();
-        let load = |ways: &mut BTreeMap<i64, Way>, id: i64| {
-            if let std::collections::btree_map::Entry::Vacant(slot) = ways.entry(id) {
-                if let Some(w) = way(db, id).map_err(&decode)? {
-                    slot.insert(w);
-                }
-            }
-            Ok::<_, StoreError>(())
-        };
-        // The ways the tile's query selects: in its cells, their box meeting its area.
-        let mut near = Vec::new();
-        for id in way_ids {
-            if let Some(w) = way(db, id).map_err(&decode)? {
-                if bounds_of(&w.positions).is_some_and(|b| meets(&b, &area)) {
-                    near.push(id);
-                    ways.insert(id, w);
-                }
-            }
-        }
-        // Relations (the query takes every one in its cells), with the relations they hold,
-        // and all their ways.
-        let mut relations: BTreeMap<i64, Relation> = BTreeMap::new();
-        for id in relation_ids {
-            let Some(relation) = relation(db, id).map_err(&decode)? else {
-                continue;
-            };
-            for member in &relation.members {
-                if member.element.element_type == ElementType::Relation {
-                    if let Some(inner) = self::relation(db, member.element.id).map_err(&decode)? {
-                        relations.insert(inner.id, inner);
-                    }
-                }
-            }
-            for id in relation_ways(db, &relation).map_err(&sqlite)? {
-                load(&mut ways, id)?;
-            }
-            relations.insert(relation.id, relation);
-        }
-        // Groups, whole, with what they cross.
-        let mut groups = Vec::new();
-        for id in group_ids {
-            let data: Option<Vec<u8>> = db
-                .prepare_cached("SELECT data FROM groups WHERE id = ?1")
-                .and_then(|mut s| s.query_row([id], |row| row.get(0)).optional())
-                .map_err(&sqlite)?;
-            let Some(data) = data else { continue };
-            for way_id in codec::group_ways(&data).map_err(&decode)? {
-                load(&mut ways, way_id)?;
-            }
-            groups.push(data);
-        }
-        // The ways that meet the selected ways at their joints (their facts, read here, are
-        // not read again when the closure is indexed).
-        let mut known = std::collections::HashMap::with_capacity(near.len());
-        for id in near {
-            let found = facts(db, id).map_err(&decode)?;
-            for (_, through) in &found.joints {
-                for &other in through {
-                    load(&mut ways, other)?;
-                }
-            }
-            known.insert(id, found);
-        }
+        let Selected {
+            mut ways,
+            relations,
+            groups,
+            known,
+            nodes,
+        } = select(db, &self.path, self.zoom, tile, margin_deg)?;
         for coast in &self.coastlines {
             ways.entry(coast.id).or_insert_with(|| coast.clone());
-        }
-        let mut nodes = Vec::with_capacity(node_ids.len());
-        for id in node_ids {
-            if let Some(n) = node(db, id).map_err(&decode)? {
-                nodes.push(n);
-            }
         }
         let data = OsmData {
             nodes,
@@ -344,6 +300,7 @@ impl OsmStore {
             relations: relations.into_values().collect(),
             coverage: self.coverage(),
         };
+        let groups: Vec<Vec<u8>> = groups.into_iter().map(|(_, row)| row).collect();
         self.index(db, data, &groups, known)
     }
 
@@ -391,6 +348,196 @@ impl OsmStore {
             data, self.zoom, structures, roads, coastlines,
         ))
     }
+}
+
+/// What the cells around `area` hold, by kind (node, way, relation, group).
+fn in_cells(
+    db: &Connection,
+    path: &Path,
+    zoom: u8,
+    area: &Bounds,
+) -> Result<[BTreeSet<i64>; 4], StoreError> {
+    let sqlite = sqlite_error(path);
+    let n = f64::from(1u32 << zoom);
+    let mut found: [BTreeSet<i64>; 4] = Default::default();
+    let mut in_cell = db
+        .prepare_cached("SELECT kind, id FROM cells WHERE x = ?1 AND y = ?2")
+        .map_err(&sqlite)?;
+    for (x, y) in cells_of(area, n) {
+        let rows = in_cell
+            .query_map(params![x, y], |row| {
+                Ok((row.get::<_, i64>(0)?, row.get::<_, i64>(1)?))
+            })
+            .map_err(&sqlite)?;
+        for row in rows {
+            let (kind, id) = row.map_err(&sqlite)?;
+            if let Some(set) = found.get_mut(kind as usize) {
+                set.insert(id);
+            }
+        }
+    }
+    Ok(found)
+}
+
+fn sqlite_error(path: &Path) -> impl Fn(rusqlite::Error) -> StoreError + '_ {
+    move |source| StoreError::Sqlite {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+fn decode_error(path: &Path) -> impl Fn(DecodeError) -> StoreError + '_ {
+    move |source| StoreError::Decode {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// A tile's closure as read (the coastlines apart): its ways by id, relations by id, groups
+/// by id with their rows, the facts of its near ways, and its tagged nodes.
+pub(crate) struct Selected {
+    pub ways: BTreeMap<i64, Way>,
+    pub relations: BTreeMap<i64, Relation>,
+    pub groups: Vec<(i64, Vec<u8>)>,
+    pub known: std::collections::HashMap<i64, WayFacts>,
+    pub nodes: Vec<Node>,
+}
+
+/// Reads the closure of `tile` (see the module's notes) but for the coastlines.
+pub(crate) fn select(
+    db: &Connection,
+    path: &Path,
+    zoom: u8,
+    tile: TileId,
+    margin_deg: f64,
+) -> Result<Selected, StoreError> {
+    let sqlite = sqlite_error(path);
+    let decode = decode_error(path);
+    let area = tile.bounds().expanded(margin_deg);
+    let [node_ids, way_ids, relation_ids, group_ids] = in_cells(db, path, zoom, &area)?;
+    let mut ways: BTreeMap<i64, Way> = BTreeMap::new();
+    let load = |ways: &mut BTreeMap<i64, Way>, id: i64| {
+        if let std::collections::btree_map::Entry::Vacant(slot) = ways.entry(id) {
+            if let Some(w) = way(db, id).map_err(&decode)? {
+                slot.insert(w);
+            }
+        }
+        Ok::<_, StoreError>(())
+    };
+    // The ways the tile's query selects: in its cells, their box meeting its area.
+    let mut near = Vec::new();
+    for id in way_ids {
+        if let Some(w) = way(db, id).map_err(&decode)? {
+            if bounds_of(&w.positions).is_some_and(|b| meets(&b, &area)) {
+                near.push(id);
+                ways.insert(id, w);
+            }
+        }
+    }
+    // Relations (the query takes every one in its cells), with the relations they hold,
+    // and all their ways.
+    let mut relations: BTreeMap<i64, Relation> = BTreeMap::new();
+    for id in relation_ids {
+        let Some(relation) = relation(db, id).map_err(&decode)? else {
+            continue;
+        };
+        for member in &relation.members {
+            if member.element.element_type == ElementType::Relation {
+                if let Some(inner) = self::relation(db, member.element.id).map_err(&decode)? {
+                    relations.insert(inner.id, inner);
+                }
+            }
+        }
+        for id in relation_ways(db, &relation).map_err(&sqlite)? {
+            load(&mut ways, id)?;
+        }
+        relations.insert(relation.id, relation);
+    }
+    // Groups, whole, with what they cross.
+    let mut groups = Vec::new();
+    for id in group_ids {
+        let data: Option<Vec<u8>> = db
+            .prepare_cached("SELECT data FROM groups WHERE id = ?1")
+            .and_then(|mut s| s.query_row([id], |row| row.get(0)).optional())
+            .map_err(&sqlite)?;
+        let Some(data) = data else { continue };
+        // As the query: a group in the cells whose box misses the area is not the tile's.
+        let mut named = Vec::new();
+        let bounds = codec::decode_group(&data, &mut |id| {
+            named.push(id);
+            Some(0)
+        })
+        .map_err(&decode)?
+        .bounds;
+        if !meets(&bounds, &area) {
+            continue;
+        }
+        named.sort_unstable();
+        named.dedup();
+        for way_id in named {
+            load(&mut ways, way_id)?;
+        }
+        groups.push((id, data));
+    }
+    // The ways that meet the selected ways at their joints (their facts, read here, are
+    // not read again when the closure is indexed).
+    let mut known = std::collections::HashMap::with_capacity(near.len());
+    for id in near {
+        let found = facts(db, id).map_err(&decode)?;
+        for (_, through) in &found.joints {
+            for &other in through {
+                load(&mut ways, other)?;
+            }
+        }
+        known.insert(id, found);
+    }
+    let mut nodes = Vec::with_capacity(node_ids.len());
+    for id in node_ids {
+        if let Some(n) = node(db, id).map_err(&decode)? {
+            if bounds_of(&[n.position]).is_some_and(|b| meets(&b, &area)) {
+                nodes.push(n);
+            }
+        }
+    }
+    Ok(Selected {
+        ways,
+        relations,
+        groups,
+        known,
+        nodes,
+    })
+}
+
+/// A digest of everything the closure of `tile` holds but the coastlines not near it, with
+/// the facts of all its ways: a tile whose digest is unchanged has the same bytes.
+pub(crate) fn closure_digest(
+    db: &Connection,
+    path: &Path,
+    zoom: u8,
+    tile: TileId,
+    margin_deg: f64,
+) -> Result<[u8; 32], StoreError> {
+    use sha2::Digest;
+    let selected = select(db, path, zoom, tile, margin_deg)?;
+    let mut digest = sha2::Sha256::new();
+    for way in selected.ways.values() {
+        let facts = match selected.known.get(&way.id) {
+            Some(facts) => facts.clone(),
+            None => facts(db, way.id).map_err(decode_error(path))?,
+        };
+        digest.update(format!("{way:?}{facts:?}").as_bytes());
+    }
+    for relation in selected.relations.values() {
+        digest.update(format!("{relation:?}").as_bytes());
+    }
+    for (id, row) in &selected.groups {
+        digest.update(id.to_le_bytes());
+        digest.update(row);
+    }
+    for node in &selected.nodes {
+        digest.update(format!("{node:?}").as_bytes());
+    }
+    Ok(digest.finalize().into())
 }
 
 /// A read-only connection.

@@ -1,0 +1,157 @@
+#!/usr/bin/env python3
+"""Writes an OSM change file that edits an extract, and the extract with the change applied.
+
+    osm_diff.py EXTRACT.osm.pbf EDIT OUT.osc[.gz] [OUT.osm.pbf]
+
+EDIT is one of:
+  move-bridge-node   moves the middle node of the longest road bridge 2 m north
+  delete-building    deletes the largest building way that no relation holds
+  many:N             N changes spread over the extract (seeded): nodes moved a metre, tags of
+                     ways changed, buildings deleted, in turn
+
+The chosen elements are printed to stderr (`way 123`), one a line. With OUT.osm.pbf the
+extract with the change applied is written too (pyosmium's MergeInputReader, as `osmium
+apply-changes`), to compare an updated store with one imported from it.
+"""
+
+import gzip
+import random
+import sys
+from xml.sax.saxutils import quoteattr
+
+import osmium
+
+TIMESTAMP = "2030-01-01T00:00:00Z"
+
+
+class Extract(osmium.SimpleHandler):
+    """The parts of an extract the edits choose from."""
+
+    def __init__(self):
+        super().__init__()
+        self.nodes = {}
+        self.ways = {}
+        self.in_relation = set()
+
+    def node(self, n):
+        self.nodes[n.id] = (n.location.lon, n.location.lat, n.version, dict(n.tags))
+
+    def way(self, w):
+        self.ways[w.id] = ([n.ref for n in w.nodes], dict(w.tags), w.version)
+
+    def relation(self, r):
+        for m in r.members:
+            if m.type == "w":
+                self.in_relation.add(m.ref)
+
+
+def node_xml(extract, node_id, lon, lat):
+    _, _, version, tags = extract.nodes[node_id]
+    body = "".join(f"<tag k={quoteattr(k)} v={quoteattr(v)}/>" for k, v in tags.items())
+    return (
+        f'<node id="{node_id}" version="{version + 1}" timestamp="{TIMESTAMP}" '
+        f'lat="{lat:.7f}" lon="{lon:.7f}">{body}</node>'
+    )
+
+
+def way_xml(extract, way_id, tags=None, deleted=False):
+    refs, old_tags, version = extract.ways[way_id]
+    if deleted:
+        return f'<way id="{way_id}" version="{version + 1}" timestamp="{TIMESTAMP}"/>'
+    tags = old_tags if tags is None else tags
+    body = "".join(f'<nd ref="{r}"/>' for r in refs)
+    body += "".join(f"<tag k={quoteattr(k)} v={quoteattr(v)}/>" for k, v in tags.items())
+    return f'<way id="{way_id}" version="{version + 1}" timestamp="{TIMESTAMP}">{body}</way>'
+
+
+def move(extract, node_id, north_m=2.0):
+    lon, lat, _, _ = extract.nodes[node_id]
+    return node_xml(extract, node_id, lon, lat + north_m / 111_320.0)
+
+
+def length(extract, refs):
+    points = [extract.nodes[r][:2] for r in refs if r in extract.nodes]
+    return sum(abs(a[0] - b[0]) + abs(a[1] - b[1]) for a, b in zip(points, points[1:]))
+
+
+def buildings(extract):
+    return [
+        w for w, (refs, tags, _) in extract.ways.items()
+        if "building" in tags and w not in extract.in_relation and refs[0] == refs[-1]
+    ]
+
+
+def edit(extract, what):
+    """(modify, delete) XML fragments and the chosen elements."""
+    if what == "move-bridge-node":
+        bridges = [
+            w for w, (refs, tags, _) in extract.ways.items()
+            if tags.get("bridge") not in (None, "no") and "highway" in tags and len(refs) >= 3
+        ]
+        way = max(bridges, key=lambda w: (length(extract, extract.ways[w][0]), -w))
+        refs = extract.ways[way][0]
+        node = refs[len(refs) // 2]
+        return [move(extract, node)], [], [f"way {way}", f"node {node}"]
+    if what == "delete-building":
+        way = max(buildings(extract), key=lambda w: (len(extract.ways[w][0]), -w))
+        return [], [way_xml(extract, way, deleted=True)], [f"way {way}"]
+    if what.startswith("many:"):
+        count = int(what.split(":", 1)[1])
+        rng = random.Random(18)
+        way_ids = sorted(extract.ways)
+        houses = set(buildings(extract))
+        modify, delete, chosen, used = [], [], [], set()
+        while len(chosen) < count:
+            way = rng.choice(way_ids)
+            if way in used:
+                continue
+            used.add(way)
+            refs, tags, _ = extract.ways[way]
+            kind = len(chosen) % 3
+            if kind == 0:
+                node = refs[len(refs) // 2]
+                if node in used or node not in extract.nodes:
+                    continue
+                used.add(node)
+                modify.append(move(extract, node, 1.0))
+                chosen.append(f"node {node}")
+            elif kind == 1:
+                modify.append(way_xml(extract, way, {**tags, "note": "changed"}))
+                chosen.append(f"way {way}")
+            elif way in houses:
+                delete.append(way_xml(extract, way, deleted=True))
+                chosen.append(f"way {way}")
+        return modify, delete, chosen
+    raise SystemExit(f"unknown edit {what}")
+
+
+def main():
+    if len(sys.argv) not in (4, 5):
+        raise SystemExit(__doc__)
+    source, what, osc = sys.argv[1:4]
+    extract = Extract()
+    extract.apply_file(source)
+    modify, delete, chosen = edit(extract, what)
+    text = '<?xml version="1.0" encoding="UTF-8"?>\n<osmChange version="0.6" generator="osm_diff.py">\n'
+    if modify:
+        text += "<modify>\n" + "\n".join(modify) + "\n</modify>\n"
+    if delete:
+        text += "<delete>\n" + "\n".join(delete) + "\n</delete>\n"
+    text += "</osmChange>\n"
+    opener = gzip.open if osc.endswith(".gz") else open
+    with opener(osc, "wt", encoding="utf-8") as out:
+        out.write(text)
+    for line in chosen:
+        print(line, file=sys.stderr)
+    if len(sys.argv) == 5:
+        merged = osmium.MergeInputReader()
+        merged.add_file(osc)
+        writer = osmium.io.Writer(osmium.io.File(sys.argv[4]), overwrite=True)
+        reader = osmium.io.Reader(source)
+        merged.apply_to_reader(reader, writer)
+        reader.close()
+        writer.close()
+
+
+if __name__ == "__main__":
+    main()
