@@ -6,8 +6,8 @@
 EDIT is one of:
   move-bridge-node   moves the middle node of the longest road bridge 2 m north
   delete-building    deletes the largest building way that no relation holds
-  many:N             N changes spread over the extract (seeded): nodes moved a metre, tags of
-                     ways changed, buildings deleted, in turn
+  many:N[:SEED]      N changes spread over the extract (seeded, 18 unless given): nodes moved
+                     a metre, tags of ways changed, buildings deleted, in turn
 
 The chosen elements are printed to stderr (`way 123`), one a line. With OUT.osm.pbf the
 extract with the change applied is written too (pyosmium's MergeInputReader, as `osmium
@@ -96,8 +96,9 @@ def edit(extract, what):
         way = max(buildings(extract), key=lambda w: (len(extract.ways[w][0]), -w))
         return [], [way_xml(extract, way, deleted=True)], [f"way {way}"]
     if what.startswith("many:"):
-        count = int(what.split(":", 1)[1])
-        rng = random.Random(18)
+        parts = what.split(":")
+        count = int(parts[1])
+        rng = random.Random(int(parts[2]) if len(parts) > 2 else 18)
         way_ids = sorted(extract.ways)
         houses = set(buildings(extract))
         modify, delete, chosen, used = [], [], [], set()

@@ -81,6 +81,10 @@ pub struct SourcesConfig {
     /// extracts in memory; imported from `osm` when missing or older than the extracts. None:
     /// the extracts are read into memory at start.
     pub store: Option<PathBuf>,
+    /// An OSM replication source (a directory or URL with `state.txt` and `AAA/BBB/CCC.osc.gz`
+    /// files) whose diffs are applied to the store every `server.check_interval_s`, resuming
+    /// after the last applied. Empty: none.
+    pub replication: String,
     /// Directory of SRTM files (`.hgt`, `.hgt.zip`).
     pub srtm: PathBuf,
     /// URL template of SRTM files the directory lacks, fetched when a tile needs one:
@@ -106,6 +110,7 @@ impl Default for SourcesConfig {
         SourcesConfig {
             osm: vec![PathBuf::from("data/monaco-osrm-2016.osm.pbf")],
             store: None,
+            replication: String::new(),
             srtm: PathBuf::from("data"),
             srtm_url: String::new(),
             downloads: PathBuf::from("data/downloads"),

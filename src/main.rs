@@ -74,9 +74,18 @@ struct ImportArgs {
 struct UpdateArgs {
     #[command(flatten)]
     sources: SourceArgs,
-    /// OSM change file (.osc or .osc.gz); repeat for several, applied in the order given
-    #[arg(long = "osc", value_name = "FILE", required = true)]
+    /// OSM change file (.osc or .osc.gz); repeat for several, applied in the order given, in
+    /// one transaction
+    #[arg(
+        long = "osc",
+        value_name = "FILE",
+        required_unless_present = "replication"
+    )]
     osc: Vec<PathBuf>,
+    /// Apply the diffs a replication source (directory or URL) has that the store lacks, each
+    /// in its own transaction [default: sources.replication]
+    #[arg(long, value_name = "URL", conflicts_with = "osc")]
+    replication: Option<String>,
     /// Write the expired tiles, one Z/X/Y a line, to this file (- for standard output)
     #[arg(long, value_name = "FILE")]
     expired: Option<PathBuf>,
@@ -629,20 +638,46 @@ fn update(args: UpdateArgs, config: Config) -> Result<()> {
         .clone()
         .unwrap_or_else(|| PathBuf::from(DEFAULT_STORE));
     let started = Instant::now();
-    let applied = terrastitch::provider::osm_source::update_locked(&store, &args.osc, None)?;
-    let tiles: Vec<String> = applied.expired.iter().map(|t| t.to_string()).collect();
-    eprintln!(
-        "applied diff {} ({} nodes, {} ways, {} relations changed; {} bridge and tunnel groups found again) \
-         in {:.2} s; {} of {} tiles read expired",
-        applied.generation,
-        applied.nodes,
-        applied.ways,
-        applied.relations,
-        applied.groups,
-        started.elapsed().as_secs_f64(),
-        tiles.len(),
-        applied.candidates
-    );
+    let mut expired = std::collections::BTreeSet::new();
+    let replication = args.replication.clone().or_else(|| {
+        (!config.sources.replication.is_empty()).then(|| config.sources.replication.clone())
+    });
+    let applied = if args.osc.is_empty() {
+        let Some(base) = replication else {
+            anyhow::bail!("name the diffs with --osc, or a replication source with --replication or sources.replication");
+        };
+        let fetcher = Fetcher::new(config.sources.fetch_settings());
+        let source = terrastitch::source::replication::Replication::new(&base);
+        let caught =
+            terrastitch::provider::osm_source::catch_up(&store, &source, &fetcher, usize::MAX)?;
+        eprintln!(
+            "{base} is at sequence {}; {} diffs applied",
+            caught.source,
+            caught.applied.len()
+        );
+        caught.applied.into_iter().map(|(_, a)| a).collect()
+    } else {
+        vec![terrastitch::provider::osm_source::update_locked(
+            &store, &args.osc, None,
+        )?]
+    };
+    for applied in &applied {
+        eprintln!(
+            "applied diff {} ({} nodes, {} ways, {} relations changed; {} bridge and tunnel groups found again); \
+             {} of {} tiles read expired",
+            applied.generation,
+            applied.nodes,
+            applied.ways,
+            applied.relations,
+            applied.groups,
+            applied.expired.len(),
+            applied.candidates
+        );
+        expired.extend(applied.expired.iter().copied());
+    }
+    eprintln!("in {:.2} s", started.elapsed().as_secs_f64());
+    let expired: Vec<TileId> = expired.into_iter().collect();
+    let tiles: Vec<String> = expired.iter().map(|t| t.to_string()).collect();
     match args.expired.as_deref() {
         Some(path) if path == std::path::Path::new("-") => {
             for tile in &tiles {
@@ -659,7 +694,7 @@ fn update(args: UpdateArgs, config: Config) -> Result<()> {
         None => {}
     }
     if let Some(server) = &args.server {
-        tell_server(server, args.token.as_deref(), &applied.expired)?;
+        tell_server(server, args.token.as_deref(), &expired)?;
     }
     Ok(())
 }

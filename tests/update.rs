@@ -8,7 +8,7 @@
 mod common;
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Output;
 
 use common::{sample_osm, terrastitch};
@@ -261,4 +261,224 @@ fn a_truncated_or_out_of_order_diff_is_refused_by_name_and_the_store_is_unchange
         "{message}"
     );
     assert_eq!(file_digest(&store), updated, "the store is unchanged");
+}
+
+/// A replication directory with `count` diffs of the bundled extract (sequences 1 to
+/// `count`) and its `state.txt` at sequence 0.
+fn replication_source(dir: &Path, count: u64) -> PathBuf {
+    let source = dir.join("replication");
+    for sequence in 1..=count {
+        let file = source.join(format!("000/000/{sequence:03}.osc.gz"));
+        std::fs::create_dir_all(file.parent().unwrap()).unwrap();
+        let changed = dir.join(format!("changed-{sequence}.osm.pbf"));
+        write_diff(&format!("many:100:{sequence}"), &file, &changed);
+    }
+    set_state(&source, 0);
+    source
+}
+
+fn set_state(source: &Path, sequence: u64) {
+    std::fs::write(
+        source.join("state.txt"),
+        format!("sequenceNumber={sequence}\ntimestamp=2030-01-01T00\\:00\\:00Z\n"),
+    )
+    .unwrap();
+}
+
+fn catch_up(store: &Path, source: &Path) -> std::process::Child {
+    terrastitch()
+        .arg("update")
+        .arg("--store")
+        .arg(store)
+        .arg("--replication")
+        .arg(source)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+fn sequence_of(store: &Path) -> Option<u64> {
+    let db =
+        rusqlite::Connection::open_with_flags(store, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+            .ok()?;
+    db.busy_timeout(std::time::Duration::from_secs(5)).ok()?;
+    db.query_row(
+        "SELECT value FROM meta WHERE key = 'replication_sequence'",
+        [],
+        |r| r.get::<_, String>(0),
+    )
+    .ok()
+    .and_then(|v| v.parse().ok())
+}
+
+/// Every row of the store's tables and the meta a diff changes, in order.
+fn contents(store: &Path) -> Vec<String> {
+    let db = rusqlite::Connection::open(store).unwrap();
+    let mut rows = Vec::new();
+    for (table, order) in [
+        ("nodes", "id"),
+        ("ways", "id"),
+        ("relations", "id"),
+        ("cells", "x, y, kind, id"),
+        ("groups", "id"),
+        ("group_under", "way, grp"),
+        ("joints", "node, way"),
+        ("way_facts", "way"),
+        ("coastlines", "way"),
+        ("node_moves", "id"),
+        ("expired", "x, y"),
+        ("meta WHERE key != 'nodes_file'", "key"),
+    ] {
+        let mut statement = db
+            .prepare(&format!("SELECT * FROM {table} ORDER BY {order}"))
+            .unwrap();
+        let columns = statement.column_count();
+        let found = statement
+            .query_map([], |row| {
+                let values: Vec<rusqlite::types::Value> = (0..columns)
+                    .map(|k| row.get(k))
+                    .collect::<Result<_, _>>()?;
+                Ok(format!("{table}: {values:?}"))
+            })
+            .unwrap();
+        rows.extend(found.map(Result::unwrap));
+    }
+    rows
+}
+
+#[test]
+fn replication_killed_midway_resumes_after_the_last_diff_applied() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = replication_source(dir.path(), 4);
+    let store = dir.path().join("osm.sqlite");
+    import(&store, &sample_osm());
+    // A store that knows no sequence starts at the source's.
+    assert!(catch_up(&store, &source).wait().unwrap().success());
+    assert_eq!(sequence_of(&store), Some(0));
+    let whole = dir.path().join("whole.sqlite");
+    std::fs::copy(&store, &whole).unwrap();
+    set_state(&source, 4);
+
+    assert!(catch_up(&whole, &source).wait().unwrap().success());
+    assert_eq!(sequence_of(&whole), Some(4));
+
+    let mut child = catch_up(&store, &source);
+    let started = std::time::Instant::now();
+    while sequence_of(&store).unwrap_or(0) < 1 {
+        assert!(started.elapsed().as_secs() < 120, "no diff applied");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let reached = sequence_of(&store).unwrap();
+    assert!(reached < 4, "the run was cut short (it reached {reached})");
+
+    assert!(catch_up(&store, &source).wait().unwrap().success());
+    assert_eq!(sequence_of(&store), Some(4));
+    assert!(
+        contents(&store) == contents(&whole),
+        "resumed, the store holds what one uninterrupted run wrote"
+    );
+}
+
+#[test]
+fn a_missing_diff_stops_replication_by_name_after_those_before_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = replication_source(dir.path(), 1);
+    let store = dir.path().join("osm.sqlite");
+    import(&store, &sample_osm());
+    assert!(catch_up(&store, &source).wait().unwrap().success());
+    set_state(&source, 2);
+    // Sequence 2 is missing: 1 is applied, then the run stops with a named error.
+    let output = terrastitch()
+        .arg("update")
+        .arg("--store")
+        .arg(&store)
+        .arg("--replication")
+        .arg(&source)
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let message = stderr(&output);
+    assert!(message.contains("002.osc.gz"), "{message}");
+    assert_eq!(sequence_of(&store), Some(1));
+}
+
+#[test]
+fn a_server_applies_its_replication_diffs_and_remakes_exactly_the_expired_tiles() {
+    use common::process::{request, spawn_server};
+    let dir = tempfile::tempdir().unwrap();
+    let source = dir.path().join("replication");
+    let diff = source.join("000/000/001.osc.gz");
+    std::fs::create_dir_all(diff.parent().unwrap()).unwrap();
+    write_diff("move-bridge-node", &diff, &dir.path().join("changed.osm.pbf"));
+    set_state(&source, 0);
+    let store = dir.path().join("osm.sqlite");
+    import(&store, &sample_osm());
+    assert!(catch_up(&store, &source).wait().unwrap().success());
+
+    let cache = dir.path().join("cache.sqlite");
+    let source_text = source.display().to_string();
+    let (child, address, _lines) = spawn_server(
+        &[
+            "--store",
+            store.to_str().unwrap(),
+            "--cache",
+            cache.to_str().unwrap(),
+        ],
+        &[
+            ("TERRASTITCH_SERVER__CHECK_INTERVAL_S", "1"),
+            ("TERRASTITCH_SOURCES__REPLICATION", &source_text),
+        ],
+    );
+    // Stopped however the test ends.
+    struct Stop(std::process::Child);
+    impl Drop for Stop {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+    let child = Stop(child);
+    let started = std::time::Instant::now();
+    while request(&address, "/ready", &[]).0 != 200 {
+        assert!(started.elapsed().as_secs() < 120, "the server never got ready");
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let get = |tile: &str| {
+        let (status, head, body) = request(&address, &format!("/tiles/{tile}.glb"), &[]);
+        assert_eq!(status, 200, "{head}");
+        (head.to_lowercase(), body)
+    };
+    // The bridge's tile, and one far from it.
+    let (near, far) = ("14/8528/5973", "14/8531/5975");
+    let (_, near_before) = get(near);
+    let (_, far_before) = get(far);
+
+    set_state(&source, 1);
+    let started = std::time::Instant::now();
+    loop {
+        let (_, body) = get(near);
+        if body != near_before {
+            break;
+        }
+        assert!(
+            started.elapsed().as_secs() < 120,
+            "the bridge's tile was never made again"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(250));
+    }
+    assert_eq!(sequence_of(&store), Some(1));
+    let (head, body) = get(far);
+    assert_eq!(body, far_before, "a far tile keeps its bytes");
+    assert!(head.contains("x-cache: hit"), "{head}");
+    // Of the two tiles stored, only the expired one was made again.
+    let (_, _, metrics) = request(&address, "/metrics", &[]);
+    let metrics = String::from_utf8_lossy(&metrics).into_owned();
+    let remade = metrics
+        .lines()
+        .find_map(|l| l.strip_prefix("terrastitch_regenerations_total "))
+        .map(str::trim);
+    assert_eq!(remade, Some("1"), "{metrics}");
+    drop(child);
 }

@@ -6,7 +6,9 @@ use std::path::{Path, PathBuf};
 
 use crate::osm::index::Selection;
 use crate::osm::{Bounds, OsmIndex};
+use crate::source::fetch::Fetcher;
 use crate::source::osc::{self, OscError, OsmChange};
+use crate::source::replication::{Replication, ReplicationError};
 use crate::source::store::import::{self, ImportError, Imported, Progress, Rules};
 use crate::source::store::update::{self, Applied, DiffOrigin, UpdateError};
 use crate::source::store::{OsmStore, StoreError};
@@ -100,6 +102,8 @@ pub enum StoreOpenError {
     Update(#[from] UpdateError),
     #[error(transparent)]
     Osc(#[from] OscError),
+    #[error(transparent)]
+    Replication(#[from] ReplicationError),
     #[error("cannot lock {path} to import the OSM store: {source}")]
     Lock {
         path: PathBuf,
@@ -177,6 +181,67 @@ pub fn apply_locked(
         &rules(),
         QUERY_MARGIN_DEG,
     )?)
+}
+
+/// What catching up with a replication source did.
+#[derive(Debug, Clone, Default)]
+pub struct CaughtUp {
+    /// The source's sequence when it was asked.
+    pub source: u64,
+    /// The diffs applied, in order, with their sequence.
+    pub applied: Vec<(u64, Applied)>,
+}
+
+/// Applies the diffs of `replication` the store at `path` lacks, in order, each in its own
+/// transaction: a run cut short (killed, or a diff that cannot be had) resumes after the
+/// last one applied. A store that knows no sequence starts at the source's current one.
+/// At most `limit` diffs are applied.
+pub fn catch_up(
+    path: &Path,
+    replication: &Replication,
+    fetcher: &Fetcher,
+    limit: usize,
+) -> Result<CaughtUp, StoreOpenError> {
+    let state = replication.state(fetcher)?;
+    let mut caught = CaughtUp {
+        source: state.sequence,
+        applied: Vec::new(),
+    };
+    let Some(last) = update::replication_sequence(path)? else {
+        tracing::warn!(
+            store = %path.display(),
+            sequence = state.sequence,
+            "the OSM store knows no replication sequence: diffs apply from the source's current one"
+        );
+        let _lock = lock_file(path)?;
+        update::start_replication_at(path, state.sequence)?;
+        return Ok(caught);
+    };
+    for sequence in (last + 1..=state.sequence).take(limit) {
+        let (file, name) = replication.diff(fetcher, sequence)?;
+        let change = match osc::read_osc(&file) {
+            Ok(change) => change,
+            Err(error) => {
+                // A damaged download is fetched again next time.
+                if crate::source::fetch::is_url(replication.base()) {
+                    let _ = std::fs::remove_file(&file);
+                }
+                return Err(error.into());
+            }
+        };
+        let origin = DiffOrigin {
+            name,
+            sequence: Some(sequence),
+        };
+        let applied = apply_locked(path, &change, &origin)?;
+        tracing::info!(
+            sequence,
+            expired = applied.expired.len(),
+            "applied a replication diff to the OSM store"
+        );
+        caught.applied.push((sequence, applied));
+    }
+    Ok(caught)
 }
 
 fn current_store(path: &Path, extracts: &[PathBuf], zoom: u8) -> Option<OsmStore> {

@@ -3,12 +3,14 @@
 
 use std::sync::Arc;
 
+use super::osm_source::OsmSource;
 use super::{Availability, Inputs, Made, MakeError, Offer, TileProvider, Unavailable};
 use crate::cache::Provenance;
 use crate::config::SourcesConfig;
 use crate::format::{Format, TileKey};
 use crate::render::{Deadline, RenderSettings};
 use crate::source::fetch::{FetchStats, Fetcher};
+use crate::source::replication::Replication;
 use crate::tile::TileId;
 
 /// Samples read per tile for its ground range.
@@ -57,6 +59,33 @@ impl Renderer {
     pub fn reopening_from(mut self, config: SourcesConfig, fetcher: Arc<Fetcher>) -> Renderer {
         self.origin = Some((Arc::new(config), fetcher));
         self
+    }
+
+    /// Applies the diffs of the configured replication source the store lacks (a few at a
+    /// time: the rest follow at the next check). Failures are logged; the store stays at the
+    /// last diff applied.
+    fn replicate(&self, config: &SourcesConfig, fetcher: &Fetcher) {
+        const DIFFS_PER_CHECK: usize = 60;
+        if config.replication.is_empty() {
+            return;
+        }
+        let OsmSource::Store(store) = &self.inputs.osm else {
+            tracing::warn!("sources.replication needs sources.store: diffs apply to the store");
+            return;
+        };
+        let source = Replication::new(&config.replication);
+        match super::osm_source::catch_up(store.path(), &source, fetcher, DIFFS_PER_CHECK) {
+            Ok(caught) if !caught.applied.is_empty() => tracing::info!(
+                diffs = caught.applied.len(),
+                last = caught.applied.last().map_or(0, |(s, _)| *s),
+                source = caught.source,
+                "the OSM store caught up with its replication source"
+            ),
+            Ok(_) => {}
+            Err(error) => {
+                tracing::error!(%error, "applying the replication source's diffs failed")
+            }
+        }
     }
 
     pub fn inputs(&self) -> &Arc<Inputs> {
@@ -167,6 +196,7 @@ impl TileProvider for Renderer {
         let Some((config, fetcher)) = &self.origin else {
             return Ok(None);
         };
+        self.replicate(config, fetcher);
         let changed = self.inputs.changed_files();
         if changed.is_empty() {
             return Ok(None);

@@ -6,5 +6,6 @@ pub mod fetch;
 pub mod node_locations;
 pub mod osc;
 pub mod osm_pbf;
+pub mod replication;
 pub mod srtm;
 pub mod store;

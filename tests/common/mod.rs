@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod compressed;
+pub mod process;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};

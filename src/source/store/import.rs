@@ -353,6 +353,8 @@ fn write_all(
 #[derive(Default)]
 struct Rows {
     header: Option<Bounds>,
+    /// The replication sequence the extract is current to, when its header says.
+    sequence: Option<u64>,
     nodes: Vec<NodeRow>,
     ways: Vec<(i64, Vec<u8>)>,
     relations: Vec<(i64, Vec<u8>)>,
@@ -380,6 +382,9 @@ fn rows_of(blob: &osmpbf::Blob, keep_relation: fn(&Tags) -> bool) -> Result<Rows
     match blob.decode().map_err(|e| RowsError::Pbf(e.to_string()))? {
         BlobDecode::OsmHeader(header) => {
             rows.header = crate::source::osm_pbf::bounds_in(&header);
+            rows.sequence = header
+                .osmosis_replication_sequence_number()
+                .and_then(|s| u64::try_from(s).ok());
         }
         BlobDecode::OsmData(block) => {
             for element in block.elements() {
@@ -512,7 +517,7 @@ fn read_extract(
         .db
         .execute_batch("BEGIN")
         .map_err(partial.sqlite())?;
-    let (mut header, mut extent) = (None, None);
+    let (mut header, mut extent, mut sequence) = (None, None, None);
     loop {
         let mut batch = Vec::with_capacity(BATCH);
         while batch.len() < BATCH {
@@ -527,6 +532,7 @@ fn read_extract(
         for rows in decode_all(&batch, rules.relation) {
             let rows = rows.map_err(|(offset, e)| failed(offset, e))?;
             header = rows.header.or(header);
+            sequence = rows.sequence.or(sequence);
             writer.write(rows, nodes, &mut extent, state)?;
         }
         state.bytes = before + read.load(Ordering::Relaxed);
@@ -551,6 +557,7 @@ fn read_extract(
         digest,
         file_version: crate::source::srtm::file_version(path).unwrap_or_default(),
         bounds: [bounds.west, bounds.south, bounds.east, bounds.north],
+        replication_sequence: sequence,
     })
 }
 
@@ -1108,6 +1115,17 @@ fn write_node_runs(
 
 fn write_meta(partial: &Partial, records: &[ExtractRecord], zoom: u8) -> Result<(), ImportError> {
     let sqlite = partial.sqlite();
+    // Diffs apply from the sequence the oldest extract is current to, when all say.
+    let sequences: Option<Vec<u64>> = records.iter().map(|r| r.replication_sequence).collect();
+    if let Some(first) = sequences.and_then(|s| s.into_iter().min()) {
+        partial
+            .db
+            .execute(
+                "INSERT INTO meta (key, value) VALUES ('replication_sequence', ?1)",
+                params![first.to_string()],
+            )
+            .map_err(&sqlite)?;
+    }
     let extracts = serde_json::to_string(records).unwrap_or_default();
     for (key, value) in [
         ("format", FORMAT.to_string()),

@@ -41,6 +41,9 @@ pub struct ExtractRecord {
     pub file_version: String,
     /// West, south, east, north: its header's box, else its nodes' extent.
     pub bounds: [f64; 4],
+    /// The replication sequence it is current to, when its header says.
+    #[serde(default)]
+    pub replication_sequence: Option<u64>,
 }
 
 #[derive(Debug, thiserror::Error)]

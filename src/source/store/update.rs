@@ -260,6 +260,45 @@ impl Meta {
     }
 }
 
+/// The replication sequence of the last diff applied to the store (or of its extract, when
+/// none was), if it knows one.
+pub fn replication_sequence(store: &Path) -> Result<Option<u64>, UpdateError> {
+    let sqlite = |source| UpdateError::Sqlite {
+        path: store.to_path_buf(),
+        source,
+    };
+    let db =
+        Connection::open_with_flags(store, OpenFlags::SQLITE_OPEN_READ_ONLY).map_err(sqlite)?;
+    db.busy_timeout(Duration::from_secs(60)).map_err(sqlite)?;
+    let value: Option<String> = db
+        .query_row(
+            "SELECT value FROM meta WHERE key = 'replication_sequence'",
+            [],
+            |r| r.get(0),
+        )
+        .optional()
+        .map_err(sqlite)?;
+    Ok(value.and_then(|v| v.parse().ok()))
+}
+
+/// Records that the store is current to `sequence` of its replication source, without a
+/// diff: where a store that knows none starts.
+pub fn start_replication_at(store: &Path, sequence: u64) -> Result<(), UpdateError> {
+    let sqlite = |source| UpdateError::Sqlite {
+        path: store.to_path_buf(),
+        source,
+    };
+    let db = Connection::open(store).map_err(sqlite)?;
+    db.busy_timeout(Duration::from_secs(60)).map_err(sqlite)?;
+    db.execute(
+        "INSERT INTO meta (key, value) VALUES ('replication_sequence', ?1)
+         ON CONFLICT (key) DO NOTHING",
+        params![sequence.to_string()],
+    )
+    .map_err(sqlite)?;
+    Ok(())
+}
+
 fn node_runs(db: &Connection) -> Result<Vec<RunIndex>, rusqlite::Error> {
     let mut statement =
         db.prepare("SELECT start, len, last, firsts FROM node_runs ORDER BY run")?;
