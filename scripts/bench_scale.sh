@@ -5,7 +5,9 @@
 # memory there, the time of one cold tile through the server, and `render` of the densest
 # Monaco tile (14/8529/5974, in the first copy) from the store and, up to 100 copies, from
 # the extract in memory: "store ms" counts the tile's reading of the store, "memory ms" the
-# render alone (the whole extract was read before it).
+# render alone (the whole extract was read before it). Last, a diff of 1,000 changes to the
+# first copy (scripts/osm_diff.py) is applied to the store: its time and peak memory, and how
+# many tiles it expired. "store MB" counts the store and its node file.
 #
 #   scripts/bench_scale.sh [COPIES...]      (default: 1 100 400)
 set -euo pipefail
@@ -37,9 +39,12 @@ render_ms() { # the render's own time, without the whole extract's load (--timin
     grep -o 'render [0-9.]* ms' "$1" | grep -o '[0-9.]*' | head -1
 }
 
-printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s\n' \
+diff=$work/diff-1000.osc.gz
+[ -s "$diff" ] || "$python" scripts/osm_diff.py data/monaco-osrm-2016.osm.pbf many:1000 "$diff" 2>/dev/null
+
+printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s %9s %9s %8s\n' \
     copies "PBF MB" "import s" "MB/s" "import MB" "store MB" "ready s" "ready MB" "cold ms" \
-    "store ms" "memory ms"
+    "store ms" "memory ms" "update s" "update MB" "expired"
 for n in "${copies[@]}"; do
     pbf=$work/c$n.osm.pbf
     srtm=$work/srtm-c$n
@@ -55,11 +60,11 @@ for n in "${copies[@]}"; do
     pbf_mb=$(awk "BEGIN {printf \"%.1f\", $(stat -c %s "$pbf") / 1e6}")
 
     store=$work/c$n.sqlite
-    rm -f "$store"
+    rm -f "$store" "$store".nodes-*
     read -r import_s import_mb < <(measure "$work/import-c$n.log" \
         "$bin" import --osm "$pbf" --store "$store")
     mbps=$(awk "BEGIN {printf \"%.1f\", $pbf_mb / $import_s}")
-    store_mb=$(awk "BEGIN {printf \"%.0f\", $(stat -c %s "$store") / 1e6}")
+    store_mb=$(awk "BEGIN {printf \"%.0f\", $(cat "$store" "$store".nodes-* | wc -c) / 1e6}")
 
     # serve on the store: time to /ready, memory there, then one cold tile.
     cache=$work/cache-c$n.sqlite
@@ -93,8 +98,11 @@ for n in "${copies[@]}"; do
         cmp -s "$work/tile-store.glb" "$work/tile-memory.glb" ||
             echo "warning: the tile from the store differs from the tile from memory" >&2
     fi
-    printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s\n' \
+    read -r update_s update_mb < <(measure "$work/update-c$n.log" \
+        "$bin" update --store "$store" --osm "$pbf" --osc "$diff" --expired "$work/expired-c$n.txt")
+    expired=$(wc -l <"$work/expired-c$n.txt")
+    printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s %9s %9s %8s\n' \
         "$n" "$pbf_mb" "$import_s" "$mbps" "$import_mb" "$store_mb" \
         "$(awk "BEGIN {printf \"%.2f\", $ready_ms / 1000}")" "$ready_mb" "$cold_ms" \
-        "$store_ms" "$memory_ms"
+        "$store_ms" "$memory_ms" "$update_s" "$update_mb" "$expired"
 done

@@ -159,25 +159,27 @@ fn around(tiles: &BTreeSet<String>) -> BTreeSet<String> {
     near
 }
 
+impl Outcome {
+    /// Checks that the diff changed some tile, that every tile it changed is expired, and that
+    /// no tile beyond those around the changed ones is.
+    fn assert_exact(&self, what: &str) {
+        let (changed, expired) = (&self.changed, &self.expired);
+        assert!(!changed.is_empty(), "{what} changes a tile");
+        assert!(
+            changed.is_subset(expired),
+            "every changed tile is expired: changed {changed:?}, expired {expired:?}"
+        );
+        assert!(
+            expired.is_subset(&around(changed)),
+            "no tile far from the change is expired: changed {changed:?}, expired {expired:?}"
+        );
+    }
+}
+
 #[test]
 fn a_moved_bridge_node_expires_the_tiles_around_its_group_and_no_far_tile() {
     let outcome = apply("move-bridge-node");
-    assert!(
-        !outcome.changed.is_empty(),
-        "moving a bridge changes a tile"
-    );
-    assert!(
-        outcome.changed.is_subset(&outcome.expired),
-        "every changed tile is expired: changed {:?}, expired {:?}",
-        outcome.changed,
-        outcome.expired
-    );
-    assert!(
-        outcome.expired.is_subset(&around(&outcome.changed)),
-        "no tile far from the change is expired: changed {:?}, expired {:?}",
-        outcome.changed,
-        outcome.expired
-    );
+    outcome.assert_exact("moving a bridge");
     assert!(
         outcome.expired.len() * 4 < outcome.all,
         "{} of {} tiles expired",
@@ -188,23 +190,7 @@ fn a_moved_bridge_node_expires_the_tiles_around_its_group_and_no_far_tile() {
 
 #[test]
 fn a_deleted_building_changes_its_tiles_only() {
-    let outcome = apply("delete-building");
-    assert!(
-        !outcome.changed.is_empty(),
-        "deleting a building changes a tile"
-    );
-    assert!(
-        outcome.changed.is_subset(&outcome.expired),
-        "changed {:?}, expired {:?}",
-        outcome.changed,
-        outcome.expired
-    );
-    assert!(
-        outcome.expired.is_subset(&around(&outcome.changed)),
-        "changed {:?}, expired {:?}",
-        outcome.changed,
-        outcome.expired
-    );
+    apply("delete-building").assert_exact("deleting a building");
 }
 
 #[test]
@@ -335,9 +321,8 @@ fn contents(store: &Path) -> Vec<String> {
         let columns = statement.column_count();
         let found = statement
             .query_map([], |row| {
-                let values: Vec<rusqlite::types::Value> = (0..columns)
-                    .map(|k| row.get(k))
-                    .collect::<Result<_, _>>()?;
+                let values: Vec<rusqlite::types::Value> =
+                    (0..columns).map(|k| row.get(k)).collect::<Result<_, _>>()?;
                 Ok(format!("{table}: {values:?}"))
             })
             .unwrap();
@@ -411,7 +396,11 @@ fn a_server_applies_its_replication_diffs_and_remakes_exactly_the_expired_tiles(
     let source = dir.path().join("replication");
     let diff = source.join("000/000/001.osc.gz");
     std::fs::create_dir_all(diff.parent().unwrap()).unwrap();
-    write_diff("move-bridge-node", &diff, &dir.path().join("changed.osm.pbf"));
+    write_diff(
+        "move-bridge-node",
+        &diff,
+        &dir.path().join("changed.osm.pbf"),
+    );
     set_state(&source, 0);
     let store = dir.path().join("osm.sqlite");
     import(&store, &sample_osm());
@@ -442,7 +431,10 @@ fn a_server_applies_its_replication_diffs_and_remakes_exactly_the_expired_tiles(
     let child = Stop(child);
     let started = std::time::Instant::now();
     while request(&address, "/ready", &[]).0 != 200 {
-        assert!(started.elapsed().as_secs() < 120, "the server never got ready");
+        assert!(
+            started.elapsed().as_secs() < 120,
+            "the server never got ready"
+        );
         std::thread::sleep(std::time::Duration::from_millis(100));
     }
     let get = |tile: &str| {

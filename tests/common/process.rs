@@ -85,4 +85,3 @@ pub fn request(address: &str, path: &str, headers: &[(&str, &str)]) -> (u16, Str
     let status = head.split_whitespace().nth(1).unwrap().parse().unwrap();
     (status, head, response[split + 4..].to_vec())
 }
-

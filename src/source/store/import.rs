@@ -31,7 +31,7 @@ use rusqlite::{params, Connection};
 
 use super::codec::{self, DecodeError};
 use super::{ExtractRecord, FORMAT, SCHEMA};
-use crate::osm::index::{cells_of, is_coastline};
+use crate::osm::index::{cells_of, is_coastline, meets};
 use crate::osm::structures::Classify;
 use crate::osm::{bounds_of, Bounds, LonLat, OsmData, OsmIndex, Tags, Way};
 use crate::source::node_locations::{Decimicro, NodeLocations, NodeStoreError, NodeWriter};
@@ -111,6 +111,8 @@ pub enum ImportError {
         path: PathBuf,
         source: std::io::Error,
     },
+    #[error("OSM extract {path} changed while it was imported; import it again")]
+    Changed { path: PathBuf },
     #[error("OSM extract {path} holds no nodes")]
     Empty { path: PathBuf },
     #[error("OSM extract {path}: {source}")]
@@ -512,6 +514,8 @@ fn read_extract(
             source,
         },
     };
+    // The version the store records is the one read: taken before, checked after.
+    let file_version = crate::source::srtm::file_version(path).unwrap_or_default();
     let mut writer = RowWriter::new(partial)?;
     partial
         .db
@@ -552,10 +556,15 @@ fn read_extract(
     let bounds = header.or(extent).ok_or_else(|| ImportError::Empty {
         path: path.to_path_buf(),
     })?;
+    if crate::source::srtm::file_version(path).unwrap_or_default() != file_version {
+        return Err(ImportError::Changed {
+            path: path.to_path_buf(),
+        });
+    }
     Ok(ExtractRecord {
         path: path.to_path_buf(),
         digest,
-        file_version: crate::source::srtm::file_version(path).unwrap_or_default(),
+        file_version,
         bounds: [bounds.west, bounds.south, bounds.east, bounds.north],
         replication_sequence: sequence,
     })
@@ -846,9 +855,9 @@ pub(super) struct FoundGroup {
 /// the elements near them, and stores them in the order the whole data's index finds them,
 /// with where bridges pass over ways; returns how many groups there are.
 ///
-/// A group's chains share nodes or cross, so its ways share cells: the clusters of structure
-/// ways whose cells (their boxes grown by what may stand over a tunnel) meet hold whole
-/// groups, and memory holds one cluster's surroundings at a time.
+/// A group's chains share nodes or cross, so its ways' boxes meet: the clusters of structure
+/// ways whose boxes (grown by what may stand over a tunnel) overlap hold whole groups, and
+/// memory holds one cluster's surroundings at a time.
 fn find_structures(
     partial: &Partial,
     structure_ways: &[i64],
@@ -859,16 +868,16 @@ fn find_structures(
     // The store is read for one cluster while the groups of the one before are found.
     let clusters = clusters(&partial.db, structure_ways, n, rules)?;
     let mut found: Vec<FoundGroup> = std::thread::scope(|scope| {
-        let (send, receive) = std::sync::mpsc::sync_channel::<OsmData>(1);
+        let (send, receive) = std::sync::mpsc::sync_channel::<(&Cluster, OsmData)>(1);
         let finder = scope.spawn(move || {
             receive
                 .into_iter()
-                .flat_map(|data| found_groups(data, zoom, rules))
+                .flat_map(|(cluster, data): (&Cluster, OsmData)| cluster.groups(data, zoom, rules))
                 .collect::<Vec<_>>()
         });
         for cluster in &clusters {
             let data = cluster_data(&partial.db, &partial.path, cluster, rules)?;
-            if send.send(data).is_err() {
+            if send.send((cluster, data)).is_err() {
                 break;
             }
         }
@@ -930,11 +939,24 @@ fn find_structures(
 /// over a tunnel, and among them those near its tunnels.
 #[derive(Debug, Default)]
 pub(super) struct Cluster {
+    /// Its structure ways.
+    pub ways: BTreeSet<i64>,
     pub cells: BTreeSet<(u32, u32)>,
     pub near_tunnels: BTreeSet<(u32, u32)>,
 }
 
-/// The clusters of structure ways: ways whose grown boxes share a cell are in one cluster.
+impl Cluster {
+    /// The groups of the cluster's ways among what was read around them (the same cells may
+    /// hold ways of other clusters, whose groups are found with theirs).
+    pub fn groups(&self, data: OsmData, zoom: u8, rules: &Rules) -> Vec<FoundGroup> {
+        let mut groups = found_groups(data, zoom, rules);
+        groups.retain(|g| self.ways.contains(&g.first_way));
+        groups
+    }
+}
+
+/// The clusters of structure ways: ways whose boxes, grown by what may stand over a tunnel,
+/// overlap are in one cluster (a group's ways share nodes or cross, so their boxes meet).
 pub(super) fn clusters(
     db: &Connection,
     structure_ways: &[i64],
@@ -942,7 +964,8 @@ pub(super) fn clusters(
     rules: &Rules,
 ) -> Result<Vec<Cluster>, ImportError> {
     use crate::osm::structures::StructureKind;
-    let mut near: Vec<(Vec<(u32, u32)>, bool)> = Vec::with_capacity(structure_ways.len());
+    // Each way's grown box and whether it is a tunnel.
+    let mut grown: Vec<(i64, Bounds, bool)> = Vec::with_capacity(structure_ways.len());
     for &id in structure_ways {
         let Some(way) = super::way(db, id)? else {
             continue;
@@ -951,12 +974,11 @@ pub(super) fn clusters(
             (rules.classify)(&way.tags),
             Some((StructureKind::Tunnel, _))
         );
-        let cells = bounds_of(&way.positions)
-            .map(|b| cells_of(&b.expanded(crate::osm::index::ABOVE_TUNNEL_DEG), n).collect())
-            .unwrap_or_default();
-        near.push((cells, tunnel));
+        if let Some(b) = bounds_of(&way.positions) {
+            grown.push((id, b.expanded(crate::osm::index::ABOVE_TUNNEL_DEG), tunnel));
+        }
     }
-    let mut parent: Vec<usize> = (0..near.len()).collect();
+    let mut parent: Vec<usize> = (0..grown.len()).collect();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
         while parent[i] != i {
             parent[i] = parent[parent[i]];
@@ -964,24 +986,26 @@ pub(super) fn clusters(
         }
         i
     }
-    let mut owner: HashMap<(u32, u32), usize> = HashMap::new();
-    for (i, (cells, _)) in near.iter().enumerate() {
-        for cell in cells {
-            match owner.get(cell) {
-                Some(&other) => {
-                    let (a, b) = (root(&mut parent, i), root(&mut parent, other));
-                    parent[a] = b;
-                }
-                None => {
-                    owner.insert(*cell, i);
+    // The cells find the pairs that may overlap; their boxes decide.
+    let mut in_cell: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
+    for (i, (_, b, _)) in grown.iter().enumerate() {
+        for cell in cells_of(b, n) {
+            let others = in_cell.entry(cell).or_default();
+            for &other in others.iter() {
+                if meets(b, &grown[other].1) {
+                    let (a, c) = (root(&mut parent, i), root(&mut parent, other));
+                    parent[a] = c;
                 }
             }
+            others.push(i);
         }
     }
     let mut by_root: BTreeMap<usize, Cluster> = BTreeMap::new();
-    for (i, (cells, tunnel)) in near.into_iter().enumerate() {
+    for (i, (id, b, tunnel)) in grown.iter().enumerate() {
         let cluster = by_root.entry(root(&mut parent, i)).or_default();
-        if tunnel {
+        cluster.ways.insert(*id);
+        let cells: Vec<(u32, u32)> = cells_of(b, n).collect();
+        if *tunnel {
             cluster.near_tunnels.extend(cells.iter().copied());
         }
         cluster.cells.extend(cells);
@@ -1054,7 +1078,7 @@ pub(super) fn cluster_data(
 }
 
 /// The groups among a cluster's elements, as they will be stored.
-pub(super) fn found_groups(data: OsmData, zoom: u8, rules: &Rules) -> Vec<FoundGroup> {
+fn found_groups(data: OsmData, zoom: u8, rules: &Rules) -> Vec<FoundGroup> {
     let index = OsmIndex::new(data, zoom, rules.classify).with_foundations(rules.depth);
     let ways: &[Way] = &index.data().ways;
     let way_id = |i: u32| ways.get(i as usize).map_or(0, |w| w.id);

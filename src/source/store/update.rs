@@ -13,9 +13,9 @@ use std::time::Duration;
 
 use rusqlite::{params, Connection, OpenFlags, OptionalExtension};
 
-use super::import::{cluster_data, clusters, found_groups, FoundGroup, ImportError, Rules};
+use super::import::{cluster_data, clusters, FoundGroup, ImportError, Rules};
 use super::{codec, StoreError, FORMAT};
-use crate::osm::index::{cells_of, is_coastline, ABOVE_TUNNEL_DEG};
+use crate::osm::index::{cells_of, is_coastline, meets, ABOVE_TUNNEL_DEG};
 use crate::osm::{bounds_of, Bounds, ElementType, LonLat, Relation, Way};
 use crate::source::node_locations::{Decimicro, NodeLocations, NodeStoreError, RunIndex};
 use crate::source::osc::{Action, Changed, OsmChange};
@@ -815,22 +815,24 @@ impl Update<'_> {
         Ok(())
     }
 
+    /// Registers an element of `kind` in the cells of its box.
     fn encell(&self, kind: i64, id: i64, b: &Bounds) -> Result<(), UpdateError> {
-        let mut s = self
-            .db
-            .prepare_cached("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, ?3, ?4)")
-            .map_err(self.sqlite())?;
-        for (x, y) in cells_of(b, self.n) {
-            s.execute(params![x, y, kind, id]).map_err(self.sqlite())?;
-        }
-        Ok(())
+        self.each_cell(
+            "INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, ?3, ?4)",
+            kind,
+            id,
+            b,
+        )
     }
 
+    /// Takes an element of `kind` out of the cells of the box it was registered with.
     fn uncell(&self, kind: i64, id: i64, b: &Bounds) -> Result<(), UpdateError> {
-        let mut s = self
-            .db
-            .prepare_cached("DELETE FROM cells WHERE x = ?1 AND y = ?2 AND kind = ?3 AND id = ?4")
-            .map_err(self.sqlite())?;
+        let sql = "DELETE FROM cells WHERE x = ?1 AND y = ?2 AND kind = ?3 AND id = ?4";
+        self.each_cell(sql, kind, id, b)
+    }
+
+    fn each_cell(&self, sql: &str, kind: i64, id: i64, b: &Bounds) -> Result<(), UpdateError> {
+        let mut s = self.db.prepare_cached(sql).map_err(self.sqlite())?;
         for (x, y) in cells_of(b, self.n) {
             s.execute(params![x, y, kind, id]).map_err(self.sqlite())?;
         }
@@ -1007,27 +1009,38 @@ impl Update<'_> {
         }
         let mut members = BTreeSet::new();
         let mut old_groups: BTreeMap<i64, Vec<u8>> = BTreeMap::new();
+        // The groups held before that hold a way found again or changed are found again, with
+        // all their ways (a group's box holds its ways, so it is in their cells).
+        let mut cells: BTreeSet<(u32, u32)> = BTreeSet::new();
+        for edit in plan.ways.values() {
+            if let Some(b) = edit.old.as_ref().and_then(|w| bounds_of(&w.positions)) {
+                cells.extend(cells_of(&b, self.n));
+            }
+        }
         loop {
+            let before = members.clone();
             self.grow_cluster(&mut seeds, &mut members)?;
-            let mut cells: BTreeSet<(u32, u32)> = look.clone();
-            for &id in &members {
-                if let Some(w) = super::way(self.db, id).map_err(self.decode())? {
-                    if let Some(b) = bounds_of(&w.positions) {
-                        cells.extend(cells_of(&b.expanded(ABOVE_TUNNEL_DEG), self.n));
-                    }
+            for id in members.difference(&before) {
+                if let Some(b) = super::way(self.db, *id)
+                    .map_err(self.decode())?
+                    .and_then(|w| bounds_of(&w.positions))
+                {
+                    cells.extend(cells_of(&b, self.n));
                 }
             }
-            let found = self.groups_in(&cells)?;
             let mut more = BTreeSet::new();
-            for (id, row) in found {
+            for (id, row) in self.groups_in(&cells)? {
                 if old_groups.contains_key(&id) {
                     continue;
                 }
-                for way in chain_ways(&row).map_err(self.decode())? {
-                    if !members.contains(&way) {
-                        more.insert(way);
-                    }
+                let chain = chain_ways(&row).map_err(self.decode())?;
+                let held = chain
+                    .iter()
+                    .any(|w| members.contains(w) || plan.ways.contains_key(w));
+                if !held {
+                    continue;
                 }
+                more.extend(chain.into_iter().filter(|w| !members.contains(w)));
                 old_groups.insert(id, row);
             }
             if more.is_empty() {
@@ -1039,7 +1052,7 @@ impl Update<'_> {
         let mut new_groups: BTreeMap<i64, FoundGroup> = BTreeMap::new();
         for cluster in clusters(self.db, &ids, self.n, self.rules)? {
             let data = cluster_data(self.db, self.path, &cluster, self.rules)?;
-            for group in found_groups(data, self.zoom, self.rules) {
+            for group in cluster.groups(data, self.zoom, self.rules) {
                 new_groups.insert(group.first_way, group);
             }
         }
@@ -1049,13 +1062,14 @@ impl Update<'_> {
     }
 
     /// Adds to `members` every structure way linked to `seeds` (their boxes, grown by what
-    /// may stand over a tunnel, sharing a cell), as the import clusters them.
+    /// may stand over a tunnel, overlapping), as the import clusters them.
     fn grow_cluster(
         &mut self,
         seeds: &mut BTreeSet<i64>,
         members: &mut BTreeSet<i64>,
     ) -> Result<(), UpdateError> {
         let classify = self.rules.classify;
+        let grow = |w: &Way| bounds_of(&w.positions).map(|b| b.expanded(ABOVE_TUNNEL_DEG));
         let mut frontier: Vec<i64> = seeds.iter().copied().collect();
         while let Some(id) = frontier.pop() {
             if members.contains(&id) {
@@ -1068,26 +1082,18 @@ impl Update<'_> {
                 continue;
             }
             members.insert(id);
-            let Some(b) = bounds_of(&way.positions) else {
+            let Some(grown) = grow(&way) else {
                 continue;
             };
-            let grown: BTreeSet<(u32, u32)> =
-                cells_of(&b.expanded(ABOVE_TUNNEL_DEG), self.n).collect();
-            let mut near = BTreeSet::new();
-            for &(x, y) in &grown {
-                let cell = TileId { z: self.zoom, x, y }.bounds();
-                near.extend(cells_of(&cell.expanded(ABOVE_TUNNEL_DEG), self.n));
-            }
+            // A way whose grown box meets this one's lies in the cells of this one grown again.
+            let near: Vec<(u32, u32)> =
+                cells_of(&grown.expanded(ABOVE_TUNNEL_DEG), self.n).collect();
             for cell in near {
-                let n = self.n;
                 for other in self.ways_after(cell)? {
                     if members.contains(&other.id) || classify(&other.tags).is_none() {
                         continue;
                     }
-                    let meets = bounds_of(&other.positions).is_some_and(|o| {
-                        cells_of(&o.expanded(ABOVE_TUNNEL_DEG), n).any(|c| grown.contains(&c))
-                    });
-                    if meets {
+                    if grow(other).is_some_and(|o| meets(&o, &grown)) {
                         frontier.push(other.id);
                     }
                 }
