@@ -154,7 +154,13 @@ pub fn update_locked(
 ) -> Result<Applied, StoreOpenError> {
     let mut change = OsmChange::default();
     for file in files {
-        change.merge(osc::read_osc(file)?);
+        change
+            .merge(osc::read_osc(file)?)
+            .map_err(|why| UpdateError::OutOfOrder {
+                path: path.to_path_buf(),
+                diff: file.display().to_string(),
+                why: format!("{why} in the files before it"),
+            })?;
     }
     let origin = DiffOrigin {
         name: files
@@ -207,13 +213,14 @@ pub fn catch_up(
         source: state.sequence,
         applied: Vec::new(),
     };
+    // Held throughout: another run waits, then finds where this one stopped.
+    let _lock = lock_file(path)?;
     let Some(last) = update::replication_sequence(path)? else {
         tracing::warn!(
             store = %path.display(),
             sequence = state.sequence,
             "the OSM store knows no replication sequence: diffs apply from the source's current one"
         );
-        let _lock = lock_file(path)?;
         update::start_replication_at(path, state.sequence)?;
         return Ok(caught);
     };
@@ -233,7 +240,7 @@ pub fn catch_up(
             name,
             sequence: Some(sequence),
         };
-        let applied = apply_locked(path, &change, &origin)?;
+        let applied = update::apply(path, &change, &origin, &rules(), QUERY_MARGIN_DEG)?;
         tracing::info!(
             sequence,
             expired = applied.expired.len(),

@@ -5,10 +5,12 @@
 //!
 //! Records of 16 bytes (id, longitude and latitude in 10⁻⁷ degrees) are appended to one file in
 //! *runs* of ascending ids; an extract sorted by type then id (as Geofabrik's and osmium's are)
-//! is one run, and another run starts where an id is not above the last. Memory holds the
-//! first id of every block of [`BLOCK_RECORDS`] records (1/256 of the file) and a fixed number
-//! of blocks read lately. A lookup tries the runs in the order they were written, so where
-//! several extracts hold a node, the first one's position is the one found.
+//! is one run, and another run starts where an id is not above the last. Nodes are taken
+//! [`CHUNK`] at a time and sorted before they are written, so an unsorted extract makes one run
+//! a chunk, and runs beyond [`MERGED_ABOVE`] are merged into one when writing ends. Memory
+//! holds the first id of every block of [`BLOCK_RECORDS`] records (1/256 of the file) and a
+//! fixed number of blocks read lately. A lookup tries the runs in the order they were written,
+//! so where several extracts hold a node, the first one's position is the one found.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -21,6 +23,10 @@ const RECORD: usize = 16;
 const BLOCK: usize = BLOCK_RECORDS * RECORD;
 /// Blocks kept in memory (64 MiB).
 const CACHED_BLOCKS: usize = 16_384;
+/// Nodes held and sorted before they are written (64 MiB).
+pub const CHUNK: usize = 1 << 22;
+/// More runs than this are merged into one: a lookup tries each.
+pub const MERGED_ABOVE: usize = 16;
 
 #[derive(Debug, thiserror::Error)]
 pub enum NodeStoreError {
@@ -89,6 +95,10 @@ pub struct NodeWriter {
     out: BufWriter<File>,
     runs: Vec<Run>,
     written: u64,
+    /// Nodes not written yet, in the order given.
+    pending: Vec<(i64, Decimicro)>,
+    /// How many are held before they are written.
+    chunk: usize,
 }
 
 impl NodeWriter {
@@ -109,6 +119,8 @@ impl NodeWriter {
             out: BufWriter::with_capacity(1 << 20, file),
             runs: Vec::new(),
             written: 0,
+            pending: Vec::with_capacity(1024),
+            chunk: CHUNK,
         })
     }
 
@@ -121,6 +133,29 @@ impl NodeWriter {
 
     /// Appends one node.
     pub fn push(&mut self, id: i64, at: Decimicro) -> Result<(), NodeStoreError> {
+        if self.pending.len() >= self.chunk {
+            self.write_pending()?;
+        }
+        self.pending.push((id, at));
+        Ok(())
+    }
+
+    /// Writes the nodes held, sorted by id; of one id given twice, the first stays.
+    fn write_pending(&mut self) -> Result<(), NodeStoreError> {
+        let mut pending = std::mem::take(&mut self.pending);
+        if !pending.windows(2).all(|w| w[0].0 < w[1].0) {
+            pending.sort_by_key(|&(id, _)| id);
+            pending.dedup_by_key(|&mut (id, _)| id);
+        }
+        for &(id, at) in &pending {
+            self.write(id, at)?;
+        }
+        pending.clear();
+        self.pending = pending;
+        Ok(())
+    }
+
+    fn write(&mut self, id: i64, at: Decimicro) -> Result<(), NodeStoreError> {
         let continues = self.runs.last().is_some_and(|run| id > run.last);
         if !continues {
             // A new run starts on a block boundary, so that blocks never mix runs.
@@ -153,9 +188,9 @@ impl NodeWriter {
         Ok(())
     }
 
-    /// Nodes written so far.
+    /// Nodes taken so far.
     pub fn len(&self) -> u64 {
-        self.runs.iter().map(|r| r.len).sum()
+        self.runs.iter().map(|r| r.len).sum::<u64>() + self.pending.len() as u64
     }
 
     pub fn is_empty(&self) -> bool {
@@ -169,7 +204,11 @@ impl NodeWriter {
 
     /// Ends writing; the locations can be read.
     pub fn finish(mut self) -> Result<NodeLocations, NodeStoreError> {
+        self.write_pending()?;
         self.out.flush().map_err(|e| self.io(e))?;
+        if self.runs.len() > MERGED_ABOVE {
+            return self.merged();
+        }
         let file = self.out.into_inner().map_err(|e| NodeStoreError::Io {
             path: self.path.clone(),
             source: e.into_error(),
@@ -178,6 +217,91 @@ impl NodeWriter {
             path: self.path,
             file,
             runs: self.runs,
+            cache: (0..CACHED_BLOCKS).map(|_| None).collect(),
+        })
+    }
+}
+
+impl NodeWriter {
+    /// The runs merged into one, in a file written beside and renamed over this one: of one
+    /// id in several runs, the earliest run's position stays.
+    fn merged(self) -> Result<NodeLocations, NodeStoreError> {
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| NodeStoreError::Io {
+                path: path.clone(),
+                source,
+            }
+        };
+        let file = File::open(&self.path).map_err(io(&self.path))?;
+        // Each run read in buffers of its own from one file: (next offset, records left,
+        // buffer, place in it).
+        let mut readers: Vec<(u64, u64, Vec<u8>, usize)> = self
+            .runs
+            .iter()
+            .map(|run| (run.start * RECORD as u64, run.len, Vec::new(), 0))
+            .collect();
+        let mut next = |r: usize| -> Result<Option<(i64, Decimicro)>, NodeStoreError> {
+            let (offset, left, buffer, at) = &mut readers[r];
+            if *at == buffer.len() {
+                if *left == 0 {
+                    return Ok(None);
+                }
+                let records = (*left).min(4096);
+                buffer.resize(records as usize * RECORD, 0);
+                file.read_exact_at(buffer, *offset)
+                    .map_err(io(&self.path))?;
+                *offset += records * RECORD as u64;
+                *left -= records;
+                *at = 0;
+            }
+            let record = &buffer[*at..*at + RECORD];
+            *at += RECORD;
+            let mut id = [0u8; 8];
+            let (mut lon, mut lat) = ([0u8; 4], [0u8; 4]);
+            id.copy_from_slice(&record[..8]);
+            lon.copy_from_slice(&record[8..12]);
+            lat.copy_from_slice(&record[12..]);
+            let at = Decimicro {
+                lon: i32::from_le_bytes(lon),
+                lat: i32::from_le_bytes(lat),
+            };
+            Ok(Some((i64::from_le_bytes(id), at)))
+        };
+        let mut heap = std::collections::BinaryHeap::new();
+        for r in 0..self.runs.len() {
+            if let Some((id, at)) = next(r)? {
+                heap.push(std::cmp::Reverse((id, r, at.lon, at.lat)));
+            }
+        }
+        let merged_path = {
+            let mut name = self.path.as_os_str().to_owned();
+            name.push(".merging");
+            PathBuf::from(name)
+        };
+        let mut out = NodeWriter::create(&merged_path)?;
+        let mut last = None;
+        while let Some(std::cmp::Reverse((id, r, lon, lat))) = heap.pop() {
+            if last != Some(id) {
+                out.write(id, Decimicro { lon, lat })?;
+                last = Some(id);
+            }
+            if let Some((id, at)) = next(r)? {
+                heap.push(std::cmp::Reverse((id, r, at.lon, at.lat)));
+            }
+        }
+        drop(self.out);
+        std::fs::rename(&merged_path, &self.path).map_err(io(&self.path))?;
+        out.path = self.path.clone();
+        out.out.flush().map_err(|e| out.io(e))?;
+        let file = out.out.into_inner().map_err(|e| NodeStoreError::Io {
+            path: out.path.clone(),
+            source: e.into_error(),
+        })?;
+        Ok(NodeLocations {
+            path: out.path,
+            file,
+            runs: out.runs,
             cache: (0..CACHED_BLOCKS).map(|_| None).collect(),
         })
     }
@@ -341,7 +465,6 @@ mod tests {
         for id in (1000..1300).step_by(2) {
             writer.push(id, at(-id)).unwrap();
         }
-        assert_eq!(writer.runs(), 2);
         let written = writer.finish().unwrap();
         let index = written.index();
         drop(written);
@@ -354,6 +477,27 @@ mod tests {
             } else {
                 None
             };
+            assert_eq!(nodes.get(id).unwrap(), expected, "node {id}");
+        }
+    }
+
+    #[test]
+    fn an_unsorted_extract_is_merged_into_one_run_where_the_first_position_stays() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut writer = NodeWriter::create(&dir.path().join("nodes")).unwrap();
+        writer.chunk = 10;
+        // Ids in a scrambled order, then some again with other positions (a second extract).
+        let scrambled: Vec<i64> = (0..1000).map(|k| (k * 389) % 1000 + 1).collect();
+        for &id in &scrambled {
+            writer.push(id, at(id)).unwrap();
+        }
+        for id in (1..1000).step_by(7) {
+            writer.push(id, at(-id)).unwrap();
+        }
+        let mut nodes = writer.finish().unwrap();
+        assert_eq!(nodes.index().len(), 1, "one run");
+        for id in 0..1002 {
+            let expected = (1..=1000).contains(&id).then(|| at(id));
             assert_eq!(nodes.get(id).unwrap(), expected, "node {id}");
         }
     }

@@ -83,12 +83,27 @@ pub struct OsmChange {
 }
 
 impl OsmChange {
-    /// Folds a later file's changes in: its version of an element replaces this one's.
-    pub fn merge(&mut self, later: OsmChange) {
+    /// Folds a later file's changes in: its version of an element replaces this one's; a
+    /// version older than this one's is out of order (the element named in the error).
+    pub fn merge(&mut self, later: OsmChange) -> Result<(), String> {
+        for (key, change) in &later.changes {
+            if let Some(earlier) = self.changes.get(key) {
+                if change.version < earlier.version {
+                    return Err(format!(
+                        "{} {} comes at version {} after version {}",
+                        key.element_type.as_str(),
+                        key.id,
+                        change.version,
+                        earlier.version
+                    ));
+                }
+            }
+        }
         self.changes.extend(later.changes);
         if later.newest > self.newest {
             self.newest = later.newest;
         }
+        Ok(())
     }
 }
 
@@ -288,8 +303,8 @@ impl<'p, R: BufRead> Parser<'p, R> {
 
     fn position(&self, id: i64, lon: &str, lat: &str) -> Result<Decimicro, OscError> {
         let bad = || self.invalid(format!("node {id} lies at lon={lon} lat={lat}"));
-        let lon = decimicro(lon).filter(|d| d.abs() <= 1_800_000_000);
-        let lat = decimicro(lat).filter(|d| d.abs() <= 900_000_000);
+        let lon = decimicro(lon).filter(|d| d.unsigned_abs() <= 1_800_000_000);
+        let lat = decimicro(lat).filter(|d| d.unsigned_abs() <= 900_000_000);
         match (lon, lat) {
             (Some(lon), Some(lat)) => Ok(Decimicro { lon, lat }),
             _ => Err(bad()),
@@ -548,5 +563,13 @@ mod tests {
         assert_eq!(decimicro("7"), Some(70_000_000));
         assert_eq!(decimicro("1e5"), None);
         assert_eq!(decimicro("."), None);
+        // The smallest i32: no overflow when its size is checked.
+        assert_eq!(decimicro("-214.7483648"), Some(i32::MIN));
+        let error = read(
+            r#"<osmChange><create><node id="1" lat="1" lon="-214.7483648"/></create></osmChange>"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(error.contains("lies at"), "{error}");
     }
 }

@@ -866,7 +866,7 @@ fn find_structures(
 ) -> Result<u64, ImportError> {
     let n = f64::from(1u32 << zoom);
     // The store is read for one cluster while the groups of the one before are found.
-    let clusters = clusters(&partial.db, structure_ways, n, rules)?;
+    let clusters = batches(clusters(&partial.db, structure_ways, n, rules)?);
     let mut found: Vec<FoundGroup> = std::thread::scope(|scope| {
         let (send, receive) = std::sync::mpsc::sync_channel::<(&Cluster, OsmData)>(1);
         let finder = scope.spawn(move || {
@@ -978,14 +978,7 @@ pub(super) fn clusters(
             grown.push((id, b.expanded(crate::osm::index::ABOVE_TUNNEL_DEG), tunnel));
         }
     }
-    let mut parent: Vec<usize> = (0..grown.len()).collect();
-    fn root(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
+    let mut sets = DisjointSets::new(grown.len());
     // The cells find the pairs that may overlap; their boxes decide.
     let mut in_cell: HashMap<(u32, u32), Vec<usize>> = HashMap::new();
     for (i, (_, b, _)) in grown.iter().enumerate() {
@@ -993,8 +986,7 @@ pub(super) fn clusters(
             let others = in_cell.entry(cell).or_default();
             for &other in others.iter() {
                 if meets(b, &grown[other].1) {
-                    let (a, c) = (root(&mut parent, i), root(&mut parent, other));
-                    parent[a] = c;
+                    sets.union(i, other);
                 }
             }
             others.push(i);
@@ -1002,7 +994,7 @@ pub(super) fn clusters(
     }
     let mut by_root: BTreeMap<usize, Cluster> = BTreeMap::new();
     for (i, (id, b, tunnel)) in grown.iter().enumerate() {
-        let cluster = by_root.entry(root(&mut parent, i)).or_default();
+        let cluster = by_root.entry(sets.find(i)).or_default();
         cluster.ways.insert(*id);
         let cells: Vec<(u32, u32)> = cells_of(b, n).collect();
         if *tunnel {
@@ -1011,6 +1003,53 @@ pub(super) fn clusters(
         cluster.cells.extend(cells);
     }
     Ok(by_root.into_values().collect())
+}
+
+/// Clusters that share a cell, merged: the import reads each cell's elements once for all
+/// the clusters there.
+fn batches(clusters: Vec<Cluster>) -> Vec<Cluster> {
+    let mut sets = DisjointSets::new(clusters.len());
+    let mut owner: HashMap<(u32, u32), usize> = HashMap::new();
+    for (i, cluster) in clusters.iter().enumerate() {
+        for cell in &cluster.cells {
+            match owner.get(cell) {
+                Some(&other) => sets.union(i, other),
+                None => {
+                    owner.insert(*cell, i);
+                }
+            }
+        }
+    }
+    let mut merged: BTreeMap<usize, Cluster> = BTreeMap::new();
+    for (i, cluster) in clusters.into_iter().enumerate() {
+        let batch = merged.entry(sets.find(i)).or_default();
+        batch.ways.extend(cluster.ways);
+        batch.cells.extend(cluster.cells);
+        batch.near_tunnels.extend(cluster.near_tunnels);
+    }
+    merged.into_values().collect()
+}
+
+/// Disjoint sets of indices.
+struct DisjointSets(Vec<usize>);
+
+impl DisjointSets {
+    fn new(n: usize) -> DisjointSets {
+        DisjointSets((0..n).collect())
+    }
+
+    fn find(&mut self, mut i: usize) -> usize {
+        while self.0[i] != i {
+            self.0[i] = self.0[self.0[i]];
+            i = self.0[i];
+        }
+        i
+    }
+
+    fn union(&mut self, a: usize, b: usize) {
+        let (a, b) = (self.find(a), self.find(b));
+        self.0[a] = b;
+    }
 }
 
 /// What can take part in a cluster's groups: the structure ways, the ways they may cross, and
@@ -1139,9 +1178,13 @@ fn write_node_runs(
 
 fn write_meta(partial: &Partial, records: &[ExtractRecord], zoom: u8) -> Result<(), ImportError> {
     let sqlite = partial.sqlite();
-    // Diffs apply from the sequence the oldest extract is current to, when all say.
-    let sequences: Option<Vec<u64>> = records.iter().map(|r| r.replication_sequence).collect();
-    if let Some(first) = sequences.and_then(|s| s.into_iter().min()) {
+    // Diffs apply from the sequence the extracts are current to, when they all give one
+    // (several extracts of one source current to different sequences give none).
+    let sequences: Option<BTreeSet<u64>> = records.iter().map(|r| r.replication_sequence).collect();
+    let one = sequences
+        .filter(|s| s.len() == 1)
+        .and_then(|s| s.first().copied());
+    if let Some(first) = one {
         partial
             .db
             .execute(

@@ -206,6 +206,12 @@ impl Meta {
                 )));
             }
         }
+        // Without a sequence, time orders diffs: one whose changes all predate a diff applied
+        // before is out of order. (In a sequence, a diff may hold only an upload that took
+        // long and is older than the last one's.)
+        if origin.sequence.is_some() {
+            return Ok(());
+        }
         if let (Some(newest), Some(applied)) = (&change.newest, &self.newest_change) {
             if newest < applied {
                 return Err(refuse(format!(
@@ -648,33 +654,55 @@ impl Update<'_> {
         )))
     }
 
-    /// Adds the relations holding a changed way or relation, and reads each one's state
-    /// before.
+    /// Adds the relations holding a changed way or relation, to any depth, and reads each
+    /// one's state before. A relation is registered in the cells of its ways' box, so it
+    /// lies in the cells of each way and relation it holds.
     fn plan_relations(&mut self, plan: &mut Plan) -> Result<(), UpdateError> {
-        let mut cells = BTreeSet::new();
-        for edit in plan.ways.values() {
-            if let Some(b) = edit.old.as_ref().and_then(|w| bounds_of(&w.positions)) {
-                cells.extend(cells_of(&b, self.n));
-            }
-        }
-        let mut holders = BTreeSet::new();
-        {
-            let mut s = self
-                .db
-                .prepare_cached("SELECT id FROM cells WHERE x = ?1 AND y = ?2 AND kind = 2")
-                .map_err(self.sqlite())?;
-            for (x, y) in cells {
-                let rows = s
-                    .query_map(params![x, y], |r| r.get::<_, i64>(0))
-                    .map_err(self.sqlite())?;
-                for id in rows {
-                    holders.insert(id.map_err(self.sqlite())?);
+        let mut looked = BTreeSet::new();
+        loop {
+            // The state before of the relations added last.
+            let ids: Vec<i64> = plan
+                .relations
+                .iter()
+                .filter(|(_, e)| e.old.is_none())
+                .map(|(&id, _)| id)
+                .collect();
+            for id in ids {
+                let old = match super::relation(self.db, id).map_err(self.decode())? {
+                    Some(r) => {
+                        let b = relation_bounds(self.db, &r).map_err(self.decode())?;
+                        Some((r, b))
+                    }
+                    None => None,
+                };
+                if let Some(edit) = plan.relations.get_mut(&id) {
+                    edit.old = old;
                 }
             }
-        }
-        // Twice: a relation may hold a relation that holds a changed way.
-        for _ in 0..2 {
-            for &id in &holders {
+            let mut boxes: Vec<Bounds> = Vec::new();
+            for edit in plan.ways.values() {
+                for way in [edit.old.as_ref(), edit.new.as_ref().map(|(w, _)| w)]
+                    .into_iter()
+                    .flatten()
+                {
+                    boxes.extend(bounds_of(&way.positions));
+                }
+            }
+            for edit in plan.relations.values() {
+                if let Some((_, Some(b))) = &edit.old {
+                    boxes.push(*b);
+                }
+            }
+            let mut cells = BTreeSet::new();
+            for b in &boxes {
+                cells.extend(cells_of(b, self.n).filter(|c| !looked.contains(c)));
+            }
+            if cells.is_empty() {
+                return Ok(());
+            }
+            looked.extend(cells.iter().copied());
+            let mut added = false;
+            for id in self.in_cells(2, &cells)? {
                 if plan.relations.contains_key(&id) {
                     continue;
                 }
@@ -697,23 +725,35 @@ impl Update<'_> {
                             new: Some(relation),
                         },
                     );
+                    added = true;
                 }
             }
-        }
-        let ids: Vec<i64> = plan.relations.keys().copied().collect();
-        for id in ids {
-            let old = match super::relation(self.db, id).map_err(self.decode())? {
-                Some(r) => {
-                    let b = relation_bounds(self.db, &r).map_err(self.decode())?;
-                    Some((r, b))
-                }
-                None => None,
-            };
-            if let Some(edit) = plan.relations.get_mut(&id) {
-                edit.old = old;
+            if !added {
+                return Ok(());
             }
         }
-        Ok(())
+    }
+
+    /// The elements of `kind` registered in `cells`.
+    fn in_cells(
+        &self,
+        kind: i64,
+        cells: &BTreeSet<(u32, u32)>,
+    ) -> Result<BTreeSet<i64>, UpdateError> {
+        let mut s = self
+            .db
+            .prepare_cached("SELECT id FROM cells WHERE x = ?1 AND y = ?2 AND kind = ?3")
+            .map_err(self.sqlite())?;
+        let mut found = BTreeSet::new();
+        for &(x, y) in cells {
+            let rows = s
+                .query_map(params![x, y, kind], |r| r.get::<_, i64>(0))
+                .map_err(self.sqlite())?;
+            for id in rows {
+                found.insert(id.map_err(self.sqlite())?);
+            }
+        }
+        Ok(found)
     }
 
     /// Writes the nodes, ways and relations as the diff leaves them.
@@ -882,10 +922,11 @@ impl Update<'_> {
             changed_ways.extend(through_before);
             changed_ways.extend(through_now);
         }
-        for way in changed_ways {
+        for &way in &changed_ways {
             self.write_joints(way)?;
             self.reach_way(way, reach)?;
         }
+        self.reach_holders(&changed_ways, reach)?;
         for &way in &plan.joined_before {
             self.reach_way(way, reach)?;
         }
@@ -1107,21 +1148,7 @@ impl Update<'_> {
         &self,
         cells: &BTreeSet<(u32, u32)>,
     ) -> Result<BTreeMap<i64, Vec<u8>>, UpdateError> {
-        let mut ids = BTreeSet::new();
-        {
-            let mut s = self
-                .db
-                .prepare_cached("SELECT id FROM cells WHERE x = ?1 AND y = ?2 AND kind = 3")
-                .map_err(self.sqlite())?;
-            for &(x, y) in cells {
-                let rows = s
-                    .query_map(params![x, y], |r| r.get::<_, i64>(0))
-                    .map_err(self.sqlite())?;
-                for id in rows {
-                    ids.insert(id.map_err(self.sqlite())?);
-                }
-            }
-        }
+        let ids = self.in_cells(3, cells)?;
         let mut found = BTreeMap::new();
         for id in ids {
             let row: Option<Vec<u8>> = self
@@ -1186,7 +1213,7 @@ impl Update<'_> {
                 under_changed.insert(*way);
             }
         }
-        for way in under_changed {
+        for &way in &under_changed {
             let mut positions: Vec<LonLat> = Vec::new();
             {
                 let mut s = self
@@ -1204,6 +1231,53 @@ impl Update<'_> {
             let value = (!positions.is_empty()).then(|| codec::encode_positions(&positions));
             self.set_fact(way, "under_bridges", value)?;
             self.reach_way(way, reach)?;
+            // The tiles near the ways joined to it read its facts too.
+            for (_, through) in super::facts(self.db, way).map_err(self.decode())?.joints {
+                for other in through {
+                    self.reach_way(other, reach)?;
+                }
+            }
+        }
+        self.reach_holders(&under_changed, reach)?;
+        Ok(())
+    }
+
+    /// Adds the boxes of the relations that hold one of `ways` and of the groups that name
+    /// one: the tiles that read those read the ways' facts.
+    fn reach_holders(&self, ways: &BTreeSet<i64>, reach: &mut Reach) -> Result<(), UpdateError> {
+        let mut cells = BTreeSet::new();
+        for &id in ways {
+            if let Some(b) = super::way(self.db, id)
+                .map_err(self.decode())?
+                .and_then(|w| bounds_of(&w.positions))
+            {
+                cells.extend(cells_of(&b, self.n));
+            }
+        }
+        for id in self.in_cells(2, &cells)? {
+            let Some(relation) = super::relation(self.db, id).map_err(self.decode())? else {
+                continue;
+            };
+            let holds = super::relation_ways(self.db, &relation)
+                .map_err(self.sqlite())?
+                .iter()
+                .any(|w| ways.contains(w));
+            if holds {
+                reach
+                    .boxes
+                    .extend(relation_bounds(self.db, &relation).map_err(self.decode())?);
+            }
+        }
+        for (_, row) in self.groups_in(&cells)? {
+            let mut named = false;
+            let group = codec::decode_group(&row, &mut |id| {
+                named |= ways.contains(&id);
+                Some(0)
+            })
+            .map_err(self.decode())?;
+            if named {
+                reach.boxes.push(group.bounds);
+            }
         }
         Ok(())
     }
