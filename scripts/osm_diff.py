@@ -6,6 +6,7 @@
 EDIT is one of:
   move-bridge-node   moves the middle node of the longest road bridge 2 m north
   delete-building    deletes the largest building way that no relation holds
+  water-multipolygon turns the multipolygon with the most members into a lake
   many:N[:SEED]      N changes spread over the extract (seeded, 18 unless given): nodes moved
                      a metre, tags of ways changed, buildings deleted, in turn
 
@@ -31,6 +32,7 @@ class Extract(osmium.SimpleHandler):
         super().__init__()
         self.nodes = {}
         self.ways = {}
+        self.relations = {}
         self.in_relation = set()
 
     def node(self, n):
@@ -40,6 +42,8 @@ class Extract(osmium.SimpleHandler):
         self.ways[w.id] = ([n.ref for n in w.nodes], dict(w.tags), w.version)
 
     def relation(self, r):
+        members = [(m.type, m.ref, m.role) for m in r.members]
+        self.relations[r.id] = (members, dict(r.tags), r.version)
         for m in r.members:
             if m.type == "w":
                 self.in_relation.add(m.ref)
@@ -62,6 +66,19 @@ def way_xml(extract, way_id, tags=None, deleted=False):
     body = "".join(f'<nd ref="{r}"/>' for r in refs)
     body += "".join(f"<tag k={quoteattr(k)} v={quoteattr(v)}/>" for k, v in tags.items())
     return f'<way id="{way_id}" version="{version + 1}" timestamp="{TIMESTAMP}">{body}</way>'
+
+
+def relation_xml(extract, relation_id, tags):
+    members, _, version = extract.relations[relation_id]
+    kinds = {"n": "node", "w": "way", "r": "relation"}
+    body = "".join(
+        f'<member type="{kinds[t]}" ref="{ref}" role={quoteattr(role)}/>' for t, ref, role in members
+    )
+    body += "".join(f"<tag k={quoteattr(k)} v={quoteattr(v)}/>" for k, v in tags.items())
+    return (
+        f'<relation id="{relation_id}" version="{version + 1}" timestamp="{TIMESTAMP}">'
+        f"{body}</relation>"
+    )
 
 
 def move(extract, node_id, north_m=2.0):
@@ -95,6 +112,14 @@ def edit(extract, what):
     if what == "delete-building":
         way = max(buildings(extract), key=lambda w: (len(extract.ways[w][0]), -w))
         return [], [way_xml(extract, way, deleted=True)], [f"way {way}"]
+    if what == "water-multipolygon":
+        polygons = [
+            r for r, (members, tags, _) in extract.relations.items()
+            if tags.get("type") == "multipolygon" and tags.get("natural") != "water"
+        ]
+        relation = max(polygons, key=lambda r: (len(extract.relations[r][0]), -r))
+        tags = {"type": "multipolygon", "natural": "water"}
+        return [relation_xml(extract, relation, tags)], [], [f"relation {relation}"]
     if what.startswith("many:"):
         parts = what.split(":")
         count = int(parts[1])

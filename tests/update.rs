@@ -194,6 +194,11 @@ fn a_deleted_building_changes_its_tiles_only() {
 }
 
 #[test]
+fn a_multipolygon_turned_into_a_lake_changes_its_tiles_only() {
+    apply("water-multipolygon").assert_exact("a new lake");
+}
+
+#[test]
 fn many_changes_expire_every_tile_they_change() {
     let outcome = apply("many:300");
     assert!(
