@@ -530,6 +530,11 @@ pub fn reads_relation(tags: &Tags) -> bool {
     matches!(tags.get("type"), Some("multipolygon" | "building"))
 }
 
+/// Drops the relations features are not made from (see [`reads_relation`]).
+pub fn keep_relations_read(relations: &mut Vec<crate::osm::Relation>) {
+    relations.retain(|r| reads_relation(&r.tags));
+}
+
 /// The areas among the selected elements, in id order (ways, then relations).
 fn areas_of<'a>(selection: &Selection<'a>) -> Vec<Area<'a>> {
     let mut areas = Vec::new();

@@ -66,8 +66,7 @@ pub enum Uncovered {
 /// ground over a tunnel, which relations make features.
 pub fn index_osm(mut data: OsmData, zoom: u8) -> OsmIndex {
     // The relations tiles are not made from are dropped, as the store does.
-    data.relations
-        .retain(|r| crate::features::reads_relation(&r.tags));
+    crate::features::keep_relations_read(&mut data.relations);
     OsmIndex::new(data, zoom, crate::features::structures::classify)
         .with_joints(crate::features::roads::joins)
         .with_foundations(crate::features::structures::foundation_depth_m)
