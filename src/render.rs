@@ -348,13 +348,7 @@ fn prepare<'a>(
     );
     // Cliffs and retaining walls step the terrain.
     let steps = elevation::steps::Steps::new(&feature_set.steps);
-    let settled = elevation::ground::Ground {
-        terrain: &terrain,
-        water: &water,
-        cuts: &cuts,
-        roads: &roads,
-        steps: &steps,
-    };
+    let settled = elevation::ground::Ground::new(&terrain, &water, &cuts, &roads, &steps);
     let mut ground = ground::triangulate(
         &frame,
         &settings.mesh,
@@ -604,13 +598,7 @@ fn render_glb(
 
     let started = Instant::now();
     let sample_step_uv = srtm_step_uv(tile);
-    let settled = elevation::ground::Ground {
-        terrain,
-        water,
-        cuts,
-        roads,
-        steps,
-    };
+    let settled = elevation::ground::Ground::new(terrain, water, cuts, roads, steps);
     parts.extend(mesh::buildings::build(
         &feature_set.buildings,
         frame,

@@ -3,7 +3,7 @@
 //! and retaining walls, each settled by its own module.
 
 use super::roads::RoadLevels;
-use super::settled::Level;
+use super::settled::{Level, LevelGrid};
 use super::steps::Steps;
 use crate::terrain::Elevation;
 
@@ -18,15 +18,36 @@ pub struct Ground<'a> {
     pub roads: &'a RoadLevels,
     /// Cliffs and retaining walls, stepping the terrain around them.
     pub steps: &'a Steps,
+    water_grid: LevelGrid,
+    cut_grid: LevelGrid,
+}
+
+impl<'a> Ground<'a> {
+    pub fn new(
+        terrain: &'a dyn Elevation,
+        water: &'a [Level],
+        cuts: &'a [Level],
+        roads: &'a RoadLevels,
+        steps: &'a Steps,
+    ) -> Ground<'a> {
+        Ground {
+            terrain,
+            water,
+            cuts,
+            roads,
+            steps,
+            water_grid: LevelGrid::new(water),
+            cut_grid: LevelGrid::new(cuts),
+        }
+    }
 }
 
 impl Elevation for Ground<'_> {
     fn elevation_uv(&self, p: [f64; 2]) -> f64 {
         // Where water areas overlap, the lowest level wins.
         let water = self
-            .water
-            .iter()
-            .filter(|w| w.covers(p))
+            .water_grid
+            .covering(self.water, p)
             .map(|w| w.rule.elevation(p))
             .fold(None, |low: Option<f64>, l| {
                 Some(low.map_or(l, |x| x.min(l)))
@@ -38,7 +59,7 @@ impl Elevation for Ground<'_> {
         // carriageways whose portals are not abreast), so no tube shows through.
         let mut cut: Option<f64> = None;
         let mut raised: Option<f64> = None;
-        for level in self.cuts.iter().filter(|c| c.covers(p)) {
+        for level in self.cut_grid.covering(self.cuts, p) {
             let h = level.rule.elevation(p);
             if level.at_least {
                 raised = Some(raised.map_or(h, |r: f64| r.max(h)));

@@ -371,6 +371,88 @@ impl CellIndex {
     }
 }
 
+/// Which of a list of levels may cover a point: a grid over their bounds, each cell listing in
+/// order the levels whose bounds meet it, so a lookup reads a few levels rather than all.
+#[derive(Debug, Clone, Default)]
+pub struct LevelGrid {
+    bounds: Option<Rect>,
+    side: usize,
+    cells: Vec<Vec<u32>>,
+}
+
+/// Cells per side of a [`LevelGrid`], at most.
+const LEVEL_CELLS: usize = 64;
+
+impl LevelGrid {
+    pub fn new(levels: &[Level]) -> LevelGrid {
+        let mut all = levels.iter().map(|l| l.cells.bounds);
+        let Some(first) = all.next() else {
+            return LevelGrid::default();
+        };
+        let bounds = all.fold(first, |b, l| Rect {
+            min: [b.min[0].min(l.min[0]), b.min[1].min(l.min[1])],
+            max: [b.max[0].max(l.max[0]), b.max[1].max(l.max[1])],
+        });
+        let side = ((levels.len() as f64).sqrt().ceil() as usize * 2).clamp(1, LEVEL_CELLS);
+        let mut grid = LevelGrid {
+            bounds: Some(bounds),
+            side,
+            cells: vec![Vec::new(); side * side],
+        };
+        for (k, level) in levels.iter().enumerate() {
+            let b = level.cells.bounds;
+            let (lo, hi) = (grid.index(b.min), grid.index(b.max));
+            for row in lo[1]..=hi[1] {
+                for column in lo[0]..=hi[0] {
+                    grid.cells[row * side + column].push(k as u32);
+                }
+            }
+        }
+        grid
+    }
+
+    /// The cell of `p`, clamped to the grid; monotone in each coordinate, so a level whose
+    /// bounds hold `p` is listed in `p`'s cell.
+    fn index(&self, p: Point) -> [usize; 2] {
+        let Some(bounds) = self.bounds else {
+            return [0, 0];
+        };
+        let side = self.side;
+        let at = |axis: usize| {
+            let size = (bounds.max[axis] - bounds.min[axis]) / side as f64;
+            if size > 0.0 {
+                (((p[axis] - bounds.min[axis]) / size).floor().max(0.0) as usize).min(side - 1)
+            } else {
+                0
+            }
+        };
+        [at(0), at(1)]
+    }
+
+    /// The levels that may cover `p`, in the order they were given.
+    pub fn near(&self, p: Point) -> &[u32] {
+        match self.bounds {
+            Some(bounds) if bounds.contains(p) => {
+                let [column, row] = self.index(p);
+                &self.cells[row * self.side + column]
+            }
+            _ => &[],
+        }
+    }
+
+    /// The levels of `levels` (those this grid was made of) that cover `p`, in order.
+    pub fn covering<'a>(
+        &'a self,
+        levels: &'a [Level],
+        p: Point,
+    ) -> impl Iterator<Item = &'a Level> {
+        self.near(p)
+            .iter()
+            .map(move |&k| &levels[k as usize])
+            .filter(move |l| l.covers(p))
+    }
+}
+
 impl Level {
     pub fn new(surface: u32, pieces: Vec<Polygon>, bounds: Rect, rule: Rule) -> Level {
         let cells = CellIndex::new(&pieces, bounds);
@@ -412,6 +494,42 @@ impl Level {
                     .iter()
                     .any(|&(a, b)| distance_to_segment(p, a, b) <= ON_OUTLINE)
                     || near.iter().any(|&i| self.pieces[i as usize].contains(p))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn square(x: f64, y: f64, size: f64) -> Level {
+        let outer = vec![[x, y], [x + size, y], [x + size, y + size], [x, y + size]];
+        let bounds = Rect::around(&outer);
+        let piece = Polygon {
+            outer,
+            holes: Vec::new(),
+        };
+        Level::new(0, vec![piece], bounds, Rule::Level(0.0))
+    }
+
+    proptest! {
+        #[test]
+        fn a_level_grid_finds_the_levels_a_scan_finds_in_the_same_order(
+            squares in prop::collection::vec((0.0..1.0f64, 0.0..1.0f64, 0.0..0.3f64), 0..40),
+            points in prop::collection::vec((-0.1..1.4f64, -0.1..1.4f64), 1..60),
+        ) {
+            let levels: Vec<Level> = squares.iter().map(|&(x, y, s)| square(x, y, s)).collect();
+            let grid = LevelGrid::new(&levels);
+            // The points, and every corner (on the outline, where cells meet).
+            let corners = squares.iter().flat_map(|&(x, y, s)| [[x, y], [x + s, y + s]]);
+            for p in points.iter().map(|&(x, y)| [x, y]).chain(corners) {
+                let scanned: Vec<*const Level> =
+                    levels.iter().filter(|l| l.covers(p)).map(|l| l as *const Level).collect();
+                let found: Vec<*const Level> =
+                    grid.covering(&levels, p).map(|l| l as *const Level).collect();
+                prop_assert_eq!(scanned, found, "{:?}", p);
             }
         }
     }
