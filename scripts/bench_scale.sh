@@ -4,8 +4,9 @@
 # the import's time, speed and peak memory, the store's size, `serve`'s time to /ready and
 # memory there, the time of one cold tile through the server, and `render` of the densest
 # Monaco tile (14/8529/5974, in the first copy) from the store and, up to 100 copies, from
-# the extract in memory: "store ms" counts the tile's reading of the store, "memory ms" the
-# render alone (the whole extract was read before it). Last, a diff of 1,000 changes to the
+# the extract in memory: "store ms" counts the tile's reading of the store, "after ms" the
+# same after its eight neighbours in one process (the LP components they solved are found
+# solved), "memory ms" the render alone (the whole extract was read before it). Last, a diff of 1,000 changes to the
 # first copy (scripts/osm_diff.py) is applied to the store: its time and peak memory, and how
 # many tiles it expired. "store MB" counts the store and its node file.
 #
@@ -42,9 +43,9 @@ render_ms() { # the render's own time, without the whole extract's load (--timin
 diff=$work/diff-1000.osc.gz
 [ -s "$diff" ] || "$python" scripts/osm_diff.py data/monaco-osrm-2016.osm.pbf many:1000 "$diff" 2>/dev/null
 
-printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s %9s %9s %8s\n' \
+printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s %10s %9s %9s %8s\n' \
     copies "PBF MB" "import s" "MB/s" "import MB" "store MB" "ready s" "ready MB" "cold ms" \
-    "store ms" "memory ms" "update s" "update MB" "expired"
+    "store ms" "after ms" "memory ms" "update s" "update MB" "expired"
 for n in "${copies[@]}"; do
     pbf=$work/c$n.osm.pbf
     srtm=$work/srtm-c$n
@@ -90,6 +91,19 @@ for n in "${copies[@]}"; do
     "$bin" render "$tile" --store "$store" --osm "$pbf" --srtm "$srtm" --timings \
         -o "$work/tile-store.glb" >"$work/render-store-c$n.log" 2>&1
     store_ms=$(total_ms "$work/render-store-c$n.log")
+    # The same tile after its eight neighbours in one process, as a server or a seed meets
+    # it: the bridges and road stretches they share are found settled.
+    neighbours=()
+    for dx in -1 0 1; do
+        for dy in -1 0 1; do
+            [ "$dx$dy" = 00 ] || neighbours+=(--after "14/$((8529 + dx))/$((5974 + dy))")
+        done
+    done
+    "$bin" render "$tile" "${neighbours[@]}" --store "$store" --osm "$pbf" --srtm "$srtm" \
+        --timings -o "$work/tile-after.glb" >"$work/render-after-c$n.log" 2>&1
+    after_ms=$(total_ms "$work/render-after-c$n.log")
+    cmp -s "$work/tile-store.glb" "$work/tile-after.glb" ||
+        echo "warning: the tile rendered after its neighbours differs" >&2
     memory_ms="-"
     if [ "$n" -le 100 ]; then
         "$bin" render "$tile" --osm "$pbf" --srtm "$srtm" --timings \
@@ -101,8 +115,8 @@ for n in "${copies[@]}"; do
     read -r update_s update_mb < <(measure "$work/update-c$n.log" \
         "$bin" update --store "$store" --osm "$pbf" --osc "$diff" --expired "$work/expired-c$n.txt")
     expired=$(wc -l <"$work/expired-c$n.txt")
-    printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s %9s %9s %8s\n' \
+    printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s %10s %9s %9s %8s\n' \
         "$n" "$pbf_mb" "$import_s" "$mbps" "$import_mb" "$store_mb" \
         "$(awk "BEGIN {printf \"%.2f\", $ready_ms / 1000}")" "$ready_mb" "$cold_ms" \
-        "$store_ms" "$memory_ms" "$update_s" "$update_mb" "$expired"
+        "$store_ms" "$after_ms" "$memory_ms" "$update_s" "$update_mb" "$expired"
 done

@@ -129,6 +129,10 @@ struct RenderArgs {
     /// 3D Tiles content), glb-enu-meshopt
     #[arg(long, value_name = "VARIANT", default_value = "glb")]
     variant: String,
+    /// Tiles to render first, in the same process, and throw away: the tile then finds the
+    /// bridges and road stretches they settled already settled, as a server or a seed does
+    #[arg(long, value_name = "Z/X/Y")]
+    after: Vec<String>,
 }
 
 /// The tiles of a box, for `seed` and `export`.
@@ -371,20 +375,14 @@ async fn shutdown_signal() {
     tracing::info!("shutting down");
 }
 
-fn render(args: RenderArgs, config: Config) -> Result<()> {
-    let tile: TileId = args.tile.parse()?;
-    let variant = terrastitch::format::Variant::from_name(&args.variant).with_context(|| {
-        format!(
-            "unknown variant '{}'; expected glb, glb-meshopt, glb-enu or glb-enu-meshopt",
-            args.variant
-        )
-    })?;
+/// One tile from the sources: the time its inputs took to read, and the tile.
+fn render_one(
+    sources: &terrastitch::provider::inputs::Inputs,
+    tile: TileId,
+    settings: &terrastitch::render::RenderSettings,
+    variant: terrastitch::format::Variant,
+) -> Result<(std::time::Duration, terrastitch::render::RenderedTile)> {
     let started = Instant::now();
-    let renderer = open_renderer(
-        &config,
-        Arc::new(Fetcher::new(config.sources.fetch_settings())),
-    )?;
-    let sources = renderer.inputs();
     if sources.check_coverage(tile).is_err() {
         sources.fetch_missing_srtm(tile)?;
     }
@@ -399,10 +397,41 @@ fn render(args: RenderArgs, config: Config) -> Result<()> {
         tile,
         &selection,
         &mosaic,
-        &config.render,
+        settings,
         variant,
         terrastitch::render::Deadline::none(),
     )?;
+    Ok((load, rendered))
+}
+
+fn render(args: RenderArgs, config: Config) -> Result<()> {
+    let tile: TileId = args.tile.parse()?;
+    let variant = terrastitch::format::Variant::from_name(&args.variant).with_context(|| {
+        format!(
+            "unknown variant '{}'; expected glb, glb-meshopt, glb-enu or glb-enu-meshopt",
+            args.variant
+        )
+    })?;
+    let before: Vec<TileId> = args
+        .after
+        .iter()
+        .map(|t| t.parse())
+        .collect::<Result<_, _>>()?;
+    let started = Instant::now();
+    let renderer = open_renderer(
+        &config,
+        Arc::new(Fetcher::new(config.sources.fetch_settings())),
+    )?;
+    // Opening the sources counts in the load of the first tile rendered.
+    let mut opened = Some(started.elapsed());
+    let sources = renderer.inputs();
+    for &earlier in &before {
+        opened = None;
+        render_one(sources, earlier, &config.render, variant)?;
+    }
+    let counted = terrastitch::render::lp_components_reused();
+    let (load, rendered) = render_one(sources, tile, &config.render, variant)?;
+    let load = load + opened.unwrap_or_default();
     std::fs::write(&args.output, &rendered.glb)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     if args.timings {
@@ -442,6 +471,12 @@ fn render(args: RenderArgs, config: Config) -> Result<()> {
             s.road_lp_variables,
             s.road_lp_constraints,
             s.road_lp_violations
+        );
+        let (found, solved) = terrastitch::render::lp_components_reused();
+        eprintln!(
+            "LP components: {} solved, {} found solved by an earlier tile",
+            solved - counted.1,
+            found - counted.0
         );
     }
     Ok(())

@@ -508,6 +508,11 @@ fn log_violations<'a>(
     }
 }
 
+/// Components of the elevation LP this process found solved by an earlier tile, and solved.
+pub fn lp_components_reused() -> (u64, u64) {
+    elevation::solutions::Solutions::shared().counts()
+}
+
 /// The ground roads of a tile, settled as its glb settles them.
 pub fn settle_road_profiles(
     tile: TileId,

@@ -14,7 +14,11 @@
 //! Each component is solved with clarabel, an interior-point solver whose equalities hold to
 //! about 1e-8: two-variable equalities are snapped exactly afterwards.
 
+use std::collections::HashMap;
+
 use good_lp::{clarabel, variable, Expression, ProblemVariables, Solution, SolverModel};
+
+use super::solutions::{self, Key, KeyWriter, Solutions};
 
 /// A linear relation over some variables: `Σ coefficient · x (kind) rhs`.
 #[derive(Debug, Clone, PartialEq)]
@@ -232,15 +236,80 @@ fn solve_all(
     out
 }
 
-/// One component as an LP; `None` if the solver fails.
+/// One component as an LP; `None` if the solver fails. A component solved before (in this
+/// tile or another) is taken from [`Solutions::shared`].
 fn solve_component(
     problem: &Problem,
     members: &[usize],
     constraints: &[usize],
     smooth: &[usize],
 ) -> Option<(Vec<f64>, Vec<Violation>)> {
+    let memo = Solutions::shared();
+    let key = component_key(problem, members, constraints, smooth);
+    let solved = memo.get_or_solve(key, || solve_afresh(problem, members, constraints, smooth));
+    let solved = Option::as_ref(&solved)?;
+    let violations = solved
+        .violations
+        .iter()
+        .filter_map(|&(at, amount)| {
+            let k = *constraints.get(at as usize)?;
+            Some(Violation {
+                label: problem.constraints[k].label,
+                amount,
+            })
+        })
+        .collect();
+    Some((solved.values.clone(), violations))
+}
+
+/// The digest of a component as [`solve_afresh`] reads it: variables in member order, then
+/// smoothness terms and constraints in order, over the members' positions.
+fn component_key(
+    problem: &Problem,
+    members: &[usize],
+    constraints: &[usize],
+    smooth: &[usize],
+) -> Key {
+    let local: HashMap<usize, usize> = members.iter().enumerate().map(|(k, &v)| (v, k)).collect();
+    let mut key = KeyWriter::new();
+    key.count(members.len());
+    for &v in members {
+        key.optional(problem.fixed[v])
+            .number(problem.weights[v])
+            .number(problem.targets[v]);
+    }
+    let terms = |key: &mut KeyWriter, terms: &[(usize, f64)]| {
+        key.count(terms.len());
+        for &(v, a) in terms {
+            key.count(local.get(&v).copied().unwrap_or(usize::MAX))
+                .number(a);
+        }
+    };
+    key.count(smooth.len());
+    for &k in smooth {
+        let s = &problem.smoothness[k];
+        key.number(s.weight);
+        terms(&mut key, &s.terms);
+    }
+    key.count(constraints.len());
+    for &k in constraints {
+        let c = &problem.constraints[k];
+        terms(&mut key, &c.terms);
+        key.tag(c.kind as u8).number(c.rhs).optional(c.penalty);
+    }
+    key.finish()
+}
+
+/// One component solved by clarabel; violations name the constraint by its position in
+/// `constraints`.
+fn solve_afresh(
+    problem: &Problem,
+    members: &[usize],
+    constraints: &[usize],
+    smooth: &[usize],
+) -> Option<solutions::Solved> {
     let mut vars = ProblemVariables::new();
-    let mut local = std::collections::HashMap::with_capacity(members.len());
+    let mut local = HashMap::with_capacity(members.len());
     let x: Vec<good_lp::Variable> = members
         .iter()
         .enumerate()
@@ -276,7 +345,8 @@ fn solve_component(
         rows.push((expression(&s.terms) - up + down).eq(0.0));
     }
     let mut slacks: Vec<(u32, good_lp::Variable, Option<good_lp::Variable>)> = Vec::new();
-    for &k in constraints {
+    for (at, &k) in constraints.iter().enumerate() {
+        let at = at as u32;
         let c = &problem.constraints[k];
         let mut lhs = expression(&c.terms);
         if let Some(penalty) = c.penalty {
@@ -289,11 +359,11 @@ fn solve_component(
                     let other = vars.add(variable().min(0.0));
                     objective += penalty * other;
                     lhs += slack - other;
-                    slacks.push((c.label, slack, Some(other)));
+                    slacks.push((at, slack, Some(other)));
                 }
             }
             if c.kind != Relation::Equal {
-                slacks.push((c.label, slack, None));
+                slacks.push((at, slack, None));
             }
         }
         rows.push(match c.kind {
@@ -313,12 +383,12 @@ fn solve_component(
     }
     let violations = slacks
         .iter()
-        .filter_map(|&(label, slack, other)| {
+        .filter_map(|&(at, slack, other)| {
             let amount = solution.value(slack) + other.map_or(0.0, |o| solution.value(o));
-            (amount > VIOLATION_EPS).then_some(Violation { label, amount })
+            (amount > VIOLATION_EPS).then_some((at, amount))
         })
         .collect();
-    Some((values, violations))
+    Some(solutions::Solved { values, violations })
 }
 
 /// Makes hard two-variable equalities (`x − y = d`) hold exactly: each group follows the
@@ -516,5 +586,56 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A contradiction (labels `label`, `label + 1`) among two variables placed after
+    /// `before` unrelated ones, with a target that differs by `target`.
+    fn contradiction(before: usize, label: u32, target: f64) -> (Problem, [usize; 2]) {
+        let mut p = Problem::default();
+        for k in 0..before {
+            let v = p.variable(k as f64, 1.0);
+            let w = p.variable(0.0, 1.0);
+            p.constraints.push(at_least(v, w, 1.0, None, 100));
+        }
+        let a = p.variable(target, 1.0);
+        let b = p.variable(0.0, 1.0);
+        p.constraints
+            .push(at_least(a, b, 10.0, Some(100.0), label));
+        p.constraints
+            .push(at_least(b, a, 3.0, Some(50.0), label + 1));
+        (p, [a, b])
+    }
+
+    #[test]
+    fn a_component_solved_once_is_found_again_wherever_it_sits_with_its_own_labels() {
+        let memo = Solutions::shared();
+        // A target no other test uses, so the first solve is this test's.
+        let target = 1234.5678;
+        let (first, [a, b]) = contradiction(0, 7, target);
+        let solved = solve(&first);
+        let (found_before, _) = memo.counts();
+        let (second, [c, d]) = contradiction(3, 40, target);
+        let again = solve(&second);
+        assert!(memo.counts().0 > found_before, "the component is found, not solved");
+        assert_eq!(
+            [solved.values[a], solved.values[b]],
+            [again.values[c], again.values[d]]
+        );
+        let labels = |o: &Outcome| -> Vec<(u32, u64)> {
+            o.violations
+                .iter()
+                .filter(|v| v.label != 100)
+                .map(|v| (v.label, v.amount.to_bits()))
+                .collect()
+        };
+        let shifted: Vec<(u32, u64)> = labels(&solved)
+            .into_iter()
+            .map(|(label, amount)| (label + 33, amount))
+            .collect();
+        assert!(!shifted.is_empty());
+        assert_eq!(labels(&again), shifted);
+        // A component that differs in one number is solved, not found.
+        let (other, [e, _]) = contradiction(0, 7, target + 1.0);
+        assert_ne!(solve(&other).values[e], solved.values[a]);
     }
 }

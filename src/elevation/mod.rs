@@ -7,6 +7,7 @@ pub mod lp;
 pub mod road_profiles;
 pub mod roads;
 pub mod settled;
+pub mod solutions;
 pub mod steps;
 pub mod structures;
 pub mod water;

@@ -25,7 +25,7 @@ pub use pipeline::{Made, MakeError};
 pub use renderer::Renderer;
 // What the layers above see of making a tile: its time limit, what its stages took, and what
 // the downloads it needed did.
-pub use crate::render::{Deadline, StageTimings};
+pub use crate::render::{lp_components_reused, Deadline, StageTimings};
 pub use crate::source::fetch::FetchStats;
 
 /// What a provider offers.

@@ -195,7 +195,7 @@ impl Metrics {
     }
 
     /// The plain counters, as name, help and value, in the order they are written.
-    fn counters(&self, downloads: &FetchStats) -> [(&'static str, &'static str, u64); 14] {
+    fn counters(&self, downloads: &FetchStats) -> [(&'static str, &'static str, u64); 15] {
         let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
         [
             (
@@ -232,6 +232,11 @@ impl Metrics {
                 "terrastitch_lp_components_total",
                 "Components of the elevation linear program solved.",
                 get(&self.lp_components),
+            ),
+            (
+                "terrastitch_lp_components_found_total",
+                "Components of the elevation linear program found solved by an earlier tile of the process instead of solved again.",
+                crate::provider::lp_components_reused().0,
             ),
             (
                 "terrastitch_lp_violations_total",

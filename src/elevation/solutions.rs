@@ -1,0 +1,241 @@
+//! Components of the linear program already solved, kept by what the solver is given.
+//!
+//! A bridge group or a road stretch is one component of its tile's LP, and every tile it
+//! reaches builds the same component again: the same variables with the same targets, the same
+//! constraints, in the same order. The solver is deterministic, so a component's solution is a
+//! function of that input alone; this memo keeps it by a SHA-256 digest of the input (labels
+//! aside: they only name constraints for reports), and a tile that meets a component another
+//! tile solved takes its solution instead of solving again. The bytes of a tile are the same
+//! whether a component was solved or found here.
+//!
+//! The memo is the process's, bounded in bytes, least recently used first out; it may also be
+//! filled from and written to a durable store (see [`Solutions::entries`] and
+//! [`Solutions::insert_encoded`]).
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
+
+use sha2::{Digest, Sha256};
+
+/// Bytes the process keeps of solved components, at most.
+const MEMO_BYTES: u64 = 64 << 20;
+
+/// The digest a component is kept by.
+pub type Key = [u8; 32];
+
+/// A component solved: its variables' values in member order, and its soft constraints that
+/// gave way, by position among the component's constraints, with how far. `None` when the
+/// solver failed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solved {
+    pub values: Vec<f64>,
+    pub violations: Vec<(u32, f64)>,
+}
+
+/// The process's memo.
+pub struct Solutions {
+    cache: moka::sync::Cache<Key, Arc<Option<Solved>>>,
+    /// Components found here, and solved afresh.
+    found: AtomicU64,
+    solved: AtomicU64,
+}
+
+/// Format of [`Solutions::encode`]; a change makes stored entries unreadable, not wrong.
+const ENCODING: u8 = 1;
+
+impl Solutions {
+    fn new(bytes: u64) -> Solutions {
+        Solutions {
+            cache: moka::sync::Cache::builder()
+                .max_capacity(bytes)
+                .weigher(|_, solved: &Arc<Option<Solved>>| {
+                    let size = solved
+                        .as_ref()
+                        .as_ref()
+                        .map_or(0, |s| s.values.len() * 8 + s.violations.len() * 16);
+                    u32::try_from(size + 64).unwrap_or(u32::MAX)
+                })
+                .build(),
+            found: AtomicU64::new(0),
+            solved: AtomicU64::new(0),
+        }
+    }
+
+    /// The memo every LP of the process reads and fills.
+    pub fn shared() -> &'static Solutions {
+        static SHARED: OnceLock<Solutions> = OnceLock::new();
+        SHARED.get_or_init(|| Solutions::new(MEMO_BYTES))
+    }
+
+    /// The component kept by `key`, or `solve`'s answer, then kept.
+    pub fn get_or_solve(
+        &self,
+        key: Key,
+        solve: impl FnOnce() -> Option<Solved>,
+    ) -> Arc<Option<Solved>> {
+        if let Some(solved) = self.cache.get(&key) {
+            self.found.fetch_add(1, Ordering::Relaxed);
+            return solved;
+        }
+        self.solved.fetch_add(1, Ordering::Relaxed);
+        let solved = Arc::new(solve());
+        self.cache.insert(key, Arc::clone(&solved));
+        solved
+    }
+
+    fn insert(&self, key: Key, solved: Option<Solved>) {
+        self.cache.insert(key, Arc::new(solved));
+    }
+
+    /// Components found here and solved afresh since the process started.
+    pub fn counts(&self) -> (u64, u64) {
+        (
+            self.found.load(Ordering::Relaxed),
+            self.solved.load(Ordering::Relaxed),
+        )
+    }
+
+    /// Every entry, encoded, for a durable store.
+    pub fn entries(&self) -> Vec<(Key, Vec<u8>)> {
+        self.cache
+            .iter()
+            .map(|(key, solved)| (*key, encode(solved.as_ref().as_ref())))
+            .collect()
+    }
+
+    /// Adds an entry read from a durable store; an entry this version cannot read is skipped.
+    pub fn insert_encoded(&self, key: Key, bytes: &[u8]) -> bool {
+        match decode(bytes) {
+            Some(solved) => {
+                self.insert(key, solved);
+                true
+            }
+            None => false,
+        }
+    }
+}
+
+/// Digests a component's input as the solver sees it, in order.
+#[derive(Default)]
+pub struct KeyWriter {
+    hash: Sha256,
+}
+
+impl KeyWriter {
+    pub fn new() -> KeyWriter {
+        let mut writer = KeyWriter::default();
+        writer.hash.update([ENCODING]);
+        writer
+    }
+
+    pub fn count(&mut self, n: usize) -> &mut Self {
+        self.hash.update((n as u64).to_le_bytes());
+        self
+    }
+
+    pub fn number(&mut self, x: f64) -> &mut Self {
+        self.hash.update(x.to_bits().to_le_bytes());
+        self
+    }
+
+    pub fn optional(&mut self, x: Option<f64>) -> &mut Self {
+        match x {
+            Some(x) => {
+                self.hash.update([1]);
+                self.number(x)
+            }
+            None => {
+                self.hash.update([0]);
+                self
+            }
+        }
+    }
+
+    pub fn tag(&mut self, tag: u8) -> &mut Self {
+        self.hash.update([tag]);
+        self
+    }
+
+    pub fn finish(self) -> Key {
+        self.hash.finalize().into()
+    }
+}
+
+fn encode(solved: Option<&Solved>) -> Vec<u8> {
+    let mut out = vec![ENCODING];
+    let Some(solved) = solved else {
+        out.push(0);
+        return out;
+    };
+    out.push(1);
+    out.extend((solved.values.len() as u32).to_le_bytes());
+    for v in &solved.values {
+        out.extend(v.to_bits().to_le_bytes());
+    }
+    out.extend((solved.violations.len() as u32).to_le_bytes());
+    for &(at, amount) in &solved.violations {
+        out.extend(at.to_le_bytes());
+        out.extend(amount.to_bits().to_le_bytes());
+    }
+    out
+}
+
+fn decode(bytes: &[u8]) -> Option<Option<Solved>> {
+    let mut rest = bytes;
+    let mut take = |n: usize| -> Option<&[u8]> {
+        let (head, tail) = rest.split_at_checked(n)?;
+        rest = tail;
+        Some(head)
+    };
+    let u32_of = |b: &[u8]| b.try_into().ok().map(u32::from_le_bytes);
+    let f64_of = |b: &[u8]| {
+        b.try_into()
+            .ok()
+            .map(|b| f64::from_bits(u64::from_le_bytes(b)))
+    };
+    if take(1)? != [ENCODING] {
+        return None;
+    }
+    if take(1)? == [0] {
+        return Some(None);
+    }
+    let n = u32_of(take(4)?)? as usize;
+    let mut values = Vec::with_capacity(n.min(1 << 16));
+    for _ in 0..n {
+        values.push(f64_of(take(8)?)?);
+    }
+    let m = u32_of(take(4)?)? as usize;
+    let mut violations = Vec::with_capacity(m.min(1 << 16));
+    for _ in 0..m {
+        let at = u32_of(take(4)?)?;
+        violations.push((at, f64_of(take(8)?)?));
+    }
+    if !rest.is_empty() {
+        return None;
+    }
+    Some(Some(Solved { values, violations }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_encoded_solution_reads_back_the_same_and_a_cut_one_does_not() {
+        let solved = Solved {
+            values: vec![1.5, -0.25, f64::MAX],
+            violations: vec![(2, 0.125)],
+        };
+        let bytes = encode(Some(&solved));
+        assert_eq!(decode(&bytes), Some(Some(solved)));
+        assert_eq!(decode(&encode(None)), Some(None));
+        assert_eq!(decode(&bytes[..bytes.len() - 1]), None);
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert_eq!(decode(&longer), None);
+        let memo = Solutions::new(1 << 20);
+        assert!(memo.insert_encoded([7; 32], &bytes));
+        assert!(!memo.insert_encoded([8; 32], &[ENCODING + 1]));
+        assert_eq!(memo.entries(), vec![([7; 32], bytes)]);
+    }
+}
