@@ -545,13 +545,16 @@ fn seed_area(
         &|progress| bar.set_position(progress.done as u64),
     )?;
     bar.finish_and_clear();
+    let (found, solved) = terrastitch::render::lp_components_reused();
     eprintln!(
-        "made {} tiles in {:.1} s ({:.2} tiles/s), {} bytes stored; {} failed",
+        "made {} tiles in {:.1} s ({:.2} tiles/s), {} bytes stored; {} failed; elevation LP: {} components solved, {} found solved",
         report.made,
         report.elapsed.as_secs_f64(),
         report.tiles_per_second(),
         report.stored_bytes,
-        report.failed.len()
+        report.failed.len(),
+        solved,
+        found
     );
     for (key, error) in &report.failed {
         eprintln!("  {} ({}): {error}", key.tile, key.format.as_str());

@@ -513,6 +513,17 @@ pub fn lp_components_reused() -> (u64, u64) {
     elevation::solutions::Solutions::shared().counts()
 }
 
+/// The LP components this process solved since the last call, encoded for a durable store.
+pub fn unsaved_solutions() -> Vec<([u8; 32], Vec<u8>)> {
+    elevation::solutions::Solutions::shared().take_unsaved()
+}
+
+/// Keeps LP components read from a durable store for this process's renders; returns how
+/// many it could read.
+pub fn remember_solutions(entries: Vec<([u8; 32], Vec<u8>)>) -> usize {
+    elevation::solutions::Solutions::shared().remember(entries)
+}
+
 /// The ground roads of a tile, settled as its glb settles them.
 pub fn settle_road_profiles(
     tile: TileId,

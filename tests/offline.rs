@@ -85,6 +85,71 @@ fn shards_split_a_seed_and_a_second_run_makes_nothing() {
     assert!(stderr.contains("empty"), "{stderr}");
 }
 
+/// The summary's counts of elevation LP components: solved, and found solved.
+fn components(stderr: &str) -> (u64, u64) {
+    let line = stderr
+        .lines()
+        .find(|l| l.contains("components solved"))
+        .unwrap_or_else(|| panic!("no summary in:\n{stderr}"));
+    let tail = &line[line.find("elevation LP: ").unwrap() + "elevation LP: ".len()..];
+    let numbers: Vec<u64> = tail
+        .split(|c: char| !c.is_ascii_digit())
+        .filter(|w| !w.is_empty())
+        .map(|w| w.parse().unwrap())
+        .collect();
+    (numbers[0], numbers[1])
+}
+
+#[test]
+fn a_seed_finds_the_elevation_components_an_earlier_seed_solved_and_makes_the_same_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache.sqlite");
+    let area = bbox(8528, 8529, 5974, 5974);
+    let (ok, stderr) = run(&["seed", "--bbox", &area], &cache);
+    assert!(ok, "{stderr}");
+    let (solved, found) = components(&stderr);
+    assert!(solved > 0, "{stderr}");
+    let store = SqliteStore::open(&cache, None).unwrap();
+    let first: Vec<(String, String)> = store
+        .list(&TileFilter::All)
+        .unwrap()
+        .iter()
+        .map(|e| {
+            (
+                e.key.tile.to_string(),
+                store.get(&e.key).unwrap().unwrap().etag,
+            )
+        })
+        .collect();
+    assert_eq!(first.len(), 2);
+    assert!(!store.solutions(usize::MAX).unwrap().is_empty());
+    store.remove(&TileFilter::All).unwrap();
+    drop(store);
+
+    // A new process makes the tiles again from the components the first one kept.
+    let (ok, stderr) = run(&["seed", "--bbox", &area], &cache);
+    assert!(ok, "{stderr}");
+    // Every component the first run met, solved there or found from its other tile.
+    assert_eq!(components(&stderr), (0, solved + found), "{stderr}");
+    let store = SqliteStore::open(&cache, None).unwrap();
+    let again: Vec<(String, String)> = store
+        .list(&TileFilter::All)
+        .unwrap()
+        .iter()
+        .map(|e| {
+            (
+                e.key.tile.to_string(),
+                store.get(&e.key).unwrap().unwrap().etag,
+            )
+        })
+        .collect();
+    let sorted = |mut v: Vec<(String, String)>| {
+        v.sort();
+        v
+    };
+    assert_eq!(sorted(again), sorted(first));
+}
+
 #[test]
 fn a_seed_killed_midway_leaves_a_sound_cache_and_resumes() {
     let dir = tempfile::tempdir().unwrap();

@@ -23,7 +23,8 @@ use encoding::Bodies;
 pub use mbtiles::MbtilesStore;
 pub use sqlite::SqliteStore;
 pub use store::{
-    unix_now, Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage,
+    unix_now, Provenance, SolutionEntry, StoreError, StoredEntry, StoredTile, TileFilter,
+    TileStore, Usage,
 };
 
 /// Where a response came from.

@@ -13,6 +13,9 @@ use crate::format::{Format, TileKey};
 use crate::tile::TileId;
 
 /// The migrations, in order; the schema version is the number of migrations applied.
+/// Solved LP components kept at most (a few hundred bytes to a few kilobytes each).
+const MAX_SOLUTIONS: i64 = 100_000;
+
 const MIGRATIONS: &[(&str, &str)] = &[
     (
         "0001_tiles.sql",
@@ -21,6 +24,10 @@ const MIGRATIONS: &[(&str, &str)] = &[
     (
         "0002_codings_versions_access.sql",
         include_str!("../../migrations/0002_codings_versions_access.sql"),
+    ),
+    (
+        "0003_solutions.sql",
+        include_str!("../../migrations/0003_solutions.sql"),
     ),
 ];
 
@@ -343,6 +350,52 @@ impl TileStore for SqliteStore {
             );
         }
         Ok(())
+    }
+
+    fn solutions(&self, limit: usize) -> Result<Vec<super::store::SolutionEntry>, StoreError> {
+        let connection = self.connection();
+        let mut newest = connection
+            .prepare("SELECT key, data FROM solutions ORDER BY rowid DESC LIMIT ?1")
+            .map_err(|e| self.error(e))?;
+        let rows = newest
+            .query_map([limit as i64], |row| {
+                Ok((row.get::<_, Vec<u8>>(0)?, row.get::<_, Vec<u8>>(1)?))
+            })
+            .map_err(|e| self.error(e))?;
+        let mut out = Vec::new();
+        for row in rows {
+            let (key, data) = row.map_err(|e| self.error(e))?;
+            // A key of another length is not one of ours: skipped.
+            if let Ok(key) = <[u8; 32]>::try_from(key.as_slice()) {
+                out.push((key, data));
+            }
+        }
+        Ok(out)
+    }
+
+    fn keep_solutions(&self, entries: &[super::store::SolutionEntry]) -> Result<(), StoreError> {
+        if entries.is_empty() {
+            return Ok(());
+        }
+        let mut connection = self.connection();
+        let transaction = connection.transaction().map_err(|e| self.error(e))?;
+        {
+            let mut insert = transaction
+                .prepare_cached("INSERT OR IGNORE INTO solutions (key, data) VALUES (?1, ?2)")
+                .map_err(|e| self.error(e))?;
+            for (key, data) in entries {
+                insert
+                    .execute(params![key.as_slice(), data])
+                    .map_err(|e| self.error(e))?;
+            }
+        }
+        transaction
+            .execute(
+                "DELETE FROM solutions WHERE rowid <= (SELECT MAX(rowid) FROM solutions) - ?1",
+                [MAX_SOLUTIONS],
+            )
+            .map_err(|e| self.error(e))?;
+        transaction.commit().map_err(|e| self.error(e))
     }
 
     fn touch(&self, keys: &[TileKey], at: i64) -> Result<(), StoreError> {

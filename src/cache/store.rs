@@ -91,6 +91,10 @@ pub struct Usage {
 
 /// A durable home for rendered tiles. Every call is blocking; callers on the async executor
 /// run them on the blocking pool.
+/// A solved component of the elevation LP as a store keeps it: its digest and its encoded
+/// solution, opaque to the store.
+pub type SolutionEntry = ([u8; 32], Vec<u8>);
+
 pub trait TileStore: Send + Sync + std::fmt::Debug {
     /// The stored tile, whatever made it (the caller decides whether it is stale).
     fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError>;
@@ -104,6 +108,17 @@ pub trait TileStore: Send + Sync + std::fmt::Debug {
     /// The matching tiles, most recently served first.
     fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError>;
     fn usage(&self) -> Result<Usage, StoreError>;
+    /// Up to `limit` solved components of the elevation LP kept beside the tiles, newest first,
+    /// as (digest, encoded solution): opaque to the store. A store that keeps none has none.
+    fn solutions(&self, limit: usize) -> Result<Vec<SolutionEntry>, StoreError> {
+        let _ = limit;
+        Ok(Vec::new())
+    }
+    /// Keeps solved components for later renders (bounded; an entry already kept stays).
+    fn keep_solutions(&self, entries: &[SolutionEntry]) -> Result<(), StoreError> {
+        let _ = entries;
+        Ok(())
+    }
 }
 
 /// Now, in seconds since the Unix epoch.

@@ -599,8 +599,7 @@ mod tests {
         }
         let a = p.variable(target, 1.0);
         let b = p.variable(0.0, 1.0);
-        p.constraints
-            .push(at_least(a, b, 10.0, Some(100.0), label));
+        p.constraints.push(at_least(a, b, 10.0, Some(100.0), label));
         p.constraints
             .push(at_least(b, a, 3.0, Some(50.0), label + 1));
         (p, [a, b])
@@ -616,7 +615,10 @@ mod tests {
         let (found_before, _) = memo.counts();
         let (second, [c, d]) = contradiction(3, 40, target);
         let again = solve(&second);
-        assert!(memo.counts().0 > found_before, "the component is found, not solved");
+        assert!(
+            memo.counts().0 > found_before,
+            "the component is found, not solved"
+        );
         assert_eq!(
             [solved.values[a], solved.values[b]],
             [again.values[c], again.values[d]]

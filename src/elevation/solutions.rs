@@ -9,11 +9,12 @@
 //! whether a component was solved or found here.
 //!
 //! The memo is the process's, bounded in bytes, least recently used first out; it may also be
-//! filled from and written to a durable store (see [`Solutions::entries`] and
-//! [`Solutions::insert_encoded`]).
+//! filled from and written to a durable store (see [`Solutions::remember`] and
+//! [`Solutions::take_unsaved`]), so the components a tile cache's tiles were made from are
+//! found again after a restart or a diff.
 
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use sha2::{Digest, Sha256};
 
@@ -38,9 +39,11 @@ pub struct Solutions {
     /// Components found here, and solved afresh.
     found: AtomicU64,
     solved: AtomicU64,
+    /// Components solved afresh and not yet taken for a durable store.
+    unsaved: Mutex<Vec<Key>>,
 }
 
-/// Format of [`Solutions::encode`]; a change makes stored entries unreadable, not wrong.
+/// Format of an encoded entry; a change makes stored entries unreadable, not wrong.
 const ENCODING: u8 = 1;
 
 impl Solutions {
@@ -58,6 +61,7 @@ impl Solutions {
                 .build(),
             found: AtomicU64::new(0),
             solved: AtomicU64::new(0),
+            unsaved: Mutex::new(Vec::new()),
         }
     }
 
@@ -80,6 +84,10 @@ impl Solutions {
         self.solved.fetch_add(1, Ordering::Relaxed);
         let solved = Arc::new(solve());
         self.cache.insert(key, Arc::clone(&solved));
+        self.unsaved
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push(key);
         solved
     }
 
@@ -95,23 +103,29 @@ impl Solutions {
         )
     }
 
-    /// Every entry, encoded, for a durable store.
-    pub fn entries(&self) -> Vec<(Key, Vec<u8>)> {
-        self.cache
-            .iter()
-            .map(|(key, solved)| (*key, encode(solved.as_ref().as_ref())))
+    /// The components solved afresh since the last call (those still kept), encoded, for a
+    /// durable store.
+    pub fn take_unsaved(&self) -> Vec<(Key, Vec<u8>)> {
+        let keys = std::mem::take(&mut *self.unsaved.lock().unwrap_or_else(|p| p.into_inner()));
+        keys.into_iter()
+            .filter_map(|key| {
+                let solved = self.cache.get(&key)?;
+                Some((key, encode(solved.as_ref().as_ref())))
+            })
             .collect()
     }
 
-    /// Adds an entry read from a durable store; an entry this version cannot read is skipped.
-    pub fn insert_encoded(&self, key: Key, bytes: &[u8]) -> bool {
-        match decode(bytes) {
-            Some(solved) => {
+    /// Keeps components read from a durable store; those this version cannot read are
+    /// skipped. Returns how many were kept.
+    pub fn remember(&self, entries: impl IntoIterator<Item = (Key, Vec<u8>)>) -> usize {
+        let mut kept = 0;
+        for (key, bytes) in entries {
+            if let Some(solved) = decode(&bytes) {
                 self.insert(key, solved);
-                true
+                kept += 1;
             }
-            None => false,
         }
+        kept
     }
 }
 
@@ -233,9 +247,26 @@ mod tests {
         let mut longer = bytes.clone();
         longer.push(0);
         assert_eq!(decode(&longer), None);
+    }
+
+    #[test]
+    fn remembered_components_are_found_and_only_those_solved_afresh_are_saved() {
+        let bytes = encode(Some(&Solved {
+            values: vec![2.0],
+            violations: Vec::new(),
+        }));
         let memo = Solutions::new(1 << 20);
-        assert!(memo.insert_encoded([7; 32], &bytes));
-        assert!(!memo.insert_encoded([8; 32], &[ENCODING + 1]));
-        assert_eq!(memo.entries(), vec![([7; 32], bytes)]);
+        let kept = memo.remember([([7; 32], bytes.clone()), ([8; 32], vec![ENCODING + 1])]);
+        assert_eq!(kept, 1);
+        assert_eq!(
+            memo.get_or_solve([7; 32], || None).as_ref(),
+            &decode(&bytes).flatten()
+        );
+        assert_eq!(memo.counts(), (1, 0));
+        // Remembered components are not saved again; one solved afresh is, once.
+        assert!(memo.take_unsaved().is_empty());
+        memo.get_or_solve([9; 32], || None);
+        assert_eq!(memo.take_unsaved(), vec![([9; 32], encode(None))]);
+        assert!(memo.take_unsaved().is_empty());
     }
 }

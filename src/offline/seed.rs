@@ -157,6 +157,10 @@ pub fn seed(
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<SeedReport, StoreError> {
     let started = Instant::now();
+    // Components a render before this one solved are found, not solved again.
+    if let Err(error) = crate::provider::load_solutions(store) {
+        tracing::warn!(%error, "reading solved elevation components failed");
+    }
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     let report = Mutex::new(SeedReport::default());
@@ -183,8 +187,11 @@ pub fn seed(
                         Ok(tile)
                     });
                 match outcome {
-                    Ok(tile) => match store.put(&key, &tile) {
-                        Ok(()) => {
+                    Ok(tile) => match store
+                        .put(&key, &tile)
+                        .and_then(|()| crate::provider::save_solutions(store))
+                    {
+                        Ok(_) => {
                             if let Ok(mut r) = report.lock() {
                                 r.made += 1;
                                 r.stored_bytes += tile.bodies.stored_len() as u64;

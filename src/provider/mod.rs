@@ -28,6 +28,27 @@ pub use renderer::Renderer;
 pub use crate::render::{lp_components_reused, Deadline, StageTimings};
 pub use crate::source::fetch::FetchStats;
 
+/// Solved LP components read from a tile store when a process starts, at most.
+const SOLUTIONS_AT_START: usize = 50_000;
+
+/// Reads the solved LP components `store` keeps, for this process's renders to find; returns
+/// how many it kept.
+pub fn load_solutions(
+    store: &dyn crate::cache::TileStore,
+) -> Result<usize, crate::cache::StoreError> {
+    let entries = store.solutions(SOLUTIONS_AT_START)?;
+    Ok(crate::render::remember_solutions(entries))
+}
+
+/// Writes the LP components solved since the last call to `store`; returns how many.
+pub fn save_solutions(
+    store: &dyn crate::cache::TileStore,
+) -> Result<usize, crate::cache::StoreError> {
+    let entries = crate::render::unsaved_solutions();
+    store.keep_solutions(&entries)?;
+    Ok(entries.len())
+}
+
 /// What a provider offers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Offer {

@@ -377,6 +377,13 @@ pub async fn serve(
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
     let mut background = vec![tokio::spawn(background_tasks(state.clone()))];
+    let store = state.cache.store().clone();
+    background.push(tokio::task::spawn_blocking(
+        move || match crate::provider::load_solutions(store.as_ref()) {
+            Ok(kept) => tracing::debug!(kept, "solved elevation components read from the cache"),
+            Err(error) => tracing::warn!(%error, "reading solved elevation components failed"),
+        },
+    ));
     background.extend(regenerate::start(&state, state.work.background_workers));
     if let Some(interval) = state.work.check_interval {
         background.push(tokio::spawn(regenerate::watch_sources(
@@ -391,20 +398,29 @@ pub async fn serve(
         task.abort();
     }
     state.work.pool.close();
-    if let Err(error) = state.cache.flush_touches().await {
-        tracing::warn!(%error, "recording served tiles failed");
-    }
+    flush(&state).await;
     result
 }
 
-/// Every few seconds: tell the store which tiles memory served.
+/// Every few seconds: tell the store which tiles memory served, and keep the elevation
+/// components solved since.
 async fn background_tasks(state: AppState) {
     let mut interval = tokio::time::interval(Duration::from_secs(10));
     interval.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
         interval.tick().await;
-        if let Err(error) = state.cache.flush_touches().await {
-            tracing::warn!(%error, "recording served tiles failed");
-        }
+        flush(&state).await;
+    }
+}
+
+async fn flush(state: &AppState) {
+    if let Err(error) = state.cache.flush_touches().await {
+        tracing::warn!(%error, "recording served tiles failed");
+    }
+    let store = state.cache.store().clone();
+    let saved =
+        tokio::task::spawn_blocking(move || crate::provider::save_solutions(store.as_ref())).await;
+    if let Ok(Err(error)) = saved {
+        tracing::warn!(%error, "keeping solved elevation components failed");
     }
 }
