@@ -264,3 +264,48 @@ fn every_tile_of_the_sample_selects_from_the_store_what_it_selects_from_memory()
     }
     assert!(tiles >= 20, "{tiles} tiles hold data");
 }
+
+#[test]
+fn a_tile_reads_only_the_nearest_coast_and_finds_the_sea_every_coastline_gives() {
+    let memory =
+        terrastitch::provider::Inputs::open(&[sample_osm()], &common::sample_srtm(), 14).unwrap();
+    let whole = common::whole(&memory);
+    let every: Vec<&terrastitch::osm::Way> = whole
+        .data()
+        .ways
+        .iter()
+        .filter(|w| terrastitch::osm::index::is_coastline(&w.tags))
+        .collect();
+    let settings = terrastitch::features::FeatureSettings::default();
+    let margin = terrastitch::provider::inputs::QUERY_MARGIN_DEG;
+    let (mut fewer, mut sea) = (0, 0);
+    for x in 8526..=8533 {
+        for y in 5972..=5978 {
+            let tile = terrastitch::TileId { z: 14, x, y };
+            let nearest = whole.query(tile, margin);
+            assert!(!nearest.coastlines.is_empty(), "tile {tile}");
+            fewer += usize::from(nearest.coastlines.len() < every.len());
+            let mut all = whole.query(tile, margin);
+            all.coastlines = every.clone();
+            let from_nearest = terrastitch::features::collect(&nearest, tile, &settings);
+            let from_all = terrastitch::features::collect(&all, tile, &settings);
+            assert_eq!(
+                format!("{:?}", from_nearest.surfaces),
+                format!("{:?}", from_all.surfaces),
+                "tile {tile}"
+            );
+            sea += usize::from(
+                from_all
+                    .surfaces
+                    .iter()
+                    .any(|s| s.class == terrastitch::features::FeatureClass::Water),
+            );
+        }
+    }
+    assert!(every.len() > 1, "{} coastline ways", every.len());
+    assert!(
+        fewer >= 40,
+        "{fewer} tiles read fewer coastline ways than all"
+    );
+    assert!(sea >= 10, "{sea} tiles have water");
+}

@@ -8,6 +8,7 @@
 
 use std::collections::HashMap;
 
+use super::coast::{self, CoastBox};
 use super::structures::{self, Classify, Group, StructureKind};
 use super::{bounds_of, Bounds, LonLat, Node, OsmData, Relation, Way};
 use crate::tile::{lon_lat_to_uv, TileId};
@@ -18,8 +19,9 @@ pub struct OsmIndex {
     data: OsmData,
     zoom: u8,
     cells: HashMap<(u32, u32), CellContent>,
-    /// Indices of the `natural=coastline` ways.
+    /// Indices of the `natural=coastline` ways, and their boxes.
     coastlines: Vec<u32>,
+    coast_boxes: Vec<CoastBox>,
     /// Bridges and tunnels, whole.
     structures: Vec<Group>,
     /// The cells each structure group touches.
@@ -98,11 +100,19 @@ impl OsmIndex {
                 structure_cells.entry(cell).or_default().push(i as u32);
             }
         }
+        let coast_boxes = coastlines
+            .iter()
+            .filter_map(|&i| {
+                let way = &data.ways[i as usize];
+                CoastBox::of(way.id, &way.positions, n)
+            })
+            .collect();
         OsmIndex {
             data,
             zoom,
             cells,
             coastlines,
+            coast_boxes,
             structures,
             structure_cells,
             roads,
@@ -274,11 +284,7 @@ impl OsmIndex {
                 .into_iter()
                 .map(|i| &self.data.relations[i as usize])
                 .collect(),
-            coastlines: self
-                .coastlines
-                .iter()
-                .map(|&i| &self.data.ways[i as usize])
-                .collect(),
+            coastlines: self.nearest_coast(tile),
             structures: groups
                 .into_iter()
                 .map(|i| &self.structures[i as usize])
@@ -288,6 +294,40 @@ impl OsmIndex {
             roads: Some(&self.roads),
         }
     }
+}
+
+impl OsmIndex {
+    /// The coastline ways that may hold the point of the coast nearest to the tile's centre,
+    /// in index order.
+    fn nearest_coast(&self, tile: TileId) -> Vec<&Way> {
+        let n = f64::from(1u32 << self.zoom);
+        let p = coast_point(tile, self.zoom);
+        let ways = &self.data.ways;
+        let by_id: HashMap<i64, u32> = self
+            .coastlines
+            .iter()
+            .map(|&i| (ways[i as usize].id, i))
+            .collect();
+        let way_of = |k: usize| {
+            let id = self.coast_boxes[k].id;
+            by_id.get(&id).map(|&i| &ways[i as usize])
+        };
+        coast::nearest(&self.coast_boxes, p, |k| {
+            way_of(k).map(|w| coast::distance_to_way(w, p, n))
+        })
+        .into_iter()
+        .filter_map(way_of)
+        .collect()
+    }
+}
+
+/// The centre of `tile` in global tile units at `zoom`: where the side of the coast is asked.
+pub fn coast_point(tile: TileId, zoom: u8) -> [f64; 2] {
+    let scale = 2f64.powi(i32::from(zoom) - i32::from(tile.z));
+    [
+        (f64::from(tile.x) + 0.5) * scale,
+        (f64::from(tile.y) + 0.5) * scale,
+    ]
 }
 
 /// Whether a way is a stretch of coastline.

@@ -3,6 +3,7 @@
 //! near this tile" (thesis §2.1).
 
 pub mod areas;
+pub mod coast;
 #[cfg(test)]
 pub(crate) mod fixture;
 pub mod index;

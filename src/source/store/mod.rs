@@ -13,12 +13,13 @@ pub mod codec;
 pub mod import;
 pub mod update;
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 use rusqlite::{params, Connection, OpenFlags, OptionalExtension};
 
+use crate::osm::coast::CoastBox;
 use crate::osm::index::{cells_of, meets, relation_ways as model_relation_ways};
 use crate::osm::{
     bounds_of, Bounds, ElementType, LonLat, Node, OsmData, OsmIndex, Relation, RoadGraph, Way,
@@ -69,9 +70,9 @@ pub struct OsmStore {
     program: String,
     /// How many diffs had been applied to it when it was opened.
     generation: u64,
-    /// The coastline ways, whole: which side of the coast a tile lies on is decided by the
-    /// nearest one, wherever it is.
-    coastlines: Vec<Way>,
+    /// The boxes of the coastline ways, by id: which side of the coast a tile lies on is
+    /// decided by the nearest one, wherever it is, and a tile reads the few that may be.
+    coast: Vec<CoastBox>,
     /// Read-only connections not in use, all opened with the store: a store imported again
     /// is renamed over this one's path, and what was opened before reads on from the old file.
     idle: Mutex<Vec<Connection>>,
@@ -127,10 +128,11 @@ impl OsmStore {
             path: path.to_path_buf(),
             source,
         };
-        let mut coastlines = Vec::with_capacity(ids.len());
+        let n = f64::from(1u32 << zoom);
+        let mut coast = Vec::with_capacity(ids.len());
         for id in ids {
             if let Some(way) = way(&db, id).map_err(decode)? {
-                coastlines.push(way);
+                coast.extend(CoastBox::of(way.id, &way.positions, n));
             }
         }
         let mut idle = vec![db];
@@ -143,7 +145,7 @@ impl OsmStore {
             extracts,
             program,
             generation,
-            coastlines,
+            coast,
             idle: Mutex::new(idle),
             returned: std::sync::Condvar::new(),
         })
@@ -294,9 +296,7 @@ impl OsmStore {
             known,
             nodes,
         } = select(db, &self.path, self.zoom, tile, margin_deg)?;
-        for coast in &self.coastlines {
-            ways.entry(coast.id).or_insert_with(|| coast.clone());
-        }
+        self.add_nearest_coast(db, tile, &mut ways)?;
         let data = OsmData {
             nodes,
             ways: ways.into_values().collect(),
@@ -305,6 +305,55 @@ impl OsmStore {
         };
         let groups: Vec<Vec<u8>> = groups.into_iter().map(|(_, row)| row).collect();
         self.index(db, data, &groups, known)
+    }
+
+    /// Adds to a closure's ways the coastline ways that may hold the point of the coast
+    /// nearest to the tile's centre (see [`crate::osm::coast`]).
+    fn add_nearest_coast(
+        &self,
+        db: &Connection,
+        tile: TileId,
+        ways: &mut BTreeMap<i64, Way>,
+    ) -> Result<(), StoreError> {
+        let n = f64::from(1u32 << self.zoom);
+        let p = crate::osm::index::coast_point(tile, self.zoom);
+        let mut read: HashMap<i64, Way> = HashMap::new();
+        let mut failed = None;
+        let kept = crate::osm::coast::nearest(&self.coast, p, |k| {
+            let id = self.coast[k].id;
+            if let Some(way) = ways.get(&id).or(read.get(&id)) {
+                return Some(crate::osm::coast::distance_to_way(way, p, n));
+            }
+            match way(db, id) {
+                Ok(Some(found)) => {
+                    let d = crate::osm::coast::distance_to_way(&found, p, n);
+                    read.insert(id, found);
+                    Some(d)
+                }
+                Ok(None) => None,
+                Err(error) => {
+                    failed.get_or_insert(error);
+                    None
+                }
+            }
+        });
+        if let Some(error) = failed {
+            return Err(decode_error(&self.path)(error));
+        }
+        for k in kept {
+            let id = self.coast[k].id;
+            if ways.contains_key(&id) {
+                continue;
+            }
+            let found = match read.remove(&id) {
+                Some(found) => Some(found),
+                None => way(db, id).map_err(decode_error(&self.path))?,
+            };
+            if let Some(found) = found {
+                ways.insert(id, found);
+            }
+        }
+        Ok(())
     }
 
     /// Indexes a closure with the facts found over the whole data.
@@ -342,11 +391,7 @@ impl OsmStore {
                 roads.under_bridges.insert(way.id, under);
             }
         }
-        let coastlines: Vec<u32> = self
-            .coastlines
-            .iter()
-            .filter_map(|w| index_of(w.id))
-            .collect();
+        let coastlines: Vec<u32> = self.coast.iter().filter_map(|b| index_of(b.id)).collect();
         Ok(OsmIndex::from_parts(
             data, self.zoom, structures, roads, coastlines,
         ))
