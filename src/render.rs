@@ -362,7 +362,7 @@ fn prepare<'a>(
     deadline.check(tile, "triangulation")?;
 
     let started = Instant::now();
-    let normals = mesh::normals::ground_normals(&ground, &frame, &terrain, &settled);
+    let normals = ground_normals(&ground, &frame, mosaic, settings, &settled);
     timings.normals = started.elapsed();
     Ok(Prepared {
         frame,
@@ -381,6 +381,42 @@ fn prepare<'a>(
         ground,
         normals,
     })
+}
+
+/// Vertices below this many get their normals on the calling thread.
+const NORMALS_PER_THREAD: usize = 8_192;
+/// Most threads one tile's normals are spread over.
+const MAX_NORMAL_THREADS: usize = 4;
+
+/// The normals of the ground's vertices, spread over the cores when there are many: each
+/// thread reads the terrain through a model of its own (the models keep caches).
+fn ground_normals(
+    ground: &mesh::ground::Ground,
+    frame: &crate::tile::TileFrame,
+    mosaic: &Mosaic,
+    settings: &RenderSettings,
+    settled: &elevation::ground::Ground<'_>,
+) -> Vec<[f64; 3]> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(MAX_NORMAL_THREADS)
+        .min(ground.vertices.len() / NORMALS_PER_THREAD)
+        .max(1);
+    if threads == 1 {
+        return mesh::normals::ground_normals(ground, frame, settled.terrain, settled);
+    }
+    let with_models = |normals: &mesh::normals::FromModels<'_>| {
+        let terrain = TerrainModel::new(mosaic, settings.interpolation, frame.tile.z);
+        let ground = elevation::ground::Ground::new(
+            &terrain,
+            settled.water,
+            settled.cuts,
+            settled.roads,
+            settled.steps,
+        );
+        normals(&terrain, &ground)
+    };
+    mesh::normals::ground_normals_parallel(ground, frame, threads, &with_models)
 }
 
 /// Adds the ground the tunnels reshape to the feature set: a row for each way's approach cuts,

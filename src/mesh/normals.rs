@@ -20,11 +20,55 @@ pub fn ground_normals(
     terrain: &dyn Elevation,
     settled: &dyn Elevation,
 ) -> Vec<[f64; 3]> {
+    normals_at(&ground.vertices, frame, terrain, settled)
+}
+
+/// Normals from the models of the ground: the terrain, then the settled ground.
+pub type FromModels<'a> = dyn Fn(&dyn Elevation, &dyn Elevation) -> Vec<[f64; 3]> + 'a;
+
+/// Makes a thread's models of the ground and gives them to the function it is passed.
+pub type WithModels<'a> = dyn Fn(&FromModels<'_>) -> Vec<[f64; 3]> + Sync + 'a;
+
+/// [`ground_normals`] spread over `threads` threads, each reading the ground through models of
+/// its own from `with_models`: a vertex's normal is its own, so the result is the same however
+/// the vertices are shared out.
+pub fn ground_normals_parallel(
+    ground: &Ground,
+    frame: &TileFrame,
+    threads: usize,
+    with_models: &WithModels<'_>,
+) -> Vec<[f64; 3]> {
+    let share = ground.vertices.len().div_ceil(threads.max(1)).max(1);
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = ground
+            .vertices
+            .chunks(share)
+            .map(|vertices| {
+                scope.spawn(move || {
+                    with_models(&|terrain, settled| normals_at(vertices, frame, terrain, settled))
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| {
+                h.join()
+                    .unwrap_or_else(|payload| std::panic::resume_unwind(payload))
+            })
+            .collect()
+    })
+}
+
+fn normals_at(
+    vertices: &[[f64; 2]],
+    frame: &TileFrame,
+    terrain: &dyn Elevation,
+    settled: &dyn Elevation,
+) -> Vec<[f64; 3]> {
     let zoom = frame.tile.z;
     let step = NORMAL_STEP_M * 2f64.powi(i32::from(NORMAL_STEP_ZOOM.saturating_sub(zoom)));
     let size = frame.size_m;
-    ground
-        .vertices
+    vertices
         .iter()
         .map(|&[x, z]| {
             let on_edge = x == 0.0 || z == 0.0 || x == size || z == size;
@@ -39,4 +83,63 @@ pub fn ground_normals(
             normalize([-dy_dx, 1.0, -dy_dz]).unwrap_or([0.0, 1.0, 0.0])
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tile::TileId;
+    use std::cell::Cell;
+
+    /// Rolling ground that counts its reads: not to be shared between threads.
+    struct Rolling {
+        reads: Cell<usize>,
+    }
+
+    impl Elevation for Rolling {
+        fn elevation_uv(&self, p: [f64; 2]) -> f64 {
+            self.reads.set(self.reads.get() + 1);
+            100.0 * (p[0] * 40.0).sin() * (p[1] * 30.0).cos()
+        }
+    }
+
+    #[test]
+    fn normals_spread_over_threads_are_the_normals_of_one_thread() {
+        let frame = TileId {
+            z: 14,
+            x: 8529,
+            y: 5974,
+        }
+        .frame();
+        let size = frame.size_m;
+        let vertices: Vec<[f64; 2]> = (0..5000)
+            .map(|k| {
+                let t = f64::from(k) / 5000.0;
+                [size * t, size * ((t * 37.0).fract())]
+            })
+            .chain([[0.0, 0.0], [size, size / 2.0]])
+            .collect();
+        let ground = Ground {
+            vertices,
+            ..Ground::default()
+        };
+        let one = Rolling {
+            reads: Cell::new(0),
+        };
+        let alone = ground_normals(&ground, &frame, &one, &one);
+        let with_models = |normals: &FromModels<'_>| {
+            let own = Rolling {
+                reads: Cell::new(0),
+            };
+            normals(&own, &own)
+        };
+        for threads in [2, 3, 7] {
+            let spread = ground_normals_parallel(&ground, &frame, threads, &with_models);
+            assert_eq!(spread, alone, "{threads} threads");
+        }
+        assert!(
+            alone.iter().any(|n| n[0].abs() > 0.01),
+            "the ground is not flat"
+        );
+    }
 }
