@@ -147,6 +147,41 @@ impl SurfaceBuckets {
     }
 }
 
+/// Triangles below this many are classified on the calling thread.
+const TRIANGLES_PER_THREAD: usize = 16_384;
+/// Most threads one tile's triangles are classified on.
+const MAX_CLASSIFY_THREADS: usize = 4;
+
+/// The surface of each triangle, spread over the cores when there are many (each triangle's is
+/// its own, so the result does not depend on how they are shared out).
+fn classify(
+    triangles: &[[u32; 3]],
+    surface_of: &(dyn Fn(&[u32; 3]) -> Option<u32> + Sync),
+) -> Vec<Option<u32>> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(MAX_CLASSIFY_THREADS)
+        .min(triangles.len() / TRIANGLES_PER_THREAD)
+        .max(1);
+    if threads == 1 {
+        return triangles.iter().map(surface_of).collect();
+    }
+    let share = triangles.len().div_ceil(threads);
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = triangles
+            .chunks(share)
+            .map(|chunk| scope.spawn(move || chunk.iter().map(surface_of).collect::<Vec<_>>()))
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| {
+                h.join()
+                    .unwrap_or_else(|payload| std::panic::resume_unwind(payload))
+            })
+            .collect()
+    })
+}
+
 /// Side of the bucket grid used to classify triangles.
 const BUCKETS_PER_SIDE: usize = 64;
 
@@ -307,9 +342,7 @@ pub fn triangulate(
         .collect();
     let vertices: Vec<Point> = tin.positions.iter().map(|p| [p.x, p.y]).collect();
     let elevations = tin.heights;
-    let mut triangles = Vec::with_capacity(tin.triangles.len());
-    let mut removed = 0;
-    for &[a, b, c] in &tin.triangles {
+    let surface_of = |&[a, b, c]: &[u32; 3]| {
         let centroid = {
             let [pa, pb, pc] = [a, b, c].map(|i| vertices[i as usize]);
             let x = (pa[0] + pb[0] + pc[0]) / 3.0;
@@ -317,20 +350,22 @@ pub fn triangulate(
             let (u, v) = frame.local_to_uv(x, z);
             [u, v]
         };
-        let surface = buckets.containing(centroid, surfaces).min_by(|&a, &b| {
+        buckets.containing(centroid, surfaces).min_by(|&a, &b| {
             let (ka, kb) = (rank[a as usize], rank[b as usize]);
             (ka.0, ka.1)
                 .cmp(&(kb.0, kb.1))
                 .then(ka.2.total_cmp(&kb.2))
                 .then(ka.3.cmp(&kb.3))
-        });
+        })
+    };
+    let classes = classify(&tin.triangles, &surface_of);
+    let mut triangles = Vec::with_capacity(tin.triangles.len());
+    let mut removed = 0;
+    for (&vertices, surface) in tin.triangles.iter().zip(classes) {
         if surface.is_some_and(|i| surfaces[i as usize].class == FeatureClass::Building) {
             removed += 1;
         }
-        triangles.push(GroundTriangle {
-            vertices: [a, b, c],
-            surface,
-        });
+        triangles.push(GroundTriangle { vertices, surface });
     }
     Ok(Ground {
         vertices,
@@ -501,6 +536,14 @@ fn edge_vertices(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn triangles_classified_over_threads_keep_their_order() {
+        let triangles: Vec<[u32; 3]> = (0..50_000u32).map(|k| [k, k + 1, k + 2]).collect();
+        let surface_of = |t: &[u32; 3]| (t[0] % 7 != 0).then_some(t[0] % 13);
+        let expected: Vec<Option<u32>> = triangles.iter().map(surface_of).collect();
+        assert_eq!(classify(&triangles, &surface_of), expected);
+    }
     use crate::terrain::cell::{CellId, SrtmTile};
     use crate::terrain::{Interpolation, Mosaic, TerrainModel};
     use crate::tile::TileId;
