@@ -397,11 +397,11 @@ fn ground_normals(
     settings: &RenderSettings,
     settled: &elevation::ground::Ground<'_>,
 ) -> Vec<[f64; 3]> {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(MAX_NORMAL_THREADS)
-        .min(ground.vertices.len() / NORMALS_PER_THREAD)
-        .max(1);
+    let threads = mesh::parallel::threads_for(
+        ground.vertices.len(),
+        NORMALS_PER_THREAD,
+        MAX_NORMAL_THREADS,
+    );
     if threads == 1 {
         return mesh::normals::ground_normals(ground, frame, settled.terrain, settled);
     }

@@ -100,6 +100,21 @@ fn components(stderr: &str) -> (u64, u64) {
     (numbers[0], numbers[1])
 }
 
+/// Each stored tile with its ETag, in tile order.
+fn etags(store: &SqliteStore) -> Vec<(String, String)> {
+    let mut tiles: Vec<(String, String)> = store
+        .list(&TileFilter::All)
+        .unwrap()
+        .iter()
+        .map(|e| {
+            let tile = store.get(&e.key).unwrap().unwrap();
+            (e.key.tile.to_string(), tile.etag)
+        })
+        .collect();
+    tiles.sort();
+    tiles
+}
+
 #[test]
 fn a_seed_finds_the_elevation_components_an_earlier_seed_solved_and_makes_the_same_bytes() {
     let dir = tempfile::tempdir().unwrap();
@@ -110,17 +125,7 @@ fn a_seed_finds_the_elevation_components_an_earlier_seed_solved_and_makes_the_sa
     let (solved, found) = components(&stderr);
     assert!(solved > 0, "{stderr}");
     let store = SqliteStore::open(&cache, None).unwrap();
-    let first: Vec<(String, String)> = store
-        .list(&TileFilter::All)
-        .unwrap()
-        .iter()
-        .map(|e| {
-            (
-                e.key.tile.to_string(),
-                store.get(&e.key).unwrap().unwrap().etag,
-            )
-        })
-        .collect();
+    let first = etags(&store);
     assert_eq!(first.len(), 2);
     assert!(!store.solutions(usize::MAX).unwrap().is_empty());
     store.remove(&TileFilter::All).unwrap();
@@ -132,22 +137,7 @@ fn a_seed_finds_the_elevation_components_an_earlier_seed_solved_and_makes_the_sa
     // Every component the first run met, solved there or found from its other tile.
     assert_eq!(components(&stderr), (0, solved + found), "{stderr}");
     let store = SqliteStore::open(&cache, None).unwrap();
-    let again: Vec<(String, String)> = store
-        .list(&TileFilter::All)
-        .unwrap()
-        .iter()
-        .map(|e| {
-            (
-                e.key.tile.to_string(),
-                store.get(&e.key).unwrap().unwrap().etag,
-            )
-        })
-        .collect();
-    let sorted = |mut v: Vec<(String, String)>| {
-        v.sort();
-        v
-    };
-    assert_eq!(sorted(again), sorted(first));
+    assert_eq!(etags(&store), first);
 }
 
 #[test]

@@ -358,7 +358,7 @@ impl TileStore for SqliteStore {
             .prepare("SELECT key, data FROM solutions ORDER BY rowid DESC LIMIT ?1")
             .map_err(|e| self.error(e))?;
         let rows = newest
-            .query_map([limit as i64], |row| {
+            .query_map([i64::try_from(limit).unwrap_or(i64::MAX)], |row| {
                 Ok((row.get::<_, Vec<u8>>(0)?, row.get::<_, Vec<u8>>(1)?))
             })
             .map_err(|e| self.error(e))?;

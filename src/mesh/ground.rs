@@ -158,27 +158,13 @@ fn classify(
     triangles: &[[u32; 3]],
     surface_of: &(dyn Fn(&[u32; 3]) -> Option<u32> + Sync),
 ) -> Vec<Option<u32>> {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(MAX_CLASSIFY_THREADS)
-        .min(triangles.len() / TRIANGLES_PER_THREAD)
-        .max(1);
+    let threads =
+        super::parallel::threads_for(triangles.len(), TRIANGLES_PER_THREAD, MAX_CLASSIFY_THREADS);
     if threads == 1 {
         return triangles.iter().map(surface_of).collect();
     }
-    let share = triangles.len().div_ceil(threads);
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = triangles
-            .chunks(share)
-            .map(|chunk| scope.spawn(move || chunk.iter().map(surface_of).collect::<Vec<_>>()))
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| {
-                h.join()
-                    .unwrap_or_else(|payload| std::panic::resume_unwind(payload))
-            })
-            .collect()
+    super::parallel::map_chunks(triangles, threads, &|chunk| {
+        chunk.iter().map(surface_of).collect()
     })
 }
 

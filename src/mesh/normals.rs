@@ -38,24 +38,8 @@ pub fn ground_normals_parallel(
     threads: usize,
     with_models: &WithModels<'_>,
 ) -> Vec<[f64; 3]> {
-    let share = ground.vertices.len().div_ceil(threads.max(1)).max(1);
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = ground
-            .vertices
-            .chunks(share)
-            .map(|vertices| {
-                scope.spawn(move || {
-                    with_models(&|terrain, settled| normals_at(vertices, frame, terrain, settled))
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| {
-                h.join()
-                    .unwrap_or_else(|payload| std::panic::resume_unwind(payload))
-            })
-            .collect()
+    super::parallel::map_chunks(&ground.vertices, threads, &|vertices| {
+        with_models(&|terrain, settled| normals_at(vertices, frame, terrain, settled))
     })
 }
 
