@@ -67,6 +67,31 @@ CREATE TABLE way_facts (
     under_bridges BLOB
 );
 
+-- Ways naming nodes the data does not hold (an extract cuts them at its border), with every
+-- node they name (`data`: tags and node ids, as `ways` keeps them but without positions), and
+-- the nodes they miss: a diff that brings such a node resolves the way again. A way of fewer
+-- than two nodes held is kept here only.
+CREATE TABLE incomplete_ways (
+    way INTEGER PRIMARY KEY,
+    data BLOB NOT NULL
+);
+
+CREATE TABLE missing_nodes (
+    node INTEGER NOT NULL,
+    way INTEGER NOT NULL,
+    PRIMARY KEY (node, way)
+) WITHOUT ROWID;
+CREATE INDEX missing_nodes_by_way ON missing_nodes (way);
+
+-- Ways a kept relation names that the data does not hold: a diff that brings one finds the
+-- relation wherever the way lies.
+CREATE TABLE missing_members (
+    way INTEGER NOT NULL,
+    relation INTEGER NOT NULL,
+    PRIMARY KEY (way, relation)
+) WITHOUT ROWID;
+CREATE INDEX missing_members_by_relation ON missing_members (relation);
+
 CREATE TABLE coastlines (
     way INTEGER PRIMARY KEY
 );

@@ -9,6 +9,12 @@ EDIT is one of:
   water-multipolygon turns the multipolygon with the most members into a lake
   many:N[:SEED]      N changes spread over the extract (seeded, 18 unless given): nodes moved
                      a metre, tags of ways changed, buildings deleted, in turn
+  cut-node           deletes the middle node of the longest road on the ground (the road still
+                     names it, as where an extract cuts a way at its border)
+  bring-node         creates that node again, where it was
+  cut-ways           deletes every way of the largest multipolygon of at most three ways, none
+                     of them a coastline (the relation still names them)
+  bring-ways         creates those ways again
 
 The chosen elements are printed to stderr (`way 123`), one a line. With OUT.osm.pbf the
 extract with the change applied is written too (pyosmium's MergeInputReader, as `osmium
@@ -98,6 +104,48 @@ def buildings(extract):
     ]
 
 
+def road_node(extract):
+    """The longest road on the ground, and its middle node."""
+    roads = [
+        w for w, (refs, tags, _) in extract.ways.items()
+        if "highway" in tags and tags.get("bridge") in (None, "no")
+        and tags.get("tunnel") in (None, "no") and len(refs) >= 5
+    ]
+    way = max(roads, key=lambda w: (length(extract, extract.ways[w][0]), -w))
+    refs = extract.ways[way][0]
+    return way, refs[len(refs) // 2]
+
+
+def small_multipolygon(extract):
+    """The largest multipolygon made of at most three ways the extract holds, and its ways."""
+    polygons = [
+        r for r, (members, tags, _) in extract.relations.items()
+        if tags.get("type") == "multipolygon" and 1 <= len(members) <= 3
+        and all(t == "w" and ref in extract.ways for t, ref, _ in members)
+        and not any(extract.ways[ref][1].get("natural") == "coastline" for _, ref, _ in members)
+    ]
+    size = lambda r: sum(len(extract.ways[ref][0]) for _, ref, _ in extract.relations[r][0])
+    relation = max(polygons, key=lambda r: (size(r), -r))
+    return relation, [ref for _, ref, _ in extract.relations[relation][0]]
+
+
+def restore(extract, what):
+    """(create, delete) XML fragments and the chosen elements of the cut and bring edits."""
+    if what in ("cut-node", "bring-node"):
+        way, node = road_node(extract)
+        chosen = [f"way {way}", f"node {node}"]
+        if what == "cut-node":
+            version = extract.nodes[node][2]
+            return [], [f'<node id="{node}" version="{version + 1}" timestamp="{TIMESTAMP}"/>'], chosen
+        lon, lat, _, _ = extract.nodes[node]
+        return [node_xml(extract, node, lon, lat)], [], chosen
+    relation, ways = small_multipolygon(extract)
+    chosen = [f"relation {relation}"] + [f"way {w}" for w in ways]
+    if what == "cut-ways":
+        return [], [way_xml(extract, w, deleted=True) for w in ways], chosen
+    return [way_xml(extract, w) for w in ways], [], chosen
+
+
 def edit(extract, what):
     """(modify, delete) XML fragments and the chosen elements."""
     if what == "move-bridge-node":
@@ -157,8 +205,15 @@ def main():
     source, what, osc = sys.argv[1:4]
     extract = Extract()
     extract.apply_file(source)
-    modify, delete, chosen = edit(extract, what)
+    create = []
+    if what in ("cut-node", "bring-node", "cut-ways", "bring-ways"):
+        create, delete, chosen = restore(extract, what)
+        modify = []
+    else:
+        modify, delete, chosen = edit(extract, what)
     text = '<?xml version="1.0" encoding="UTF-8"?>\n<osmChange version="0.6" generator="osm_diff.py">\n'
+    if create:
+        text += "<create>\n" + "\n".join(create) + "\n</create>\n"
     if modify:
         text += "<modify>\n" + "\n".join(modify) + "\n</modify>\n"
     if delete:

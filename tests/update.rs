@@ -114,21 +114,39 @@ fn apply(edit: &str) -> Outcome {
     let osc = dir.path().join("change.osc.gz");
     let changed_extract = dir.path().join("changed.osm.pbf");
     write_diff(edit, &osc, &changed_extract);
-    let store = dir.path().join("osm.sqlite");
-    import(&store, &sample_osm());
-    let before = tiles(&store, &sample_osm(), &dir.path().join("before"));
+    check(dir.path(), &sample_osm(), &osc, &changed_extract)
+}
 
-    let output = update(&store, &osc);
+/// Imports the bundled extract cut by the diff `cut` (elements deleted that others still name,
+/// as at an extract's border), applies `bring` (which creates them again), and checks that the
+/// updated store makes every tile as a store imported from the whole extract does.
+fn restore(cut: &str, bring: &str) -> Outcome {
+    let dir = tempfile::tempdir().unwrap();
+    let cut_extract = dir.path().join("cut.osm.pbf");
+    write_diff(cut, &dir.path().join("cut.osc"), &cut_extract);
+    let osc = dir.path().join("bring.osc.gz");
+    write_diff(bring, &osc, &dir.path().join("unused.osm.pbf"));
+    check(dir.path(), &cut_extract, &osc, &sample_osm())
+}
+
+/// Imports `base`, applies `osc`, and checks that the updated store makes every tile as a store
+/// imported from `changed` does; returns what the diff did.
+fn check(dir: &Path, base: &Path, osc: &Path, changed: &Path) -> Outcome {
+    let store = dir.join("osm.sqlite");
+    import(&store, base);
+    let before = tiles(&store, base, &dir.join("before"));
+
+    let output = update(&store, osc);
     assert!(output.status.success(), "{}", stderr(&output));
     let expired: BTreeSet<String> = String::from_utf8_lossy(&output.stdout)
         .lines()
         .map(str::to_string)
         .collect();
-    let after = tiles(&store, &sample_osm(), &dir.path().join("after"));
+    let after = tiles(&store, base, &dir.join("after"));
 
-    let fresh = dir.path().join("fresh.sqlite");
-    import(&fresh, &changed_extract);
-    let imported = tiles(&fresh, &changed_extract, &dir.path().join("fresh"));
+    let fresh = dir.join("fresh.sqlite");
+    import(&fresh, changed);
+    let imported = tiles(&fresh, changed, &dir.join("fresh"));
     assert_eq!(
         after, imported,
         "the updated store makes each tile as a store imported from the changed extract"
@@ -196,6 +214,16 @@ fn a_deleted_building_changes_its_tiles_only() {
 #[test]
 fn a_multipolygon_turned_into_a_lake_changes_its_tiles_only() {
     apply("water-multipolygon").assert_exact("a new lake");
+}
+
+#[test]
+fn a_node_a_way_missed_at_import_is_found_when_a_diff_brings_it() {
+    restore("cut-node", "bring-node").assert_exact("a road's node brought back");
+}
+
+#[test]
+fn a_relation_whose_ways_were_missing_is_found_when_a_diff_brings_them() {
+    restore("cut-ways", "bring-ways").assert_exact("a multipolygon's ways brought back");
 }
 
 #[test]

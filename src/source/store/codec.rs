@@ -171,6 +171,22 @@ pub fn encode_way(tags: &Tags, nodes: &[i64], positions: &[Decimicro]) -> Vec<u8
     w.0
 }
 
+/// A way as the extract gives it: its tags and every node it names.
+pub fn encode_raw_way(tags: &Tags, refs: &[i64]) -> Vec<u8> {
+    let mut w = Writer::default();
+    w.tags(tags);
+    w.ids(refs);
+    w.0
+}
+
+pub fn decode_raw_way(bytes: &[u8]) -> Result<(Tags, Vec<i64>), DecodeError> {
+    let mut r = Reader::new(bytes, "raw way");
+    let tags = r.tags()?;
+    let refs = r.ids()?;
+    r.done()?;
+    Ok((tags, refs))
+}
+
 pub fn decode_way(id: i64, bytes: &[u8]) -> Result<Way, DecodeError> {
     let mut r = Reader::new(bytes, "way");
     let tags = r.tags()?;

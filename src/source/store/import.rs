@@ -410,10 +410,10 @@ fn rows_of(blob: &osmpbf::Blob, keep_relation: fn(&Tags) -> bool) -> Result<Rows
                         Tags::from_pairs(n.tags()),
                     ),
                     Element::Way(way) => {
-                        let mut w = codec::Writer::default();
-                        w.tags(&Tags::from_pairs(way.tags()));
-                        w.ids(&way.refs().collect::<Vec<i64>>());
-                        rows.ways.push((way.id(), w.0));
+                        let tags = Tags::from_pairs(way.tags());
+                        let refs: Vec<i64> = way.refs().collect();
+                        rows.ways
+                            .push((way.id(), codec::encode_raw_way(&tags, &refs)));
                         continue;
                     }
                     Element::Relation(relation) => {
@@ -656,21 +656,37 @@ fn resolve_ways(
     let mut insert_coast = db
         .prepare("INSERT INTO coastlines (way) VALUES (?1)")
         .map_err(&sqlite)?;
+    let mut insert_incomplete = db
+        .prepare("INSERT INTO incomplete_ways (way, data) VALUES (?1, ?2)")
+        .map_err(&sqlite)?;
+    let mut insert_missing = db
+        .prepare("INSERT OR IGNORE INTO missing_nodes (node, way) VALUES (?1, ?2)")
+        .map_err(&sqlite)?;
     let mut structure_ways = Vec::new();
     let mut rows = read.query([]).map_err(&sqlite)?;
     let mut resolved = 0u64;
     while let Some(row) = rows.next().map_err(&sqlite)? {
         let id: i64 = row.get(0).map_err(&sqlite)?;
         let data: Vec<u8> = row.get(1).map_err(&sqlite)?;
-        let mut r = codec::Reader::new(&data, "raw way");
-        let tags = r.tags()?;
-        let refs = r.ids()?;
+        let (tags, refs) = codec::decode_raw_way(&data)?;
         let mut nodes = Vec::with_capacity(refs.len());
         let mut at = Vec::with_capacity(refs.len());
-        for node in refs {
-            if let Some(p) = locations.get(node)? {
-                nodes.push(node);
-                at.push(p);
+        let mut missing = Vec::new();
+        for &node in &refs {
+            match locations.get(node)? {
+                Some(p) => {
+                    nodes.push(node);
+                    at.push(p);
+                }
+                None => missing.push(node),
+            }
+        }
+        if !missing.is_empty() {
+            insert_incomplete
+                .execute(params![id, data])
+                .map_err(&sqlite)?;
+            for node in missing {
+                insert_missing.execute(params![node, id]).map_err(&sqlite)?;
             }
         }
         if nodes.len() < 2 {
@@ -773,8 +789,15 @@ fn index_relations(partial: &Partial, n: f64) -> Result<u64, ImportError> {
         let relation = codec::decode_relation(id, &data)?;
         let mut positions = Vec::new();
         for way in super::relation_ways(db, &relation).map_err(&sqlite)? {
-            if let Some(way) = super::way(db, way)? {
-                positions.extend(way.positions);
+            match super::way(db, way)? {
+                Some(way) => positions.extend(way.positions),
+                None => {
+                    db.prepare_cached(
+                        "INSERT OR IGNORE INTO missing_members (way, relation) VALUES (?1, ?2)",
+                    )
+                    .and_then(|mut insert| insert.execute(params![way, id]))
+                    .map_err(&sqlite)?;
+                }
             }
         }
         Ok(bounds_of(&positions))

@@ -332,7 +332,15 @@ struct NodeEdit {
 struct WayEdit {
     old: Option<Way>,
     new: Option<(Way, Vec<u8>)>,
+    /// Its tags and every node it names, unless it is deleted.
+    named: Option<(crate::osm::Tags, Vec<i64>)>,
+    /// The nodes it names that the store does not hold.
+    missing: Vec<i64>,
 }
+
+/// A way resolved: the way and its row (None with fewer than two nodes held), and the nodes it
+/// names that the store does not hold.
+type Resolved = (Option<(Way, Vec<u8>)>, Vec<i64>);
 
 /// A relation's change, with the box of its ways before.
 struct RelationEdit {
@@ -550,6 +558,18 @@ impl Update<'_> {
                         old: old.map(|n| n.position),
                         new,
                     });
+                    // A way that misses this node is resolved again with it.
+                    if after.is_some() {
+                        for way in self.ways_missing(*id)? {
+                            if let std::collections::btree_map::Entry::Vacant(slot) =
+                                sources.entry(way)
+                            {
+                                if let Some(named) = self.incomplete(way)? {
+                                    slot.insert(Some(named));
+                                }
+                            }
+                        }
+                    }
                     if before == after {
                         continue;
                     }
@@ -567,7 +587,11 @@ impl Update<'_> {
                     }
                     for way in cells_before.get(&cell).map_or(&[][..], |w| &w[..]) {
                         if way.nodes.contains(id) && !sources.contains_key(&way.id) {
-                            sources.insert(way.id, Some((way.tags.clone(), way.nodes.clone())));
+                            let named = match self.incomplete(way.id)? {
+                                Some(named) => named,
+                                None => (way.tags.clone(), way.nodes.clone()),
+                            };
+                            sources.insert(way.id, Some(named));
                         }
                     }
                 }
@@ -591,15 +615,16 @@ impl Update<'_> {
         }
         for (id, source) in sources {
             let old = super::way(self.db, id).map_err(self.decode())?;
-            let new = match source {
-                Some((tags, refs)) => self.resolve(id, tags, &refs)?,
-                None => None,
+            let (new, missing) = match &source {
+                Some((tags, refs)) => self.resolve(id, tags.clone(), refs)?,
+                None => (None, Vec::new()),
             };
             let old_row = old.as_ref().map(|w| {
                 let at: Vec<Decimicro> = w.positions.iter().map(|p| decimicro_of(*p)).collect();
                 codec::encode_way(&w.tags, &w.nodes, &at)
             });
-            if old_row.as_ref() == new.as_ref().map(|(_, row)| row) {
+            let same_row = old_row.as_ref() == new.as_ref().map(|(_, row)| row);
+            if same_row && missing.is_empty() && self.incomplete(id)?.is_none() {
                 continue;
             }
             for w in [old.as_ref(), new.as_ref().map(|(w, _)| w)]
@@ -610,30 +635,42 @@ impl Update<'_> {
                     plan.joined_before.extend(through);
                 }
             }
-            plan.ways.insert(id, WayEdit { old, new });
+            plan.ways.insert(
+                id,
+                WayEdit {
+                    old,
+                    new,
+                    named: source,
+                    missing,
+                },
+            );
         }
         self.plan_relations(&mut plan)?;
         Ok(plan)
     }
 
-    /// A way as the diff leaves it: its nodes found, the missing dropped; None with fewer
-    /// than two.
+    /// A way as the diff leaves it: its nodes found, the missing dropped (None with fewer
+    /// than two), and the nodes it misses.
     fn resolve(
         &mut self,
         id: i64,
         tags: crate::osm::Tags,
         refs: &[i64],
-    ) -> Result<Option<(Way, Vec<u8>)>, UpdateError> {
+    ) -> Result<Resolved, UpdateError> {
         let mut nodes = Vec::with_capacity(refs.len());
         let mut at = Vec::with_capacity(refs.len());
+        let mut missing = Vec::new();
         for &node in refs {
-            if let Some(p) = self.position(node)? {
-                nodes.push(node);
-                at.push(p);
+            match self.position(node)? {
+                Some(p) => {
+                    nodes.push(node);
+                    at.push(p);
+                }
+                None => missing.push(node),
             }
         }
         if nodes.len() < 2 {
-            return Ok(None);
+            return Ok((None, missing));
         }
         let row = codec::encode_way(&tags, &nodes, &at);
         let positions = at
@@ -643,21 +680,83 @@ impl Update<'_> {
                 LonLat { lon, lat }
             })
             .collect();
-        Ok(Some((
-            Way {
-                id,
-                tags,
-                nodes,
-                positions,
-            },
-            row,
-        )))
+        Ok((
+            Some((
+                Way {
+                    id,
+                    tags,
+                    nodes,
+                    positions,
+                },
+                row,
+            )),
+            missing,
+        ))
+    }
+
+    /// The tags and every node of a way the store holds incomplete.
+    fn incomplete(&self, way: i64) -> Result<Option<(crate::osm::Tags, Vec<i64>)>, UpdateError> {
+        let data: Option<Vec<u8>> = self
+            .db
+            .prepare_cached("SELECT data FROM incomplete_ways WHERE way = ?1")
+            .and_then(|mut s| s.query_row([way], |row| row.get(0)).optional())
+            .map_err(self.sqlite())?;
+        data.map(|d| codec::decode_raw_way(&d))
+            .transpose()
+            .map_err(self.decode())
+    }
+
+    /// The ways that name `node` without the store holding it.
+    fn ways_missing(&self, node: i64) -> Result<Vec<i64>, UpdateError> {
+        self.ids_of(
+            "SELECT way FROM missing_nodes WHERE node = ?1 ORDER BY way",
+            node,
+        )
+    }
+
+    /// The relations that name way `way` without the store holding it.
+    fn relations_missing(&self, way: i64) -> Result<Vec<i64>, UpdateError> {
+        self.ids_of(
+            "SELECT relation FROM missing_members WHERE way = ?1 ORDER BY relation",
+            way,
+        )
+    }
+
+    fn ids_of(&self, sql: &str, id: i64) -> Result<Vec<i64>, UpdateError> {
+        let mut statement = self.db.prepare_cached(sql).map_err(self.sqlite())?;
+        let rows = statement
+            .query_map([id], |row| row.get(0))
+            .map_err(self.sqlite())?;
+        rows.collect::<Result<_, _>>().map_err(self.sqlite())
     }
 
     /// Adds the relations holding a changed way or relation, to any depth, and reads each
     /// one's state before. A relation is registered in the cells of its ways' box, so it
     /// lies in the cells of each way and relation it holds.
     fn plan_relations(&mut self, plan: &mut Plan) -> Result<(), UpdateError> {
+        // A relation that names a way the store did not hold, now brought, wherever it lies.
+        let brought: Vec<i64> = plan
+            .ways
+            .iter()
+            .filter(|(_, e)| e.old.is_none() && e.new.is_some())
+            .map(|(&id, _)| id)
+            .collect();
+        for way in brought {
+            for id in self.relations_missing(way)? {
+                if plan.relations.contains_key(&id) {
+                    continue;
+                }
+                if let Some(relation) = super::relation(self.db, id).map_err(self.decode())? {
+                    plan.relations.insert(
+                        id,
+                        RelationEdit {
+                            old: None,
+                            new: Some(relation),
+                        },
+                    );
+                }
+            }
+        }
         let mut looked = BTreeSet::new();
         loop {
             // The state before of the relations added last.
@@ -804,6 +903,24 @@ impl Update<'_> {
                 .map_err(&sqlite)?;
             db.execute("DELETE FROM coastlines WHERE way = ?1", [id])
                 .map_err(&sqlite)?;
+            db.execute("DELETE FROM incomplete_ways WHERE way = ?1", [id])
+                .map_err(&sqlite)?;
+            db.execute("DELETE FROM missing_nodes WHERE way = ?1", [id])
+                .map_err(&sqlite)?;
+            if let (Some((tags, refs)), false) = (&edit.named, edit.missing.is_empty()) {
+                db.execute(
+                    "INSERT INTO incomplete_ways (way, data) VALUES (?1, ?2)",
+                    params![id, codec::encode_raw_way(tags, refs)],
+                )
+                .map_err(&sqlite)?;
+                for node in &edit.missing {
+                    db.execute(
+                        "INSERT OR IGNORE INTO missing_nodes (node, way) VALUES (?1, ?2)",
+                        params![node, id],
+                    )
+                    .map_err(&sqlite)?;
+                }
+            }
             if let Some((way, row)) = &edit.new {
                 db.execute(
                     "INSERT INTO ways (id, data) VALUES (?1, ?2)",
@@ -843,9 +960,23 @@ impl Update<'_> {
                     .map_err(&sqlite)?;
             }
         }
-        // Their boxes once all are written (one may hold another).
+        // Their boxes, and the ways they name that the store does not hold, once all are
+        // written (one may hold another).
         for (&id, edit) in &plan.relations {
+            self.db
+                .execute("DELETE FROM missing_members WHERE relation = ?1", [id])
+                .map_err(&sqlite)?;
             if let Some(relation) = &edit.new {
+                for way in super::relation_ways(self.db, relation).map_err(&sqlite)? {
+                    if super::way(self.db, way).map_err(self.decode())?.is_none() {
+                        self.db
+                            .execute(
+                                "INSERT OR IGNORE INTO missing_members (way, relation) VALUES (?1, ?2)",
+                                params![way, id],
+                            )
+                            .map_err(&sqlite)?;
+                    }
+                }
                 if let Some(b) = relation_bounds(self.db, relation).map_err(self.decode())? {
                     self.encell(2, id, &b)?;
                     reach.boxes.push(b);
