@@ -187,11 +187,13 @@ pub fn seed(
                         Ok(tile)
                     });
                 match outcome {
-                    Ok(tile) => match store
-                        .put(&key, &tile)
-                        .and_then(|()| crate::provider::save_solutions(store))
-                    {
-                        Ok(_) => {
+                    Ok(tile) => match store.put(&key, &tile) {
+                        Ok(()) => {
+                            // Kept for later renders when they can be: a tile stored without
+                            // them is still whole.
+                            if let Err(error) = crate::provider::save_solutions(store) {
+                                tracing::warn!(%error, "keeping solved elevation components failed");
+                            }
                             if let Ok(mut r) = report.lock() {
                                 r.made += 1;
                                 r.stored_bytes += tile.bodies.stored_len() as u64;
