@@ -246,7 +246,16 @@ fn solve_component(
 ) -> Option<(Vec<f64>, Vec<Violation>)> {
     let memo = Solutions::shared();
     let key = component_key(problem, members, constraints, smooth);
-    let solved = memo.get_or_solve(key, || solve_afresh(problem, members, constraints, smooth));
+    // A solution with a value for each member, each finite: anything else was damaged on
+    // its way through a durable store.
+    let sound = |kept: &Option<solutions::Solved>| {
+        kept.as_ref().is_none_or(|s| {
+            s.values.len() == members.len() && s.values.iter().all(|v| v.is_finite())
+        })
+    };
+    let solved = memo.get_or_solve(key, sound, || {
+        solve_afresh(problem, members, constraints, smooth)
+    });
     let solved = Option::as_ref(&solved)?;
     let violations = solved
         .violations
@@ -639,5 +648,26 @@ mod tests {
         // A component that differs in one number is solved, not found.
         let (other, [e, _]) = contradiction(0, 7, target + 1.0);
         assert_ne!(solve(&other).values[e], solved.values[a]);
+    }
+
+    #[test]
+    fn a_damaged_solution_read_back_is_solved_again() {
+        let target = 4321.0;
+        let (p, [a, b]) = contradiction(0, 3, target);
+        // One value for two members: not a solution of this component.
+        let damaged = solutions::encode(Some(&solutions::Solved {
+            values: vec![-7.0],
+            violations: Vec::new(),
+        }));
+        let key = component_key(&p, &[a, b], &[0, 1], &[]);
+        assert_eq!(Solutions::shared().remember([(key, damaged)]), 1);
+        let out = solve(&p);
+        assert_eq!(out.failed, 0);
+        // The damaged entry would give a −7 m and leave b at its target, 17 m short of a ≥ b + 10.
+        assert!(
+            out.values[a] - out.values[b] >= 10.0 - 1e-6,
+            "{:?}",
+            out.values
+        );
     }
 }

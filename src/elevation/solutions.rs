@@ -71,13 +71,15 @@ impl Solutions {
         SHARED.get_or_init(|| Solutions::new(MEMO_BYTES))
     }
 
-    /// The component kept by `key`, or `solve`'s answer, then kept.
+    /// The component kept by `key` when `sound` accepts it, else `solve`'s answer, then kept
+    /// (an entry read from a damaged store is solved again, not used).
     pub fn get_or_solve(
         &self,
         key: Key,
+        sound: impl Fn(&Option<Solved>) -> bool,
         solve: impl FnOnce() -> Option<Solved>,
     ) -> Arc<Option<Solved>> {
-        if let Some(solved) = self.cache.get(&key) {
+        if let Some(solved) = self.cache.get(&key).filter(|s| sound(s)) {
             self.found.fetch_add(1, Ordering::Relaxed);
             return solved;
         }
@@ -175,7 +177,7 @@ impl KeyWriter {
     }
 }
 
-fn encode(solved: Option<&Solved>) -> Vec<u8> {
+pub(crate) fn encode(solved: Option<&Solved>) -> Vec<u8> {
     let mut out = vec![ENCODING];
     let Some(solved) = solved else {
         out.push(0);
@@ -258,15 +260,20 @@ mod tests {
         let memo = Solutions::new(1 << 20);
         let kept = memo.remember([([7; 32], bytes.clone()), ([8; 32], vec![ENCODING + 1])]);
         assert_eq!(kept, 1);
+        let any = |_: &Option<Solved>| true;
         assert_eq!(
-            memo.get_or_solve([7; 32], || None).as_ref(),
+            memo.get_or_solve([7; 32], any, || None).as_ref(),
             &decode(&bytes).flatten()
         );
         assert_eq!(memo.counts(), (1, 0));
         // Remembered components are not saved again; one solved afresh is, once.
         assert!(memo.take_unsaved().is_empty());
-        memo.get_or_solve([9; 32], || None);
+        memo.get_or_solve([9; 32], any, || None);
         assert_eq!(memo.take_unsaved(), vec![([9; 32], encode(None))]);
         assert!(memo.take_unsaved().is_empty());
+        // An entry its reader finds unsound is solved again and replaced.
+        let solved = memo.get_or_solve([7; 32], |_| false, || None);
+        assert_eq!(solved.as_ref(), &None);
+        assert_eq!(memo.counts(), (1, 2));
     }
 }
