@@ -245,7 +245,9 @@ fn solve_component(
     smooth: &[usize],
 ) -> Option<(Vec<f64>, Vec<Violation>)> {
     let memo = Solutions::shared();
-    let key = component_key(problem, members, constraints, smooth);
+    // Each member's position in the component.
+    let local: HashMap<usize, usize> = members.iter().enumerate().map(|(k, &v)| (v, k)).collect();
+    let key = component_key(problem, members, &local, constraints, smooth);
     // A solution with a value for each member, each finite: anything else was damaged on
     // its way through a durable store.
     let sound = |kept: &Option<solutions::Solved>| {
@@ -254,7 +256,7 @@ fn solve_component(
         })
     };
     let solved = memo.get_or_solve(key, sound, || {
-        solve_afresh(problem, members, constraints, smooth)
+        solve_afresh(problem, members, &local, constraints, smooth)
     });
     let solved = Option::as_ref(&solved)?;
     let violations = solved
@@ -276,10 +278,10 @@ fn solve_component(
 fn component_key(
     problem: &Problem,
     members: &[usize],
+    local: &HashMap<usize, usize>,
     constraints: &[usize],
     smooth: &[usize],
 ) -> Key {
-    let local: HashMap<usize, usize> = members.iter().enumerate().map(|(k, &v)| (v, k)).collect();
     let mut key = KeyWriter::new();
     key.count(members.len());
     for &v in members {
@@ -314,19 +316,12 @@ fn component_key(
 fn solve_afresh(
     problem: &Problem,
     members: &[usize],
+    local: &HashMap<usize, usize>,
     constraints: &[usize],
     smooth: &[usize],
 ) -> Option<solutions::Solved> {
     let mut vars = ProblemVariables::new();
-    let mut local = HashMap::with_capacity(members.len());
-    let x: Vec<good_lp::Variable> = members
-        .iter()
-        .enumerate()
-        .map(|(k, &v)| {
-            local.insert(v, k);
-            vars.add(variable())
-        })
-        .collect();
+    let x: Vec<good_lp::Variable> = members.iter().map(|_| vars.add(variable())).collect();
     let mut objective = Expression::from(0.0);
     let mut rows: Vec<good_lp::Constraint> = Vec::new();
     for (k, &v) in members.iter().enumerate() {
@@ -659,7 +654,8 @@ mod tests {
             values: vec![-7.0],
             violations: Vec::new(),
         }));
-        let key = component_key(&p, &[a, b], &[0, 1], &[]);
+        let local = HashMap::from([(a, 0), (b, 1)]);
+        let key = component_key(&p, &[a, b], &local, &[0, 1], &[]);
         assert_eq!(Solutions::shared().remember([(key, damaged)]), 1);
         let out = solve(&p);
         assert_eq!(out.failed, 0);

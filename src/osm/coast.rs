@@ -1,7 +1,7 @@
 //! Which coastline ways decide the side of the coast a tile lies on.
 //!
 //! A tile no coastline crosses is at sea when the coastline nearest to its centre has it on its
-//! water side ([`crate::features::coastline`]). Only the ways that may hold that nearest point
+//! water side (the features' sea decides so). Only the ways that may hold that nearest point
 //! matter: those whose box is no farther from the centre than the nearest way itself. They are
 //! found best first, by the distance to their boxes, so a tile reads a handful of coastline
 //! ways however long the coast of the data is, and a closure of the data that holds those ways

@@ -19,9 +19,9 @@ pub struct OsmIndex {
     data: OsmData,
     zoom: u8,
     cells: HashMap<(u32, u32), CellContent>,
-    /// Indices of the `natural=coastline` ways, and their boxes.
-    coastlines: Vec<u32>,
+    /// The boxes of the `natural=coastline` ways, and beside each the way's index.
     coast_boxes: Vec<CoastBox>,
+    coast_ways: Vec<u32>,
     /// Bridges and tunnels, whole.
     structures: Vec<Group>,
     /// The cells each structure group touches.
@@ -100,19 +100,19 @@ impl OsmIndex {
                 structure_cells.entry(cell).or_default().push(i as u32);
             }
         }
-        let coast_boxes = coastlines
+        let (coast_boxes, coast_ways) = coastlines
             .iter()
             .filter_map(|&i| {
                 let way = &data.ways[i as usize];
-                CoastBox::of(way.id, &way.positions, n)
+                Some((CoastBox::of(way.id, &way.positions, n)?, i))
             })
-            .collect();
+            .unzip();
         OsmIndex {
             data,
             zoom,
             cells,
-            coastlines,
             coast_boxes,
+            coast_ways,
             structures,
             structure_cells,
             roads,
@@ -302,21 +302,12 @@ impl OsmIndex {
     fn nearest_coast(&self, tile: TileId) -> Vec<&Way> {
         let n = f64::from(1u32 << self.zoom);
         let p = coast_point(tile, self.zoom);
-        let ways = &self.data.ways;
-        let by_id: HashMap<i64, u32> = self
-            .coastlines
-            .iter()
-            .map(|&i| (ways[i as usize].id, i))
-            .collect();
-        let way_of = |k: usize| {
-            let id = self.coast_boxes[k].id;
-            by_id.get(&id).map(|&i| &ways[i as usize])
-        };
+        let way_of = |k: usize| &self.data.ways[self.coast_ways[k] as usize];
         coast::nearest(&self.coast_boxes, p, |k| {
-            way_of(k).map(|w| coast::distance_to_way(w, p, n))
+            Some(coast::distance_to_way(way_of(k), p, n))
         })
         .into_iter()
-        .filter_map(way_of)
+        .map(way_of)
         .collect()
     }
 }
