@@ -160,6 +160,39 @@ fn a_store_older_than_its_extract_is_imported_again() {
 }
 
 #[test]
+fn a_store_imported_by_a_relative_path_is_current_from_any_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let elsewhere = tempfile::tempdir().unwrap();
+    std::fs::copy(sample_osm(), dir.path().join("region.osm.pbf")).unwrap();
+    let output = terrastitch()
+        .current_dir(dir.path())
+        .args(["import", "--osm", "region.osm.pbf", "--store", "osm.sqlite"])
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", stderr(&output));
+    let store = dir.path().join("osm.sqlite");
+    let imported = digest(&store);
+    let output = terrastitch()
+        .current_dir(elsewhere.path())
+        .args(["render", "14/8529/5973", "--store"])
+        .arg(&store)
+        .arg("--osm")
+        .arg(dir.path().join("region.osm.pbf"))
+        .arg("--srtm")
+        .arg(common::repo().join("data"))
+        .arg("-o")
+        .arg(elsewhere.path().join("tile.glb"))
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", stderr(&output));
+    assert_eq!(
+        digest(&store),
+        imported,
+        "the store holds the very extract named another way: read as it is, not imported again"
+    );
+}
+
+#[test]
 fn two_commands_that_need_a_missing_store_import_it_once() {
     let dir = tempfile::tempdir().unwrap();
     let store = dir.path().join("osm.sqlite");

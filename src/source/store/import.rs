@@ -562,7 +562,10 @@ fn read_extract(
         });
     }
     Ok(ExtractRecord {
-        path: path.to_path_buf(),
+        // Absolute, so the store is found current whichever directory a later command runs in
+        // (a relative path would name another file there, and the store would be imported
+        // again, losing the diffs applied to it).
+        path: std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()),
         digest,
         file_version,
         bounds: [bounds.west, bounds.south, bounds.east, bounds.north],
