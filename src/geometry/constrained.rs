@@ -20,7 +20,7 @@ pub type Cdt = ConstrainedDelaunayTriangulation<Point2<f64>>;
 const MAX_DROPPED: usize = 32;
 
 /// Most cells per side of the grid that finds crossing segments.
-const CROSSING_CELLS: usize = 64;
+const CROSSING_CELLS: usize = 256;
 
 /// Inserts `segments` into a copy of `seed` as constraint edges; returns it with the number of
 /// segments and pieces left out.
@@ -90,16 +90,31 @@ fn split_at_crossings(segments: &[(Point2<f64>, Point2<f64>)]) -> Vec<Vec<Point2
             }
         }
     }
+    // Each pair of segments sharing a cell once, the lower index first; pairs whose bounding
+    // boxes miss each other can neither cross nor touch.
+    let boxes_meet = |(a, b): (Point2<f64>, Point2<f64>), (c, d): (Point2<f64>, Point2<f64>)| {
+        a.x.min(b.x) <= c.x.max(d.x)
+            && c.x.min(d.x) <= a.x.max(b.x)
+            && a.y.min(b.y) <= c.y.max(d.y)
+            && c.y.min(d.y) <= a.y.max(b.y)
+    };
     let mut pairs: Vec<(u32, u32)> = Vec::new();
-    for bucket in &buckets {
-        for (n, &i) in bucket.iter().enumerate() {
-            for &j in &bucket[n + 1..] {
-                pairs.push((i.min(j), i.max(j)));
+    let mut seen_by: Vec<u32> = vec![u32::MAX; segments.len()];
+    for (i, &(a, b)) in segments.iter().enumerate() {
+        for row in cell(a.y.min(b.y), 1)..=cell(a.y.max(b.y), 1) {
+            for column in cell(a.x.min(b.x), 0)..=cell(a.x.max(b.x), 0) {
+                for &j in &buckets[row * cells + column] {
+                    if j as usize > i
+                        && seen_by[j as usize] != i as u32
+                        && boxes_meet(segments[i], segments[j as usize])
+                    {
+                        seen_by[j as usize] = i as u32;
+                        pairs.push((i as u32, j));
+                    }
+                }
             }
         }
     }
-    pairs.sort_unstable();
-    pairs.dedup();
 
     // (position along the segment, point) of every split.
     let mut splits: Vec<Vec<(f64, Point2<f64>)>> = vec![Vec::new(); segments.len()];

@@ -396,40 +396,42 @@ fn feature_weights(
     n: usize,
 ) -> Vec<f32> {
     let mut nearest = vec![f64::INFINITY; (n + 1) * (n + 1)];
-    let tile = frame.tile;
-    let origin = [f64::from(tile.x), f64::from(tile.y)];
-    let tiles_per_axis = tile.tiles_per_axis();
-    // Metres on the ground per tile unit at a latitude.
-    let metres_per_uv = |v: f64| frame.size_m / mercator_scale(v_to_lat(v, tiles_per_axis));
-    let reach_uv = settings.feature_distance_m / metres_per_uv(origin[1] + 0.5) * 1.01;
     if settings.feature_weight > 0.0 && settings.feature_distance_m > 0.0 {
-        for polyline in outlines {
-            for pair in polyline.windows(2) {
-                let (a, b) = (pair[0], pair[1]);
-                let index_range = |axis: usize| {
-                    let lo = (a[axis].min(b[axis]) - reach_uv - origin[axis]) * n as f64;
-                    let hi = (a[axis].max(b[axis]) + reach_uv - origin[axis]) * n as f64;
-                    let lo = lo.ceil().max(0.0);
-                    let hi = hi.floor().min(n as f64);
-                    (lo <= hi).then_some((lo as usize, hi as usize))
-                };
-                let (Some((i0, i1)), Some((j0, j1))) = (index_range(0), index_range(1)) else {
-                    continue;
-                };
-                for j in j0..=j1 {
-                    let v = origin[1] + j as f64 / n as f64;
-                    let scale = metres_per_uv(v);
-                    for i in i0..=i1 {
-                        let u = origin[0] + i as f64 / n as f64;
-                        let d = distance_to_segment([u, v], a, b) * scale;
-                        let slot = &mut nearest[j * (n + 1) + i];
-                        if d < *slot {
-                            *slot = d;
-                        }
+        let tile = frame.tile;
+        let origin = [f64::from(tile.x), f64::from(tile.y)];
+        let tiles_per_axis = tile.tiles_per_axis();
+        // Metres on the ground per tile unit at a latitude, once for each row of samples.
+        let metres_per_uv = |v: f64| frame.size_m / mercator_scale(v_to_lat(v, tiles_per_axis));
+        let row_scale: Vec<f64> = (0..=n)
+            .map(|j| metres_per_uv(origin[1] + j as f64 / n as f64))
+            .collect();
+        let reach_uv = settings.feature_distance_m / metres_per_uv(origin[1] + 0.5) * 1.01;
+        let segments: Vec<(Point, Point)> = outlines
+            .iter()
+            .flat_map(|polyline| polyline.windows(2).map(|pair| (pair[0], pair[1])))
+            .collect();
+        // Bands of rows on threads of their own: each sample's nearest distance is its own.
+        let rows_per_band = (n + 1).div_ceil(weight_threads(segments.len()));
+        std::thread::scope(|scope| {
+            for (band, slots) in nearest.chunks_mut(rows_per_band * (n + 1)).enumerate() {
+                let first_row = band * rows_per_band;
+                let (segments, row_scale) = (&segments, &row_scale);
+                scope.spawn(move || {
+                    let rows = first_row..first_row + slots.len() / (n + 1);
+                    for &(a, b) in segments {
+                        nearest_in_rows(
+                            slots,
+                            rows.clone(),
+                            (a, b),
+                            origin,
+                            n,
+                            reach_uv,
+                            row_scale,
+                        );
                     }
-                }
+                });
             }
-        }
+        });
     }
     nearest
         .into_iter()
@@ -438,6 +440,54 @@ fn feature_weights(
             (1.0 + settings.feature_weight * fade) as f32
         })
         .collect()
+}
+
+/// Outline segments below this many are weighed on one thread.
+const WEIGHT_SEGMENTS_PER_THREAD: usize = 4_096;
+
+fn weight_threads(segments: usize) -> usize {
+    super::parallel::threads_for(segments, WEIGHT_SEGMENTS_PER_THREAD, 4)
+}
+
+/// Lowers the nearest distance (metres) of the samples of `rows` within `reach_uv` of the
+/// segment `a`–`b`; `slots` holds those rows' samples.
+fn nearest_in_rows(
+    slots: &mut [f64],
+    rows: std::ops::Range<usize>,
+    (a, b): (Point, Point),
+    origin: Point,
+    n: usize,
+    reach_uv: f64,
+    row_scale: &[f64],
+) {
+    let index_range = |axis: usize, lo_limit: usize, hi_limit: usize| {
+        let lo = (a[axis].min(b[axis]) - reach_uv - origin[axis]) * n as f64;
+        let hi = (a[axis].max(b[axis]) + reach_uv - origin[axis]) * n as f64;
+        let lo = lo.ceil().max(lo_limit as f64);
+        let hi = hi.floor().min(hi_limit as f64);
+        (lo <= hi).then_some((lo as usize, hi as usize))
+    };
+    if rows.is_empty() {
+        return;
+    }
+    let (Some((i0, i1)), Some((j0, j1))) = (
+        index_range(0, 0, n),
+        index_range(1, rows.start, rows.end - 1),
+    ) else {
+        return;
+    };
+    for j in j0..=j1 {
+        let v = origin[1] + j as f64 / n as f64;
+        let scale = row_scale[j];
+        let row = &mut slots[(j - rows.start) * (n + 1)..(j - rows.start + 1) * (n + 1)];
+        for (i, slot) in row.iter_mut().enumerate().take(i1 + 1).skip(i0) {
+            let u = origin[0] + i as f64 / n as f64;
+            let d = distance_to_segment([u, v], a, b) * scale;
+            if d < *slot {
+                *slot = d;
+            }
+        }
+    }
 }
 
 /// The vertices of one side: its two corners, the points where outlines cross it, and the samples
