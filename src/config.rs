@@ -51,6 +51,19 @@ pub struct ServerConfig {
     pub check_interval_s: u64,
     /// Directory of the viewer's files, served at `/`.
     pub static_dir: PathBuf,
+    /// Serve `/debug/tiles/{z}/{x}/{y}.geojson` (how a tile's elevations were settled), made
+    /// in the render slots like a tile.
+    pub debug_view: bool,
+    /// Longest a client may take to send a request's head, and longest a kept-alive connection
+    /// may stay idle, seconds.
+    pub header_timeout_s: u64,
+    /// Longest a client may take to send a request's body (admin requests), seconds.
+    pub body_timeout_s: u64,
+    /// Connections open at once; past it one more is answered `503` and closed. Bounded below
+    /// the process's open-file limit.
+    pub max_connections: usize,
+    /// Longest the open connections are given to finish after the shutdown signal, seconds.
+    pub shutdown_grace_s: u64,
 }
 
 impl Default for ServerConfig {
@@ -67,6 +80,11 @@ impl Default for ServerConfig {
             background_renders: 1,
             check_interval_s: 300,
             static_dir: PathBuf::from("static"),
+            debug_view: true,
+            header_timeout_s: 10,
+            body_timeout_s: 30,
+            max_connections: 1024,
+            shutdown_grace_s: 20,
         }
     }
 }

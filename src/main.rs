@@ -264,7 +264,7 @@ fn init_logging(format: LogFormat) {
 /// The tile store a configuration names.
 fn open_store(config: &Config) -> Result<SqliteStore> {
     let cap = (config.cache.max_size_mib > 0).then(|| config.cache.max_size_mib * 1024 * 1024);
-    Ok(SqliteStore::open(&config.cache.path, cap)?)
+    Ok(SqliteStore::open_or_set_aside(&config.cache.path, cap)?)
 }
 
 fn serve(args: ServeArgs, mut config: Config) -> Result<()> {

@@ -60,6 +60,8 @@ pub enum CodingError {
     },
     #[error("compressing a tile failed: {0}")]
     Compress(#[source] std::io::Error),
+    #[error("{coding} body does not match the tile's digest")]
+    Mismatch { coding: &'static str },
 }
 
 impl Bodies {
@@ -94,6 +96,21 @@ impl Bodies {
             gzip,
             brotli: brotli.map(Bytes::from),
         })
+    }
+
+    /// Checks every form against the digest the tile was stored with (`etag`, see
+    /// [`super::etag_of`]): the identity body's own, and each compressed form decoding to it.
+    pub fn verify(&self, etag: &str) -> Result<(), CodingError> {
+        if super::etag_of(&self.identity) != etag {
+            return Err(CodingError::Mismatch { coding: "identity" });
+        }
+        // The gzip form was decoded to make the identity one; brotli is decoded here.
+        if let Some(brotli) = &self.brotli {
+            if unbrotli(brotli)? != self.identity {
+                return Err(CodingError::Mismatch { coding: "br" });
+            }
+        }
+        Ok(())
     }
 
     /// The form the store keeps as its primary body: gzip where it pays, else identity.

@@ -9,6 +9,7 @@
 //! makes its replacement and swaps it in whole.
 
 pub mod encoding;
+mod flight;
 pub mod mbtiles;
 pub mod sqlite;
 pub mod store;
@@ -55,6 +56,9 @@ pub struct CachedTile {
     pub made_by: Provenance,
     /// Where the tile was found when it entered memory.
     pub loaded_from: Origin,
+    /// Whether the durable store holds it (a tile that could not be stored, its disk full, is
+    /// served from memory only).
+    pub stored: bool,
 }
 
 /// A tile served, and how.
@@ -92,6 +96,37 @@ pub struct TileCache {
     store: Arc<dyn TileStore>,
     /// Tiles served from memory since the store last heard of it.
     touched: Arc<Mutex<HashSet<TileKey>>>,
+    /// Lookups and renders under way, by key.
+    flights: Arc<flight::Flights>,
+    /// Purges lately made, so a tile made again from before one is not stored after it.
+    purges: Arc<Mutex<Purges>>,
+}
+
+/// How long a purge is remembered; a remake begun before the oldest purge remembered is not
+/// stored if any purge came since.
+const PURGE_MEMORY: std::time::Duration = std::time::Duration::from_secs(3600);
+
+/// The purges made lately, numbered in order.
+#[derive(Debug, Default)]
+struct Purges {
+    /// How many purges were made.
+    made: u64,
+    /// The last ones: number, when, and what each removed.
+    recent: std::collections::VecDeque<(u64, std::time::Instant, TileFilter)>,
+}
+
+impl Purges {
+    /// Whether a purge numbered above `since` removed `key`'s tile (or may have: it is
+    /// forgotten).
+    fn purged_since(&self, since: u64, key: &TileKey) -> bool {
+        let oldest_remembered = self.recent.front().map_or(self.made + 1, |p| p.0);
+        if since + 1 < oldest_remembered && since < self.made {
+            return true;
+        }
+        self.recent
+            .iter()
+            .any(|(number, _, filter)| *number > since && filter.matches(key.tile))
+    }
 }
 
 impl std::fmt::Debug for TileCache {
@@ -117,6 +152,8 @@ impl TileCache {
             memory,
             store,
             touched: Arc::default(),
+            flights: Arc::default(),
+            purges: Arc::default(),
         }
     }
 
@@ -156,30 +193,42 @@ impl TileCache {
                     Ok::<_, StoreError>(found)
                 })
                 .await
-                .map_err(|e| CacheError::Panicked(e.to_string()))??
+                .map_err(|e| CacheError::Panicked(e.to_string()))?
             };
+            // A store that cannot be read (damaged, its disk gone) does not stop the tile: it
+            // is made again.
+            let lookup = lookup.unwrap_or_else(|error| {
+                tracing::error!(tile = %key.tile, format = key.format.as_str(), %error, "reading the stored tile failed; making it again");
+                None
+            });
             if let Some(found) = lookup {
                 return Ok(Arc::new(CachedTile {
                     bodies: found.bodies,
                     etag: found.etag,
                     made_by: found.made_by,
                     loaded_from: Origin::Store,
+                    stored: true,
                 }));
             }
-            let made = render_and_store(store, key, made_by, Box::new(render)).await?;
+            let made = render_and_store(store, key, made_by, None, Box::new(render))
+                .await?
+                .ok_or_else(|| CacheError::Panicked("a tile was dropped unasked".into()))?;
             Ok(Arc::new(CachedTile {
                 loaded_from: Origin::Rendered,
                 ..made
             }))
         };
-        // Detached: when the request that started it goes away, the render it paid a slot for
-        // still ends in the store.
-        let init = async move {
-            tokio::spawn(lookup_or_render)
-                .await
-                .map_err(|e| CacheError::Panicked(panic_message(e)))?
-        };
-        let entry = self.memory.entry(key).or_try_insert_with(init).await?;
+        // Detached and shared: when the request that started it goes away, the render it paid
+        // a slot for still ends in the store, and a request that comes meanwhile waits for it
+        // rather than starting another.
+        let flights = self.flights.clone();
+        let init = async move { flights.join_or_start(key, lookup_or_render).await };
+        let entry = self
+            .memory
+            .entry(key)
+            .or_try_insert_with(init)
+            .await
+            .map_err(|shared| (*shared).clone())?;
         let origin = if entry.is_fresh() {
             entry.value().loaded_from
         } else {
@@ -197,21 +246,70 @@ impl TileCache {
         })
     }
 
+    /// How many purges were made so far: give it to [`TileCache::remake`] for a tile chosen
+    /// now.
+    pub fn purges_so_far(&self) -> u64 {
+        self.purges.lock().unwrap_or_else(|p| p.into_inner()).made
+    }
+
     /// Makes a tile again with `render` and swaps it in (store, then memory) when it is done;
-    /// until then, and if it fails, the old tile is served.
+    /// until then, and if it fails, the old tile is served. A purge of the tile made after
+    /// `purges_so_far` wins: the new tile is then dropped, not stored.
     pub async fn remake<F, E>(
         &self,
         key: TileKey,
         wanted: Provenance,
+        purges_so_far: u64,
         render: F,
-    ) -> Result<(), CacheError<E>>
+    ) -> Result<Remade, CacheError<E>>
     where
         F: FnOnce() -> Result<Vec<u8>, E> + Send + 'static,
         E: std::error::Error + Send + Sync + 'static,
     {
-        let tile = render_and_store(self.store.clone(), key, wanted, Box::new(render)).await?;
-        self.memory.insert(key, Arc::new(tile)).await;
-        Ok(())
+        let purges = Some((self.purges.clone(), purges_so_far));
+        match render_and_store(self.store.clone(), key, wanted, purges, Box::new(render)).await? {
+            Some(tile) => {
+                let remade = if tile.stored {
+                    Remade::Stored
+                } else {
+                    Remade::Unstored
+                };
+                self.memory.insert(key, Arc::new(tile)).await;
+                Ok(remade)
+            }
+            None => Ok(Remade::Purged),
+        }
+    }
+
+    /// Removes the tiles `filter` selects from the store and from memory; a remake of one of
+    /// them under way is not stored. Returns the keys removed.
+    pub async fn purge(&self, filter: TileFilter) -> Result<Vec<TileKey>, StoreError> {
+        {
+            let mut purges = self.purges.lock().unwrap_or_else(|p| p.into_inner());
+            purges.made += 1;
+            let number = purges.made;
+            purges
+                .recent
+                .push_back((number, std::time::Instant::now(), filter.clone()));
+            while purges
+                .recent
+                .front()
+                .is_some_and(|p| p.1.elapsed() > PURGE_MEMORY)
+            {
+                purges.recent.pop_front();
+            }
+        }
+        let all = filter == TileFilter::All;
+        let store = self.store.clone();
+        let removed = tokio::task::spawn_blocking(move || store.remove(&filter))
+            .await
+            .map_err(|e| StoreError::Panicked(panic_message(e)))??;
+        if all {
+            self.forget_all();
+        } else {
+            self.forget(&removed).await;
+        }
+        Ok(removed)
     }
 
     /// Drops tiles from memory (after they were removed from the store).
@@ -245,13 +343,26 @@ impl TileCache {
     }
 }
 
-/// Renders a tile on the blocking pool, compresses it and stores it.
+/// What a remake came to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Remade {
+    /// The new tile is stored and served.
+    Stored,
+    /// The new tile is served from memory, but could not be stored.
+    Unstored,
+    /// The tile was purged while it was made: the new one is dropped.
+    Purged,
+}
+
+/// Renders a tile on the blocking pool, compresses it and stores it; with `purges`, not when a
+/// purge numbered past the one given removed it meanwhile (then `None`).
 async fn render_and_store<E>(
     store: Arc<dyn TileStore>,
     key: TileKey,
     made_by: Provenance,
+    purges: Option<(Arc<Mutex<Purges>>, u64)>,
     render: Render<E>,
-) -> Result<CachedTile, CacheError<E>>
+) -> Result<Option<CachedTile>, CacheError<E>>
 where
     E: std::error::Error + Send + Sync + 'static,
 {
@@ -263,13 +374,32 @@ where
             made_by,
             created_at: unix_now(),
         };
-        store.put(&key, &stored)?;
-        Ok(CachedTile {
+        // Checked and stored under the purges' lock: a purge is recorded either before (the
+        // tile is dropped) or after (its removal finds the tile).
+        let guard = purges
+            .as_ref()
+            .map(|(purges, since)| (purges.lock().unwrap_or_else(|p| p.into_inner()), *since));
+        if let Some((purges, since)) = &guard {
+            if purges.purged_since(*since, &key) {
+                return Ok(None);
+            }
+        }
+        // A tile that cannot be stored (disk full, store damaged) is served all the same.
+        let kept = match store.put(&key, &stored) {
+            Ok(()) => true,
+            Err(error) => {
+                tracing::warn!(tile = %key.tile, format = key.format.as_str(), %error, "the tile could not be stored; served from memory only");
+                false
+            }
+        };
+        drop(guard);
+        Ok(Some(CachedTile {
             bodies: stored.bodies,
             etag: stored.etag,
             made_by: stored.made_by,
             loaded_from: Origin::Rendered,
-        })
+            stored: kept,
+        }))
     })
     .await
     .map_err(|e| CacheError::Panicked(panic_message(e)))?

@@ -142,11 +142,48 @@ impl SqliteStore {
         self.db.error(source)
     }
 
+    /// Opens the store at `path` as [`SqliteStore::open`] does, after a quick check of the
+    /// file; a damaged file is moved aside (`PATH.damaged-UNIXTIME`, logged) and a new store
+    /// started in its place: its tiles are made again as they are asked for.
+    pub fn open_or_set_aside(
+        path: &Path,
+        max_bytes: Option<u64>,
+    ) -> Result<SqliteStore, StoreError> {
+        let opened = SqliteStore::open(path, max_bytes).and_then(|store| {
+            store.quick_check()?;
+            Ok(store)
+        });
+        match opened {
+            Err(error) if error.is_damage() => {
+                let aside = with_suffix(path, &format!(".damaged-{}", crate::cache::unix_now()));
+                tracing::error!(cache = %path.display(), moved_to = %aside.display(), %error, "the tile cache is damaged; it is moved aside and a new one started");
+                std::fs::rename(path, &aside).map_err(|source| StoreError::Directory {
+                    path: path.to_path_buf(),
+                    source,
+                })?;
+                for suffix in ["-wal", "-shm"] {
+                    let _ = std::fs::rename(with_suffix(path, suffix), with_suffix(&aside, suffix));
+                }
+                SqliteStore::open(path, max_bytes)
+            }
+            other => other,
+        }
+    }
+
+    /// `PRAGMA quick_check`: the file's pages and records are sound (indexes not compared).
+    pub fn quick_check(&self) -> Result<(), StoreError> {
+        self.pragma_check("quick_check")
+    }
+
     /// `PRAGMA integrity_check`: an error naming the damage if the file is not sound.
     pub fn check_integrity(&self) -> Result<(), StoreError> {
+        self.pragma_check("integrity_check")
+    }
+
+    fn pragma_check(&self, pragma: &str) -> Result<(), StoreError> {
         let connection = self.connection();
         let mut statement = connection
-            .prepare("PRAGMA integrity_check")
+            .prepare(&format!("PRAGMA {pragma}"))
             .map_err(|e| self.error(e))?;
         let lines: Vec<String> = statement
             .query_map([], |row| row.get(0))
@@ -261,7 +298,7 @@ impl TileStore for SqliteStore {
             String,
             i64,
         );
-        let row: Option<Row> = self
+        let row: Result<Option<Row>, StoreError> = self
             .connection()
             .query_row(
                 "SELECT data, encoding, data_br, etag, pipeline, sources, created_at FROM tiles
@@ -280,12 +317,27 @@ impl TileStore for SqliteStore {
                 },
             )
             .optional()
-            .map_err(|e| self.error(e))?;
+            .map_err(|e| self.error(e));
+        let row = match row {
+            Err(error) if error.is_damage() => {
+                // The row (or the page it is on) is damaged: drop what can be dropped; the tile
+                // is made again.
+                tracing::error!(tile = %key.tile, format = key.format.as_str(), %error, "a damaged cached tile could not be read; it is dropped and made again");
+                let _ = self.connection().execute(
+                    "DELETE FROM tiles WHERE z = ?1 AND x = ?2 AND y = ?3 AND format = ?4",
+                    params![key.tile.z, key.tile.x, key.tile.y, key.format.as_str()],
+                );
+                return Ok(None);
+            }
+            other => other?,
+        };
         let Some((data, encoding, brotli, etag, pipeline, sources, created_at)) = row else {
             return Ok(None);
         };
         let coding = Encoding::from_name(&encoding).unwrap_or(Encoding::Identity);
-        let bodies = match Bodies::from_stored(data, coding, brotli) {
+        let bodies = match Bodies::from_stored(data, coding, brotli)
+            .and_then(|bodies| bodies.verify(&etag).map(|()| bodies))
+        {
             Ok(bodies) => bodies,
             Err(error) => {
                 // A damaged row is dropped and made again rather than served.
@@ -504,6 +556,13 @@ impl TileStore for SqliteStore {
     }
 }
 
+/// `path` with `suffix` appended to its file name.
+fn with_suffix(path: &Path, suffix: &str) -> std::path::PathBuf {
+    let mut name = path.as_os_str().to_owned();
+    name.push(suffix);
+    std::path::PathBuf::from(name)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -553,6 +612,94 @@ mod tests {
     }
 
     #[test]
+    fn a_stored_coding_that_does_not_match_the_digest_is_dropped_not_served() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = SqliteStore::open(&dir.path().join("t.sqlite"), None).unwrap();
+        for (x, column) in [(1, "data_br"), (2, "data")] {
+            let stored = tile((0..20_000).map(|i| (i % 251) as u8).collect(), "v", 1);
+            assert!(stored.bodies.brotli.is_some() && stored.bodies.gzip.is_some());
+            store.put(&key(x), &stored).unwrap();
+            // Eight bytes flipped in the middle of one stored form; SQLite sees nothing wrong.
+            let body: Vec<u8> = store
+                .connection()
+                .query_row(
+                    &format!("SELECT {column} FROM tiles WHERE x = ?1"),
+                    [x],
+                    |r| r.get(0),
+                )
+                .unwrap();
+            let mut damaged = body.clone();
+            let middle = damaged.len() / 2;
+            for byte in &mut damaged[middle..middle + 8] {
+                *byte ^= 0x5a;
+            }
+            store
+                .connection()
+                .execute(
+                    &format!("UPDATE tiles SET {column} = ?1 WHERE x = ?2"),
+                    rusqlite::params![damaged, x],
+                )
+                .unwrap();
+            assert_eq!(store.get(&key(x)).unwrap(), None, "{column}");
+            assert!(store
+                .list(&TileFilter::All)
+                .unwrap()
+                .iter()
+                .all(|e| e.key != key(x)));
+        }
+        store.check_integrity().unwrap();
+    }
+
+    #[test]
+    fn a_cache_file_damaged_in_the_middle_is_moved_aside_and_a_new_one_started() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("tiles.sqlite");
+        {
+            let store = SqliteStore::open(&path, None).unwrap();
+            for x in 0..40 {
+                let mut state = u64::from(x) * 2 + 1;
+                let data: Vec<u8> = (0..100_000)
+                    .map(|_| {
+                        state ^= state << 13;
+                        state ^= state >> 7;
+                        state ^= state << 17;
+                        state as u8
+                    })
+                    .collect();
+                store.put(&key(x), &tile(data, "v", 1)).unwrap();
+            }
+            store
+                .connection()
+                .execute_batch("PRAGMA wal_checkpoint(TRUNCATE)")
+                .unwrap();
+        }
+        let length = std::fs::metadata(&path).unwrap().len();
+        assert!(length > 3 << 20, "{length}");
+        {
+            use std::io::{Seek, Write};
+            let mut file = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+            file.seek(std::io::SeekFrom::Start(length / 2 - (512 << 10)))
+                .unwrap();
+            let garbage: Vec<u8> = (0..1u32 << 20).map(|i| (i % 253) as u8).collect();
+            file.write_all(&garbage).unwrap();
+        }
+        let store = SqliteStore::open_or_set_aside(&path, None).unwrap();
+        assert_eq!(store.usage().unwrap().tiles, 0, "a new store");
+        store.quick_check().unwrap();
+        let aside: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|name| name.starts_with("tiles.sqlite.damaged-"))
+            .collect();
+        assert!(!aside.is_empty(), "the damaged file is kept aside");
+        // A sound store is opened as it is.
+        store.put(&key(1), &tile(vec![1; 100], "v", 1)).unwrap();
+        drop(store);
+        let store = SqliteStore::open_or_set_aside(&path, None).unwrap();
+        assert_eq!(store.usage().unwrap().tiles, 1);
+    }
+
+    #[test]
     fn a_version_one_cache_keeps_its_tiles_through_the_migration() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("old.sqlite");
@@ -562,8 +709,8 @@ mod tests {
             connection.pragma_update(None, "user_version", 1).unwrap();
             connection
                 .execute(
-                    "INSERT INTO tiles VALUES (14, 1, 2, 'glb', 'old', x'010203', '\"e\"', 5)",
-                    [],
+                    "INSERT INTO tiles VALUES (14, 1, 2, 'glb', 'old', x'010203', ?1, 5)",
+                    [crate::cache::etag_of(&[1, 2, 3])],
                 )
                 .unwrap();
         }

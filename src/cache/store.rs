@@ -33,6 +33,23 @@ pub enum StoreError {
     Coding(#[from] CodingError),
     #[error("{path} is read-only: tiles are served from it, never written to it")]
     ReadOnly { path: PathBuf },
+    #[error("tile cache work failed unexpectedly: {0}")]
+    Panicked(String),
+}
+
+impl StoreError {
+    /// Whether the error tells of a damaged file (rather than a full disk, a lock, a newer
+    /// schema).
+    pub fn is_damage(&self) -> bool {
+        match self {
+            StoreError::Damaged { .. } => true,
+            StoreError::Sqlite { source, .. } => matches!(
+                source.sqlite_error_code(),
+                Some(rusqlite::ErrorCode::DatabaseCorrupt | rusqlite::ErrorCode::NotADatabase)
+            ),
+            _ => false,
+        }
+    }
 }
 
 /// What a tile was made from: the rendering pipeline and the versions of the sources.

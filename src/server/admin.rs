@@ -71,11 +71,13 @@ fn authorize(state: &AppState, headers: &HeaderMap) -> Result<(), ApiError> {
             "admin routes are off: set server.admin_token to turn them on",
         ));
     };
+    // The scheme's name is case-insensitive (RFC 9110 §11.1).
     let given = headers
         .get(header::AUTHORIZATION)
         .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.strip_prefix("Bearer "))
-        .map(str::trim);
+        .and_then(|v| v.trim_start().split_once(' '))
+        .filter(|(scheme, _)| scheme.eq_ignore_ascii_case("bearer"))
+        .map(|(_, token)| token.trim());
     match given {
         Some(given) if constant_time_eq(given.as_bytes(), token.as_bytes()) => Ok(()),
         Some(_) => Err(ApiError::new(
@@ -94,6 +96,54 @@ fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
     a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
+/// Largest admin body, bytes.
+const BODY_LIMIT: usize = 2 << 20;
+
+/// Reads a request's body, once its token was checked: within the body timeout, and no longer
+/// than [`BODY_LIMIT`].
+async fn read_body(
+    state: &AppState,
+    headers: &HeaderMap,
+    body: axum::body::Body,
+) -> Result<axum::body::Bytes, ApiError> {
+    let too_long = || {
+        ApiError::new(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!("the body is longer than {BODY_LIMIT} bytes"),
+        )
+    };
+    let announced = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    if announced.is_some_and(|length| length > BODY_LIMIT as u64) {
+        return Err(too_long());
+    }
+    let read = tokio::time::timeout(
+        state.http.body_timeout,
+        axum::body::to_bytes(body, BODY_LIMIT),
+    );
+    match read.await {
+        Ok(Ok(bytes)) => Ok(bytes),
+        Ok(Err(error)) => {
+            let too_long_read = std::error::Error::source(&error)
+                .is_some_and(|e| e.is::<http_body_util::LengthLimitError>());
+            Err(if too_long_read {
+                too_long()
+            } else {
+                ApiError::bad_request(format!("the body could not be read: {error}"))
+            })
+        }
+        Err(_) => Err(ApiError::new(
+            StatusCode::REQUEST_TIMEOUT,
+            format!(
+                "the body did not arrive within {} s",
+                state.http.body_timeout.as_secs()
+            ),
+        )),
+    }
+}
+
 /// Reads the body as a [`Selection`], with a JSON error when it is not one.
 fn selection(body: &[u8]) -> Result<Selection, ApiError> {
     serde_json::from_slice(body)
@@ -103,9 +153,10 @@ fn selection(body: &[u8]) -> Result<Selection, ApiError> {
 pub async fn regenerate(
     State(state): State<AppState>,
     headers: HeaderMap,
-    body: axum::body::Bytes,
+    body: axum::body::Body,
 ) -> Result<(StatusCode, Json<Value>), ApiError> {
     authorize(&state, &headers)?;
+    let body = read_body(&state, &headers, body).await?;
     let filter = selection(&body)?.filter(state.zoom)?;
     // Tiles that failed lately may be tried again at once.
     state.work.failed_renders.invalidate_all();
@@ -122,23 +173,18 @@ pub async fn regenerate(
 pub async fn purge(
     State(state): State<AppState>,
     headers: HeaderMap,
-    body: axum::body::Bytes,
+    body: axum::body::Body,
 ) -> Result<Json<Value>, ApiError> {
     authorize(&state, &headers)?;
+    let body = read_body(&state, &headers, body).await?;
     let filter = selection(&body)?.filter(state.zoom)?;
     let unqueued = state.work.regenerator.forget(&filter);
     state.work.failed_renders.invalidate_all();
-    let store = state.cache.store().clone();
-    let all = filter == TileFilter::All;
-    let removed = tokio::task::spawn_blocking(move || store.remove(&filter))
+    let removed = state
+        .cache
+        .purge(filter)
         .await
-        .map_err(|e| ApiError::internal(e.to_string()))?
         .map_err(|e| ApiError::internal(e.to_string()))?;
-    if all {
-        state.cache.forget_all();
-    } else {
-        state.cache.forget(&removed).await;
-    }
     tracing::info!(removed = removed.len(), unqueued, "tiles purged");
     Ok(Json(json!({ "removed": removed.len() })))
 }

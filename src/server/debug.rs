@@ -1,20 +1,30 @@
 //! `GET /debug/tiles/{z}/{x}/{y}.geojson`: the settled bridges, tunnels and ground roads of a
-//! tile with their connectors and constraints (see [`crate::output::debug`]). Made on every request,
-//! never cached: it is for looking into how a tile came out.
+//! tile with their connectors and constraints (see [`crate::output::debug`]), for looking into
+//! how a tile came out. Made like a tile: in a render slot, queued or refused with the tiles,
+//! one making per tile at a time; kept a while in memory, never stored. `server.debug_view`
+//! turns the route off.
+
+use std::sync::Arc;
 
 use axum::extract::{Path, State};
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 
 use super::error::ApiError;
-use super::AppState;
-use crate::provider::{Availability, MakeError};
+use super::pool::Refused;
+use super::{AppState, RETRY_AFTER_S};
+use crate::provider::{Availability, MakeError, TileProvider};
 use crate::tile::TileId;
 
 pub async fn elevations(
     State(state): State<AppState>,
     Path((z, x, file)): Path<(String, String, String)>,
 ) -> Result<Response, ApiError> {
+    let Some(views) = state.work.debug_views.clone() else {
+        return Err(ApiError::not_found(
+            "the debug view is turned off on this server (server.debug_view)",
+        ));
+    };
     let tile = parse(&z, &x, &file)?;
     if tile.z != state.zoom {
         return Err(ApiError::not_found(format!(
@@ -36,22 +46,53 @@ pub async fn elevations(
             )))
         }
     }
-    let body = tokio::task::spawn_blocking(move || provider.explain(tile))
+    let (work, metrics) = (state.work.clone(), state.metrics.clone());
+    let made = async move {
+        tokio::task::spawn_blocking(move || {
+            let made = explain(&work, &*provider, tile);
+            if made.is_ok() {
+                super::metrics::Metrics::count(&metrics.debug_views);
+            }
+            made
+        })
         .await
         .map_err(|e| ApiError::internal(format!("debug view of {tile} failed: {e}")))?
-        .map_err(|e| match e {
-            MakeError::NotHeld(message) => ApiError::not_found(message),
-            e => ApiError::internal(format!("debug view of {tile} failed: {e}")),
-        })?;
+    };
+    let body = views
+        .try_get_with(tile, made)
+        .await
+        .map_err(|error| (*error).clone())?;
     Ok((
         StatusCode::OK,
         [(
             header::CONTENT_TYPE,
             HeaderValue::from_static("application/geo+json"),
         )],
-        body,
+        axum::body::Bytes::copy_from_slice(&body),
     )
         .into_response())
+}
+
+/// Makes the view in a render slot (on the blocking pool).
+fn explain(
+    work: &super::Work,
+    provider: &dyn TileProvider,
+    tile: TileId,
+) -> Result<Arc<[u8]>, ApiError> {
+    let _slot = work.pool.acquire().map_err(|refused| match refused {
+        Refused::Busy { .. } => ApiError::unavailable(
+            format!("the debug view of {tile} cannot be made now: {refused}; retry shortly"),
+            RETRY_AFTER_S,
+        ),
+        Refused::Closed => ApiError::unavailable("the server is shutting down", RETRY_AFTER_S),
+    })?;
+    let started = std::time::Instant::now();
+    let body = provider.explain(tile).map_err(|e| match e {
+        MakeError::NotHeld(message) => ApiError::not_found(message),
+        e => ApiError::internal(format!("debug view of {tile} failed: {e}")),
+    })?;
+    tracing::info!(%tile, ms = started.elapsed().as_millis() as u64, bytes = body.len(), "debug view made");
+    Ok(body.into())
 }
 
 /// Parses `z`, `x` and `y.geojson`.

@@ -101,6 +101,10 @@ pub struct Metrics {
     pub misses: AtomicU64,
     /// Stale tiles served while their replacement was made.
     pub stale_served: AtomicU64,
+    /// Tiles made but not stored (the store could not take them) and served from memory.
+    pub tiles_unstored: AtomicU64,
+    /// Debug views made.
+    pub debug_views: AtomicU64,
     pub tile_requests: AtomicU64,
     /// Components of the elevation LP solved, and soft constraints they violated.
     pub lp_components: AtomicU64,
@@ -126,6 +130,8 @@ impl Default for Metrics {
             hits_store: AtomicU64::new(0),
             misses: AtomicU64::new(0),
             stale_served: AtomicU64::new(0),
+            tiles_unstored: AtomicU64::new(0),
+            debug_views: AtomicU64::new(0),
             tile_requests: AtomicU64::new(0),
             lp_components: AtomicU64::new(0),
             lp_violations: AtomicU64::new(0),
@@ -195,7 +201,7 @@ impl Metrics {
     }
 
     /// The plain counters, as name, help and value, in the order they are written.
-    fn counters(&self, downloads: &FetchStats) -> [(&'static str, &'static str, u64); 15] {
+    fn counters(&self, downloads: &FetchStats) -> [(&'static str, &'static str, u64); 17] {
         let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
         [
             (
@@ -227,6 +233,16 @@ impl Metrics {
                 "terrastitch_stale_served_total",
                 "Stale tiles served while their replacement was made.",
                 get(&self.stale_served),
+            ),
+            (
+                "terrastitch_tiles_unstored_total",
+                "Tiles made but not stored, the store unable to take them (disk full, damaged), and served from memory only.",
+                get(&self.tiles_unstored),
+            ),
+            (
+                "terrastitch_debug_views_total",
+                "Debug views made (each in a render slot; requests for one tile at once share one).",
+                get(&self.debug_views),
             ),
             (
                 "terrastitch_lp_components_total",

@@ -1,6 +1,7 @@
 //! The HTTP server: routes, shared state, and how requests reach the cache and the renderer.
 
 pub mod admin;
+pub mod connections;
 pub mod debug;
 pub mod error;
 pub mod layer;
@@ -68,7 +69,13 @@ pub struct Work {
     pub background_workers: usize,
     /// How often the provider is asked whether its inputs changed.
     pub check_interval: Option<Duration>,
+    /// Debug views made lately (`None`: the view is turned off).
+    pub debug_views: Option<moka::future::Cache<crate::tile::TileId, Arc<[u8]>>>,
 }
+
+/// Memory for debug views, bytes, and how long one is kept.
+const DEBUG_VIEW_BYTES: u64 = 32 << 20;
+const DEBUG_VIEW_MEMORY: Duration = Duration::from_secs(600);
 
 /// What the HTTP side is told: who may read, how long clients may keep tiles, the admin
 /// token, and the viewer's files.
@@ -82,6 +89,10 @@ pub struct Http {
     pub admin_token: Option<Arc<str>>,
     /// The viewer's files, served at `/`.
     pub static_dir: std::path::PathBuf,
+    /// Bounds on connections.
+    pub limits: connections::Limits,
+    /// Longest a client may take to send a request's body.
+    pub body_timeout: Duration,
 }
 
 /// Requests that may wait at once for a download.
@@ -111,6 +122,15 @@ impl Work {
             background_workers: server.background_renders.max(1),
             check_interval: (server.check_interval_s > 0)
                 .then(|| Duration::from_secs(server.check_interval_s)),
+            debug_views: server.debug_view.then(|| {
+                moka::future::Cache::builder()
+                    .weigher(|_: &crate::tile::TileId, body: &Arc<[u8]>| {
+                        body.len().try_into().unwrap_or(u32::MAX)
+                    })
+                    .max_capacity(DEBUG_VIEW_BYTES)
+                    .time_to_live(DEBUG_VIEW_MEMORY)
+                    .build()
+            }),
         }
     }
 }
@@ -130,6 +150,12 @@ impl Http {
             admin_token: (!server.admin_token.is_empty())
                 .then(|| server.admin_token.as_str().into()),
             static_dir: server.static_dir.clone(),
+            limits: connections::Limits {
+                head: Duration::from_secs(server.header_timeout_s.max(1)),
+                connections: connections::connections_to_allow(server.max_connections),
+                grace: Duration::from_secs(server.shutdown_grace_s),
+            },
+            body_timeout: Duration::from_secs(server.body_timeout_s.max(1)),
         }
     }
 }
@@ -166,6 +192,9 @@ impl AppState {
     /// become stale).
     pub fn provide(&self, provider: Arc<dyn TileProvider>) {
         *self.provider.write().unwrap_or_else(|p| p.into_inner()) = ProviderState::Ready(provider);
+        if let Some(views) = &self.work.debug_views {
+            views.invalidate_all();
+        }
     }
 
     /// Records that the provider could not be loaded (`/ready` says why).
@@ -369,7 +398,7 @@ async fn not_found(uri: axum::http::Uri) -> ApiError {
 }
 
 /// Serves until `shutdown` completes, then lets the requests in flight (and their renders)
-/// finish. Runs the background tasks: recording which tiles memory served, making stale tiles
+/// finish within the shutdown grace period. Runs the background tasks: recording which tiles memory served, making stale tiles
 /// again, and checking the sources for new versions when configured.
 pub async fn serve(
     listener: tokio::net::TcpListener,
@@ -391,9 +420,8 @@ pub async fn serve(
             interval,
         )));
     }
-    let result = axum::serve(listener, router(state.clone()))
-        .with_graceful_shutdown(shutdown)
-        .await;
+    let result =
+        connections::serve(listener, router(state.clone()), state.http.limits, shutdown).await;
     for task in background {
         task.abort();
     }

@@ -11,7 +11,7 @@ use tokio::sync::Notify;
 use super::metrics::Metrics;
 use super::tiles::{render_job, Priority};
 use super::AppState;
-use crate::cache::{StoredEntry, TileFilter};
+use crate::cache::{Remade, StoredEntry, TileFilter};
 use crate::format::TileKey;
 use crate::provider::Availability;
 
@@ -140,7 +140,8 @@ async fn remake(state: &AppState, job: Job) {
             }
         }
     }
-    // A tile purged since it was queued is not brought back.
+    // A tile purged since it was queued is not brought back, nor one purged while it is made.
+    let purges_so_far = state.cache.purges_so_far();
     let store = state.cache.store().clone();
     let still_stored = tokio::task::spawn_blocking(move || {
         store
@@ -152,8 +153,15 @@ async fn remake(state: &AppState, job: Job) {
         return;
     }
     let render = render_job(state, provider, key, Priority::Background);
-    match state.cache.remake(key, wanted, render).await {
-        Ok(()) => Metrics::count(&state.metrics.regenerations),
+    match state.cache.remake(key, wanted, purges_so_far, render).await {
+        Ok(Remade::Stored) => Metrics::count(&state.metrics.regenerations),
+        Ok(Remade::Unstored) => {
+            Metrics::count(&state.metrics.regenerations);
+            Metrics::count(&state.metrics.tiles_unstored);
+        }
+        Ok(Remade::Purged) => {
+            tracing::info!(tile = %key.tile, "made again but purged meanwhile: not stored");
+        }
         Err(error) => {
             Metrics::count(&state.metrics.regeneration_failures);
             tracing::warn!(tile = %key.tile, format = key.format.as_str(), %error, "a tile could not be made again; the old one stays");

@@ -142,7 +142,12 @@ pub async fn serve(
     match served.origin {
         Origin::Memory => Metrics::count(&state.metrics.hits_memory),
         Origin::Store => Metrics::count(&state.metrics.hits_store),
-        Origin::Rendered => Metrics::count(&state.metrics.misses),
+        Origin::Rendered => {
+            Metrics::count(&state.metrics.misses);
+            if !served.tile.stored {
+                Metrics::count(&state.metrics.tiles_unstored);
+            }
+        }
     }
     if served.stale {
         Metrics::count(&state.metrics.stale_served);

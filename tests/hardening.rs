@@ -1,0 +1,353 @@
+//! The server against careless and hostile clients, on 127.0.0.1 only and bounded in count and
+//! time: debug views made in the render slots, renders shared whoever drops their request,
+//! slow, idle and surplus connections closed or refused, shutdown that ends, the admin token
+//! checked before a body is read; and the cache's side: a purge beats a remake under way, a tile
+//! the store cannot take is served all the same.
+
+mod common;
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use common::{sample_osm, sample_srtm, TestServer};
+use terrastitch::cache::{
+    Provenance, Remade, SqliteStore, StoreError, StoredEntry, StoredTile, TileCache, TileFilter,
+    TileStore, Usage,
+};
+use terrastitch::config::ServerConfig;
+use terrastitch::format::{Format, TileKey};
+use terrastitch::provider::Inputs;
+use terrastitch::TileId;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::TcpStream;
+
+async fn start(dir: &std::path::Path, config: ServerConfig) -> TestServer {
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data loads");
+    TestServer::start_with(&dir.join("cache.sqlite"), sources, &config).await
+}
+
+fn address(server: &TestServer) -> String {
+    server.base.trim_start_matches("http://").to_string()
+}
+
+/// Reads until the server closes the connection (or `limit` passes); returns what came and
+/// how long it took.
+async fn read_to_close(stream: &mut TcpStream, limit: Duration) -> (Vec<u8>, Duration) {
+    let started = Instant::now();
+    let mut received = Vec::new();
+    let mut buffer = [0u8; 4096];
+    loop {
+        match tokio::time::timeout_at((started + limit).into(), stream.read(&mut buffer)).await {
+            Ok(Ok(0)) | Ok(Err(_)) | Err(_) => break,
+            Ok(Ok(n)) => received.extend_from_slice(&buffer[..n]),
+        }
+    }
+    (received, started.elapsed())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn concurrent_debug_views_of_a_tile_are_made_once_in_a_render_slot() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = ServerConfig {
+        render_threads: 1,
+        ..ServerConfig::default()
+    };
+    let server = start(dir.path(), config).await;
+    let url = server.url("/debug/tiles/14/8529/5973.geojson");
+    let requests: Vec<_> = (0..30)
+        .map(|_| {
+            let url = url.clone();
+            tokio::spawn(async move {
+                let response = reqwest::get(url).await.unwrap();
+                (
+                    response.status().as_u16(),
+                    response.bytes().await.unwrap().len(),
+                )
+            })
+        })
+        .collect();
+    for request in requests {
+        let (status, length) = request.await.unwrap();
+        assert_eq!(status, 200);
+        assert!(length > 100, "{length}");
+    }
+    assert_eq!(
+        server.metric("terrastitch_debug_views_total").await,
+        1.0,
+        "thirty requests at once share one view"
+    );
+    server.stop().await;
+
+    // Turned off, the route is a JSON 404.
+    let dir = tempfile::tempdir().unwrap();
+    let config = ServerConfig {
+        render_threads: 1,
+        debug_view: false,
+        ..ServerConfig::default()
+    };
+    let server = start(dir.path(), config).await;
+    let response = server.get("/debug/tiles/14/8529/5973.geojson", &[]).await;
+    assert_eq!(response.status(), 404);
+    let body: serde_json::Value = response.json().await.unwrap();
+    assert!(
+        body["error"].as_str().unwrap().contains("debug_view"),
+        "{body}"
+    );
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn requests_dropped_midway_leave_one_render_for_the_next() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = start(dir.path(), ServerConfig::default()).await;
+    let path = "/tiles/14/8529/5974.glb";
+    for _ in 0..20 {
+        let mut stream = TcpStream::connect(address(&server)).await.unwrap();
+        let request = format!("GET {path} HTTP/1.1\r\nHost: test\r\n\r\n");
+        stream.write_all(request.as_bytes()).await.unwrap();
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        drop(stream);
+    }
+    let response = server.get(path, &[]).await;
+    assert_eq!(response.status(), 200);
+    assert!(response.bytes().await.unwrap().len() > 1000);
+    assert_eq!(
+        server.metric("terrastitch_renders_total").await,
+        1.0,
+        "every dropped request joined the first one's render"
+    );
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn slow_and_idle_connections_are_closed_after_the_head_timeout() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = ServerConfig {
+        header_timeout_s: 1,
+        ..ServerConfig::default()
+    };
+    let server = start(dir.path(), config).await;
+    // Connected, nothing sent.
+    let mut idle = TcpStream::connect(address(&server)).await.unwrap();
+    // Half a request's head.
+    let mut slow = TcpStream::connect(address(&server)).await.unwrap();
+    slow.write_all(b"GET /health HTTP/1.1\r\nHost: te")
+        .await
+        .unwrap();
+    // One request answered, then the connection kept alive and idle.
+    let mut kept = TcpStream::connect(address(&server)).await.unwrap();
+    kept.write_all(b"GET /health HTTP/1.1\r\nHost: test\r\n\r\n")
+        .await
+        .unwrap();
+    for (name, stream) in [
+        ("idle", &mut idle),
+        ("slow", &mut slow),
+        ("kept", &mut kept),
+    ] {
+        let (received, took) = read_to_close(stream, Duration::from_secs(10)).await;
+        assert!(
+            took < Duration::from_secs(5),
+            "the {name} connection was still open after {took:?}"
+        );
+        if name == "kept" {
+            assert!(received.starts_with(b"HTTP/1.1 200"), "{name}");
+        }
+    }
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn past_the_connection_limit_one_more_is_refused_with_a_json_503() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = ServerConfig {
+        max_connections: 3,
+        ..ServerConfig::default()
+    };
+    let server = start(dir.path(), config).await;
+    let mut held = Vec::new();
+    for _ in 0..3 {
+        held.push(TcpStream::connect(address(&server)).await.unwrap());
+    }
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let mut surplus = TcpStream::connect(address(&server)).await.unwrap();
+    let (received, took) = read_to_close(&mut surplus, Duration::from_secs(10)).await;
+    let text = String::from_utf8_lossy(&received);
+    assert!(took < Duration::from_secs(3), "{took:?}");
+    assert!(text.starts_with("HTTP/1.1 503"), "{text}");
+    assert!(text.to_lowercase().contains("retry-after: "), "{text}");
+    assert!(text.contains("{\"error\":"), "{text}");
+    drop(held);
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    assert_eq!(server.get("/health", &[]).await.status(), 200);
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn shutdown_closes_half_sent_requests_after_the_grace_period() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = ServerConfig {
+        header_timeout_s: 600,
+        shutdown_grace_s: 1,
+        ..ServerConfig::default()
+    };
+    let server = start(dir.path(), config).await;
+    let mut streams = Vec::new();
+    for _ in 0..5 {
+        let mut stream = TcpStream::connect(address(&server)).await.unwrap();
+        stream
+            .write_all(b"POST /admin/purge HTTP/1.1\r\nHost: te")
+            .await
+            .unwrap();
+        streams.push(stream);
+    }
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let started = Instant::now();
+    tokio::time::timeout(Duration::from_secs(30), server.stop())
+        .await
+        .expect("the server stops");
+    assert!(
+        started.elapsed() < Duration::from_secs(10),
+        "{:?}",
+        started.elapsed()
+    );
+    for stream in &mut streams {
+        let (_, took) = read_to_close(stream, Duration::from_secs(5)).await;
+        assert!(took < Duration::from_secs(4), "{took:?}");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_admin_token_is_checked_before_a_body_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = ServerConfig {
+        admin_token: "secret".to_string(),
+        ..ServerConfig::default()
+    };
+    let server = start(dir.path(), config).await;
+    for (authorization, status) in [("", "401"), ("authorization: bEaReR secret\r\n", "413")] {
+        let mut stream = TcpStream::connect(address(&server)).await.unwrap();
+        let head = format!(
+            "POST /admin/purge HTTP/1.1\r\nHost: test\r\n{authorization}\
+             content-type: application/json\r\ncontent-length: 10000000000\r\n\r\n{{"
+        );
+        stream.write_all(head.as_bytes()).await.unwrap();
+        let (received, took) = read_to_close(&mut stream, Duration::from_secs(10)).await;
+        let text = String::from_utf8_lossy(&received);
+        assert!(text.starts_with(&format!("HTTP/1.1 {status}")), "{text}");
+        assert!(text.contains("{\"error\":"), "{text}");
+        assert!(took < Duration::from_secs(5), "{took:?}");
+    }
+    server.stop().await;
+}
+
+fn key(x: u32) -> TileKey {
+    TileKey {
+        tile: TileId { z: 14, x, y: 5973 },
+        format: Format::GLB,
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_purge_made_while_a_tile_is_made_again_wins() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = Arc::new(SqliteStore::open(&dir.path().join("c.sqlite"), None).unwrap());
+    let cache = TileCache::new(store.clone(), 1 << 20);
+    let made_by = Provenance::default();
+    let render = |bytes: Vec<u8>| move || Ok::<_, std::io::Error>(bytes);
+    cache
+        .get_or_render(key(1), None, render(vec![1; 100]))
+        .await
+        .unwrap();
+    // The remake waits until the purge is done.
+    let (go, wait) = std::sync::mpsc::channel::<()>();
+    let since = cache.purges_so_far();
+    let remake = {
+        let cache = cache.clone();
+        tokio::spawn(async move {
+            let slow = move || {
+                let _ = wait.recv_timeout(Duration::from_secs(10));
+                Ok::<_, std::io::Error>(vec![2; 100])
+            };
+            cache.remake(key(1), made_by, since, slow).await
+        })
+    };
+    tokio::time::sleep(Duration::from_millis(100)).await;
+    let removed = cache
+        .purge(TileFilter::Tiles(vec![key(1).tile]))
+        .await
+        .unwrap();
+    assert_eq!(removed, vec![key(1)]);
+    go.send(()).unwrap();
+    assert_eq!(remake.await.unwrap().unwrap(), Remade::Purged);
+    assert_eq!(
+        store.usage().unwrap().tiles,
+        0,
+        "the purged tile stays gone"
+    );
+    assert!(cache.peek(&key(1)).await.is_none());
+
+    // A remake of another tile, begun before the purge, is stored.
+    let since = cache.purges_so_far();
+    let remade = cache
+        .remake(key(2), Provenance::default(), since, render(vec![3; 100]))
+        .await
+        .unwrap();
+    assert_eq!(remade, Remade::Stored);
+    assert_eq!(store.usage().unwrap().tiles, 1);
+}
+
+/// A store whose disk is full: it reads, but takes nothing.
+#[derive(Debug)]
+struct FullDisk(SqliteStore);
+
+impl TileStore for FullDisk {
+    fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError> {
+        self.0.get(key)
+    }
+    fn put(&self, _key: &TileKey, _tile: &StoredTile) -> Result<(), StoreError> {
+        Err(StoreError::Sqlite {
+            path: self.0.path().to_path_buf(),
+            source: rusqlite::Error::SqliteFailure(
+                rusqlite::ffi::Error::new(rusqlite::ffi::SQLITE_FULL),
+                Some("database or disk is full".to_string()),
+            ),
+        })
+    }
+    fn touch(&self, keys: &[TileKey], at: i64) -> Result<(), StoreError> {
+        self.0.touch(keys, at)
+    }
+    fn remove(&self, filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
+        self.0.remove(filter)
+    }
+    fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
+        self.0.list(filter)
+    }
+    fn usage(&self) -> Result<Usage, StoreError> {
+        self.0.usage()
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_tile_the_store_cannot_take_is_served_from_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = FullDisk(SqliteStore::open(&dir.path().join("c.sqlite"), None).unwrap());
+    let cache = TileCache::new(Arc::new(store), 1 << 20);
+    let renders = Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    for _ in 0..3 {
+        let counted = renders.clone();
+        let served = cache
+            .get_or_render(key(1), None, move || {
+                counted.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                Ok::<_, std::io::Error>(vec![7; 1000])
+            })
+            .await
+            .expect("served though not stored");
+        assert_eq!(served.tile.bodies.identity.as_ref(), &[7; 1000][..]);
+        assert!(!served.tile.stored);
+    }
+    assert_eq!(
+        renders.load(std::sync::atomic::Ordering::SeqCst),
+        1,
+        "kept in memory, not made at every request"
+    );
+}
