@@ -206,6 +206,25 @@ pub enum ConfigError {
     Missing(PathBuf),
     #[error("invalid configuration: {0}")]
     Invalid(#[from] Box<figment::Error>),
+    #[error("unknown configuration key {key} (from {source_name}){}", suggestion(.nearest))]
+    Unknown {
+        key: String,
+        source_name: String,
+        nearest: Option<String>,
+    },
+    #[error("configuration key {key} = {value}: {rule}")]
+    OutOfRange {
+        key: &'static str,
+        value: String,
+        rule: &'static str,
+    },
+}
+
+fn suggestion(nearest: &Option<String>) -> String {
+    nearest
+        .as_ref()
+        .map(|n| format!("; did you mean {n}?"))
+        .unwrap_or_default()
 }
 
 impl Config {
@@ -221,11 +240,192 @@ impl Config {
             }
             None => {}
         }
-        figment = figment.merge(Env::prefixed("TERRASTITCH_").split("__"));
-        figment
+        // Configuration variables name a section and a key (`__` between them); other
+        // `TERRASTITCH_*` variables (a token for a command's flag) are not configuration.
+        figment = figment.merge(
+            Env::prefixed("TERRASTITCH_")
+                .filter(|key| key.as_str().contains("__"))
+                .split("__"),
+        );
+        unknown_keys(&figment)?;
+        let config: Config = figment
             .extract()
-            .map_err(|e| ConfigError::Invalid(Box::new(e)))
+            .map_err(|e| ConfigError::Invalid(Box::new(e)))?;
+        config.validate()?;
+        Ok(config)
     }
+
+    /// Checks the values a typo or a slip can make meaningless.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let (server, mesh, features) = (&self.server, &self.render.mesh, &self.render.features);
+        let checks: [(&'static str, String, bool, &'static str); 12] = [
+            (
+                "server.zoom",
+                server.zoom.to_string(),
+                (1..=20).contains(&server.zoom),
+                "tiles are served at a zoom from 1 to 20",
+            ),
+            (
+                "server.max_connections",
+                server.max_connections.to_string(),
+                server.max_connections >= 1,
+                "at least one connection",
+            ),
+            (
+                "server.header_timeout_s",
+                server.header_timeout_s.to_string(),
+                server.header_timeout_s >= 1,
+                "at least one second",
+            ),
+            (
+                "server.body_timeout_s",
+                server.body_timeout_s.to_string(),
+                server.body_timeout_s >= 1,
+                "at least one second",
+            ),
+            (
+                "render.mesh.sample_cells",
+                mesh.sample_cells.to_string(),
+                (2..=4096).contains(&mesh.sample_cells),
+                "from 2 to 4096 cells along a tile's edge",
+            ),
+            (
+                "render.mesh.max_error_m",
+                mesh.max_error_m.to_string(),
+                positive(mesh.max_error_m),
+                "a finite number of metres above 0",
+            ),
+            (
+                "render.mesh.feature_weight",
+                mesh.feature_weight.to_string(),
+                not_negative(mesh.feature_weight),
+                "a finite number, 0 or more",
+            ),
+            (
+                "render.mesh.feature_distance_m",
+                mesh.feature_distance_m.to_string(),
+                not_negative(mesh.feature_distance_m),
+                "a finite number of metres, 0 or more",
+            ),
+            (
+                "render.features.lane_width_m",
+                features.lane_width_m.to_string(),
+                positive(features.lane_width_m),
+                "a finite number of metres above 0",
+            ),
+            (
+                "render.features.level_height_m",
+                features.level_height_m.to_string(),
+                positive(features.level_height_m),
+                "a finite number of metres above 0",
+            ),
+            (
+                "render.features.default_building_height_m",
+                features.default_building_height_m.to_string(),
+                positive(features.default_building_height_m),
+                "a finite number of metres above 0",
+            ),
+            (
+                "render.features.vegetation.forest_spacing_m",
+                features.vegetation.forest_spacing_m.to_string(),
+                positive(features.vegetation.forest_spacing_m)
+                    && positive(features.vegetation.row_spacing_m),
+                "tree spacings are finite numbers of metres above 0",
+            ),
+        ];
+        match checks.into_iter().find(|check| !check.2) {
+            Some((key, value, _, rule)) => Err(ConfigError::OutOfRange { key, value, rule }),
+            None => Ok(()),
+        }
+    }
+}
+
+fn positive(value: f64) -> bool {
+    value.is_finite() && value > 0.0
+}
+
+fn not_negative(value: f64) -> bool {
+    value.is_finite() && value >= 0.0
+}
+
+/// Refuses a key the configuration does not have (a typo would otherwise leave the default in
+/// place unseen), naming where it came from and the nearest known key.
+fn unknown_keys(figment: &Figment) -> Result<(), ConfigError> {
+    let known = serde_json::to_value(Config::default()).unwrap_or_default();
+    let given: serde_json::Value = figment
+        .extract()
+        .map_err(|e| ConfigError::Invalid(Box::new(e)))?;
+    match first_unknown(&known, &given, "") {
+        None => Ok(()),
+        Some((key, nearest)) => {
+            let source_name = figment
+                .find_metadata(&key)
+                .map(|m| match &m.source {
+                    Some(source) => format!("{} {source}", m.name),
+                    None => m.name.to_string(),
+                })
+                .unwrap_or_else(|| "the configuration".to_string());
+            Err(ConfigError::Unknown {
+                key,
+                source_name,
+                nearest,
+            })
+        }
+    }
+}
+
+/// The first key of `given` that `known` lacks (a map empty in `known`, as the checksums,
+/// takes any key), with the nearest key `known` has at that place.
+fn first_unknown(
+    known: &serde_json::Value,
+    given: &serde_json::Value,
+    prefix: &str,
+) -> Option<(String, Option<String>)> {
+    let (serde_json::Value::Object(known), serde_json::Value::Object(given)) = (known, given)
+    else {
+        return None;
+    };
+    if known.is_empty() {
+        return None;
+    }
+    for (key, value) in given {
+        let path = format!("{prefix}{key}");
+        match known.get(key) {
+            Some(inner) => {
+                if let Some(found) = first_unknown(inner, value, &format!("{path}.")) {
+                    return Some(found);
+                }
+            }
+            None => {
+                let nearest = known
+                    .keys()
+                    .map(|k| (edit_distance(k, key), k))
+                    .filter(|(d, k)| *d <= k.len().max(key.len()) / 2)
+                    .min()
+                    .map(|(_, k)| format!("{prefix}{k}"));
+                return Some((path, nearest));
+            }
+        }
+    }
+    None
+}
+
+/// Levenshtein distance between two keys.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let above = row[j + 1];
+            row[j + 1] = (above + 1)
+                .min(row[j] + 1)
+                .min(diagonal + usize::from(ca != cb));
+            diagonal = above;
+        }
+    }
+    row[b.len()]
 }
 
 #[cfg(test)]
@@ -240,6 +440,68 @@ mod tests {
             .extract()
             .unwrap();
         assert_eq!(from_file, Config::default());
+    }
+
+    fn load_text(text: &str) -> Result<Config, ConfigError> {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("c.toml");
+        std::fs::write(&path, text).unwrap();
+        Config::load(Some(&path))
+    }
+
+    #[test]
+    fn an_unknown_key_is_refused_with_the_nearest_known_one() {
+        for (text, key, nearest) in [
+            (
+                "[server]\nlistn = \"0.0.0.0:80\"\n",
+                "server.listn",
+                Some("server.listen"),
+            ),
+            ("[cahce]\npath = \"x\"\n", "cahce", Some("cache")),
+            (
+                "[render.mesh]\nmax_eror_m = 2.0\n",
+                "render.mesh.max_eror_m",
+                Some("render.mesh.max_error_m"),
+            ),
+            ("[server]\nzzzzzzzz = 1\n", "server.zzzzzzzz", None),
+        ] {
+            match load_text(text) {
+                Err(ConfigError::Unknown {
+                    key: k, nearest: n, ..
+                }) => {
+                    assert_eq!(k, key);
+                    assert_eq!(n.as_deref(), nearest);
+                }
+                other => panic!("{text}: {other:?}"),
+            }
+        }
+        // A checksum may name any file.
+        let config = load_text("[sources.checksums]\n\"N43E007.hgt.zip\" = \"ab\"\n").unwrap();
+        assert_eq!(config.sources.checksums.len(), 1);
+    }
+
+    #[test]
+    fn values_out_of_their_range_are_refused() {
+        for (text, key) in [
+            ("[server]\nzoom = 40\n", "server.zoom"),
+            (
+                "[render.mesh]\nmax_error_m = nan\n",
+                "render.mesh.max_error_m",
+            ),
+            (
+                "[render.mesh]\nfeature_weight = -1.0\n",
+                "render.mesh.feature_weight",
+            ),
+            (
+                "[render.features.vegetation]\nrow_spacing_m = 0.0\n",
+                "render.features.vegetation.forest_spacing_m",
+            ),
+        ] {
+            match load_text(text) {
+                Err(ConfigError::OutOfRange { key: k, .. }) => assert_eq!(k, key, "{text}"),
+                other => panic!("{text}: {other:?}"),
+            }
+        }
     }
 
     #[test]

@@ -351,3 +351,25 @@ async fn a_tile_the_store_cannot_take_is_served_from_memory() {
         "kept in memory, not made at every request"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn without_srtm_files_the_server_says_it_cannot_serve() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = tempfile::tempdir().unwrap();
+    let sources = Inputs::open(&[sample_osm()], empty.path(), 14).expect("sources open");
+    let server = TestServer::start_with(
+        &dir.path().join("cache.sqlite"),
+        sources,
+        &ServerConfig::default(),
+    )
+    .await;
+    let response = server.get("/ready", &[]).await;
+    assert_eq!(response.status(), 503);
+    let body: serde_json::Value = response.json().await.unwrap();
+    assert_eq!(body["srtm_files"], 0);
+    assert!(
+        body["cannot_serve"].as_str().unwrap().contains("SRTM"),
+        "{body}"
+    );
+    server.stop().await;
+}

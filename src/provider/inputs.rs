@@ -123,6 +123,15 @@ pub struct Inputs {
 }
 
 impl Inputs {
+    /// Why no tile can be made from these inputs, if none can: no SRTM file at hand and no
+    /// URL to fetch one from.
+    pub fn cannot_serve(&self) -> Option<String> {
+        let files = self.srtm.cells().len();
+        (files == 0 && self.srtm_url.is_none()).then(|| {
+            "no SRTM file in the SRTM directory and no sources.srtm_url to fetch one: no tile can be made".to_string()
+        })
+    }
+
     /// Opens the sources a configuration names, downloading the extracts given by URL that
     /// the data directory does not have yet.
     pub fn load(

@@ -209,10 +209,15 @@ impl TileProvider for Renderer {
     }
 
     fn status(&self) -> serde_json::Value {
-        serde_json::json!({
+        let mut status = serde_json::json!({
             "osm_extracts": self.inputs.osm_paths.len(),
             "srtm_files": self.inputs.srtm.cells().len(),
-        })
+            "zoom": self.zoom,
+        });
+        if let Some(problem) = self.inputs.cannot_serve() {
+            status["cannot_serve"] = problem.into();
+        }
+        status
     }
 
     fn downloads(&self) -> Option<&FetchStats> {

@@ -357,13 +357,21 @@ async fn health() -> impl IntoResponse {
 async fn ready(State(state): State<AppState>) -> Response {
     match state.provider() {
         Ok(provider) => {
-            let mut body = serde_json::json!({ "status": "ready" });
-            if let (Some(body), serde_json::Value::Object(status)) =
-                (body.as_object_mut(), provider.status())
+            let status = provider.status();
+            // Sources that load but from which no tile can be made are not ready to serve.
+            let ready = status.get("cannot_serve").is_none();
+            let mut body =
+                serde_json::json!({ "status": if ready { "ready" } else { "not ready" } });
+            if let (Some(body), serde_json::Value::Object(status)) = (body.as_object_mut(), status)
             {
                 body.extend(status);
             }
-            axum::Json(body).into_response()
+            let code = if ready {
+                StatusCode::OK
+            } else {
+                StatusCode::SERVICE_UNAVAILABLE
+            };
+            (code, axum::Json(body)).into_response()
         }
         Err(error) => (
             StatusCode::SERVICE_UNAVAILABLE,

@@ -44,6 +44,8 @@ pub enum SrtmError {
     EmptyZip { path: PathBuf },
     #[error("SRTM file {path} holds only voids")]
     AllVoid { path: PathBuf },
+    #[error("SRTM file {path} is not elevation data: {percent:.1} % of its samples lie outside {} to {} m", PLAUSIBLE_M.0, PLAUSIBLE_M.1)]
+    Implausible { path: PathBuf, percent: f64 },
     #[error("SRTM directory {path} cannot be read: {source}")]
     Directory {
         path: PathBuf,
@@ -51,6 +53,14 @@ pub enum SrtmError {
         source: std::io::Error,
     },
 }
+
+/// Elevations a sample of the Earth's surface may take, metres (the Dead Sea's shore, Everest,
+/// with room for the data's noise).
+const PLAUSIBLE_M: (i16, i16) = (-500, 9000);
+
+/// Share of samples outside [`PLAUSIBLE_M`] past which a file is taken for something else than
+/// elevations (random bytes put ~70 % there; real files a handful of samples at most).
+const IMPLAUSIBLE_SHARE: f64 = 0.01;
 
 /// Decodes the raw big-endian bytes of a `.hgt` file; `path` names the file in errors.
 pub fn decode(cell: CellId, bytes: &[u8], path: &Path) -> Result<SrtmTile, SrtmError> {
@@ -62,6 +72,17 @@ pub fn decode(cell: CellId, bytes: &[u8], path: &Path) -> Result<SrtmTile, SrtmE
         .chunks_exact(2)
         .map(|pair| i16::from_be_bytes([pair[0], pair[1]]))
         .collect();
+    let outside = raw
+        .iter()
+        .filter(|&&h| h != VOID && !(PLAUSIBLE_M.0..=PLAUSIBLE_M.1).contains(&h))
+        .count();
+    let share = outside as f64 / raw.len().max(1) as f64;
+    if share > IMPLAUSIBLE_SHARE {
+        return Err(SrtmError::Implausible {
+            path: path.to_path_buf(),
+            percent: share * 100.0,
+        });
+    }
     let heights = fill_voids(&raw, size).ok_or_else(|| SrtmError::AllVoid {
         path: path.to_path_buf(),
     })?;
@@ -531,6 +552,26 @@ mod tests {
             error.contains("N43E007.hgt") && error.contains("1000 bytes"),
             "{error}"
         );
+    }
+
+    #[test]
+    fn random_bytes_are_refused_as_not_elevation_data() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let bytes: Vec<u8> = (0..SAMPLES_3_ARCSEC * SAMPLES_3_ARCSEC * 2)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                state as u8
+            })
+            .collect();
+        let cell = CellId { lat: 43, lon: 7 };
+        let error = decode(cell, &bytes, Path::new("random.hgt")).unwrap_err();
+        assert!(matches!(error, SrtmError::Implausible { .. }), "{error}");
+        assert!(error.to_string().contains("random.hgt"));
+        // The bundled file is elevation data.
+        let real = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/data/N43E007.hgt")).unwrap();
+        assert!(decode(cell, &real, Path::new("N43E007.hgt")).is_ok());
     }
 
     #[test]
