@@ -373,3 +373,66 @@ async fn without_srtm_files_the_server_says_it_cannot_serve() {
     );
     server.stop().await;
 }
+
+/// Sends one raw request and returns the status line, the headers (lower case) and the body.
+async fn raw(server: &TestServer, request: &[u8]) -> (String, String, String) {
+    let mut stream = TcpStream::connect(address(server)).await.unwrap();
+    stream.write_all(request).await.unwrap();
+    let (received, _) = read_to_close(&mut stream, Duration::from_secs(10)).await;
+    let text = String::from_utf8_lossy(&received).into_owned();
+    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
+    let (status, headers) = head.split_once("\r\n").unwrap_or((head, ""));
+    (status.to_string(), headers.to_lowercase(), body.to_string())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_error_is_json_with_its_right_code() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = ServerConfig {
+        admin_token: "secret".to_string(),
+        ..ServerConfig::default()
+    };
+    let server = start(dir.path(), config).await;
+    let close = "Host: test\r\nConnection: close\r\n";
+    for (request, status) in [
+        (format!("GET /tiles/14/%FF%FE/1.glb HTTP/1.1\r\n{close}\r\n"), "400"),
+        (format!("GET foo HTTP/1.1\r\n{close}\r\n"), "400"),
+        (format!("POST /nonexistent.html HTTP/1.1\r\n{close}content-length: 0\r\n\r\n"), "404"),
+        (format!("POST /index.html HTTP/1.1\r\n{close}content-length: 0\r\n\r\n"), "405"),
+        (format!("DELETE /tiles/14/8529/5973.glb HTTP/1.1\r\n{close}\r\n"), "405"),
+        (format!("GET /.hidden HTTP/1.1\r\n{close}\r\n"), "404"),
+        (
+            format!("POST /admin/purge HTTP/1.1\r\n{close}authorization: Bearer secret\r\ncontent-length: 3000000\r\n\r\n"),
+            "413",
+        ),
+    ] {
+        let (line, headers, body) = raw(&server, request.as_bytes()).await;
+        assert!(line.starts_with(&format!("HTTP/1.1 {status}")), "{request}: {line}");
+        assert!(headers.contains("content-type: application/json"), "{request}: {headers}");
+        let parsed: serde_json::Value = serde_json::from_str(&body).expect(&body);
+        assert!(parsed["error"].is_string(), "{body}");
+    }
+
+    // A client's request id is kept when it is short and plain, replaced otherwise.
+    let long = "a".repeat(300);
+    for (id, kept) in [("abc-1", true), (long.as_str(), false), ("a b", false)] {
+        let request = format!("GET /health HTTP/1.1\r\n{close}x-request-id: {id}\r\n\r\n");
+        let (_, headers, _) = raw(&server, request.as_bytes()).await;
+        let sent = headers
+            .lines()
+            .find_map(|l| l.strip_prefix("x-request-id: "))
+            .unwrap()
+            .to_string();
+        assert_eq!(sent == id, kept, "{id}: {sent}");
+        assert!(sent.len() <= 128);
+    }
+
+    // TileJSON is built from Host: a shared cache must key it on Host.
+    let (_, headers, _) = raw(
+        &server,
+        format!("GET /tiles.json HTTP/1.1\r\n{close}\r\n").as_bytes(),
+    )
+    .await;
+    assert!(headers.contains("vary: host"), "{headers}");
+    server.stop().await;
+}

@@ -65,6 +65,53 @@ impl IntoResponse for ApiError {
     }
 }
 
+/// Every error answered as JSON, whoever made it (a rejection by an extractor, a body too
+/// long, the HTTP layer): a `4xx` or `5xx` without a JSON body gets one with its text, keeping
+/// the headers that tell the client what to do. A request target that is not a path (`GET foo`)
+/// is a `400` here.
+pub async fn json_errors(
+    request: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> Response {
+    if !request.uri().path().starts_with('/') {
+        return ApiError::bad_request(format!(
+            "the request target '{}' is not a path",
+            request.uri()
+        ))
+        .into_response();
+    }
+    let response = next.run(request).await;
+    let status = response.status();
+    if !(status.is_client_error() || status.is_server_error()) {
+        return response;
+    }
+    let is_json = response
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.starts_with("application/json"));
+    if is_json {
+        return response;
+    }
+    let (parts, body) = response.into_parts();
+    let text = axum::body::to_bytes(body, 4096)
+        .await
+        .map(|b| String::from_utf8_lossy(&b).trim().to_string())
+        .unwrap_or_default();
+    let message = if text.is_empty() {
+        status.canonical_reason().unwrap_or("error").to_string()
+    } else {
+        text
+    };
+    let mut answer = ApiError::new(status, message).into_response();
+    for name in [header::ALLOW, header::RETRY_AFTER, header::WWW_AUTHENTICATE] {
+        if let Some(value) = parts.headers.get(&name) {
+            answer.headers_mut().insert(name, value.clone());
+        }
+    }
+    answer
+}
+
 /// A tile the provider cannot have: `404` when it is not offered or not covered, `502` when a
 /// download it needs failed.
 impl From<crate::provider::Unavailable> for ApiError {

@@ -4,6 +4,7 @@ pub mod admin;
 pub mod connections;
 pub mod debug;
 pub mod error;
+pub mod files;
 pub mod layer;
 pub mod metrics;
 pub mod pool;
@@ -229,18 +230,13 @@ pub fn router(state: AppState) -> Router {
         .route("/admin/regenerate", post(admin::regenerate))
         .route("/admin/purge", post(admin::purge))
         // Anything else is a file of the viewer, or a JSON 404.
-        .fallback_service(
-            tower_http::services::ServeDir::new(&state.http.static_dir)
-                .append_index_html_on_directories(true)
-                .not_found_service(axum::handler::HandlerWithoutStateExt::into_service(
-                    not_found,
-                )),
-        )
+        .fallback(files::serve)
         .method_not_allowed_fallback(method_not_allowed)
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),
             count_response,
         ))
+        .layer(axum::middleware::from_fn(error::json_errors))
         .with_state(state);
     let router = match cors {
         Some(cors) => router.layer(cors),
@@ -269,6 +265,26 @@ pub fn router(state: AppState) -> Router {
             header::HeaderName::from_static(REQUEST_ID),
             RequestIds::default(),
         ))
+        .layer(axum::middleware::from_fn(drop_unfit_request_id))
+}
+
+/// Longest request id kept from a client.
+const REQUEST_ID_MAX: usize = 128;
+
+/// Drops a client's request id that is longer than [`REQUEST_ID_MAX`] or not plain visible
+/// ASCII: the server gives the request one of its own.
+async fn drop_unfit_request_id(mut request: Request, next: Next) -> Response {
+    let fit = |value: &axum::http::HeaderValue| {
+        let bytes = value.as_bytes();
+        !bytes.is_empty()
+            && bytes.len() <= REQUEST_ID_MAX
+            && bytes.iter().all(|b| b.is_ascii_graphic())
+    };
+    let ids = request.headers().get_all(REQUEST_ID);
+    if ids.iter().count() > 1 || ids.iter().any(|v| !fit(v)) {
+        request.headers_mut().remove(REQUEST_ID);
+    }
+    next.run(request).await
 }
 
 /// The header that carries a request's id (kept if the client sent one).
@@ -395,13 +411,6 @@ async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) ->
     ApiError::new(
         StatusCode::METHOD_NOT_ALLOWED,
         format!("{method} is not allowed on {}", uri.path()),
-    )
-}
-
-async fn not_found(uri: axum::http::Uri) -> ApiError {
-    ApiError::new(
-        StatusCode::NOT_FOUND,
-        format!("no route for {}", uri.path()),
     )
 }
 

@@ -9,7 +9,7 @@
 use axum::extract::State;
 use axum::http::{header, HeaderMap};
 use axum::Json;
-use serde_json::{json, Value};
+use serde_json::json;
 
 use super::error::ApiError;
 use super::AppState;
@@ -20,7 +20,7 @@ use crate::output::glb::ATTRIBUTION;
 pub async fn tilejson(
     State(state): State<AppState>,
     headers: HeaderMap,
-) -> Result<Json<Value>, ApiError> {
+) -> Result<impl axum::response::IntoResponse, ApiError> {
     let text = |name| {
         headers
             .get(name)
@@ -60,21 +60,26 @@ pub async fn tilejson(
         None => vec!["none", "meshopt"],
     };
     let z = offer.zoom;
-    Ok(Json(json!({
-        "tilejson": "3.0.0",
-        "name": "terrastitch",
-        "description": "3D tiles of OpenStreetMap on SRTM terrain: glTF binary, one per zoom-14 tile",
-        "attribution": ATTRIBUTION,
-        "scheme": "xyz",
-        "format": "glb",
-        "minzoom": z,
-        "maxzoom": z,
-        "bounds": bounds,
-        "center": [(bounds[0] + bounds[2]) / 2.0, (bounds[1] + bounds[3]) / 2.0, z],
-        "tiles": [format!("{base}/tiles/{{z}}/{{x}}/{{y}}.glb")],
-        "terrain": [format!("{base}/tiles/{{z}}/{{x}}/{{y}}.terrain")],
-        "terrain_layer": format!("{base}/layer.json"),
-        "tileset_3d": format!("{base}/tileset.json"),
-        "glb_compressions": compressions,
-    })))
+    // The URLs are built from `Host`: a shared cache must key the document on it.
+    let vary = [(header::VARY, "Host, X-Forwarded-Proto")];
+    Ok((
+        vary,
+        Json(json!({
+            "tilejson": "3.0.0",
+            "name": "terrastitch",
+            "description": "3D tiles of OpenStreetMap on SRTM terrain: glTF binary, one per zoom-14 tile",
+            "attribution": ATTRIBUTION,
+            "scheme": "xyz",
+            "format": "glb",
+            "minzoom": z,
+            "maxzoom": z,
+            "bounds": bounds,
+            "center": [(bounds[0] + bounds[2]) / 2.0, (bounds[1] + bounds[3]) / 2.0, z],
+            "tiles": [format!("{base}/tiles/{{z}}/{{x}}/{{y}}.glb")],
+            "terrain": [format!("{base}/tiles/{{z}}/{{x}}/{{y}}.terrain")],
+            "terrain_layer": format!("{base}/layer.json"),
+            "tileset_3d": format!("{base}/tileset.json"),
+            "glb_compressions": compressions,
+        })),
+    ))
 }
