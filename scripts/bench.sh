@@ -35,6 +35,7 @@ start_server() {
 }
 stop_server() { kill -TERM $server; wait $server 2>/dev/null || true; server=; }
 peak_kib() { awk '/VmHWM/ {print $2}' /proc/$server/status; }
+rss_kib() { awk '/VmRSS/ {print $2}' /proc/$server/status; }
 
 start_server warm
 command -v wrk >/dev/null || { echo "wrk is not installed (apt-get install wrk)"; exit 1; }
@@ -61,7 +62,8 @@ done > "$out/codes.txt"
 wait $(jobs -p | grep -v "^$server$") 2>/dev/null || true
 ended=$(date +%s.%N)
 echo "completed in $(awk "BEGIN {printf \"%.2f\", $ended - $started}") s; answers: $(sort "$out/codes.txt" | uniq -c | tr '\n' ' ')"
-echo "server peak memory: $(peak_kib) KiB (before the burst: $rss_before KiB)"
+memory_mib=$(awk -F'= *' '/^memory_mib/ {print $2}' config/default.toml)
+echo "server peak memory: $(peak_kib) KiB (before the burst: $rss_before KiB; held after: $(rss_kib) KiB; cache.memory_mib: $memory_mib MiB)"
 curl -fsS "http://127.0.0.1:$port/metrics" | grep -E '^terrastitch_(renders_total|cache_misses_total|rejected_busy_total) '
 bounds=$(curl -fsS "http://127.0.0.1:$port/tiles.json" | python3 -c 'import json,sys; print(",".join(str(v) for v in json.load(sys.stdin)["bounds"]))')
 stop_server

@@ -277,6 +277,7 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
     if let Some(file) = args.mbtiles {
         return serve_archive(&file, config);
     }
+    server::memory::limit_arenas();
     let store = open_store(&config)?;
     let cache = TileCache::new(Arc::new(store), config.cache.memory_mib * 1024 * 1024);
     let state = AppState::new(cache, &config.server);

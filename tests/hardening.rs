@@ -436,3 +436,22 @@ async fn every_error_is_json_with_its_right_code() {
     assert!(headers.contains("vary: host"), "{headers}");
     server.stop().await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn coarse_tiles_far_from_the_data_are_served_but_not_stored() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = start(dir.path(), ServerConfig::default()).await;
+    let store = server.state.cache.store().clone();
+    // Zoom 6 over the Pacific, then zoom 6 over Monaco.
+    for (path, stored) in [("/tiles/6/2/30.terrain", 0), ("/tiles/6/33/23.terrain", 1)] {
+        let response = server.get(path, &[]).await;
+        assert_eq!(response.status(), 200, "{path}");
+        assert!(!response.bytes().await.unwrap().is_empty());
+        assert_eq!(store.usage().unwrap().tiles, stored, "{path}");
+    }
+    // Served again, from memory.
+    let response = server.get("/tiles/6/2/30.terrain", &[]).await;
+    assert_eq!(response.headers()["x-cache-layer"], "memory");
+    assert_eq!(server.metric("terrastitch_tiles_unstored_total").await, 0.0);
+    server.stop().await;
+}

@@ -180,6 +180,22 @@ impl TileCache {
         F: FnOnce() -> Result<Vec<u8>, E> + Send + 'static,
         E: std::error::Error + Send + Sync + 'static,
     {
+        self.get_or_render_kept(key, wanted, true, render).await
+    }
+
+    /// As [`TileCache::get_or_render`]; with `keep` false a tile made now is held in memory
+    /// only, never stored (a tile that holds no data).
+    pub async fn get_or_render_kept<F, E>(
+        &self,
+        key: TileKey,
+        wanted: Option<&Provenance>,
+        keep: bool,
+        render: F,
+    ) -> Result<Served, Arc<CacheError<E>>>
+    where
+        F: FnOnce() -> Result<Vec<u8>, E> + Send + 'static,
+        E: std::error::Error + Send + Sync + 'static,
+    {
         let store = self.store.clone();
         let made_by = wanted.cloned().unwrap_or_default();
         let lookup_or_render = async move {
@@ -210,6 +226,7 @@ impl TileCache {
                     stored: true,
                 }));
             }
+            let store = keep.then_some(store);
             let made = render_and_store(store, key, made_by, None, Box::new(render))
                 .await?
                 .ok_or_else(|| CacheError::Panicked("a tile was dropped unasked".into()))?;
@@ -267,7 +284,8 @@ impl TileCache {
         E: std::error::Error + Send + Sync + 'static,
     {
         let purges = Some((self.purges.clone(), purges_so_far));
-        match render_and_store(self.store.clone(), key, wanted, purges, Box::new(render)).await? {
+        let store = Some(self.store.clone());
+        match render_and_store(store, key, wanted, purges, Box::new(render)).await? {
             Some(tile) => {
                 let remade = if tile.stored {
                     Remade::Stored
@@ -354,10 +372,10 @@ pub enum Remade {
     Purged,
 }
 
-/// Renders a tile on the blocking pool, compresses it and stores it; with `purges`, not when a
-/// purge numbered past the one given removed it meanwhile (then `None`).
+/// Renders a tile on the blocking pool, compresses it and stores it (when given a store); with
+/// `purges`, not when a purge numbered past the one given removed it meanwhile (then `None`).
 async fn render_and_store<E>(
-    store: Arc<dyn TileStore>,
+    store: Option<Arc<dyn TileStore>>,
     key: TileKey,
     made_by: Provenance,
     purges: Option<(Arc<Mutex<Purges>>, u64)>,
@@ -385,9 +403,10 @@ where
             }
         }
         // A tile that cannot be stored (disk full, store damaged) is served all the same.
-        let kept = match store.put(&key, &stored) {
-            Ok(()) => true,
-            Err(error) => {
+        let kept = match store.as_ref().map(|store| store.put(&key, &stored)) {
+            Some(Ok(())) => true,
+            None => false,
+            Some(Err(error)) => {
                 tracing::warn!(tile = %key.tile, format = key.format.as_str(), %error, "the tile could not be stored; served from memory only");
                 false
             }

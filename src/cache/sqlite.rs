@@ -246,11 +246,32 @@ impl SqliteStore {
     }
 }
 
-/// Tiles named in one SQL condition; a longer list is split, to stay far from SQLite's limits
-/// on expression depth and parameters.
-const TILES_PER_CONDITION: usize = 200;
+/// Bytes a row takes in the file besides its columns' contents (record header, the key's
+/// integers and the primary key's index entry), near enough.
+const ROW_OVERHEAD: usize = 64;
 
-/// SQL conditions, with their parameters, that together select a filter's tiles.
+/// The bytes a stored tile counts against the cap: its bodies, its text columns and the row's
+/// overhead, so that many small tiles fill the cap as the file grows.
+fn stored_bytes(key: &TileKey, tile: &StoredTile) -> usize {
+    tile.bodies.stored_len()
+        + tile.etag.len()
+        + tile.made_by.pipeline.len()
+        + tile.made_by.sources.len()
+        + key.format.as_str().len()
+        + ROW_OVERHEAD
+}
+
+/// Tiles of a list read or removed while the connection is held once.
+const TILES_PER_TURN: usize = 1_000;
+
+/// Between two turns of a long list: the connection's lock is not fair (whoever let it go
+/// takes it again first), so the list's thread steps aside a moment for those waiting.
+fn let_others_in() {
+    std::thread::sleep(std::time::Duration::from_micros(200));
+}
+
+/// The SQL condition, with its parameters, that selects a box's or all tiles (a list of tiles
+/// is read by the primary key, one at a time).
 fn filter_sql(filter: &TileFilter) -> Vec<(String, Vec<i64>)> {
     match filter {
         TileFilter::All => vec![("1".to_string(), Vec::new())],
@@ -264,17 +285,7 @@ fn filter_sql(filter: &TileFilter) -> Vec<(String, Vec<i64>)> {
                 i64::from(range.max_y),
             ],
         )],
-        TileFilter::Tiles(tiles) => tiles
-            .chunks(TILES_PER_CONDITION)
-            .map(|chunk| {
-                let condition = vec!["(z = ? AND x = ? AND y = ?)"; chunk.len()].join(" OR ");
-                let values = chunk
-                    .iter()
-                    .flat_map(|t| [i64::from(t.z), i64::from(t.x), i64::from(t.y)])
-                    .collect();
-                (condition, values)
-            })
-            .collect(),
+        TileFilter::Tiles(_) => Vec::new(),
     }
 }
 
@@ -388,7 +399,7 @@ impl TileStore for SqliteStore {
                     coding.as_str(),
                     tile.bodies.brotli.as_deref(),
                     tile.made_by.sources,
-                    tile.bodies.stored_len() as i64,
+                    stored_bytes(key, tile) as i64,
                 ],
             )
             .map_err(|e| self.error(e))?;
@@ -476,12 +487,13 @@ impl TileStore for SqliteStore {
     }
 
     fn remove(&self, filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
-        let mut connection = self.connection();
-        let transaction = connection.transaction().map_err(|e| self.error(e))?;
         let mut removed = Vec::new();
-        for (condition, values) in filter_sql(filter) {
+        let delete = |transaction: &rusqlite::Transaction<'_>,
+                      condition: &str,
+                      values: &[i64],
+                      removed: &mut Vec<TileKey>| {
             let mut statement = transaction
-                .prepare(&format!(
+                .prepare_cached(&format!(
                     "DELETE FROM tiles WHERE {condition} RETURNING z, x, y, format"
                 ))
                 .map_err(|e| self.error(e))?;
@@ -496,22 +508,45 @@ impl TileStore for SqliteStore {
                     removed.push(TileKey { tile, format });
                 }
             }
+            Ok::<_, StoreError>(())
+        };
+        match filter {
+            // A list of tiles goes a chunk at a time, each chunk a transaction of its own, the
+            // connection let go between chunks so that other requests get in.
+            TileFilter::Tiles(tiles) => {
+                for chunk in tiles.chunks(TILES_PER_TURN) {
+                    let_others_in();
+                    let mut connection = self.connection();
+                    let transaction = connection.transaction().map_err(|e| self.error(e))?;
+                    for t in chunk {
+                        let values = [i64::from(t.z), i64::from(t.x), i64::from(t.y)];
+                        delete(
+                            &transaction,
+                            "z = ?1 AND x = ?2 AND y = ?3",
+                            &values,
+                            &mut removed,
+                        )?;
+                    }
+                    transaction.commit().map_err(|e| self.error(e))?;
+                }
+            }
+            other => {
+                let mut connection = self.connection();
+                let transaction = connection.transaction().map_err(|e| self.error(e))?;
+                for (condition, values) in filter_sql(other) {
+                    delete(&transaction, &condition, &values, &mut removed)?;
+                }
+                transaction.commit().map_err(|e| self.error(e))?;
+            }
         }
-        transaction.commit().map_err(|e| self.error(e))?;
         removed.sort();
         Ok(removed)
     }
 
     fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
-        let connection = self.connection();
+        const COLUMNS: &str = "z, x, y, format, pipeline, sources, size, accessed_at";
         let mut entries = Vec::new();
-        for (condition, values) in filter_sql(filter) {
-            let mut statement = connection
-                .prepare(&format!(
-                    "SELECT z, x, y, format, pipeline, sources, size, accessed_at FROM tiles
-                     WHERE {condition}"
-                ))
-                .map_err(|e| self.error(e))?;
+        let mut read = |statement: &mut rusqlite::Statement<'_>, values: &[i64]| {
             let rows = statement
                 .query_map(rusqlite::params_from_iter(values), |row| {
                     Ok((
@@ -536,6 +571,37 @@ impl TileStore for SqliteStore {
                         size: size.max(0) as u64,
                         accessed_at,
                     });
+                }
+            }
+            Ok::<_, StoreError>(())
+        };
+        match filter {
+            // A list of tiles is read by the primary key, a chunk at a time, the connection
+            // let go between chunks so that other requests get in.
+            TileFilter::Tiles(tiles) => {
+                for chunk in tiles.chunks(TILES_PER_TURN) {
+                    let_others_in();
+                    let connection = self.connection();
+                    let mut statement = connection
+                        .prepare_cached(&format!(
+                            "SELECT {COLUMNS} FROM tiles WHERE z = ?1 AND x = ?2 AND y = ?3"
+                        ))
+                        .map_err(|e| self.error(e))?;
+                    for t in chunk {
+                        read(
+                            &mut statement,
+                            &[i64::from(t.z), i64::from(t.x), i64::from(t.y)],
+                        )?;
+                    }
+                }
+            }
+            other => {
+                let connection = self.connection();
+                for (condition, values) in filter_sql(other) {
+                    let mut statement = connection
+                        .prepare(&format!("SELECT {COLUMNS} FROM tiles WHERE {condition}"))
+                        .map_err(|e| self.error(e))?;
+                    read(&mut statement, &values)?;
                 }
             }
         }
@@ -605,6 +671,10 @@ mod tests {
         let usage = store.usage().unwrap();
         assert_eq!(usage.tiles, 1);
         assert!(usage.bytes < 1_000, "{usage:?}");
+        assert!(
+            usage.bytes > found.bodies.stored_len() as u64 + 64,
+            "the row's text and overhead count too: {usage:?}"
+        );
         drop(store);
         let store = SqliteStore::open(&path, None).unwrap();
         assert_eq!(store.usage().unwrap().tiles, 1);
@@ -793,6 +863,42 @@ mod tests {
         );
         assert_eq!(store.remove(&TileFilter::Tiles(every)).unwrap().len(), 1500);
         assert_eq!(store.usage().unwrap().tiles, 0);
+    }
+
+    #[test]
+    fn a_long_list_lets_other_requests_in_between_its_chunks() {
+        let dir = tempfile::tempdir().unwrap();
+        let store =
+            std::sync::Arc::new(SqliteStore::open(&dir.path().join("t.sqlite"), None).unwrap());
+        store.put(&key(1), &tile(vec![1; 10], "v", 1)).unwrap();
+        // A list far longer than a chunk, of tiles mostly not stored.
+        let long: Vec<TileId> = (0..400_000)
+            .map(|i| TileId {
+                z: 14,
+                x: i % 16_384,
+                y: i / 16_384,
+            })
+            .collect();
+        let filter = TileFilter::tiles(long);
+        let (started, start) = std::sync::mpsc::channel();
+        let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let listing = {
+            let (store, done) = (store.clone(), done.clone());
+            std::thread::spawn(move || {
+                started.send(()).unwrap();
+                let listed = store.list(&filter).unwrap().len();
+                done.store(true, std::sync::atomic::Ordering::SeqCst);
+                listed
+            })
+        };
+        start.recv().unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(5));
+        assert!(store.get(&key(1)).unwrap().is_some());
+        assert!(
+            !done.load(std::sync::atomic::Ordering::SeqCst),
+            "a request got the connection while the list was read"
+        );
+        assert_eq!(listing.join().unwrap(), 1);
     }
 
     #[test]

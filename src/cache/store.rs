@@ -86,14 +86,30 @@ pub struct StoredEntry {
 pub enum TileFilter {
     All,
     Range(TileRange),
+    /// Named tiles; a list longer than a few dozen must be sorted ([`TileFilter::tiles`]):
+    /// [`TileFilter::matches`] searches it.
     Tiles(Vec<TileId>),
 }
 
+/// Lists of tiles up to this long are scanned; longer ones searched, when sorted.
+const SCANNED: usize = 32;
+
 impl TileFilter {
+    /// A filter of the tiles listed, sorted and each once.
+    pub fn tiles(mut tiles: Vec<TileId>) -> TileFilter {
+        tiles.sort_unstable();
+        tiles.dedup();
+        TileFilter::Tiles(tiles)
+    }
+
     pub fn matches(&self, tile: TileId) -> bool {
         match self {
             TileFilter::All => true,
             TileFilter::Range(range) => range.contains(tile),
+            TileFilter::Tiles(tiles) if tiles.len() > SCANNED => {
+                debug_assert!(tiles.is_sorted(), "a long list of tiles is sorted");
+                tiles.binary_search(&tile).is_ok()
+            }
             TileFilter::Tiles(tiles) => tiles.contains(&tile),
         }
     }

@@ -115,6 +115,14 @@ pub trait TileProvider: Send + Sync + std::fmt::Debug {
     /// Makes the tile, uncompressed.
     fn make(&self, key: TileKey, deadline: Deadline) -> Result<Made, MakeError>;
 
+    /// Whether the tile holds any of the sources' data; one that holds none (a coarse
+    /// terrain tile over the open sea, far from every SRTM file) is cheap to make again and is
+    /// not kept in the durable cache, so that no one can fill it with such tiles.
+    fn holds_data(&self, key: TileKey) -> bool {
+        let _ = key;
+        true
+    }
+
     /// Lowest and highest ground under a tile, metres, for a bounding volume: sampled at the
     /// provider's zoom, the whole source files' range at coarser ones.
     fn ground_range(&self, tile: TileId) -> Option<(f64, f64)> {

@@ -158,6 +158,23 @@ impl TileProvider for Renderer {
             .map_err(|e| Unavailable::NotCovered(e.to_string()))
     }
 
+    fn holds_data(&self, key: TileKey) -> bool {
+        if !self.is_overview(key) {
+            return true;
+        }
+        let bounds = key.tile.bounds();
+        self.inputs.srtm.cells().iter().any(|cell| {
+            let (lon, lat) = (f64::from(cell.lon), f64::from(cell.lat));
+            let cell = crate::tile::LonLatBounds {
+                west: lon,
+                south: lat,
+                east: lon + 1.0,
+                north: lat + 1.0,
+            };
+            cell.intersects(&bounds)
+        })
+    }
+
     fn provenance(&self, tile: TileId) -> Option<Provenance> {
         Some(Provenance {
             pipeline: self.pipeline.to_string(),

@@ -54,7 +54,7 @@ impl Selection {
                             .map_err(|e| ApiError::bad_request(format!("tile '{t}': {e}")))
                     })
                     .collect::<Result<Vec<_>, _>>()?;
-                Ok(TileFilter::Tiles(tiles))
+                Ok(TileFilter::tiles(tiles))
             }
             (None, None, true) => Ok(TileFilter::All),
             _ => Err(ApiError::bad_request(

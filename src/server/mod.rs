@@ -6,6 +6,7 @@ pub mod debug;
 pub mod error;
 pub mod files;
 pub mod layer;
+pub mod memory;
 pub mod metrics;
 pub mod pool;
 pub mod regenerate;

@@ -121,10 +121,11 @@ pub async fn serve(
         });
     }
     let wanted = provider.provenance(tile);
+    let keep = provider.holds_data(key);
     let render = render_job(&state, provider, key, Priority::Request);
     let served = state
         .cache
-        .get_or_render(key, wanted.as_ref(), render)
+        .get_or_render_kept(key, wanted.as_ref(), keep, render)
         .await
         .map_err(|e| {
             let error = failure_response(&state, tile, &e);
@@ -144,7 +145,7 @@ pub async fn serve(
         Origin::Store => Metrics::count(&state.metrics.hits_store),
         Origin::Rendered => {
             Metrics::count(&state.metrics.misses);
-            if !served.tile.stored {
+            if !served.tile.stored && keep {
                 Metrics::count(&state.metrics.tiles_unstored);
             }
         }
@@ -343,6 +344,7 @@ pub fn render_job(
         };
         let deadline = work.render_limit.map_or(Deadline::none(), Deadline::after);
         let result = make(&*provider, &metrics, key, deadline);
+        crate::server::memory::give_back();
         match &result {
             Ok(_) => Metrics::count(&metrics.renders),
             // Not a render: the provider holds tiles and lacks this one.
