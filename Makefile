@@ -5,7 +5,7 @@
 CARGO ?= cargo
 NPM ?= npm
 
-.PHONY: run test check lint bench bench-terrain bench-roofs bench-elevation bench-scale clean-cache
+.PHONY: run test check lint bench bench-hardening bench-terrain bench-roofs bench-elevation bench-scale clean-cache
 
 run: static/vendor/.installed
 	$(CARGO) run --release -- serve
@@ -69,6 +69,12 @@ bench-terrain: tests/py/.venv/.installed
 # roofs as tagged and with every footprint given one shape, and the roofs that fell back.
 # Country scale: import, serve and render on extracts of 1, 100 and 400 copies of Monaco
 # (COPIES="1 25" for others); the extracts are made once into target/scale/.
+# A hostile client's figures: concurrent debug views, dropped requests, half-sent requests and
+# shutdown (loopback, the bundled sample).
+bench-hardening:
+	$(CARGO) build --release
+	python3 scripts/bench_hardening.py
+
 bench-scale: tests/py/.venv/.installed
 	$(CARGO) build --release
 	tests/py/.venv/bin/python -m pip install --quiet --disable-pip-version-check -r tests/py/requirements-bench.txt
