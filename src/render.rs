@@ -349,15 +349,26 @@ fn prepare<'a>(
     // Cliffs and retaining walls step the terrain.
     let steps = elevation::steps::Steps::new(&feature_set.steps);
     let settled = elevation::ground::Ground::new(&terrain, &water, &cuts, &roads, &steps);
+    // The settled ground at many points at once (the tile's sample grid), over threads.
+    let sample = |points: &[[f64; 2]]| {
+        with_ground_models(
+            points,
+            &frame,
+            mosaic,
+            settings,
+            &settled,
+            &|points, _, settled| points.iter().map(|&p| settled.elevation_uv(p)).collect(),
+        )
+    };
     let mut ground = ground::triangulate(
         &frame,
         &settings.mesh,
         &feature_set.surfaces,
         &feature_set.nearby_outlines,
         &settled,
+        &sample,
     )?;
-    let levels: Vec<&elevation::settled::Level> = water.iter().chain(&cuts).collect();
-    mesh::flatten::flatten(&mut ground, &levels, &roads, &frame);
+    mesh::flatten::flatten(&mut ground, &settled, &frame);
     timings.triangulation = started.elapsed();
     deadline.check(tile, "triangulation")?;
 
@@ -383,29 +394,30 @@ fn prepare<'a>(
     })
 }
 
-/// Vertices below this many get their normals on the calling thread.
-const NORMALS_PER_THREAD: usize = 8_192;
-/// Most threads one tile's normals are spread over.
-const MAX_NORMAL_THREADS: usize = 4;
+/// Points below this many are read on the calling thread.
+const POINTS_PER_THREAD: usize = 8_192;
+/// Most threads one tile's points are spread over.
+const MAX_POINT_THREADS: usize = 4;
 
-/// The normals of the ground's vertices, spread over the cores when there are many: each
-/// thread reads the terrain through a model of its own (the models keep caches).
-fn ground_normals(
-    ground: &mesh::ground::Ground,
+/// Work on points with the models of the ground: the terrain, then the settled ground.
+type AtPoints<'a, R> = dyn Fn(&[[f64; 2]], &dyn Elevation, &dyn Elevation) -> Vec<R> + Sync + 'a;
+
+/// `f` over `points` with the models of the ground, spread over the cores when there are many:
+/// each thread reads the terrain through a model of its own (the models keep caches), and every
+/// point's result is its own, so the result is the one a single thread gives.
+fn with_ground_models<R: Send>(
+    points: &[[f64; 2]],
     frame: &crate::tile::TileFrame,
     mosaic: &Mosaic,
     settings: &RenderSettings,
     settled: &elevation::ground::Ground<'_>,
-) -> Vec<[f64; 3]> {
-    let threads = mesh::parallel::threads_for(
-        ground.vertices.len(),
-        NORMALS_PER_THREAD,
-        MAX_NORMAL_THREADS,
-    );
+    f: &AtPoints<'_, R>,
+) -> Vec<R> {
+    let threads = mesh::parallel::threads_for(points.len(), POINTS_PER_THREAD, MAX_POINT_THREADS);
     if threads == 1 {
-        return mesh::normals::ground_normals(ground, frame, settled.terrain, settled);
+        return f(points, settled.terrain, settled);
     }
-    let with_models = |normals: &mesh::normals::FromModels<'_>| {
+    mesh::parallel::map_chunks(points, threads, &|chunk| {
         let terrain = TerrainModel::new(mosaic, settings.interpolation, frame.tile.z);
         let ground = elevation::ground::Ground::new(
             &terrain,
@@ -414,9 +426,26 @@ fn ground_normals(
             settled.roads,
             settled.steps,
         );
-        normals(&terrain, &ground)
-    };
-    mesh::normals::ground_normals_parallel(ground, frame, threads, &with_models)
+        f(chunk, &terrain, &ground)
+    })
+}
+
+/// The normals of the ground's vertices (see [`with_ground_models`]).
+fn ground_normals(
+    ground: &mesh::ground::Ground,
+    frame: &crate::tile::TileFrame,
+    mosaic: &Mosaic,
+    settings: &RenderSettings,
+    settled: &elevation::ground::Ground<'_>,
+) -> Vec<[f64; 3]> {
+    with_ground_models(
+        &ground.vertices,
+        frame,
+        mosaic,
+        settings,
+        settled,
+        &|vertices, terrain, settled| mesh::normals::normals_at(vertices, frame, terrain, settled),
+    )
 }
 
 /// Adds the ground the tunnels reshape to the feature set: a row for each way's approach cuts,

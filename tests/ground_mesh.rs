@@ -29,6 +29,7 @@ fn every_sample_of_the_steepest_and_densest_tiles_is_within_the_bound() {
             &feature_set.surfaces,
             &feature_set.nearby_outlines,
             &terrain,
+            &|points| points.iter().map(|&p| terrain.elevation_uv(p)).collect(),
         )
         .unwrap();
         // Heights here are plain elevations (the locator interpolates whatever y it is given).

@@ -40,6 +40,13 @@ impl<'a> Ground<'a> {
             cut_grid: LevelGrid::new(cuts),
         }
     }
+
+    /// The water areas and cuts that cover `p` (floors among them), water first.
+    pub fn levels_at(&self, p: [f64; 2]) -> impl Iterator<Item = &Level> {
+        self.water_grid
+            .covering(self.water, p)
+            .chain(self.cut_grid.covering(self.cuts, p))
+    }
 }
 
 impl Elevation for Ground<'_> {

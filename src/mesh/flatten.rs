@@ -5,8 +5,8 @@
 use std::collections::{HashMap, HashSet};
 
 use super::ground::Ground;
-use crate::elevation::roads::RoadLevels;
-use crate::elevation::settled::{Level, Rule};
+use crate::elevation::ground::Ground as SettledGround;
+use crate::elevation::settled::Rule;
 use crate::geometry::Point;
 use crate::tile::TileFrame;
 
@@ -14,11 +14,15 @@ use crate::tile::TileFrame;
 /// where surfaces meet): the outline's vertices already are, and this catches a vertex the
 /// triangulation attached to the surface from just outside its outline. Vertices on the tile's
 /// edges stay as the ground model settled them (identically in both tiles). Floors
-/// ([`Level::at_least`]) are left to the ground model.
-pub fn flatten(ground: &mut Ground, levels: &[&Level], roads: &RoadLevels, frame: &TileFrame) {
+/// ([`crate::elevation::settled::Level::at_least`]) are left to the ground model (`model`, whose
+/// water areas, cuts and roads these are).
+pub fn flatten(ground: &mut Ground, model: &SettledGround<'_>, frame: &TileFrame) {
     let size_m = frame.size_m;
-    let rule_of: HashMap<u32, &Rule> = levels
+    let roads = model.roads;
+    let rule_of: HashMap<u32, &Rule> = model
+        .water
         .iter()
+        .chain(model.cuts)
         .filter(|l| !l.at_least)
         .map(|l| (l.surface, &l.rule))
         .collect();
@@ -38,7 +42,7 @@ pub fn flatten(ground: &mut Ground, levels: &[&Level], roads: &RoadLevels, frame
                 let (u, v) = frame.local_to_uv(x, z);
                 // A vertex on water or in a cut (on its outline, say, next to a twin the
                 // triangulation made a hair away) keeps what the ground model gave it.
-                if !levels.iter().any(|l| !l.at_least && l.covers([u, v])) {
+                if !model.levels_at([u, v]).any(|l| !l.at_least) {
                     *slot = roads.elevation([u, v]);
                 }
             }
@@ -56,12 +60,11 @@ pub fn flatten(ground: &mut Ground, levels: &[&Level], roads: &RoadLevels, frame
             *slot = Some(slot.map_or(level, |l: f64| l.min(level)));
         }
     }
-    let floors: Vec<&&Level> = levels.iter().filter(|l| l.at_least).collect();
     for (v, level) in settled.into_iter().enumerate() {
         if let Some(level) = level.or(on_road[v]) {
             let [x, z] = ground.vertices[v];
             let (u, w) = frame.local_to_uv(x, z);
-            let raised = floors.iter().any(|f| f.covers([u, w]));
+            let raised = model.levels_at([u, w]).any(|l| l.at_least);
             if !on_edge(ground.vertices[v]) && !raised {
                 ground.elevations[v] = level;
             }

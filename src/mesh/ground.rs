@@ -217,12 +217,17 @@ struct EdgeVertex {
 ///
 /// `weighting_outlines` are the outlines (roads, railways, water) near which the error counts
 /// more; they must include those just outside the tile, so both sides of an edge agree.
+/// The elevations of many points (global tile units) at once, as `terrain` gives them one by
+/// one; it may share them out over threads.
+pub type Sampler<'a> = dyn Fn(&[Point]) -> Vec<f64> + 'a;
+
 pub fn triangulate(
     frame: &TileFrame,
     settings: &MeshSettings,
     surfaces: &[Surface],
     weighting_outlines: &[Vec<Point>],
     terrain: &dyn Elevation,
+    sample: &Sampler<'_>,
 ) -> Result<Ground, GroundError> {
     let tile = frame.tile;
     let rect = crate::features::tile_rect(tile);
@@ -237,12 +242,11 @@ pub fn triangulate(
     };
 
     // 1. Samples and their weights.
-    let mut heights = Vec::with_capacity((n + 1) * (n + 1));
-    for j in 0..=n {
-        for i in 0..=n {
-            heights.push(terrain.elevation_uv(sample_uv(i, j)));
-        }
-    }
+    let points: Vec<Point> = (0..=n)
+        .flat_map(|j| (0..=n).map(move |i| (i, j)))
+        .map(|(i, j)| sample_uv(i, j))
+        .collect();
+    let heights = sample(&points);
     let weights = feature_weights(frame, settings, weighting_outlines, n);
     let grid = HeightGrid {
         columns: n + 1,
@@ -653,7 +657,8 @@ mod tests {
             .filter(|s| s.class != FeatureClass::Building)
             .flat_map(|s| s.outline.iter().cloned())
             .collect();
-        triangulate(&frame, settings, surfaces, &outlines, &terrain).unwrap()
+        let sample = |points: &[Point]| points.iter().map(|&p| terrain.elevation_uv(p)).collect();
+        triangulate(&frame, settings, surfaces, &outlines, &terrain, &sample).unwrap()
     }
 
     #[test]

@@ -23,27 +23,9 @@ pub fn ground_normals(
     normals_at(&ground.vertices, frame, terrain, settled)
 }
 
-/// Normals from the models of the ground: the terrain, then the settled ground.
-pub type FromModels<'a> = dyn Fn(&dyn Elevation, &dyn Elevation) -> Vec<[f64; 3]> + 'a;
-
-/// Makes a thread's models of the ground and gives them to the function it is passed.
-pub type WithModels<'a> = dyn Fn(&FromModels<'_>) -> Vec<[f64; 3]> + Sync + 'a;
-
-/// [`ground_normals`] spread over `threads` threads, each reading the ground through models of
-/// its own from `with_models`: a vertex's normal is its own, so the result is the same however
-/// the vertices are shared out.
-pub fn ground_normals_parallel(
-    ground: &Ground,
-    frame: &TileFrame,
-    threads: usize,
-    with_models: &WithModels<'_>,
-) -> Vec<[f64; 3]> {
-    super::parallel::map_chunks(&ground.vertices, threads, &|vertices| {
-        with_models(&|terrain, settled| normals_at(vertices, frame, terrain, settled))
-    })
-}
-
-fn normals_at(
+/// The normals at `vertices` (local metres): the settled ground's gradient, the terrain's on
+/// the tile's edge.
+pub fn normals_at(
     vertices: &[[f64; 2]],
     frame: &TileFrame,
     terrain: &dyn Elevation,
@@ -111,14 +93,14 @@ mod tests {
             reads: Cell::new(0),
         };
         let alone = ground_normals(&ground, &frame, &one, &one);
-        let with_models = |normals: &FromModels<'_>| {
-            let own = Rolling {
-                reads: Cell::new(0),
-            };
-            normals(&own, &own)
-        };
         for threads in [2, 3, 7] {
-            let spread = ground_normals_parallel(&ground, &frame, threads, &with_models);
+            // Each thread with a model of its own, as a render shares them out.
+            let spread = crate::mesh::parallel::map_chunks(&ground.vertices, threads, &|chunk| {
+                let own = Rolling {
+                    reads: Cell::new(0),
+                };
+                normals_at(chunk, &frame, &own, &own)
+            });
             assert_eq!(spread, alone, "{threads} threads");
         }
         assert!(
