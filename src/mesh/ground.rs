@@ -305,9 +305,32 @@ pub fn triangulate(
         keep_border: true,
         max_insertions: usize::MAX,
     };
+    // The seed's vertices off the sample grid (where outlines meet and cross) are read all
+    // at once, over threads; the refinement looks them up.
+    let off_grid: Vec<Point2<f64>> = cdt
+        .vertices()
+        .map(|v| v.position())
+        .filter(|&p| grid.sample_at(p).is_none())
+        .collect();
+    let uv: Vec<Point> = off_grid
+        .iter()
+        .map(|p| {
+            let (u, v) = frame.local_to_uv(p.x, p.y);
+            [u, v]
+        })
+        .collect();
+    let read: rustc_hash::FxHashMap<(u64, u64), f64> = off_grid
+        .iter()
+        .map(|p| (p.x.to_bits(), p.y.to_bits()))
+        .zip(sample(&uv))
+        .collect();
     let (tin, report) = refine(&cdt, &grid, limits, &mut |p| {
-        let (u, v) = frame.local_to_uv(p.x, p.y);
-        terrain.elevation_uv([u, v])
+        read.get(&(p.x.to_bits(), p.y.to_bits()))
+            .copied()
+            .unwrap_or_else(|| {
+                let (u, v) = frame.local_to_uv(p.x, p.y);
+                terrain.elevation_uv([u, v])
+            })
     });
 
     // 5. Classification.

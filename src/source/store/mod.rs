@@ -280,7 +280,21 @@ impl OsmStore {
     /// The closure of `tile` (see the module's notes), indexed: its query for the tile with
     /// `margin_deg` selects what the whole data's index would.
     pub fn tile_index(&self, tile: TileId, margin_deg: f64) -> Result<OsmIndex, StoreError> {
-        self.with_connection(|db| self.closure(db, tile, margin_deg))
+        // One read transaction for the whole closure: one snapshot of the store (an update
+        // committing meanwhile is seen whole or not at all), and SQLite takes its lock and
+        // checks its files once, not at each of the closure's thousands of reads.
+        self.with_connection(|db| {
+            db.execute_batch("BEGIN")
+                .map_err(|source| StoreError::Sqlite {
+                    path: self.path.clone(),
+                    source,
+                })?;
+            let closure = self.closure(db, tile, margin_deg);
+            if db.execute_batch("COMMIT").is_err() {
+                let _ = db.execute_batch("ROLLBACK");
+            }
+            closure
+        })
     }
 
     fn closure(
@@ -600,6 +614,8 @@ fn connect(path: &Path) -> Result<Connection, StoreError> {
     })?;
     // A failed pragma leaves SQLite's default page cache: slower, not wrong.
     let _ = db.execute_batch("PRAGMA cache_size = -32768;");
+    // A tile read while an update commits waits for it rather than failing.
+    let _ = db.busy_timeout(std::time::Duration::from_secs(60));
     Ok(db)
 }
 
