@@ -23,6 +23,7 @@ pub mod offline;
 pub mod osm;
 pub mod output;
 pub mod panics;
+pub mod parallel;
 pub mod provider;
 pub mod render;
 pub mod server;

@@ -413,11 +413,11 @@ fn with_ground_models<R: Send>(
     settled: &elevation::ground::Ground<'_>,
     f: &AtPoints<'_, R>,
 ) -> Vec<R> {
-    let threads = mesh::parallel::threads_for(points.len(), POINTS_PER_THREAD, MAX_POINT_THREADS);
+    let threads = crate::parallel::threads_for(points.len(), POINTS_PER_THREAD, MAX_POINT_THREADS);
     if threads == 1 {
         return f(points, settled.terrain, settled);
     }
-    mesh::parallel::map_chunks(points, threads, &|chunk| {
+    crate::parallel::map_chunks(points, threads, &|chunk| {
         let terrain = TerrainModel::new(mosaic, settings.interpolation, frame.tile.z);
         let ground = elevation::ground::Ground::new(
             &terrain,

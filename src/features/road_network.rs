@@ -290,10 +290,21 @@ fn widen(
         .filter(|(_, arms)| is_junction(arms))
         .collect();
     nodes.sort_by_key(|(node, _)| **node);
-    for (&node, arms) in nodes {
-        let around: Vec<Cap> = arms.iter().filter_map(|a| caps.get(a)).copied().collect();
-        let centre = lines[arms[0].road].points[arms[0].index];
-        if let Some(ring) = junction_ring(centre, &around) {
+    // Each junction's ring is its own: shared out over threads, back in the nodes' order.
+    let threads =
+        crate::parallel::threads_for(nodes.len(), JUNCTIONS_PER_THREAD, MAX_JUNCTION_THREADS);
+    let rings = crate::parallel::map_chunks(&nodes, threads, &|chunk| {
+        chunk
+            .iter()
+            .map(|(_, arms)| {
+                let around: Vec<Cap> = arms.iter().filter_map(|a| caps.get(a)).copied().collect();
+                let centre = lines[arms[0].road].points[arms[0].index];
+                junction_ring(centre, &around)
+            })
+            .collect()
+    });
+    for ((&node, arms), ring) in nodes.into_iter().zip(rings) {
+        if let Some(ring) = ring {
             let mut roads: Vec<usize> = arms.iter().map(|a| a.road).collect();
             roads.dedup();
             network.junctions.push(Junction { node, ring, roads });
@@ -301,6 +312,11 @@ fn widen(
     }
     network
 }
+
+/// Junctions below this many get their rings on the calling thread.
+const JUNCTIONS_PER_THREAD: usize = 256;
+/// Most threads one tile's junctions are spread over.
+const MAX_JUNCTION_THREADS: usize = 4;
 
 /// The arms at every node, in road order.
 fn arms_by_node(lines: &[RoadLine]) -> HashMap<i64, Vec<ArmKey>> {

@@ -159,11 +159,11 @@ fn classify(
     surface_of: &(dyn Fn(&[u32; 3]) -> Option<u32> + Sync),
 ) -> Vec<Option<u32>> {
     let threads =
-        super::parallel::threads_for(triangles.len(), TRIANGLES_PER_THREAD, MAX_CLASSIFY_THREADS);
+        crate::parallel::threads_for(triangles.len(), TRIANGLES_PER_THREAD, MAX_CLASSIFY_THREADS);
     if threads == 1 {
         return triangles.iter().map(surface_of).collect();
     }
-    super::parallel::map_chunks(triangles, threads, &|chunk| {
+    crate::parallel::map_chunks(triangles, threads, &|chunk| {
         chunk.iter().map(surface_of).collect()
     })
 }
@@ -473,7 +473,7 @@ fn feature_weights(
 const WEIGHT_SEGMENTS_PER_THREAD: usize = 4_096;
 
 fn weight_threads(segments: usize) -> usize {
-    super::parallel::threads_for(segments, WEIGHT_SEGMENTS_PER_THREAD, 4)
+    crate::parallel::threads_for(segments, WEIGHT_SEGMENTS_PER_THREAD, 4)
 }
 
 /// Lowers the nearest distance (metres) of the samples of `rows` within `reach_uv` of the

@@ -9,7 +9,6 @@ pub mod ground_parts;
 pub mod instances;
 pub mod models;
 pub mod normals;
-pub mod parallel;
 pub mod power;
 pub mod roofs;
 pub mod skeleton;

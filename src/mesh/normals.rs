@@ -95,7 +95,7 @@ mod tests {
         let alone = ground_normals(&ground, &frame, &one, &one);
         for threads in [2, 3, 7] {
             // Each thread with a model of its own, as a render shares them out.
-            let spread = crate::mesh::parallel::map_chunks(&ground.vertices, threads, &|chunk| {
+            let spread = crate::parallel::map_chunks(&ground.vertices, threads, &|chunk| {
                 let own = Rolling {
                     reads: Cell::new(0),
                 };
