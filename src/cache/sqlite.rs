@@ -642,6 +642,19 @@ mod tests {
         }
     }
 
+    /// `length` bytes that do not compress (xorshift from `seed`).
+    fn noise(seed: u64, length: usize) -> Vec<u8> {
+        let mut state = seed | 1;
+        (0..length)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                state as u8
+            })
+            .collect()
+    }
+
     fn tile(data: Vec<u8>, pipeline: &str, at: i64) -> StoredTile {
         StoredTile {
             etag: crate::cache::etag_of(&data),
@@ -727,15 +740,7 @@ mod tests {
         {
             let store = SqliteStore::open(&path, None).unwrap();
             for x in 0..40 {
-                let mut state = u64::from(x) * 2 + 1;
-                let data: Vec<u8> = (0..100_000)
-                    .map(|_| {
-                        state ^= state << 13;
-                        state ^= state >> 7;
-                        state ^= state << 17;
-                        state as u8
-                    })
-                    .collect();
+                let data = noise(u64::from(x), 100_000);
                 store.put(&key(x), &tile(data, "v", 1)).unwrap();
             }
             store
@@ -794,17 +799,7 @@ mod tests {
     #[test]
     fn over_its_cap_the_store_evicts_the_least_recently_served() {
         let dir = tempfile::tempdir().unwrap();
-        let noise = |seed: u64| -> Vec<u8> {
-            let mut state = seed | 1;
-            (0..10_000)
-                .map(|_| {
-                    state ^= state << 13;
-                    state ^= state >> 7;
-                    state ^= state << 17;
-                    state as u8
-                })
-                .collect()
-        };
+        let noise = |seed: u64| noise(seed, 10_000);
         let store = SqliteStore::open(&dir.path().join("t.sqlite"), Some(35_000)).unwrap();
         for x in 0..3 {
             store

@@ -58,6 +58,10 @@ pub enum SrtmError {
 /// with room for the data's noise).
 const PLAUSIBLE_M: (i16, i16) = (-500, 9000);
 
+/// Values that mark a sample without data: SRTM's void, and those other elevation files
+/// converted to `.hgt` use.
+const NO_DATA: [i16; 3] = [VOID, -32767, -9999];
+
 /// Share of samples outside [`PLAUSIBLE_M`] past which a file is taken for something else than
 /// elevations (random bytes put ~70 % there; real files a handful of samples at most).
 const IMPLAUSIBLE_SHARE: f64 = 0.01;
@@ -74,7 +78,7 @@ pub fn decode(cell: CellId, bytes: &[u8], path: &Path) -> Result<SrtmTile, SrtmE
         .collect();
     let outside = raw
         .iter()
-        .filter(|&&h| h != VOID && !(PLAUSIBLE_M.0..=PLAUSIBLE_M.1).contains(&h))
+        .filter(|&&h| !NO_DATA.contains(&h) && !(PLAUSIBLE_M.0..=PLAUSIBLE_M.1).contains(&h))
         .count();
     let share = outside as f64 / raw.len().max(1) as f64;
     if share > IMPLAUSIBLE_SHARE {
