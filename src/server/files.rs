@@ -51,7 +51,9 @@ fn not_found(path: &str) -> Response {
 /// The file `path` (a URL path) names under `dir` when it may be served: no segment a dotfile
 /// or `..`, and where it exists, its real place (links followed) still under `dir`.
 fn inside(dir: &Path, path: &str) -> Option<PathBuf> {
-    let relative = Path::new(path.trim_start_matches('/'));
+    // Checked as the file server will read it: percent-decoded (`%2e` is a dot).
+    let decoded = percent_decoded(path.trim_start_matches('/'))?;
+    let relative = Path::new(&decoded);
     let mut file = dir.to_path_buf();
     for component in relative.components() {
         match component {
@@ -66,6 +68,25 @@ fn inside(dir: &Path, path: &str) -> Option<PathBuf> {
         (Ok(real), Ok(root)) if !real.starts_with(&root) => None,
         _ => Some(file),
     }
+}
+
+/// `text` with its `%XX` escapes decoded; `None` when one is malformed.
+fn percent_decoded(text: &str) -> Option<std::ffi::OsString> {
+    use std::os::unix::ffi::OsStringExt;
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = std::str::from_utf8(bytes.get(i + 1..i + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    Some(std::ffi::OsString::from_vec(out))
 }
 
 #[cfg(test)]
@@ -93,7 +114,11 @@ mod tests {
         );
         for refused in [
             "/.env",
+            "/%2eenv",
             "/link.txt",
+            "/link%2etxt",
+            "/%2e%2e/outside.txt",
+            "/bad%zz",
             "/../outside.txt",
             "/a/../../outside.txt",
         ] {
