@@ -305,25 +305,7 @@ pub fn triangulate(
         keep_border: true,
         max_insertions: usize::MAX,
     };
-    // The seed's vertices off the sample grid (where outlines meet and cross) are read all
-    // at once, over threads; the refinement looks them up.
-    let off_grid: Vec<Point2<f64>> = cdt
-        .vertices()
-        .map(|v| v.position())
-        .filter(|&p| grid.sample_at(p).is_none())
-        .collect();
-    let uv: Vec<Point> = off_grid
-        .iter()
-        .map(|p| {
-            let (u, v) = frame.local_to_uv(p.x, p.y);
-            [u, v]
-        })
-        .collect();
-    let read: rustc_hash::FxHashMap<(u64, u64), f64> = off_grid
-        .iter()
-        .map(|p| (p.x.to_bits(), p.y.to_bits()))
-        .zip(sample(&uv))
-        .collect();
+    let read = off_grid_heights(&cdt, &grid, &frame, sample);
     let (tin, report) = refine(&cdt, &grid, limits, &mut |p| {
         read.get(&(p.x.to_bits(), p.y.to_bits()))
             .copied()
@@ -389,6 +371,34 @@ pub fn triangulate(
         edge_vertices: edge_count,
         dropped_constraints: dropped,
     })
+}
+
+/// The elevations of the seed's vertices off the sample grid (where outlines meet and cross),
+/// read all at once through `sample` (over threads), by their local position's bits: the
+/// refinement looks them up rather than reading them one by one.
+fn off_grid_heights(
+    cdt: &Cdt,
+    grid: &HeightGrid,
+    frame: &TileFrame,
+    sample: &Sampler<'_>,
+) -> rustc_hash::FxHashMap<(u64, u64), f64> {
+    let off_grid: Vec<Point2<f64>> = cdt
+        .vertices()
+        .map(|v| v.position())
+        .filter(|&p| grid.sample_at(p).is_none())
+        .collect();
+    let uv: Vec<Point> = off_grid
+        .iter()
+        .map(|p| {
+            let (u, v) = frame.local_to_uv(p.x, p.y);
+            [u, v]
+        })
+        .collect();
+    off_grid
+        .iter()
+        .map(|p| (p.x.to_bits(), p.y.to_bits()))
+        .zip(sample(&uv))
+        .collect()
 }
 
 /// Inserts the outline segments into a copy of `seed` as constraint edges
