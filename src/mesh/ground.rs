@@ -305,7 +305,7 @@ pub fn triangulate(
         keep_border: true,
         max_insertions: usize::MAX,
     };
-    let read = off_grid_heights(&cdt, &grid, &frame, sample);
+    let read = off_grid_heights(&cdt, &grid, frame, sample);
     let (tin, report) = refine(&cdt, &grid, limits, &mut |p| {
         read.get(&(p.x.to_bits(), p.y.to_bits()))
             .copied()
