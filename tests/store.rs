@@ -342,3 +342,141 @@ fn a_tile_reads_only_the_nearest_coast_and_finds_the_sea_every_coastline_gives()
     );
     assert!(sea >= 10, "{sea} tiles have water");
 }
+
+/// The blobs of a PBF file, each with its framing (length, header, data).
+fn blobs(pbf: &[u8]) -> Vec<&[u8]> {
+    let mut blobs = Vec::new();
+    let mut at = 0;
+    while at + 4 <= pbf.len() {
+        let header_len = u32::from_be_bytes(pbf[at..at + 4].try_into().unwrap()) as usize;
+        let header = &pbf[at + 4..at + 4 + header_len];
+        // BlobHeader field 3 (datasize), a varint.
+        let mut k = 0;
+        let mut data_len = 0usize;
+        while k < header.len() {
+            let key = header[k];
+            k += 1;
+            let mut varint = || {
+                let (mut value, mut shift) = (0usize, 0);
+                loop {
+                    let byte = header[k];
+                    k += 1;
+                    value |= ((byte & 0x7f) as usize) << shift;
+                    shift += 7;
+                    if byte & 0x80 == 0 {
+                        return value;
+                    }
+                }
+            };
+            match key & 7 {
+                0 if key >> 3 == 3 => data_len = varint(),
+                0 => {
+                    varint();
+                }
+                2 => {
+                    let len = varint();
+                    k += len;
+                }
+                other => panic!("unexpected wire type {other} in a blob header"),
+            }
+        }
+        let end = at + 4 + header_len + data_len;
+        blobs.push(&pbf[at..end]);
+        at = end;
+    }
+    assert_eq!(at, pbf.len(), "the blobs cover the file");
+    blobs
+}
+
+/// What a store holds, table by table, in a fixed order.
+fn contents(store: &Path) -> Vec<(String, Vec<String>)> {
+    let db = rusqlite::Connection::open(store).unwrap();
+    let tables = [
+        ("nodes", "id"),
+        ("ways", "id"),
+        ("relations", "id"),
+        ("cells", "x, y, kind, id"),
+        ("groups", "id"),
+        ("group_under", "way, grp"),
+        ("joints", "node, way"),
+        ("way_facts", "way"),
+        ("coastlines", "way"),
+        ("incomplete_ways", "way"),
+        ("missing_nodes", "node, way"),
+        ("missing_members", "way, relation"),
+    ];
+    tables
+        .iter()
+        .map(|(table, order)| {
+            let mut select = db
+                .prepare(&format!("SELECT * FROM {table} ORDER BY {order}"))
+                .unwrap();
+            let columns = select.column_count();
+            let rows = select
+                .query_map([], |row| {
+                    (0..columns)
+                        .map(|c| row.get_ref(c).map(|v| format!("{v:?}")))
+                        .collect::<Result<Vec<_>, _>>()
+                        .map(|v| v.join("|"))
+                })
+                .unwrap()
+                .map(Result::unwrap)
+                .collect();
+            (table.to_string(), rows)
+        })
+        .collect()
+}
+
+#[test]
+fn an_extract_whose_nodes_do_not_all_come_first_is_read_again_in_two_passes_to_the_same_store() {
+    let dir = tempfile::tempdir().unwrap();
+    let sorted = dir.path().join("sorted.sqlite");
+    let output = import(&sorted, &[sample_osm()]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    // The first block of nodes moved to the end, after the ways and relations.
+    let pbf = std::fs::read(sample_osm()).unwrap();
+    let mut moved = blobs(&pbf);
+    assert!(
+        moved.len() > 3,
+        "the sample has blocks of nodes, ways and relations"
+    );
+    let first_nodes = moved.remove(1);
+    moved.push(first_nodes);
+    let unsorted_pbf = dir.path().join("unsorted.osm.pbf");
+    std::fs::write(&unsorted_pbf, moved.concat()).unwrap();
+    let unsorted = dir.path().join("unsorted.sqlite");
+    let output = import(&unsorted, &[unsorted_pbf]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    assert!(
+        stderr(&output).contains("not sorted by type then id"),
+        "the second reading is said: {}",
+        stderr(&output)
+    );
+    let (a, b) = (contents(&sorted), contents(&unsorted));
+    for ((table, rows_a), (_, rows_b)) in a.iter().zip(&b) {
+        if ["ways", "cells", "groups", "joints"].contains(&table.as_str()) {
+            assert!(!rows_a.is_empty(), "the sample fills {table}");
+        }
+        assert_eq!(rows_a.len(), rows_b.len(), "rows of {table}");
+        assert!(rows_a == rows_b, "{table} differs");
+    }
+}
+
+#[test]
+fn two_extracts_holding_the_same_elements_make_the_store_one_of_them_makes() {
+    let dir = tempfile::tempdir().unwrap();
+    let one = dir.path().join("one.sqlite");
+    let output = import(&one, &[sample_osm()]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    // Read in two passes: every element given twice, the first kept.
+    let copy = dir.path().join("copy.osm.pbf");
+    std::fs::copy(sample_osm(), &copy).unwrap();
+    let two = dir.path().join("two.sqlite");
+    let output = import(&two, &[sample_osm(), copy]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let (a, b) = (contents(&one), contents(&two));
+    for ((table, rows_a), (_, rows_b)) in a.iter().zip(&b) {
+        assert_eq!(rows_a.len(), rows_b.len(), "rows of {table}");
+        assert!(rows_a == rows_b, "{table} differs");
+    }
+}

@@ -22,7 +22,7 @@ pub const BLOCK_RECORDS: usize = 256;
 const RECORD: usize = 16;
 const BLOCK: usize = BLOCK_RECORDS * RECORD;
 /// Blocks kept in memory (64 MiB).
-const CACHED_BLOCKS: usize = 16_384;
+pub const CACHED_BLOCKS: usize = 16_384;
 /// Nodes held and sorted before they are written (64 MiB).
 pub const CHUNK: usize = 1 << 22;
 /// More runs than this are merged into one: a lookup tries each.
@@ -368,6 +368,30 @@ impl NodeLocations {
             .collect()
     }
 
+    /// Another reader of the same file, with a cache of `blocks` blocks of its own (for
+    /// another thread).
+    pub fn fork(&self, blocks: usize) -> Result<NodeLocations, NodeStoreError> {
+        let file = self.file.try_clone().map_err(|source| NodeStoreError::Io {
+            path: self.path.clone(),
+            source,
+        })?;
+        Ok(NodeLocations {
+            path: self.path.clone(),
+            file,
+            runs: self.runs.clone(),
+            cache: (0..blocks.max(1)).map(|_| None).collect(),
+        })
+    }
+
+    /// How many nodes it holds (of one id in several runs, each).
+    pub fn len(&self) -> u64 {
+        self.runs.iter().map(|r| r.len).sum()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
     /// Makes what was written durable.
     pub fn sync(&self) -> Result<(), NodeStoreError> {
         self.file.sync_all().map_err(|source| NodeStoreError::Io {
@@ -417,7 +441,7 @@ impl NodeLocations {
 
     /// Block `number`, from memory or the file.
     fn block(&mut self, number: u64) -> Result<&[u8], NodeStoreError> {
-        let slot = (number % CACHED_BLOCKS as u64) as usize;
+        let slot = (number % self.cache.len().max(1) as u64) as usize;
         let held = matches!(&self.cache[slot], Some((n, _)) if *n == number);
         if !held {
             let mut buffer = vec![0u8; BLOCK].into_boxed_slice();
@@ -499,6 +523,22 @@ mod tests {
         for id in 0..1002 {
             let expected = (1..=1000).contains(&id).then(|| at(id));
             assert_eq!(nodes.get(id).unwrap(), expected, "node {id}");
+        }
+    }
+
+    #[test]
+    fn a_fork_with_a_small_cache_finds_what_the_original_finds() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut writer = NodeWriter::create(&dir.path().join("nodes")).unwrap();
+        for id in (1..20_000).step_by(3) {
+            writer.push(id, at(id)).unwrap();
+        }
+        let mut nodes = writer.finish().unwrap();
+        let mut fork = nodes.fork(2).unwrap();
+        assert_eq!(fork.len(), nodes.len());
+        // Back and forth over many blocks, so the fork's two slots are reused.
+        for id in (0..20_000).rev().chain(0..20_000) {
+            assert_eq!(fork.get(id).unwrap(), nodes.get(id).unwrap(), "node {id}");
         }
     }
 

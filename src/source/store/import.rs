@@ -30,8 +30,9 @@ use osmpbf::{BlobDecode, BlobReader, Element};
 use rusqlite::{params, Connection};
 
 use super::codec::{self, DecodeError};
+use super::resolve::{ResolvedWriter, Resolver};
 use super::{ExtractRecord, FORMAT, SCHEMA};
-use crate::osm::index::{cells_of, is_coastline, meets};
+use crate::osm::index::{cells_of, meets};
 use crate::osm::structures::Classify;
 use crate::osm::{bounds_of, Bounds, LonLat, OsmData, OsmIndex, Tags, Way};
 use crate::source::node_locations::{Decimicro, NodeLocations, NodeStoreError, NodeWriter};
@@ -115,6 +116,8 @@ pub enum ImportError {
     Changed { path: PathBuf },
     #[error("OSM extract {path} holds no nodes")]
     Empty { path: PathBuf },
+    #[error("OSM extract {path} is not sorted by type then id")]
+    Unsorted { path: PathBuf },
     #[error("OSM extract {path}: {source}")]
     Nodes {
         path: PathBuf,
@@ -157,13 +160,13 @@ impl<R: Read> Read for Counting<R> {
 }
 
 /// The store being written.
-struct Partial {
-    path: PathBuf,
-    db: Connection,
+pub(super) struct Partial {
+    pub path: PathBuf,
+    pub db: Connection,
 }
 
 impl Partial {
-    fn sqlite(&self) -> impl Fn(rusqlite::Error) -> ImportError + '_ {
+    pub fn sqlite(&self) -> impl Fn(rusqlite::Error) -> ImportError + '_ {
         move |source| ImportError::Sqlite {
             path: self.path.clone(),
             source,
@@ -181,7 +184,6 @@ pub fn import(
     progress: &dyn Fn(&Progress),
 ) -> Result<Imported, ImportError> {
     let partial_path = with_suffix(store, ".partial");
-    let _ = std::fs::remove_file(&partial_path);
     let nodes_path = new_nodes_path(store);
     let io = |path: &Path| {
         let path = path.to_path_buf();
@@ -197,30 +199,34 @@ pub fn import(
         path: partial_path.clone(),
         source,
     };
-    let db = Connection::open(&partial_path).map_err(sqlite)?;
-    db.execute_batch(
-        "PRAGMA journal_mode = OFF; PRAGMA synchronous = OFF; PRAGMA cache_size = -131072;
-         PRAGMA temp_store = FILE; PRAGMA locking_mode = EXCLUSIVE;",
-    )
-    .map_err(sqlite)?;
-    db.execute_batch(SCHEMA).map_err(sqlite)?;
-    db.execute_batch(
-        "CREATE TEMP TABLE raw_ways (id INTEGER PRIMARY KEY, data BLOB NOT NULL);
-         CREATE TEMP TABLE joint_refs (node INTEGER NOT NULL, way INTEGER NOT NULL);",
-    )
-    .map_err(sqlite)?;
-    let mut partial = Partial {
-        path: partial_path.clone(),
-        db,
-    };
-    let outcome = write_all(&mut partial, extracts, &nodes_path, zoom, rules, progress);
-    let mut imported = match outcome {
-        Ok(imported) => imported,
-        Err(error) => {
-            drop(partial);
-            let _ = std::fs::remove_file(&partial_path);
-            let _ = std::fs::remove_file(&nodes_path);
-            return Err(error);
+    // One extract sorted by type then id (as published extracts are) is read in one pass,
+    // its ways resolved as they come; others are read whole before their ways are resolved.
+    let mut one_pass = extracts.len() == 1;
+    let (partial, mut imported) = loop {
+        let _ = std::fs::remove_file(&partial_path);
+        let mut partial = begin(&partial_path)?;
+        let outcome = write_all(
+            &mut partial,
+            extracts,
+            &nodes_path,
+            zoom,
+            rules,
+            one_pass,
+            progress,
+        );
+        match outcome {
+            Ok(imported) => break (partial, imported),
+            Err(error) => {
+                drop(partial);
+                let _ = std::fs::remove_file(&partial_path);
+                let _ = std::fs::remove_file(&nodes_path);
+                if one_pass && matches!(error, ImportError::Unsorted { .. }) {
+                    tracing::info!("{error}: reading it again, in two passes");
+                    one_pass = false;
+                    continue;
+                }
+                return Err(error);
+            }
         }
     };
     partial.db.execute_batch("ANALYZE;").map_err(sqlite)?;
@@ -234,6 +240,36 @@ pub fn import(
     imported.store_bytes = std::fs::metadata(store).map_or(0, |m| m.len())
         + std::fs::metadata(&nodes_path).map_or(0, |m| m.len());
     Ok(imported)
+}
+
+/// A new store begun at `path`, with the tables the import works in.
+fn begin(path: &Path) -> Result<Partial, ImportError> {
+    let sqlite = |source| ImportError::Sqlite {
+        path: path.to_path_buf(),
+        source,
+    };
+    let db = Connection::open(path).map_err(sqlite)?;
+    db.execute_batch(
+        "PRAGMA journal_mode = OFF; PRAGMA synchronous = OFF; PRAGMA cache_size = -131072;
+         PRAGMA temp_store = FILE; PRAGMA locking_mode = EXCLUSIVE;",
+    )
+    .map_err(sqlite)?;
+    db.execute_batch(SCHEMA).map_err(sqlite)?;
+    // The ways as read, the road network's node references, and the ways (with their boxes)
+    // and nodes that may take part in bridge and tunnel groups (`near_tunnels`: only near a
+    // tunnel).
+    db.execute_batch(
+        "CREATE TEMP TABLE raw_ways (id INTEGER PRIMARY KEY, data BLOB NOT NULL);
+         CREATE TEMP TABLE joint_refs (node INTEGER NOT NULL, way INTEGER NOT NULL);
+         CREATE TEMP TABLE parts (id INTEGER PRIMARY KEY, near_tunnels INTEGER NOT NULL,
+             west REAL NOT NULL, south REAL NOT NULL, east REAL NOT NULL, north REAL NOT NULL);
+         CREATE TEMP TABLE node_parts (id INTEGER PRIMARY KEY);",
+    )
+    .map_err(sqlite)?;
+    Ok(Partial {
+        path: path.to_path_buf(),
+        db,
+    })
 }
 
 /// A new name for the node file of the store at `store`: the store names the one it reads, so
@@ -297,6 +333,7 @@ fn write_all(
     nodes_path: &Path,
     zoom: u8,
     rules: &Rules,
+    one_pass: bool,
     progress: &dyn Fn(&Progress),
 ) -> Result<Imported, ImportError> {
     let total_bytes = extracts
@@ -307,33 +344,47 @@ fn write_all(
         total_bytes,
         ..Progress::default()
     };
-    let mut writer = NodeWriter::create(nodes_path)?;
+    let n = f64::from(1u32 << zoom);
+    let mut nodes = Nodes::Writing(NodeWriter::create(nodes_path)?);
+    let mut ways = ResolvedWriter::new(partial)?;
     let mut records = Vec::new();
     let mut clock = PhaseClock::start();
     for path in extracts {
-        records.push(read_extract(
+        let mut reading = Reading {
             partial,
             path,
             rules,
-            &mut writer,
-            &mut state,
-            progress,
-        )?);
+            n,
+            one_pass,
+        };
+        records.push(reading.extract(&mut nodes, &mut ways, &mut state, progress)?);
     }
+    let mut resolver = nodes.into_resolver()?;
     let mut imported = Imported {
-        nodes: writer.len(),
+        nodes: resolver.locations().len(),
         ..Imported::default()
     };
-    let mut locations = writer.finish()?;
-    write_node_runs(partial, &locations, nodes_path)?;
+    write_node_runs(partial, resolver.locations(), nodes_path)?;
     clock.done(Phase::Reading);
-    state.phase = Phase::Resolving;
-    progress(&state);
-    let n = f64::from(1u32 << zoom);
-    let structure_ways = resolve_ways(partial, &mut locations, n, rules, &mut state, progress)?;
-    locations.sync()?;
-    drop(locations);
-    clock.done(Phase::Resolving);
+    if !one_pass {
+        state.phase = Phase::Resolving;
+        progress(&state);
+        resolve_ways(
+            partial,
+            &mut resolver,
+            &mut ways,
+            n,
+            rules,
+            &state,
+            progress,
+        )?;
+        clock.done(Phase::Resolving);
+    }
+    resolver.locations().sync()?;
+    drop(resolver);
+    let structure_ways = std::mem::take(&mut ways.structure_ways);
+    state.ways = ways.written;
+    drop(ways);
     state.phase = Phase::Indexing;
     progress(&state);
     imported.tagged_nodes = index_nodes(partial, n)?;
@@ -349,6 +400,45 @@ fn write_all(
     progress(&state);
     write_meta(partial, &records, zoom)?;
     Ok(imported)
+}
+
+/// The node file: written while nodes come, read once ways come.
+enum Nodes {
+    Writing(NodeWriter),
+    Reading(Resolver),
+    /// Between the two.
+    Closed,
+}
+
+impl Nodes {
+    /// Ends writing, once; the nodes can be read.
+    fn resolver(&mut self) -> Result<&mut Resolver, ImportError> {
+        if let Nodes::Writing(_) = self {
+            if let Nodes::Writing(writer) = std::mem::replace(self, Nodes::Closed) {
+                *self = Nodes::Reading(Resolver::new(writer.finish()?)?);
+            }
+        }
+        match self {
+            Nodes::Reading(resolver) => Ok(resolver),
+            _ => Err(Nodes::closed()),
+        }
+    }
+
+    fn into_resolver(mut self) -> Result<Resolver, ImportError> {
+        self.resolver()?;
+        match self {
+            Nodes::Reading(resolver) => Ok(resolver),
+            _ => Err(Nodes::closed()),
+        }
+    }
+
+    /// A node file whose writing failed is not read.
+    fn closed() -> ImportError {
+        ImportError::NodeFile(NodeStoreError::Io {
+            path: PathBuf::new(),
+            source: std::io::Error::other("the node file was not finished"),
+        })
+    }
 }
 
 /// One block's elements, ready to write.
@@ -368,6 +458,8 @@ struct NodeRow {
     position: LonLat,
     /// Its tags' row, when it has tags.
     tags: Option<Vec<u8>>,
+    /// Whether it reaches into the ground (and may stand over a tunnel).
+    deep: bool,
 }
 
 enum RowsError {
@@ -379,7 +471,7 @@ enum RowsError {
 const BATCH: usize = 32;
 
 /// Decodes a blob into rows.
-fn rows_of(blob: &osmpbf::Blob, keep_relation: fn(&Tags) -> bool) -> Result<Rows, RowsError> {
+fn rows_of(blob: &osmpbf::Blob, rules: &Rules) -> Result<Rows, RowsError> {
     let mut rows = Rows::default();
     match blob.decode().map_err(|e| RowsError::Pbf(e.to_string()))? {
         BlobDecode::OsmHeader(header) => {
@@ -418,7 +510,7 @@ fn rows_of(blob: &osmpbf::Blob, keep_relation: fn(&Tags) -> bool) -> Result<Rows
                     }
                     Element::Relation(relation) => {
                         let relation = crate::source::osm_pbf::relation_of(relation);
-                        if !keep_relation(&relation.tags) {
+                        if !(rules.relation)(&relation.tags) {
                             continue;
                         }
                         rows.relations
@@ -427,15 +519,17 @@ fn rows_of(blob: &osmpbf::Blob, keep_relation: fn(&Tags) -> bool) -> Result<Rows
                     }
                 };
                 let at = Decimicro::from_nano(id, nano.0, nano.1).map_err(RowsError::Nodes)?;
-                let tags = (!tags.is_empty()).then(|| {
+                let element_tags = tags;
+                let tags = (!element_tags.is_empty()).then(|| {
                     let mut w = codec::Writer::default();
-                    w.tags(&tags);
+                    w.tags(&element_tags);
                     w.0
                 });
                 rows.nodes.push(NodeRow {
                     id,
                     at,
                     position,
+                    deep: tags.is_some() && (rules.depth)(&element_tags).is_some(),
                     tags,
                 });
             }
@@ -446,10 +540,7 @@ fn rows_of(blob: &osmpbf::Blob, keep_relation: fn(&Tags) -> bool) -> Result<Rows
 }
 
 /// Decodes blobs on every core, in their order.
-fn decode_all(
-    blobs: &[(u64, osmpbf::Blob)],
-    keep_relation: fn(&Tags) -> bool,
-) -> Vec<Result<Rows, (u64, RowsError)>> {
+fn decode_all(blobs: &[(u64, osmpbf::Blob)], rules: &Rules) -> Vec<Result<Rows, (u64, RowsError)>> {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let per_thread = blobs.len().div_ceil(threads.max(1)).max(1);
     std::thread::scope(|scope| {
@@ -459,9 +550,7 @@ fn decode_all(
                 scope.spawn(move || {
                     chunk
                         .iter()
-                        .map(|(offset, blob)| {
-                            rows_of(blob, keep_relation).map_err(|e| (*offset, e))
-                        })
+                        .map(|(offset, blob)| rows_of(blob, rules).map_err(|e| (*offset, e)))
                         .collect::<Vec<_>>()
                 })
             })
@@ -480,104 +569,148 @@ fn decode_all(
     })
 }
 
-/// Reads one extract: node positions to the node file, the rest to the store.
-fn read_extract(
-    partial: &Partial,
-    path: &Path,
-    rules: &Rules,
-    nodes: &mut NodeWriter,
-    state: &mut Progress,
-    progress: &dyn Fn(&Progress),
-) -> Result<ExtractRecord, ImportError> {
-    use sha2::Digest;
-    let file = std::fs::File::open(path).map_err(|source| ImportError::Open {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let read = Arc::new(AtomicU64::new(0));
-    let digest = Arc::new(std::sync::Mutex::new(sha2::Sha256::new()));
-    let counting = Counting {
-        inner: std::io::BufReader::with_capacity(1 << 20, file),
-        read: read.clone(),
-        digest: digest.clone(),
-    };
-    let before = state.bytes;
-    let mut reader = BlobReader::new(counting);
-    let failed = |offset: u64, error: RowsError| match error {
-        RowsError::Pbf(message) => ImportError::Pbf {
-            path: path.to_path_buf(),
-            offset,
-            message,
-        },
-        RowsError::Nodes(source) => ImportError::Nodes {
+/// One extract being read.
+struct Reading<'a> {
+    partial: &'a Partial,
+    path: &'a Path,
+    rules: &'a Rules,
+    n: f64,
+    /// Whether its ways are resolved as they come (all its nodes come before them).
+    one_pass: bool,
+}
+
+impl Reading<'_> {
+    fn failed(&self, offset: u64, error: RowsError) -> ImportError {
+        match error {
+            RowsError::Pbf(message) => ImportError::Pbf {
+                path: self.path.to_path_buf(),
+                offset,
+                message,
+            },
+            RowsError::Nodes(source) => ImportError::Nodes {
+                path: self.path.to_path_buf(),
+                source,
+            },
+        }
+    }
+
+    /// Reads the extract: node positions to the node file, the rest to the store.
+    fn extract(
+        &mut self,
+        nodes: &mut Nodes,
+        ways: &mut ResolvedWriter,
+        state: &mut Progress,
+        progress: &dyn Fn(&Progress),
+    ) -> Result<ExtractRecord, ImportError> {
+        use sha2::Digest;
+        let path = self.path;
+        let file = std::fs::File::open(path).map_err(|source| ImportError::Open {
             path: path.to_path_buf(),
             source,
-        },
-    };
-    // The version the store records is the one read: taken before, checked after.
-    let file_version = crate::source::srtm::file_version(path).unwrap_or_default();
-    let mut writer = RowWriter::new(partial)?;
-    partial
-        .db
-        .execute_batch("BEGIN")
-        .map_err(partial.sqlite())?;
-    let (mut header, mut extent, mut sequence) = (None, None, None);
-    loop {
-        let mut batch = Vec::with_capacity(BATCH);
-        while batch.len() < BATCH {
-            let offset = read.load(Ordering::Relaxed);
-            let Some(blob) = reader.next() else { break };
-            let blob = blob.map_err(|e| failed(offset, RowsError::Pbf(e.to_string())))?;
-            batch.push((offset, blob));
+        })?;
+        let read = Arc::new(AtomicU64::new(0));
+        let digest = Arc::new(std::sync::Mutex::new(sha2::Sha256::new()));
+        let counting = Counting {
+            inner: std::io::BufReader::with_capacity(1 << 20, file),
+            read: read.clone(),
+            digest: digest.clone(),
+        };
+        let before = state.bytes;
+        let mut reader = BlobReader::new(counting);
+        // The version the store records is the one read: taken before, checked after.
+        let file_version = crate::source::srtm::file_version(path).unwrap_or_default();
+        let mut writer = RowWriter::new(self.partial)?;
+        let sqlite = self.partial.sqlite();
+        self.partial.db.execute_batch("BEGIN").map_err(&sqlite)?;
+        let (mut header, mut extent, mut sequence) = (None, None, None);
+        let mut last_way = None;
+        loop {
+            let mut batch = Vec::with_capacity(BATCH);
+            while batch.len() < BATCH {
+                let offset = read.load(Ordering::Relaxed);
+                let Some(blob) = reader.next() else { break };
+                let blob = blob.map_err(|e| self.failed(offset, RowsError::Pbf(e.to_string())))?;
+                batch.push((offset, blob));
+            }
+            if batch.is_empty() {
+                break;
+            }
+            let mut batch_ways = Vec::new();
+            for rows in decode_all(&batch, self.rules) {
+                let mut rows = rows.map_err(|(offset, e)| self.failed(offset, e))?;
+                header = rows.header.or(header);
+                sequence = rows.sequence.or(sequence);
+                if self.one_pass && last_way.is_some() && !rows.nodes.is_empty() {
+                    return Err(self.unsorted());
+                }
+                if self.one_pass {
+                    for &(id, _) in &rows.ways {
+                        if last_way.is_some_and(|last| id <= last) {
+                            return Err(self.unsorted());
+                        }
+                        last_way = Some(id);
+                    }
+                    state.ways += rows.ways.len() as u64;
+                    batch_ways.append(&mut rows.ways);
+                }
+                let node_writer = match nodes {
+                    Nodes::Writing(node_writer) => Some(node_writer),
+                    _ if rows.nodes.is_empty() => None,
+                    _ => return Err(self.unsorted()),
+                };
+                writer.write(rows, node_writer, &mut extent, state)?;
+            }
+            if !batch_ways.is_empty() {
+                let resolved = nodes.resolver()?.resolve(&batch_ways, self.n, self.rules)?;
+                for way in resolved {
+                    ways.write(way)?;
+                }
+            }
+            state.bytes = before + read.load(Ordering::Relaxed);
+            progress(state);
         }
-        if batch.is_empty() {
-            break;
-        }
-        for rows in decode_all(&batch, rules.relation) {
-            let rows = rows.map_err(|(offset, e)| failed(offset, e))?;
-            header = rows.header.or(header);
-            sequence = rows.sequence.or(sequence);
-            writer.write(rows, nodes, &mut extent, state)?;
-        }
-        state.bytes = before + read.load(Ordering::Relaxed);
-        progress(state);
-    }
-    drop(writer);
-    partial
-        .db
-        .execute_batch("COMMIT")
-        .map_err(partial.sqlite())?;
-    drop(reader);
-    let digest = std::mem::take(&mut *digest.lock().unwrap_or_else(|p| p.into_inner()));
-    let digest: String = digest.finalize()[..8]
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
-    let bounds = header.or(extent).ok_or_else(|| ImportError::Empty {
-        path: path.to_path_buf(),
-    })?;
-    if crate::source::srtm::file_version(path).unwrap_or_default() != file_version {
-        return Err(ImportError::Changed {
+        drop(writer);
+        self.partial.db.execute_batch("COMMIT").map_err(&sqlite)?;
+        drop(reader);
+        let digest = std::mem::take(&mut *digest.lock().unwrap_or_else(|p| p.into_inner()));
+        let digest: String = digest.finalize()[..8]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        let bounds = header.or(extent).ok_or_else(|| ImportError::Empty {
             path: path.to_path_buf(),
-        });
+        })?;
+        if crate::source::srtm::file_version(path).unwrap_or_default() != file_version {
+            return Err(ImportError::Changed {
+                path: path.to_path_buf(),
+            });
+        }
+        Ok(ExtractRecord {
+            // Absolute, so the store is found current whichever directory a later command
+            // runs in (a relative path would name another file there, and the store would be
+            // imported again, losing the diffs applied to it).
+            path: std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()),
+            digest,
+            file_version,
+            bounds: [bounds.west, bounds.south, bounds.east, bounds.north],
+            replication_sequence: sequence,
+        })
     }
-    Ok(ExtractRecord {
-        // Absolute, so the store is found current whichever directory a later command runs in
-        // (a relative path would name another file there, and the store would be imported
-        // again, losing the diffs applied to it).
-        path: std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()),
-        digest,
-        file_version,
-        bounds: [bounds.west, bounds.south, bounds.east, bounds.north],
-        replication_sequence: sequence,
-    })
+
+    fn unsorted(&self) -> ImportError {
+        ImportError::Unsorted {
+            path: self.path.to_path_buf(),
+        }
+    }
 }
 
 /// Writes decoded rows: where an element is already stored (from an extract listed before),
-/// the first one stays.
+/// the first one stays. Raw ways are kept to be resolved when all nodes are read, unless they
+/// were taken to be resolved at once.
 struct RowWriter<'a> {
     partial: &'a Partial,
     node: rusqlite::Statement<'a>,
+    node_part: rusqlite::Statement<'a>,
     way: rusqlite::Statement<'a>,
     relation: rusqlite::Statement<'a>,
 }
@@ -585,39 +718,41 @@ struct RowWriter<'a> {
 impl<'a> RowWriter<'a> {
     fn new(partial: &'a Partial) -> Result<RowWriter<'a>, ImportError> {
         let sqlite = partial.sqlite();
-        let db = &partial.db;
+        let prepare = |sql: &str| partial.db.prepare(sql).map_err(&sqlite);
         Ok(RowWriter {
             partial,
-            node: db
-                .prepare("INSERT OR IGNORE INTO nodes (id, lon, lat, tags) VALUES (?1, ?2, ?3, ?4)")
-                .map_err(&sqlite)?,
-            way: db
-                .prepare("INSERT OR IGNORE INTO raw_ways (id, data) VALUES (?1, ?2)")
-                .map_err(&sqlite)?,
-            relation: db
-                .prepare("INSERT OR IGNORE INTO relations (id, data) VALUES (?1, ?2)")
-                .map_err(&sqlite)?,
+            node: prepare(
+                "INSERT OR IGNORE INTO nodes (id, lon, lat, tags) VALUES (?1, ?2, ?3, ?4)",
+            )?,
+            node_part: prepare("INSERT OR IGNORE INTO node_parts (id) VALUES (?1)")?,
+            way: prepare("INSERT OR IGNORE INTO raw_ways (id, data) VALUES (?1, ?2)")?,
+            relation: prepare("INSERT OR IGNORE INTO relations (id, data) VALUES (?1, ?2)")?,
         })
     }
 
     fn write(
         &mut self,
         rows: Rows,
-        nodes: &mut NodeWriter,
+        nodes: Option<&mut NodeWriter>,
         extent: &mut Option<Bounds>,
         state: &mut Progress,
     ) -> Result<(), ImportError> {
         let sqlite = self.partial.sqlite();
-        for node in rows.nodes {
-            nodes.push(node.id, node.at)?;
-            crate::source::osm_pbf::grow(extent, node.position);
-            if let Some(tags) = node.tags {
-                let p = node.position;
-                self.node
-                    .execute(params![node.id, p.lon, p.lat, tags])
-                    .map_err(&sqlite)?;
+        if let Some(nodes) = nodes {
+            for node in rows.nodes {
+                nodes.push(node.id, node.at)?;
+                crate::source::osm_pbf::grow(extent, node.position);
+                if let Some(tags) = node.tags {
+                    let p = node.position;
+                    self.node
+                        .execute(params![node.id, p.lon, p.lat, tags])
+                        .map_err(&sqlite)?;
+                    if node.deep {
+                        self.node_part.execute(params![node.id]).map_err(&sqlite)?;
+                    }
+                }
+                state.nodes += 1;
             }
-            state.nodes += 1;
         }
         for (id, row) in rows.ways {
             self.way.execute(params![id, row]).map_err(&sqlite)?;
@@ -631,110 +766,51 @@ impl<'a> RowWriter<'a> {
     }
 }
 
-/// Resolves the raw ways into ways with positions, registers them in the cells, and keeps the
-/// node references of the road network. Returns the ids of the bridge and tunnel ways.
+/// Ways resolved at once, over the cores.
+const RESOLVE_BATCH: usize = 16_384;
+
+/// Resolves the raw ways kept while the extracts were read, in id order.
 fn resolve_ways(
     partial: &Partial,
-    locations: &mut NodeLocations,
+    resolver: &mut Resolver,
+    writer: &mut ResolvedWriter,
     n: f64,
     rules: &Rules,
-    state: &mut Progress,
+    state: &Progress,
     progress: &dyn Fn(&Progress),
-) -> Result<Vec<i64>, ImportError> {
+) -> Result<(), ImportError> {
     let sqlite = partial.sqlite();
     let db = &partial.db;
     db.execute_batch("BEGIN").map_err(&sqlite)?;
     let mut read = db
         .prepare("SELECT id, data FROM raw_ways ORDER BY id")
         .map_err(&sqlite)?;
-    let mut insert_way = db
-        .prepare("INSERT INTO ways (id, data) VALUES (?1, ?2)")
-        .map_err(&sqlite)?;
-    let mut insert_cell = db
-        .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 1, ?3)")
-        .map_err(&sqlite)?;
-    let mut insert_ref = db
-        .prepare("INSERT INTO joint_refs (node, way) VALUES (?1, ?2)")
-        .map_err(&sqlite)?;
-    let mut insert_coast = db
-        .prepare("INSERT INTO coastlines (way) VALUES (?1)")
-        .map_err(&sqlite)?;
-    let mut insert_incomplete = db
-        .prepare("INSERT INTO incomplete_ways (way, data) VALUES (?1, ?2)")
-        .map_err(&sqlite)?;
-    let mut insert_missing = db
-        .prepare("INSERT OR IGNORE INTO missing_nodes (node, way) VALUES (?1, ?2)")
-        .map_err(&sqlite)?;
-    let mut structure_ways = Vec::new();
     let mut rows = read.query([]).map_err(&sqlite)?;
-    let mut resolved = 0u64;
-    while let Some(row) = rows.next().map_err(&sqlite)? {
-        let id: i64 = row.get(0).map_err(&sqlite)?;
-        let data: Vec<u8> = row.get(1).map_err(&sqlite)?;
-        let (tags, refs) = codec::decode_raw_way(&data)?;
-        let mut nodes = Vec::with_capacity(refs.len());
-        let mut at = Vec::with_capacity(refs.len());
-        let mut missing = Vec::new();
-        for &node in &refs {
-            match locations.get(node)? {
-                Some(p) => {
-                    nodes.push(node);
-                    at.push(p);
-                }
-                None => missing.push(node),
+    let mut batch = Vec::with_capacity(RESOLVE_BATCH);
+    loop {
+        let row = rows.next().map_err(&sqlite)?;
+        if let Some(row) = row {
+            batch.push((
+                row.get::<_, i64>(0).map_err(&sqlite)?,
+                row.get::<_, Vec<u8>>(1).map_err(&sqlite)?,
+            ));
+            if batch.len() < RESOLVE_BATCH {
+                continue;
             }
         }
-        if !missing.is_empty() {
-            insert_incomplete
-                .execute(params![id, data])
-                .map_err(&sqlite)?;
-            for node in missing {
-                insert_missing.execute(params![node, id]).map_err(&sqlite)?;
-            }
+        for way in resolver.resolve(&batch, n, rules)? {
+            writer.write(way)?;
         }
-        if nodes.len() < 2 {
-            continue;
+        progress(state);
+        if batch.len() < RESOLVE_BATCH {
+            break;
         }
-        let positions: Vec<LonLat> = at
-            .iter()
-            .map(|p| {
-                let (lon, lat) = p.lon_lat();
-                LonLat { lon, lat }
-            })
-            .collect();
-        insert_way
-            .execute(params![id, codec::encode_way(&tags, &nodes, &at)])
-            .map_err(&sqlite)?;
-        if let Some(bounds) = bounds_of(&positions) {
-            for (x, y) in cells_of(&bounds, n) {
-                insert_cell.execute(params![x, y, id]).map_err(&sqlite)?;
-            }
-        }
-        if (rules.joins)(&tags) {
-            for (k, &node) in nodes.iter().enumerate() {
-                // As the in-memory index counts: a node next to itself is a duplicated point.
-                if k > 0 && nodes[k - 1] == node {
-                    continue;
-                }
-                insert_ref.execute(params![node, id]).map_err(&sqlite)?;
-            }
-        }
-        if (rules.classify)(&tags).is_some() {
-            structure_ways.push(id);
-        }
-        if is_coastline(&tags) {
-            insert_coast.execute(params![id]).map_err(&sqlite)?;
-        }
-        resolved += 1;
-        if resolved % 10_000 == 0 {
-            progress(state);
-        }
+        batch.clear();
     }
     drop(rows);
-    state.ways = resolved;
     db.execute_batch("COMMIT; DROP TABLE raw_ways;")
         .map_err(&sqlite)?;
-    Ok(structure_ways)
+    Ok(())
 }
 
 /// Registers every row `select` gives (an id and a blob or two coordinates) as an element of
@@ -893,25 +969,46 @@ fn find_structures(
     let n = f64::from(1u32 << zoom);
     // The store is read for one cluster while the groups of the one before are found.
     let clusters = batches(clusters(&partial.db, structure_ways, n, rules)?);
+    // Found on every core (their order is restored below).
+    let finders = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let (send, receive) = std::sync::mpsc::sync_channel::<(&Cluster, OsmData)>(finders);
+    let receive = std::sync::Mutex::new(receive);
+    let receive = &receive;
     let mut found: Vec<FoundGroup> = std::thread::scope(|scope| {
-        let (send, receive) = std::sync::mpsc::sync_channel::<(&Cluster, OsmData)>(1);
-        let finder = scope.spawn(move || {
-            receive
-                .into_iter()
-                .flat_map(|(cluster, data): (&Cluster, OsmData)| cluster.groups(data, zoom, rules))
-                .collect::<Vec<_>>()
-        });
+        let workers: Vec<_> = (0..finders)
+            .map(|_| {
+                scope.spawn(move || {
+                    let mut found = Vec::new();
+                    loop {
+                        let next = receive.lock().unwrap_or_else(|p| p.into_inner()).recv();
+                        let Ok((cluster, data)) = next else { break };
+                        found.extend(cluster.groups(data, zoom, rules));
+                    }
+                    found
+                })
+            })
+            .collect();
         for cluster in &clusters {
-            let data = cluster_data(&partial.db, &partial.path, cluster, rules)?;
+            let data = cluster_data(
+                &partial.db,
+                &partial.path,
+                cluster,
+                rules,
+                Candidates::Marked,
+            )?;
             if send.send((cluster, data)).is_err() {
                 break;
             }
         }
         drop(send);
-        finder.join().map_err(|_| ImportError::Io {
-            path: partial.path.clone(),
-            source: std::io::Error::other("finding bridge and tunnel groups panicked"),
-        })
+        let mut found = Vec::new();
+        for worker in workers {
+            found.extend(worker.join().map_err(|_| ImportError::Io {
+                path: partial.path.clone(),
+                source: std::io::Error::other("finding bridge and tunnel groups panicked"),
+            })?);
+        }
+        Ok::<_, ImportError>(found)
     })?;
     found.sort_by_key(|g| g.first_way);
     let sqlite = partial.sqlite();
@@ -969,6 +1066,8 @@ pub(super) struct Cluster {
     pub ways: BTreeSet<i64>,
     pub cells: BTreeSet<(u32, u32)>,
     pub near_tunnels: BTreeSet<(u32, u32)>,
+    /// In each cell, the grown boxes of its structure ways there.
+    pub boxes: BTreeMap<(u32, u32), Vec<Bounds>>,
 }
 
 impl Cluster {
@@ -1026,6 +1125,9 @@ pub(super) fn clusters(
         if *tunnel {
             cluster.near_tunnels.extend(cells.iter().copied());
         }
+        for &cell in &cells {
+            cluster.boxes.entry(cell).or_default().push(*b);
+        }
         cluster.cells.extend(cells);
     }
     Ok(by_root.into_values().collect())
@@ -1052,6 +1154,9 @@ fn batches(clusters: Vec<Cluster>) -> Vec<Cluster> {
         batch.ways.extend(cluster.ways);
         batch.cells.extend(cluster.cells);
         batch.near_tunnels.extend(cluster.near_tunnels);
+        for (cell, boxes) in cluster.boxes {
+            batch.boxes.entry(cell).or_default().extend(boxes);
+        }
     }
     merged.into_values().collect()
 }
@@ -1078,6 +1183,37 @@ impl DisjointSets {
     }
 }
 
+/// Which of a cell's elements are read to find groups.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Candidates {
+    /// Every one (the store as a diff finds it).
+    Every,
+    /// Those the import marked as able to take part (its `parts` and `node_parts`).
+    Marked,
+}
+
+impl Candidates {
+    /// The query of a cell's nodes and ways: `kind`, `id`, whether it takes part only near
+    /// tunnels, and a way's box when known.
+    fn query(self) -> &'static str {
+        match self {
+            Candidates::Every => {
+                "SELECT kind, id, 0, NULL, NULL, NULL, NULL FROM cells
+                     WHERE x = ?1 AND y = ?2 AND kind < 2"
+            }
+            Candidates::Marked => {
+                "SELECT c.kind, c.id, p.near_tunnels, p.west, p.south, p.east, p.north
+                     FROM cells c JOIN parts p ON p.id = c.id
+                     WHERE c.x = ?1 AND c.y = ?2 AND c.kind = 1
+                 UNION ALL
+                 SELECT c.kind, c.id, 1, NULL, NULL, NULL, NULL
+                     FROM cells c JOIN node_parts p ON p.id = c.id
+                     WHERE c.x = ?1 AND c.y = ?2 AND c.kind = 0"
+            }
+        }
+    }
+}
+
 /// What can take part in a cluster's groups: the structure ways, the ways they may cross, and
 /// near tunnels what reaches down into the ground.
 pub(super) fn cluster_data(
@@ -1085,6 +1221,7 @@ pub(super) fn cluster_data(
     path: &Path,
     cluster: &Cluster,
     rules: &Rules,
+    candidates: Candidates,
 ) -> Result<OsmData, ImportError> {
     use crate::osm::structures::may_be_crossed;
     let sqlite = |source| ImportError::Sqlite {
@@ -1095,20 +1232,44 @@ pub(super) fn cluster_data(
     let mut way_ids: Vec<(i64, bool)> = Vec::new();
     let mut node_ids: Vec<(i64, bool)> = Vec::new();
     {
-        let mut in_cell = db
-            .prepare_cached("SELECT kind, id FROM cells WHERE x = ?1 AND y = ?2 AND kind < 2")
-            .map_err(&sqlite)?;
+        let mut in_cell = db.prepare_cached(candidates.query()).map_err(&sqlite)?;
         for &cell in &cluster.cells {
             let tunnel = cluster.near_tunnels.contains(&cell);
+            let structures = cluster.boxes.get(&cell).map_or(&[][..], Vec::as_slice);
             let rows = in_cell
                 .query_map(params![cell.0, cell.1], |row| {
-                    Ok((row.get::<_, i64>(0)?, row.get::<_, i64>(1)?))
+                    let bounds = match row.get::<_, Option<f64>>(3)? {
+                        Some(west) => Some(Bounds {
+                            west,
+                            south: row.get(4)?,
+                            east: row.get(5)?,
+                            north: row.get(6)?,
+                        }),
+                        None => None,
+                    };
+                    Ok((
+                        row.get::<_, i64>(0)?,
+                        row.get::<_, i64>(1)?,
+                        row.get::<_, bool>(2)?,
+                        bounds,
+                    ))
                 })
                 .map_err(&sqlite)?;
             for row in rows {
-                match row.map_err(&sqlite)? {
-                    (0, id) => node_ids.push((id, tunnel)),
-                    (_, id) => way_ids.push((id, tunnel)),
+                let (kind, id, near_tunnels_only, bounds) = row.map_err(&sqlite)?;
+                // One near tunnels only is left out where there are none (were it near one
+                // in another cell, that cell gives it), and a way whose box meets no grown box
+                // of a structure way here (it neither crosses one nor stands over a tunnel;
+                // where it meets one in another cell, that cell gives it).
+                if near_tunnels_only && !tunnel {
+                    continue;
+                }
+                if bounds.is_some_and(|b| !structures.iter().any(|s| meets(s, &b))) {
+                    continue;
+                }
+                match kind {
+                    0 => node_ids.push((id, tunnel)),
+                    _ => way_ids.push((id, tunnel)),
                 }
             }
         }

@@ -11,6 +11,7 @@
 
 pub mod codec;
 pub mod import;
+mod resolve;
 pub mod update;
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};

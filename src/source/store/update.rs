@@ -13,7 +13,7 @@ use std::time::Duration;
 
 use rusqlite::{params, Connection, OpenFlags, OptionalExtension};
 
-use super::import::{cluster_data, clusters, FoundGroup, ImportError, Rules};
+use super::import::{cluster_data, clusters, Candidates, FoundGroup, ImportError, Rules};
 use super::{codec, StoreError, FORMAT};
 use crate::osm::index::{cells_of, is_coastline, meets, ABOVE_TUNNEL_DEG};
 use crate::osm::{bounds_of, Bounds, ElementType, LonLat, Relation, Way};
@@ -1223,7 +1223,7 @@ impl Update<'_> {
         let ids: Vec<i64> = members.into_iter().collect();
         let mut new_groups: BTreeMap<i64, FoundGroup> = BTreeMap::new();
         for cluster in clusters(self.db, &ids, self.n, self.rules)? {
-            let data = cluster_data(self.db, self.path, &cluster, self.rules)?;
+            let data = cluster_data(self.db, self.path, &cluster, self.rules, Candidates::Every)?;
             for group in cluster.groups(data, self.zoom, self.rules) {
                 new_groups.insert(group.first_way, group);
             }
