@@ -390,9 +390,9 @@ fn render_one(
     if let Err(uncovered) = sources.check_coverage(tile) {
         anyhow::bail!(uncovered);
     }
-    let mosaic = sources.mosaic(tile)?;
     let osm = sources.osm_for(tile)?;
     let selection = osm.selection(tile);
+    let mosaic = sources.mosaic_for(tile, &selection)?;
     let load = started.elapsed();
     let rendered = terrastitch::render::render_within(
         tile,

@@ -160,3 +160,98 @@ fn monaco_neighbours_share_their_edges_exactly() {
 fn tiles_across_two_srtm_files_share_their_edges_exactly() {
     check_region(ulm_tiles(), repo().join("tests/data"), 4);
 }
+
+fn python() -> String {
+    std::env::var("TERRASTITCH_PYTHON").unwrap_or_else(|_| "python3".to_string())
+}
+
+/// Writes an extract of `ways` (tags and `[lon, lat]` nodes) with `scripts/ways_extract.py`.
+fn write_extract(ways: &serde_json::Value, out: &Path) {
+    use std::io::Write;
+    let mut child = std::process::Command::new(python())
+        .arg(repo().join("scripts/ways_extract.py"))
+        .arg(out)
+        .stdin(std::process::Stdio::piped())
+        .spawn()
+        .expect("python runs");
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(ways.to_string().as_bytes())
+        .unwrap();
+    assert!(child.wait().unwrap().success(), "ways_extract.py failed");
+}
+
+/// The SRTM3 sample of an `.hgt` file nearest to a point.
+fn hgt_sample(hgt: &[u8], cell: (f64, f64), lon: f64, lat: f64) -> f64 {
+    let row = ((cell.1 + 1.0 - lat) * 1200.0).round() as usize;
+    let column = ((lon - cell.0) * 1200.0).round() as usize;
+    let k = 2 * (row * 1201 + column);
+    f64::from(i16::from_be_bytes([hgt[k], hgt[k + 1]]))
+}
+
+#[test]
+fn a_river_across_two_srtm_files_runs_at_the_same_level_in_tiles_that_read_one_or_both() {
+    // A river flowing east across 10° E, from N48E009 into N48E010: 14/8647/5668 straddles the
+    // two files, 14/8648/5668 (east of it) lies in N48E010 alone, but the river's fall is
+    // found along the whole way.
+    let (west, east, lat) = (9.985, 10.035, 48.3925);
+    let dir = tempfile::tempdir().unwrap();
+    let extract = dir.path().join("river.osm.pbf");
+    write_extract(
+        &serde_json::json!([{
+            "tags": {"waterway": "river", "name": "Across"},
+            "nodes": [[west, lat], [9.999, lat + 0.001], [10.002, lat - 0.001], [east, lat]],
+        }]),
+        &extract,
+    );
+    let srtm = repo().join("tests/data");
+    let args = [
+        "--osm".as_ref(),
+        extract.as_os_str(),
+        "--srtm".as_ref(),
+        srtm.as_os_str(),
+    ];
+    let tiles: BTreeMap<(u32, u32), DecodedTile> = [(8647, 5668), (8648, 5668)]
+        .into_iter()
+        .map(|(x, y)| {
+            let glb = render_in_process(&format!("14/{x}/{y}"), &args, dir.path());
+            ((x, y), decode(&glb))
+        })
+        .collect();
+    assert_eq!(check_pairs(&tiles), 1);
+    // No vertex of the river's water below the lowest ground along it (SRTM samples every
+    // 20 m of the line; the terrain between samples may dip a little below them).
+    let files = [
+        (
+            (9.0, 48.0),
+            std::fs::read(srtm.join("N48E009.hgt")).unwrap(),
+        ),
+        (
+            (10.0, 48.0),
+            std::fs::read(srtm.join("N48E010.hgt")).unwrap(),
+        ),
+    ];
+    let lowest_ground = (0..=200)
+        .map(|k| west + (east - west) * f64::from(k) / 200.0)
+        .map(|lon| {
+            let (cell, hgt) = &files[usize::from(lon >= 10.0)];
+            hgt_sample(hgt, *cell, lon, lat)
+        })
+        .fold(f64::INFINITY, f64::min);
+    let scale = lat.to_radians().cos();
+    for ((x, y), tile) in &tiles {
+        let water: Vec<f64> = tile
+            .primitives("water")
+            .iter()
+            .flat_map(|p| p.positions.iter().map(|v| f64::from(v[1]) * scale))
+            .collect();
+        assert!(!water.is_empty(), "14/{x}/{y} draws the river");
+        let low = water.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(
+            low > lowest_ground - 5.0,
+            "14/{x}/{y}: the river's water reaches down to {low:.1} m, the ground along it no lower than {lowest_ground:.1} m"
+        );
+    }
+}

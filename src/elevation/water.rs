@@ -50,20 +50,35 @@ fn downstream(line: &[Point], terrain: &dyn Elevation, metres_per_unit: f64) -> 
     }
     let step = SHORE_STEP_M / metres_per_unit;
     let mut lowest = f64::INFINITY;
-    let profile: Vec<(f64, f64)> = samples_along(line, step)
+    // Where the ground is unknown (no SRTM file), the lowest ground met before holds.
+    let mut profile: Vec<(f64, f64)> = samples_along(line, step)
         .into_iter()
         .map(|(along, p)| {
-            lowest = lowest.min(terrain.elevation_uv(p));
+            if let Some(h) = terrain.known_elevation_uv(p) {
+                lowest = lowest.min(h);
+            }
             (along, lowest)
         })
         .collect();
+    // Stations before the first known ground lie at its level; a way over no known ground
+    // at all, at sea level.
+    let first = profile
+        .iter()
+        .map(|&(_, h)| h)
+        .find(|h| h.is_finite())
+        .unwrap_or(0.0);
+    for (_, h) in &mut profile {
+        if !h.is_finite() {
+            *h = first;
+        }
+    }
     Some(Rule::Along {
         stations: Stations::new(line),
         profile,
     })
 }
 
-/// The lowest ground along the rings of a surface's pieces.
+/// The lowest known ground along the rings of a surface's pieces.
 fn shore_minimum(surface: &Surface, terrain: &dyn Elevation, metres_per_unit: f64) -> Option<f64> {
     let step = SHORE_STEP_M / metres_per_unit;
     let mut lowest: Option<f64> = None;
@@ -74,12 +89,16 @@ fn shore_minimum(surface: &Surface, terrain: &dyn Elevation, metres_per_unit: f6
             let steps = (length / step).ceil().max(1.0) as usize;
             for k in 0..steps {
                 let t = k as f64 / steps as f64;
-                let h = terrain.elevation_uv([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
-                lowest = Some(lowest.map_or(h, |l: f64| l.min(h)));
+                let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+                // Where the ground is unknown (no SRTM file), the shore is not counted.
+                if let Some(h) = terrain.known_elevation_uv(p) {
+                    lowest = Some(lowest.map_or(h, |l: f64| l.min(h)));
+                }
             }
         }
     }
-    lowest
+    // A shore over no known ground at all lies at sea level.
+    lowest.or(Some(0.0))
 }
 
 #[cfg(test)]
@@ -129,6 +148,42 @@ mod tests {
             ground.elevation_uv([0.095, 0.15]),
             Slope.elevation_uv([0.095, 0.15])
         );
+    }
+
+    /// The slope where `u` ≥ 0.2; no file west of it.
+    struct CutSlope;
+    impl Elevation for CutSlope {
+        fn elevation_uv(&self, p: [f64; 2]) -> f64 {
+            self.known_elevation_uv(p).unwrap_or(0.0)
+        }
+        fn known_elevation_uv(&self, p: [f64; 2]) -> Option<f64> {
+            (p[0] >= 0.2).then(|| Slope.elevation_uv(p))
+        }
+    }
+
+    #[test]
+    fn a_waterway_over_unknown_ground_holds_the_known_level_instead_of_dropping_to_sea_level() {
+        // From where no file covers the ground, east into it and back west out of it.
+        let line = vec![[0.10, 0.5], [0.40, 0.5], [0.40, 0.6], [0.05, 0.6]];
+        let rule = downstream(&line, &CutSlope, 1000.0).expect("a profile");
+        let Rule::Along { profile, .. } = &rule else {
+            panic!("{rule:?}");
+        };
+        let lowest = profile
+            .iter()
+            .map(|&(_, h)| h)
+            .fold(f64::INFINITY, f64::min);
+        assert!((lowest - 20.0).abs() < 0.1, "lowest station {lowest}");
+        assert!(profile.windows(2).all(|w| w[1].1 <= w[0].1));
+        // A lake half over unknown ground lies at its lowest known shore.
+        let lake = Polygon {
+            outer: vec![[0.10, 0.10], [0.30, 0.10], [0.30, 0.20], [0.10, 0.20]],
+            holes: Vec::new(),
+        };
+        let surface =
+            Surface::from_polygons(FeatureClass::Water, 0, vec![lake]).expect("a surface");
+        let level = shore_minimum(&surface, &CutSlope, 1000.0).expect("a level");
+        assert!((level - 20.0).abs() < 1e-9, "{level}");
     }
 
     #[test]

@@ -234,50 +234,9 @@ impl Inputs {
     /// the tile's own cells that cannot be had is an error; one only its margin reaches is
     /// left out (the terrain there comes from the files there are).
     pub fn fetch_missing_srtm(&self, tile: TileId) -> Result<(), MissingSrtm> {
-        let (Some(template), Some(fetcher)) = (&self.srtm_url, &self.fetcher) else {
-            return Ok(());
-        };
         let own = Self::cells_for(tile);
-        for cell in Self::mosaic_cells(tile).filter(|c| !self.srtm.has(*c)) {
-            let (url, name) = fetch::srtm_download(template, &cell.name());
-            let fetched = fetcher
-                .fetch(&Download {
-                    url: &url,
-                    name: &name,
-                    source_name: "SRTM",
-                })
-                .map_err(|e| {
-                    if e.is_not_found() {
-                        MissingSrtm::NotFound {
-                            tile,
-                            reason: e.to_string(),
-                        }
-                    } else {
-                        MissingSrtm::Failed {
-                            tile,
-                            reason: e.to_string(),
-                        }
-                    }
-                })
-                .and_then(|path| {
-                    self.srtm.insert(cell, &path).map_err(|e| {
-                        // An unusable file is not kept, and not asked for again before the
-                        // failure memory runs out.
-                        let _ = std::fs::remove_file(&path);
-                        fetcher.remember_failure(
-                            &name,
-                            FetchError::Io {
-                                path: path.clone(),
-                                message: e.to_string(),
-                            },
-                        );
-                        MissingSrtm::Failed {
-                            tile,
-                            reason: e.to_string(),
-                        }
-                    })
-                });
-            match fetched {
+        for cell in Self::mosaic_cells(tile) {
+            match self.fetch_cell(tile, cell) {
                 Ok(()) => {}
                 Err(error) if own.contains(&cell) => return Err(error),
                 Err(error) => {
@@ -286,6 +245,55 @@ impl Inputs {
             }
         }
         Ok(())
+    }
+
+    /// Downloads the SRTM file of `cell` (for `tile`) when the directories lack it and files
+    /// can be fetched.
+    fn fetch_cell(&self, tile: TileId, cell: CellId) -> Result<(), MissingSrtm> {
+        let (Some(template), Some(fetcher)) = (&self.srtm_url, &self.fetcher) else {
+            return Ok(());
+        };
+        if self.srtm.has(cell) {
+            return Ok(());
+        }
+        let (url, name) = fetch::srtm_download(template, &cell.name());
+        fetcher
+            .fetch(&Download {
+                url: &url,
+                name: &name,
+                source_name: "SRTM",
+            })
+            .map_err(|e| {
+                if e.is_not_found() {
+                    MissingSrtm::NotFound {
+                        tile,
+                        reason: e.to_string(),
+                    }
+                } else {
+                    MissingSrtm::Failed {
+                        tile,
+                        reason: e.to_string(),
+                    }
+                }
+            })
+            .and_then(|path| {
+                self.srtm.insert(cell, &path).map_err(|e| {
+                    // An unusable file is not kept, and not asked for again before the
+                    // failure memory runs out.
+                    let _ = std::fs::remove_file(&path);
+                    fetcher.remember_failure(
+                        &name,
+                        FetchError::Io {
+                            path: path.clone(),
+                            message: e.to_string(),
+                        },
+                    );
+                    MissingSrtm::Failed {
+                        tile,
+                        reason: e.to_string(),
+                    }
+                })
+            })
     }
 
     /// The source files that changed on disk since they were read: an extract rewritten or
@@ -458,8 +466,33 @@ impl Inputs {
 
     /// The SRTM files around a tile (its own cells and any its margin reaches).
     pub fn mosaic(&self, tile: TileId) -> Result<Mosaic, SrtmError> {
+        self.mosaic_of(Self::mosaic_cells(tile))
+    }
+
+    /// The SRTM files a tile made from `selection` reads: those around it, and those along
+    /// the ways it is made from and its bridge and tunnel groups. What is found over a whole
+    /// way (a river's fall, a lake's level, a group's or a road stretch's profile) reads the
+    /// terrain along all of it, so every tile that shows part of it reads the same files and
+    /// finds the same. Files along the ways that are missing are fetched when they can be;
+    /// where none can be had, the terrain there is unknown.
+    pub fn mosaic_for(
+        &self,
+        tile: TileId,
+        selection: &crate::osm::index::Selection<'_>,
+    ) -> Result<Mosaic, SrtmError> {
+        let mut cells: std::collections::BTreeSet<CellId> = Self::mosaic_cells(tile).collect();
+        cells.extend(reach_cells(selection));
+        for &cell in &cells {
+            if let Err(error) = self.fetch_cell(tile, cell) {
+                tracing::info!(%tile, %error, "an SRTM file along the tile's ways is not available");
+            }
+        }
+        self.mosaic_of(cells.into_iter())
+    }
+
+    fn mosaic_of(&self, cells: impl Iterator<Item = CellId>) -> Result<Mosaic, SrtmError> {
         let mut tiles: Vec<Arc<crate::terrain::cell::SrtmTile>> = Vec::new();
-        for cell in Self::mosaic_cells(tile) {
+        for cell in cells {
             if let Some(t) = self.srtm.tile(cell)? {
                 tiles.push(t);
             }
@@ -470,5 +503,64 @@ impl Inputs {
     /// The OSM data a tile is made from (its [`TileOsm::selection`] is what is near it).
     pub fn osm_for(&self, tile: TileId) -> Result<TileOsm<'_>, StoreError> {
         self.osm.tile(tile)
+    }
+}
+
+/// The SRTM cells within [`MOSAIC_MARGIN_DEG`] of the ways of a selection (and of its
+/// relations' member ways) and of its bridge and tunnel groups' chains. A segment longer than
+/// [`LONGEST_SEGMENT_DEG`] (a ferry line, an error) adds the cells of its ends only.
+fn reach_cells(selection: &crate::osm::index::Selection<'_>) -> std::collections::BTreeSet<CellId> {
+    use crate::osm::{ElementType, LonLat};
+    let mut cells = std::collections::BTreeSet::new();
+    let mut along = |positions: &[LonLat]| {
+        for pair in positions.windows(2) {
+            let (a, b) = (pair[0], pair[1]);
+            let long = (a.lon - b.lon).abs().max((a.lat - b.lat).abs()) > LONGEST_SEGMENT_DEG;
+            if long {
+                along_pair(&mut cells, a, a);
+                along_pair(&mut cells, b, b);
+            } else {
+                along_pair(&mut cells, a, b);
+            }
+        }
+    };
+    for way in &selection.ways {
+        along(&way.positions);
+    }
+    let all = selection.all_ways;
+    for relation in &selection.relations {
+        for member in &relation.members {
+            if member.element.element_type != ElementType::Way {
+                continue;
+            }
+            if let Ok(i) = all.binary_search_by_key(&member.element.id, |w| w.id) {
+                along(&all[i].positions);
+            }
+        }
+    }
+    for group in &selection.structures {
+        for chain in &group.chains {
+            along(&chain.positions);
+        }
+    }
+    cells
+}
+
+/// Longer segments do not bring the cells between their ends into a tile's mosaic.
+const LONGEST_SEGMENT_DEG: f64 = 1.0;
+
+/// Adds the cells within [`MOSAIC_MARGIN_DEG`] of the box of `a` and `b`.
+fn along_pair(
+    cells: &mut std::collections::BTreeSet<CellId>,
+    a: crate::osm::LonLat,
+    b: crate::osm::LonLat,
+) {
+    let m = MOSAIC_MARGIN_DEG;
+    let lats = (a.lat.min(b.lat) - m).floor() as i32..=(a.lat.max(b.lat) + m).floor() as i32;
+    let lons = (a.lon.min(b.lon) - m).floor() as i32..=(a.lon.max(b.lon) + m).floor() as i32;
+    for lat in lats {
+        for lon in lons.clone() {
+            cells.insert(CellId { lat, lon });
+        }
     }
 }

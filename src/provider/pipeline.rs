@@ -49,11 +49,11 @@ pub fn make(
     deadline: Deadline,
 ) -> Result<Made, MakeError> {
     let tile = key.tile;
-    let mosaic = sources.mosaic(tile)?;
     match key.format {
         Format::Glb(variant) => {
             let osm = sources.osm_for(tile)?;
             let selection = osm.selection(tile);
+            let mosaic = sources.mosaic_for(tile, &selection)?;
             let rendered = crate::render::render_within(
                 tile, &selection, &mosaic, settings, variant, deadline,
             )?;
@@ -69,17 +69,19 @@ pub fn make(
             let rendered = if tile.z < served_zoom {
                 crate::render::render_overview_terrain(
                     tile,
-                    &mosaic,
+                    &sources.mosaic(tile)?,
                     settings,
                     served_zoom,
                     extensions,
                     deadline,
                 )
             } else {
+                let osm = sources.osm_for(tile)?;
+                let selection = osm.selection(tile);
                 crate::render::render_terrain(
                     tile,
-                    &sources.osm_for(tile)?.selection(tile),
-                    &mosaic,
+                    &selection,
+                    &sources.mosaic_for(tile, &selection)?,
                     settings,
                     extensions,
                     deadline,

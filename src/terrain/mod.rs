@@ -99,10 +99,22 @@ impl<'a> TerrainModel<'a> {
 /// ground once features have settled it.
 pub trait Elevation {
     fn elevation_uv(&self, p: [f64; 2]) -> f64;
+
+    /// The elevation at `p` where the ground there is known (`None` where no SRTM file
+    /// covers it).
+    fn known_elevation_uv(&self, p: [f64; 2]) -> Option<f64> {
+        Some(self.elevation_uv(p))
+    }
 }
 
 impl Elevation for TerrainModel<'_> {
     fn elevation_uv(&self, p: [f64; 2]) -> f64 {
         TerrainModel::elevation_uv(self, p)
+    }
+
+    fn known_elevation_uv(&self, p: [f64; 2]) -> Option<f64> {
+        let lon = crate::tile::u_to_lon(p[0], self.tiles_per_axis);
+        let lat = crate::tile::v_to_lat(p[1], self.tiles_per_axis);
+        self.elevation(lon, lat)
     }
 }
