@@ -212,11 +212,27 @@ fn every_building_of_a_tag_rich_tile_is_a_closed_shell_at_its_tagged_height() {
             let (low, high) = buildings::ground_range(base, &terrain, &terrain, srtm_step_uv(tile));
             assert_eq!(low, solid.ground);
             let tagged = building.height_m + building.basement_m.min(high - low);
-            if building.height_tagged && (top - solid.ground - tagged).abs() > 0.01 {
+            // A pitched roof stands on levels counted alone: its eaves at their top.
+            let on_levels = building.roof.over_levels && !solid.flat_roof;
+            let reached = if on_levels {
+                solid
+                    .roof
+                    .iter()
+                    .flatten()
+                    .map(|c| c[2])
+                    .fold(f64::INFINITY, f64::min)
+            } else {
+                top
+            };
+            if building.height_tagged && (reached - solid.ground - tagged).abs() > 0.01 {
+                let what_reached = if on_levels { "eaves" } else { "top" };
                 failures.push(format!(
-                    "{what}: top {:.3} m above the ground, tagged {tagged:.3} m",
-                    top - solid.ground,
+                    "{what}: {what_reached} {:.3} m above the ground, tagged {tagged:.3} m",
+                    reached - solid.ground,
                 ));
+            }
+            if on_levels && top <= reached {
+                failures.push(format!("{what}: no roof above the levels"));
             }
             if solid.floating && (bottom - solid.ground - building.min_height_m).abs() > 0.01 {
                 failures.push(format!("{what}: floats at {bottom}"));

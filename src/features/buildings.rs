@@ -1,7 +1,9 @@
 //! Buildings: footprints (ways and multipolygons with courtyards) with a height.
 //!
 //! Height: `height`, else `building:levels` (+ `roof:levels`) × the level height, else a default
-//! by building type; the bottom at `min_height`, else `building:min_level` × the level height.
+//! by building type (a pitched roof stands on top of `building:levels` counted alone, see
+//! [`RoofSpec::over_levels`]); the bottom at `min_height`, else `building:min_level` × the level
+//! height.
 //! Nonsense values (negative, not numbers, absurdly tall) are ignored with a debug log.
 //!
 //! `building:part` areas replace the outline they lie in where they cover it (Simple 3D
@@ -251,15 +253,23 @@ pub struct RoofSpec {
     pub direction_deg: Option<f64>,
     /// `roof:orientation=across`: the ridge runs across the longer side, not along it.
     pub across: bool,
+    /// The building's height counts the levels under the roof only (`building:levels`, with
+    /// neither `height` nor `roof:levels`): the roof stands on top of them instead of being
+    /// carved out of them.
+    pub over_levels: bool,
 }
 
 /// Pitch of a roof with neither a height nor an angle tagged: 30°.
 const DEFAULT_PITCH_DEG: f64 = 30.0;
 
-/// The roof from `roof:shape`, `roof:height`, `roof:levels`, `roof:angle`, `roof:direction`
-/// and `roof:orientation`. An unknown shape is drawn flat, with a debug log.
+/// The roof from `roof:shape` (or its synonym `building:roof:shape`), `roof:height`,
+/// `roof:levels`, `roof:angle`, `roof:direction` and `roof:orientation`. An unknown shape is
+/// drawn flat, with a debug log.
 pub fn roof_spec(tags: &Tags, settings: &FeatureSettings) -> RoofSpec {
-    let shape = match tags.get("roof:shape") {
+    let tagged_shape = tags
+        .get("roof:shape")
+        .or_else(|| tags.get("building:roof:shape"));
+    let shape = match tagged_shape {
         // Untagged, small houses and sheds have gabled roofs far more often than flat ones.
         None if matches!(
             tags.get("building"),
@@ -309,12 +319,25 @@ pub fn roof_spec(tags: &Tags, settings: &FeatureSettings) -> RoofSpec {
         }
         parsed
     });
+    let height_tagged = tags
+        .get("height")
+        .and_then(parse_length_m)
+        .is_some_and(|h| h > 0.0 && h <= MAX_HEIGHT_M);
+    let levels_tagged = tags
+        .get("building:levels")
+        .and_then(parse_count)
+        .is_some_and(|l| l > 0.0 && l <= MAX_LEVELS);
+    let roof_levels_tagged = tags
+        .get("roof:levels")
+        .and_then(parse_count)
+        .is_some_and(|l| (0.0..=20.0).contains(&l));
     RoofSpec {
         shape,
         height_m,
         pitch: angle.to_radians().tan(),
         direction_deg,
         across: tags.get("roof:orientation") == Some("across"),
+        over_levels: !height_tagged && levels_tagged && !roof_levels_tagged,
     }
 }
 

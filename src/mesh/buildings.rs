@@ -188,11 +188,16 @@ pub fn solid(building: &BuildingShape, size_m: f64, low: f64, high: f64) -> Soli
         ..Solid::default()
     };
     let at = |p: Point, elevation: f64| [p[0], p[1], elevation];
-    // A pitched roof takes its height from the top; the walls stop at its eaves, on the rings
-    // the roof stands on, so the two meet edge for edge.
+    // A pitched roof takes its height from the top, or stands on it when the height counts
+    // the levels under the roof only; the walls stop at its eaves, on the rings the roof stands
+    // on, so the two meet edge for edge.
     let eaves = match &pitched {
         Some(roof) => {
-            let eaves = top - roof.height;
+            let eaves = if building.roof.over_levels {
+                top
+            } else {
+                top - roof.height
+            };
             rings.clone_from(&roof.rings);
             let raise = |c: [f64; 3]| [c[0], c[1], eaves + c[2]];
             solid.roof = roof.slopes.iter().map(|t| t.map(raise)).collect();
@@ -709,6 +714,65 @@ mod tests {
             .map(|c| c[2])
             .fold(0.0, f64::max);
         assert!((eaves - (low + 20.0)).abs() < 1e-9, "{eaves}");
+    }
+
+    /// The height of a solid's walls at the corner `(0, 0)` of its plan (the eaves of a roof
+    /// whose gables stand elsewhere).
+    fn eaves(solid: &Solid) -> f64 {
+        solid
+            .walls
+            .iter()
+            .flatten()
+            .filter(|c| c[0].abs() < 1e-9 && c[1].abs() < 1e-9)
+            .map(|c| c[2])
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    #[test]
+    fn a_pitched_roof_stands_on_the_levels_tagged_not_in_them() {
+        let house = [[0.0, 0.0], [10.0, 0.0], [10.0, 8.0], [0.0, 8.0]];
+        // Two levels of walls, the gabled roof on top (4 m wide each side at 30°).
+        let levels = solid(
+            &building(&[("building", "house"), ("building:levels", "2")], &house),
+            1000.0,
+            0.0,
+            0.0,
+        );
+        assert!(!levels.flat_roof);
+        let ridge = 4.0 * 30f64.to_radians().tan();
+        assert!((eaves(&levels) - 6.0).abs() < 1e-9, "{}", eaves(&levels));
+        assert!((heights(&levels).1 - (6.0 + ridge)).abs() < 1e-6);
+        // The synonym `building:roof:shape` is the same roof.
+        let synonym = solid(
+            &building(
+                &[
+                    ("building", "yes"),
+                    ("building:levels", "2"),
+                    ("building:roof:shape", "gabled"),
+                ],
+                &house,
+            ),
+            1000.0,
+            0.0,
+            0.0,
+        );
+        assert_eq!(heights(&synonym), heights(&levels));
+        // A tagged height holds the roof; so do levels that count the roof's own (of 3 m).
+        for (tags, roof) in [
+            (&[("building", "house"), ("height", "6")][..], ridge),
+            (
+                &[
+                    ("building", "house"),
+                    ("building:levels", "1"),
+                    ("roof:levels", "1"),
+                ][..],
+                3.0,
+            ),
+        ] {
+            let shell = solid(&building(tags, &house), 1000.0, 0.0, 0.0);
+            assert!((heights(&shell).1 - 6.0).abs() < 1e-9, "{tags:?}");
+            assert!((eaves(&shell) - (6.0 - roof)).abs() < 1e-6, "{tags:?}");
+        }
     }
 
     #[test]
