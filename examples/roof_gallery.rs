@@ -135,6 +135,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     pitch: 0.6,
                     direction_deg: None,
                     across: false,
+                    over_levels: false,
                 },
                 min_height_m: 0.0,
                 drawn: true,
