@@ -62,8 +62,9 @@ pub struct ConstraintReport {
 }
 
 /// What a way's tags ask of its grade, along a run in its direction or, `reversed`, against
-/// it: the steepest grade either way (the class's, or a steeper tagged one) and the tagged
-/// grade as a relation on the rise per metre.
+/// it: the steepest grade either way (the tagged grade's size, else the class's) and the
+/// direction the tags give (`incline=up`, `down`, or a grade's sign) as a relation on the rise
+/// per metre.
 pub(crate) struct GradeAsked {
     pub steepest: Option<f64>,
     pub tagged: Option<(Relation, f64)>,
@@ -72,20 +73,23 @@ pub(crate) struct GradeAsked {
 impl GradeAsked {
     pub fn of(slope: Slope, reversed: bool) -> GradeAsked {
         let incline = slope.incline;
-        let mut steepest = slope.max_incline;
-        if let (Some(max), Some(Incline::Grade(g))) = (steepest, incline) {
-            steepest = Some(max.max(g.abs()));
-        }
+        // A tagged grade is the steepest the way gets (OSM and the thesis read it so), in place
+        // of its class's, and says which way it rises; `0%` holds it level.
+        let steepest = match incline {
+            Some(Incline::Grade(g)) => Some(g.abs()),
+            _ => slope.max_incline,
+        };
         let (up, down) = if reversed {
             (Relation::AtMost, Relation::AtLeast)
         } else {
             (Relation::AtLeast, Relation::AtMost)
         };
         let tagged = match incline {
-            Some(Incline::Grade(g)) => Some((Relation::Equal, if reversed { -g } else { g })),
+            Some(Incline::Grade(g)) if g > 0.0 => Some((up, 0.0)),
+            Some(Incline::Grade(g)) if g < 0.0 => Some((down, 0.0)),
             Some(Incline::Up) => Some((up, 0.0)),
             Some(Incline::Down) => Some((down, 0.0)),
-            None => None,
+            Some(Incline::Grade(_)) | None => None,
         };
         GradeAsked { steepest, tagged }
     }

@@ -667,15 +667,42 @@ mod tests {
         );
     }
 
-    /// A street tagged `incline=10%` between two level joints cannot rise: the tagged grade
-    /// gives way and is reported, on that way only; the level street beside it is untouched.
+    /// A street tagged `incline=10%` between two level joints lies level: the tag is the
+    /// steepest it gets, not a grade it must keep.
     #[test]
-    fn a_contradicted_incline_bends_only_its_way() {
-        let terrain = East(|_| 10.0);
+    fn a_tagged_grade_bounds_a_street_between_level_joints() {
         let ways = vec![
             way(
                 1,
                 &[("highway", "residential"), ("incline", "10%")],
+                &[(1, 0.0, 0.0), (2, 100.0, 0.0)],
+            ),
+            way(
+                2,
+                &[("highway", "residential")],
+                &[(1, 0.0, 0.0), (3, 0.0, 60.0)],
+            ),
+        ];
+        let settled = settle_all(&ways, &joints(&ways), &East(|_| 10.0));
+        assert!(settled.violations.is_empty(), "{:?}", settled.violations);
+        for id in [1, 2] {
+            let profile = &settled.profiles[&id].elevations;
+            assert!(
+                profile.iter().all(|&h| (h - 10.0).abs() < 1e-6),
+                "{profile:?}"
+            );
+        }
+    }
+
+    /// A street tagged `incline=up` whose far joint lies 3 m lower cannot rise: the tag
+    /// gives way and is reported, on that way only; the streets beside it keep the ground.
+    #[test]
+    fn a_contradicted_incline_bends_only_its_way() {
+        let terrain = East(|x| 10.0 - 0.03 * x);
+        let ways = vec![
+            way(
+                1,
+                &[("highway", "residential"), ("incline", "up")],
                 &[(1, 0.0, 0.0), (2, 100.0, 0.0)],
             ),
             way(
@@ -701,11 +728,12 @@ mod tests {
             .iter()
             .all(|r| r.way == 1 && r.kind == ConstraintKind::TaggedIncline));
         for id in [2, 3, 4] {
-            assert!(settled.profiles[&id].elevations.iter().all(|&h| h == 10.0));
+            let profile = &settled.profiles[&id];
+            assert_eq!(profile.elevations, profile.terrain, "way {id}");
         }
         let profile = &settled.profiles[&1];
         assert_eq!(profile.elevations[0], 10.0);
-        assert_eq!(*profile.elevations.last().unwrap(), 10.0);
+        assert!((profile.elevations.last().unwrap() - 7.0).abs() < 1e-9);
     }
 
     /// Where a street leaves a junction the network cuts it back; over the cut it lies at

@@ -184,8 +184,9 @@ pub enum Incline {
     Down,
 }
 
-/// Parses `incline=*`: `10%`, `-5 %`, `3°`, `up`, `down`; `None` for anything else (and for
-/// grades steeper than 100 %, taken as mistakes).
+/// Parses `incline=*`: `10%`, `-5 %`, `3°`, a bare number as percent (`12`), `up`, `down`;
+/// `None` for anything else (and for grades steeper than 100 %, taken as mistakes). A grade
+/// is the steepest the way gets, its sign the way it rises.
 pub fn incline(tags: &Tags) -> Option<Incline> {
     let value = tags.get("incline")?.trim();
     match value {
@@ -198,7 +199,7 @@ pub fn incline(tags: &Tags) -> Option<Incline> {
     } else if let Some(degrees) = value.strip_suffix('°') {
         degrees.trim().parse::<f64>().ok()?.to_radians().tan()
     } else {
-        return None;
+        value.parse::<f64>().ok()? / 100.0
     };
     (grade.is_finite() && grade.abs() <= 1.0).then_some(Incline::Grade(grade))
 }
@@ -383,6 +384,7 @@ mod tests {
             panic!("degrees");
         };
         assert!((g - 1.0).abs() < 1e-12);
+        assert_eq!(parse("12"), Some(Incline::Grade(0.12)));
         assert_eq!(parse("steep"), None);
         assert_eq!(parse("300%"), None);
     }
