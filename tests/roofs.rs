@@ -298,3 +298,68 @@ fn metal_roofs_get_a_metallic_material() {
         .sum::<usize>();
     assert!(metal_roofs > 0);
 }
+
+/// Every building wholly inside a tile is a closed shell in the glb itself: each edge (by the
+/// bits of its two positions) is met by exactly one other triangle's edge running the other way.
+/// A building the tile's edge cuts is open there only.
+#[test]
+fn every_building_inside_a_tile_is_a_closed_shell_in_the_glb() {
+    use std::collections::BTreeMap;
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let bytes = common::render_in_process(
+        "14/8529/5973",
+        &[
+            "--osm".as_ref(),
+            "tests/data/monaco-planetiler-2021.osm.pbf".as_ref(),
+        ],
+        dir.path(),
+    );
+    let tile = decode(&bytes);
+    let size = tile.tile_size() as f32;
+    type Key = [u32; 3];
+    let key = |p: [f32; 3]| p.map(f32::to_bits);
+    let on_border = |p: [f32; 3]| p[0] == 0.0 || p[0] == size || p[2] == 0.0 || p[2] == size;
+    // Directed edges of each building, and whether the building touches the tile's edge.
+    let mut edges: BTreeMap<u32, BTreeMap<(Key, Key), i32>> = BTreeMap::new();
+    let mut cut: std::collections::BTreeSet<u32> = Default::default();
+    for primitive in tile.primitives("building") {
+        for t in primitive.indices.chunks_exact(3) {
+            let feature = primitive.feature_ids[t[0] as usize];
+            let corners = [0, 1, 2].map(|k| primitive.positions[t[k] as usize]);
+            if corners.iter().any(|&p| on_border(p)) {
+                cut.insert(feature);
+            }
+            let building = edges.entry(feature).or_default();
+            for k in 0..3 {
+                let (a, b) = (key(corners[k]), key(corners[(k + 1) % 3]));
+                if a == b {
+                    continue;
+                }
+                *building.entry((a, b)).or_default() += 1;
+            }
+        }
+    }
+    let (mut closed, mut open) = (0, Vec::new());
+    for (feature, building) in &edges {
+        if cut.contains(feature) {
+            continue;
+        }
+        let unmatched = building
+            .iter()
+            .filter(|(&(a, b), &n)| building.get(&(b, a)).copied().unwrap_or(0) != n)
+            .count();
+        if unmatched == 0 {
+            closed += 1;
+        } else {
+            open.push((tile.features[*feature as usize].osm_id, unmatched));
+        }
+    }
+    assert!(closed > 50, "{closed} closed buildings");
+    assert!(
+        open.is_empty(),
+        "{} of {} buildings inside the tile are open (way, unmatched edges): {:?}",
+        open.len(),
+        open.len() + closed,
+        &open[..open.len().min(10)]
+    );
+}

@@ -93,9 +93,9 @@ pub struct Solid {
     pub roof: Vec<[[f64; 3]; 3]>,
     /// True when the roof is flat (one normal for all its triangles).
     pub flat_roof: bool,
-    /// The bottom, facing down: drawn under a part that floats, underground otherwise.
+    /// The bottom, facing down: under a part that floats, underground otherwise.
     pub floor: Vec<[[f64; 3]; 3]>,
-    /// True for a part above the ground (`min_height`): its floor is drawn.
+    /// True for a part above the ground (`min_height`).
     pub floating: bool,
     /// Why the roof is simpler than the tags asked for, if it is.
     pub fallback: Option<Fallback>,
@@ -313,8 +313,7 @@ pub fn solids(
         .collect()
 }
 
-/// Adds the part of a building's shell inside the tile: walls, roof, and the floor of a part
-/// that floats.
+/// Adds the part of a building's shell inside the tile: walls, roof and floor.
 pub fn extrude(
     building: &BuildingShape,
     solid: &Solid,
@@ -360,9 +359,9 @@ pub fn extrude(
         }
         out
     };
-    if solid.floating {
-        walls.push_flat_triangles(&fan(&solid.floor), [0.0, -1.0, 0.0], building.feature);
-    }
+    // The floor closes the shell (under the ground where the building stands on it), so a
+    // building is a closed solid in the tile for printing, volumes and shadow volumes.
+    walls.push_flat_triangles(&fan(&solid.floor), [0.0, -1.0, 0.0], building.feature);
     if solid.flat_roof {
         roofs.push_flat_triangles(&fan(&solid.roof), [0.0, 1.0, 0.0], building.feature);
     } else {
