@@ -6,8 +6,8 @@
 //! height.
 //! Nonsense values (negative, not numbers, absurdly tall) are ignored with a debug log.
 //!
-//! `building:part` areas replace the outline they lie in where they cover it (Simple 3D
-//! Buildings): an outline covered by its parts is not drawn, only cut out of the ground.
+//! `building:part` areas replace the outline they lie in (Simple 3D Buildings): an outline
+//! with parts is not drawn, only cut out of the ground.
 
 use std::collections::HashMap;
 
@@ -46,9 +46,6 @@ pub fn min_height_m(tags: &Tags, settings: &FeatureSettings) -> f64 {
         .filter(|l| (0.0..=MAX_LEVELS).contains(l))
         .map_or(0.0, |l| l * settings.level_height_m)
 }
-
-/// Share of an outline's area its parts must cover for the parts alone to be drawn.
-const PARTS_COVER: f64 = 0.9;
 
 /// Links the members of `type=building` relations: every `part` stands on the base of the
 /// `outline`, which is then drawn only through its parts (it still cuts the ground).
@@ -89,8 +86,10 @@ pub(super) fn link_building_relations(set: &mut FeatureSet, relations: &[&Relati
     }
 }
 
-/// Hides the outlines that their `building:part`s cover, and stands every part on the base of
-/// the outline it lies in (parts that a `type=building` relation placed already keep theirs).
+/// Hides the outlines that hold `building:part`s (Simple 3D Buildings: once a building has
+/// parts, the parts are the building and the outline only marks its place), and stands every
+/// part on the base of the outline it lies in (parts that a `type=building` relation placed
+/// already keep theirs).
 pub(super) fn replace_outlines_by_parts(set: &mut FeatureSet) {
     let is_part = |b: &BuildingShape| {
         set.features[b.feature as usize]
@@ -106,7 +105,7 @@ pub(super) fn replace_outlines_by_parts(set: &mut FeatureSet) {
     let outlines: Vec<usize> = (0..set.buildings.len())
         .filter(|&i| !is_part(&set.buildings[i]))
         .collect();
-    let mut covered = vec![0.0; set.buildings.len()];
+    let mut has_parts = vec![false; set.buildings.len()];
     for &p in &parts {
         let footprint = &set.buildings[p].footprint;
         let probe = interior_point(footprint);
@@ -115,13 +114,12 @@ pub(super) fn replace_outlines_by_parts(set: &mut FeatureSet) {
             outline.bounds().contains(probe) && outline.contains(probe)
         });
         if let Some(o) = owner {
-            covered[o] += footprint.area();
+            has_parts[o] = true;
             set.buildings[p].base = Some(o);
         }
     }
     for o in outlines {
-        let area = set.buildings[o].footprint.area();
-        if area > 0.0 && covered[o] >= PARTS_COVER * area {
+        if has_parts[o] {
             set.buildings[o].drawn = false;
         }
     }
@@ -800,18 +798,20 @@ mod tests {
             &[("building:part", "yes"), ("min_height", "3")],
             square(1.0, 2.0),
         );
-        // A second building that only one small part covers stays drawn.
+        // A second building with one small part is drawn through its part alone; a third,
+        // without parts, stays drawn.
         add(&mut set, &[("building", "yes")], square(5.0, 9.0));
         add(&mut set, &[("building:part", "yes")], square(5.0, 6.0));
+        add(&mut set, &[("building", "yes")], square(10.0, 11.0));
         replace_outlines_by_parts(&mut set);
         let drawn: Vec<bool> = set.buildings.iter().map(|b| b.drawn).collect();
-        assert_eq!(drawn, vec![false, true, true, true, true]);
+        assert_eq!(drawn, vec![false, true, true, false, true, true]);
         assert_eq!(set.buildings[1].base, Some(0));
         assert_eq!(set.buildings[4].base, Some(3));
         assert_eq!(set.buildings[2].min_height_m, 3.0);
 
         // A building relation ties a part to its outline even where the part reaches beyond it
-        // (ways 6 and 7), and takes precedence over the part's position.
+        // (ways 7 and 8), and takes precedence over the part's position.
         add(&mut set, &[("building", "yes")], square(20.0, 22.0));
         add(&mut set, &[("building:part", "yes")], square(21.0, 25.0));
         let way = |id| crate::osm::Member {
@@ -827,18 +827,19 @@ mod tests {
             members: vec![
                 crate::osm::Member {
                     role: "outline".into(),
-                    ..way(6)
+                    ..way(7)
                 },
                 crate::osm::Member {
                     role: "part".into(),
-                    ..way(7)
+                    ..way(8)
                 },
             ],
         };
         link_building_relations(&mut set, &[&relation]);
         replace_outlines_by_parts(&mut set);
-        assert_eq!(set.buildings[6].base, Some(5));
-        assert!(!set.buildings[5].drawn && set.buildings[6].drawn);
+        assert_eq!(set.buildings[7].base, Some(6));
+        assert!(!set.buildings[6].drawn && set.buildings[7].drawn);
+        assert!(set.buildings[5].drawn);
     }
 
     #[test]
