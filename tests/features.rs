@@ -373,3 +373,36 @@ async fn power_lines_hang_above_the_ground() {
     );
     server.stop().await;
 }
+
+/// A road through a building (`tunnel=building_passage`) is a road on the ground, drawn up to
+/// the building's walls: Monaco's 14/8529/5974 has four, two of them reaching beyond their
+/// building (the other two lie wholly under theirs, whose walls stand over them).
+#[test]
+fn roads_through_buildings_are_drawn_on_the_ground() {
+    let dir = tempfile::tempdir().unwrap();
+    let tile = decode(&common::render_in_process("14/8529/5974", &[], dir.path()));
+    let passages: Vec<(usize, i64)> = tile
+        .features
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.tags.get("tunnel").and_then(|v| v.as_str()) == Some("building_passage"))
+        .map(|(index, f)| (index, f.osm_id))
+        .collect();
+    let drawn = |feature: usize| {
+        tile.primitives("road").iter().any(|p| {
+            p.indices
+                .chunks_exact(3)
+                .any(|t| p.feature_ids[t[0] as usize] as usize == feature)
+        })
+    };
+    let undrawn: Vec<i64> = passages
+        .iter()
+        .filter(|&&(feature, _)| !drawn(feature))
+        .map(|&(_, id)| id)
+        .collect();
+    assert!(passages.len() >= 4, "passages with a row: {passages:?}");
+    assert!(
+        passages.len() - undrawn.len() >= 2,
+        "passages without a road: {undrawn:?}"
+    );
+}

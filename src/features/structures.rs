@@ -271,9 +271,10 @@ impl WayTraits {
 }
 
 /// True for ways drawn below or away from the ground surface (bridges and tunnels are drawn as
-/// structures of their own).
+/// structures of their own). A passage through a building (`tunnel=building_passage`) runs on
+/// the ground.
 pub fn is_off_ground(tags: &Tags) -> bool {
-    tags.is_set("tunnel")
+    (tags.is_set("tunnel") && tags.get("tunnel") != Some("building_passage"))
         || classify(tags).is_some()
         || tags.get("indoor").is_some_and(|v| v != "no")
         || tags.get("location") == Some("underground")
