@@ -4,9 +4,10 @@ bundled extracts do not cover.
 
     ways_extract.py OUT.osm.pbf < ways.json
 
-The JSON is a list of ways, each `{"tags": {...}, "nodes": [[lon, lat], ...]}`. Ways are
-numbered from 1 and their nodes from 1 in the order given (a position given twice in one way
-is one node, so a closed ring closes); the file is sorted by type then id.
+The JSON is a list of ways, each `{"tags": {...}, "nodes": [[lon, lat], ...]}`; a node may
+carry tags of its own as a third item, `[lon, lat, {...}]`. Ways are numbered from 1 and their
+nodes from 1 in the order given (a position given twice in one way is one node, so a closed
+ring closes); the file is sorted by type then id.
 """
 
 import json
@@ -28,15 +29,19 @@ def main():
     for way in ways:
         ids = {}
         way_refs = []
-        for lon, lat in way["nodes"]:
+        for node in way["nodes"]:
+            lon, lat = node[0], node[1]
+            tags = node[2] if len(node) > 2 else {}
             key = (lon, lat)
             if key not in ids:
-                nodes.append((len(nodes) + 1, lon, lat))
+                nodes.append((len(nodes) + 1, lon, lat, tags))
                 ids[key] = len(nodes)
             way_refs.append(ids[key])
         refs.append(way_refs)
-    for node_id, lon, lat in nodes:
-        writer.add_node(osmium.osm.mutable.Node(id=node_id, location=(lon, lat), version=1))
+    for node_id, lon, lat, tags in nodes:
+        writer.add_node(
+            osmium.osm.mutable.Node(id=node_id, location=(lon, lat), tags=tags, version=1)
+        )
     for k, (way, way_refs) in enumerate(zip(ways, refs)):
         writer.add_way(
             osmium.osm.mutable.Way(id=k + 1, nodes=way_refs, tags=way["tags"], version=1)

@@ -706,12 +706,16 @@ fn render_glb(
         Part::PowerLine,
         mesh::power::build(&feature_set.power_lines, frame, &settled),
     );
+    let decks: Vec<&elevation::structures::Profile> = structures
+        .iter()
+        .flat_map(|s| &s.profiles)
+        .filter(|p| p.kind == crate::osm::structures::StructureKind::Bridge)
+        .collect();
     let instanced = mesh::instances::place(
-        &feature_set.trees,
-        &feature_set.objects,
+        (&feature_set.trees, &feature_set.objects),
         feature_set,
-        ground,
-        &vertex_y,
+        (ground, &vertex_y),
+        &decks,
         frame,
     );
     timings.shapes = started.elapsed();

@@ -406,3 +406,97 @@ fn roads_through_buildings_are_drawn_on_the_ground() {
         "passages without a road: {undrawn:?}"
     );
 }
+
+fn python() -> String {
+    std::env::var("TERRASTITCH_PYTHON").unwrap_or_else(|_| "python3".to_string())
+}
+
+/// A street lamp on a bridge's way stands on the deck, not on the ground under it.
+#[test]
+fn a_lamp_on_a_bridge_stands_on_its_deck() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let extract = dir.path().join("bridge.osm.pbf");
+    // A bridge over a primary road in 14/8529/5974, a lamp on it right over the road.
+    let ways = serde_json::json!([
+        {
+            "tags": {"highway": "residential", "bridge": "yes", "layer": "1"},
+            "nodes": [[7.4195, 43.735], [7.4205, 43.735, {"highway": "street_lamp"}], [7.4215, 43.735]],
+        },
+        {
+            "tags": {"highway": "primary"},
+            "nodes": [[7.4205, 43.734], [7.4205, 43.736]],
+        },
+    ]);
+    let mut child = std::process::Command::new(python())
+        .arg(common::repo().join("scripts/ways_extract.py"))
+        .arg(&extract)
+        .stdin(std::process::Stdio::piped())
+        .spawn()
+        .expect("python runs");
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(ways.to_string().as_bytes())
+        .unwrap();
+    assert!(child.wait().unwrap().success());
+    let bytes = common::render_in_process(
+        "14/8529/5974",
+        &["--osm".as_ref(), extract.as_os_str()],
+        dir.path(),
+    );
+    let root = gltf_json(&bytes);
+    let decoded = decode(&bytes);
+    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+    let blob = gltf.blob.clone().unwrap();
+    let lamp = root["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|n| n["name"] == "street_lamp")
+        .expect("the lamp is drawn");
+    let attributes = &lamp["extensions"]["EXT_mesh_gpu_instancing"]["attributes"];
+    let foot = accessor_floats(&gltf, &blob, attributes["TRANSLATION"].as_u64().unwrap());
+    assert_eq!(foot.len(), 3, "one lamp");
+    // The deck's top right there: the highest up-facing bridge triangle over the lamp; the
+    // road under it, the lowest road triangle there.
+    let (x, z) = (f64::from(foot[0]), f64::from(foot[2]));
+    let heights_at = |node: &str| -> Vec<f32> {
+        decoded
+            .primitives(node)
+            .iter()
+            .flat_map(|p| {
+                p.triangles()
+                    .filter(|t| p.normals[t[0]][1] > 0.9)
+                    .map(|t| t.map(|k| p.positions[k].map(f64::from)))
+                    .collect::<Vec<_>>()
+            })
+            .filter_map(|[a, b, c]| {
+                let d = (b[2] - c[2]) * (a[0] - c[0]) + (c[0] - b[0]) * (a[2] - c[2]);
+                let wa = ((b[2] - c[2]) * (x - c[0]) + (c[0] - b[0]) * (z - c[2])) / d;
+                let wb = ((c[2] - a[2]) * (x - c[0]) + (a[0] - c[0]) * (z - c[2])) / d;
+                let wc = 1.0 - wa - wb;
+                (d.abs() > 1e-12 && wa >= -1e-6 && wb >= -1e-6 && wc >= -1e-6)
+                    .then(|| (wa * a[1] + wb * b[1] + wc * c[1]) as f32)
+            })
+            .collect()
+    };
+    let deck = heights_at("bridge")
+        .into_iter()
+        .fold(f32::NEG_INFINITY, f32::max);
+    assert!(deck.is_finite(), "the deck is drawn over the lamp");
+    assert!(
+        (foot[1] - deck).abs() < 0.05,
+        "the lamp's foot at {} m, the deck's top at {deck} m",
+        foot[1]
+    );
+    // And the deck clears the road: the lamp is well above the road under it.
+    let ground = heights_at("road").into_iter().fold(f32::INFINITY, f32::min);
+    assert!(ground.is_finite(), "the road is drawn under the lamp");
+    assert!(
+        foot[1] > ground + 4.0,
+        "lamp {} over a road at {ground}",
+        foot[1]
+    );
+}

@@ -1,12 +1,14 @@
 //! Instances of the models on the ground: trees and street-level objects, each standing where
 //! the ground triangulation says it may — a forest tree only on its forest's own ground (not on a
 //! road or a path through it), anything else anywhere but under a building or in water. A foot is
-//! placed on the ground mesh itself, and sunk a little so it never floats.
+//! placed on the ground mesh itself, and sunk a little so it never floats; a thing whose node lies
+//! on a bridge's way (a lamp on a bridge, a tree in a planter on it) stands on the deck instead.
 
 use std::collections::BTreeMap;
 
 use super::ground::Ground;
 use super::models::Model;
+use crate::elevation::structures::Profile;
 use crate::features::objects::PointObject;
 use crate::features::vegetation::{Tree, TreeKind};
 use crate::features::{FeatureClass, FeatureSet};
@@ -106,13 +108,45 @@ fn min_max(values: [f64; 3]) -> (f64, f64) {
     )
 }
 
-/// Places the trees and objects of a tile on its ground: the instances of each model.
+/// How far from a bridge's line a point still lies on it, tile units (a fraction of a
+/// millimetre: a node of the way itself).
+const ON_DECK_UV: f64 = 1e-7;
+
+/// The deck's top where `at` lies on the line of one of `decks` (bridges' settled profiles).
+fn deck_at(decks: &[&Profile], at: Point) -> Option<f64> {
+    decks.iter().find_map(|profile| {
+        profile.points.windows(2).enumerate().find_map(|(k, pair)| {
+            let (a, b) = (pair[0], pair[1]);
+            let inside = |i: usize| {
+                at[i] >= a[i].min(b[i]) - ON_DECK_UV && at[i] <= a[i].max(b[i]) + ON_DECK_UV
+            };
+            if !inside(0) || !inside(1) {
+                return None;
+            }
+            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+            let length2 = dx * dx + dy * dy;
+            let t = if length2 > 0.0 {
+                (((at[0] - a[0]) * dx + (at[1] - a[1]) * dy) / length2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let near = [a[0] + t * dx - at[0], a[1] + t * dy - at[1]];
+            (near[0].hypot(near[1]) <= ON_DECK_UV).then(|| {
+                let e = &profile.elevations;
+                e[k] + t * (e[k + 1] - e[k])
+            })
+        })
+    })
+}
+
+/// Places the trees and objects of a tile on its ground, or on a bridge's deck where their
+/// node lies on the bridge (`decks`: the settled profiles of the bridges that reach the tile):
+/// the instances of each model.
 pub fn place(
-    trees: &[Tree],
-    objects: &[PointObject],
+    (trees, objects): (&[Tree], &[PointObject]),
     feature_set: &FeatureSet,
-    ground: &Ground,
-    vertex_y: &[f64],
+    (ground, vertex_y): (&Ground, &[f64]),
+    decks: &[&Profile],
     frame: &TileFrame,
 ) -> BTreeMap<Model, Instances> {
     let placements = trees
@@ -143,6 +177,12 @@ pub fn place(
     let mut models: BTreeMap<Model, Instances> = BTreeMap::new();
     for placement in placements {
         let (x, z) = frame.uv_to_local(placement.at[0], placement.at[1]);
+        if let Some(deck) = deck_at(decks, placement.at) {
+            // On the deck, resting on it.
+            let y = frame.elevation_to_y(deck, z);
+            push(&mut models, &placement, [x, y, z], frame.scale_at(z));
+            continue;
+        }
         let Some((index, weights)) = locator.locate(x, z) else {
             continue;
         };
@@ -164,18 +204,27 @@ pub fn place(
             .map(|k| weights[k] * vertex_y[triangle.vertices[k] as usize])
             .sum();
         let scale = frame.scale_at(z);
-        let half = placement.rotation / 2.0;
-        let instances = models.entry(placement.model).or_default();
-        instances
-            .translations
-            .push([x as f32, (y - SINK_M * scale) as f32, z as f32]);
-        instances
-            .rotations
-            .push([0.0, half.sin() as f32, 0.0, half.cos() as f32]);
-        instances
-            .scales
-            .push(placement.scale_m.map(|m| (m * scale) as f32));
-        instances.feature_ids.push(placement.feature);
+        push(&mut models, &placement, [x, y - SINK_M * scale, z], scale);
     }
     models
+}
+
+/// Adds one instance with its foot at `foot` (local frame), `scale` being the frame's scale
+/// there.
+fn push(
+    models: &mut BTreeMap<Model, Instances>,
+    placement: &Placement,
+    foot: [f64; 3],
+    scale: f64,
+) {
+    let half = placement.rotation / 2.0;
+    let instances = models.entry(placement.model).or_default();
+    instances.translations.push(foot.map(|c| c as f32));
+    instances
+        .rotations
+        .push([0.0, half.sin() as f32, 0.0, half.cos() as f32]);
+    instances
+        .scales
+        .push(placement.scale_m.map(|m| (m * scale) as f32));
+    instances.feature_ids.push(placement.feature);
 }
