@@ -12,7 +12,7 @@ use crate::elevation::structures::Profile;
 use crate::features::objects::PointObject;
 use crate::features::vegetation::{Tree, TreeKind};
 use crate::features::{FeatureClass, FeatureSet};
-use crate::geometry::{grid_cell, Point};
+use crate::geometry::{grid_cell, Point, Rect};
 use crate::tile::TileFrame;
 
 /// The instances of one model.
@@ -113,8 +113,12 @@ fn min_max(values: [f64; 3]) -> (f64, f64) {
 const ON_DECK_UV: f64 = 1e-7;
 
 /// The deck's top where `at` lies on the line of one of `decks` (bridges' settled profiles).
-fn deck_at(decks: &[&Profile], at: Point) -> Option<f64> {
-    decks.iter().find_map(|profile| {
+fn deck_at(decks: &[(Rect, &Profile)], at: Point) -> Option<f64> {
+    let probe = Rect {
+        min: [at[0] - ON_DECK_UV, at[1] - ON_DECK_UV],
+        max: [at[0] + ON_DECK_UV, at[1] + ON_DECK_UV],
+    };
+    decks.iter().filter(|(b, _)| b.intersects(&probe)).find_map(|(_, profile)| {
         profile.points.windows(2).enumerate().find_map(|(k, pair)| {
             let (a, b) = (pair[0], pair[1]);
             let inside = |i: usize| {
@@ -174,10 +178,20 @@ pub fn place(
             on: None,
         }));
     let locator = Locator::new(ground, frame.size_m);
+    let decks: Vec<(Rect, &Profile)> = decks
+        .iter()
+        .map(|profile| (Rect::around(&profile.points), *profile))
+        .collect();
     let mut models: BTreeMap<Model, Instances> = BTreeMap::new();
     for placement in placements {
         let (x, z) = frame.uv_to_local(placement.at[0], placement.at[1]);
-        if let Some(deck) = deck_at(decks, placement.at) {
+        // Only a mapped node may lie on a bridge's way: a forest's trees stand on its ground.
+        let on_deck = placement
+            .on
+            .is_none()
+            .then(|| deck_at(&decks, placement.at))
+            .flatten();
+        if let Some(deck) = on_deck {
             // On the deck, resting on it.
             let y = frame.elevation_to_y(deck, z);
             push(&mut models, &placement, [x, y, z], frame.scale_at(z));

@@ -484,7 +484,7 @@ impl Inputs {
         cells.extend(reach_cells(selection));
         for &cell in &cells {
             if let Err(error) = self.fetch_cell(tile, cell) {
-                tracing::info!(%tile, %error, "an SRTM file along the tile's ways is not available");
+                tracing::debug!(%tile, %error, "an SRTM file along the tile's ways is not available");
             }
         }
         self.mosaic_of(cells.into_iter())
