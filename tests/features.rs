@@ -407,14 +407,9 @@ fn roads_through_buildings_are_drawn_on_the_ground() {
     );
 }
 
-fn python() -> String {
-    std::env::var("TERRASTITCH_PYTHON").unwrap_or_else(|_| "python3".to_string())
-}
-
 /// A street lamp on a bridge's way stands on the deck, not on the ground under it.
 #[test]
 fn a_lamp_on_a_bridge_stands_on_its_deck() {
-    use std::io::Write;
     let dir = tempfile::tempdir().unwrap();
     let extract = dir.path().join("bridge.osm.pbf");
     // A bridge over a primary road in 14/8529/5974, a lamp on it right over the road.
@@ -428,19 +423,7 @@ fn a_lamp_on_a_bridge_stands_on_its_deck() {
             "nodes": [[7.4205, 43.734], [7.4205, 43.736]],
         },
     ]);
-    let mut child = std::process::Command::new(python())
-        .arg(common::repo().join("scripts/ways_extract.py"))
-        .arg(&extract)
-        .stdin(std::process::Stdio::piped())
-        .spawn()
-        .expect("python runs");
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(ways.to_string().as_bytes())
-        .unwrap();
-    assert!(child.wait().unwrap().success());
+    common::write_extract(&ways, &extract);
     let bytes = common::render_in_process(
         "14/8529/5974",
         &["--osm".as_ref(), extract.as_os_str()],

@@ -161,28 +161,6 @@ fn tiles_across_two_srtm_files_share_their_edges_exactly() {
     check_region(ulm_tiles(), repo().join("tests/data"), 4);
 }
 
-fn python() -> String {
-    std::env::var("TERRASTITCH_PYTHON").unwrap_or_else(|_| "python3".to_string())
-}
-
-/// Writes an extract of `ways` (tags and `[lon, lat]` nodes) with `scripts/ways_extract.py`.
-fn write_extract(ways: &serde_json::Value, out: &Path) {
-    use std::io::Write;
-    let mut child = std::process::Command::new(python())
-        .arg(repo().join("scripts/ways_extract.py"))
-        .arg(out)
-        .stdin(std::process::Stdio::piped())
-        .spawn()
-        .expect("python runs");
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(ways.to_string().as_bytes())
-        .unwrap();
-    assert!(child.wait().unwrap().success(), "ways_extract.py failed");
-}
-
 /// The SRTM3 sample of an `.hgt` file nearest to a point.
 fn hgt_sample(hgt: &[u8], cell: (f64, f64), lon: f64, lat: f64) -> f64 {
     let row = ((cell.1 + 1.0 - lat) * 1200.0).round() as usize;
@@ -199,7 +177,7 @@ fn a_river_across_two_srtm_files_runs_at_the_same_level_in_tiles_that_read_one_o
     let (west, east, lat) = (9.985, 10.035, 48.3925);
     let dir = tempfile::tempdir().unwrap();
     let extract = dir.path().join("river.osm.pbf");
-    write_extract(
+    common::write_extract(
         &serde_json::json!([{
             "tags": {"waterway": "river", "name": "Across"},
             "nodes": [[west, lat], [9.999, lat + 0.001], [10.002, lat - 0.001], [east, lat]],

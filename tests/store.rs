@@ -389,42 +389,26 @@ fn blobs(pbf: &[u8]) -> Vec<&[u8]> {
 }
 
 /// What a store holds, table by table, in a fixed order.
-fn contents(store: &Path) -> Vec<(String, Vec<String>)> {
-    let db = rusqlite::Connection::open(store).unwrap();
-    let tables = [
-        ("nodes", "id"),
-        ("ways", "id"),
-        ("relations", "id"),
-        ("cells", "x, y, kind, id"),
-        ("groups", "id"),
-        ("group_under", "way, grp"),
-        ("joints", "node, way"),
-        ("way_facts", "way"),
-        ("coastlines", "way"),
-        ("incomplete_ways", "way"),
-        ("missing_nodes", "node, way"),
-        ("missing_members", "way, relation"),
-    ];
-    tables
-        .iter()
-        .map(|(table, order)| {
-            let mut select = db
-                .prepare(&format!("SELECT * FROM {table} ORDER BY {order}"))
-                .unwrap();
-            let columns = select.column_count();
-            let rows = select
-                .query_map([], |row| {
-                    (0..columns)
-                        .map(|c| row.get_ref(c).map(|v| format!("{v:?}")))
-                        .collect::<Result<Vec<_>, _>>()
-                        .map(|v| v.join("|"))
-                })
-                .unwrap()
-                .map(Result::unwrap)
-                .collect();
-            (table.to_string(), rows)
-        })
-        .collect()
+fn contents(store: &Path) -> Vec<String> {
+    common::table_rows(
+        store,
+        &[
+            &common::STORE_TABLES[..],
+            &[
+                ("incomplete_ways", "way"),
+                ("missing_nodes", "node, way"),
+                ("missing_members", "way, relation"),
+            ],
+        ]
+        .concat(),
+    )
+}
+
+/// The number of rows of `table` among `rows`.
+fn count(rows: &[String], table: &str) -> usize {
+    rows.iter()
+        .filter(|r| r.starts_with(&format!("{table}: ")))
+        .count()
 }
 
 #[test]
@@ -453,13 +437,11 @@ fn an_extract_whose_nodes_do_not_all_come_first_is_read_again_in_two_passes_to_t
         stderr(&output)
     );
     let (a, b) = (contents(&sorted), contents(&unsorted));
-    for ((table, rows_a), (_, rows_b)) in a.iter().zip(&b) {
-        if ["ways", "cells", "groups", "joints"].contains(&table.as_str()) {
-            assert!(!rows_a.is_empty(), "the sample fills {table}");
-        }
-        assert_eq!(rows_a.len(), rows_b.len(), "rows of {table}");
-        assert!(rows_a == rows_b, "{table} differs");
+    for table in ["ways", "cells", "groups", "joints"] {
+        assert!(count(&a, table) > 0, "the sample fills {table}");
     }
+    assert_eq!(a.len(), b.len());
+    assert!(a == b, "the stores differ");
 }
 
 #[test]
@@ -475,8 +457,7 @@ fn two_extracts_holding_the_same_elements_make_the_store_one_of_them_makes() {
     let output = import(&two, &[sample_osm(), copy]);
     assert!(output.status.success(), "{}", stderr(&output));
     let (a, b) = (contents(&one), contents(&two));
-    for ((table, rows_a), (_, rows_b)) in a.iter().zip(&b) {
-        assert_eq!(rows_a.len(), rows_b.len(), "rows of {table}");
-        assert!(rows_a == rows_b, "{table} differs");
-    }
+    assert!(count(&a, "ways") > 0);
+    assert_eq!(a.len(), b.len());
+    assert!(a == b, "the stores differ");
 }

@@ -332,36 +332,18 @@ fn sequence_of(store: &Path) -> Option<u64> {
 
 /// Every row of the store's tables and the meta a diff changes, in order.
 fn contents(store: &Path) -> Vec<String> {
-    let db = rusqlite::Connection::open(store).unwrap();
-    let mut rows = Vec::new();
-    for (table, order) in [
-        ("nodes", "id"),
-        ("ways", "id"),
-        ("relations", "id"),
-        ("cells", "x, y, kind, id"),
-        ("groups", "id"),
-        ("group_under", "way, grp"),
-        ("joints", "node, way"),
-        ("way_facts", "way"),
-        ("coastlines", "way"),
-        ("node_moves", "id"),
-        ("expired", "x, y"),
-        ("meta WHERE key != 'nodes_file'", "key"),
-    ] {
-        let mut statement = db
-            .prepare(&format!("SELECT * FROM {table} ORDER BY {order}"))
-            .unwrap();
-        let columns = statement.column_count();
-        let found = statement
-            .query_map([], |row| {
-                let values: Vec<rusqlite::types::Value> =
-                    (0..columns).map(|k| row.get(k)).collect::<Result<_, _>>()?;
-                Ok(format!("{table}: {values:?}"))
-            })
-            .unwrap();
-        rows.extend(found.map(Result::unwrap));
-    }
-    rows
+    common::table_rows(
+        store,
+        &[
+            &common::STORE_TABLES[..],
+            &[
+                ("node_moves", "id"),
+                ("expired", "x, y"),
+                ("meta WHERE key != 'nodes_file'", "key"),
+            ],
+        ]
+        .concat(),
+    )
 }
 
 #[test]

@@ -118,29 +118,32 @@ fn deck_at(decks: &[(Rect, &Profile)], at: Point) -> Option<f64> {
         min: [at[0] - ON_DECK_UV, at[1] - ON_DECK_UV],
         max: [at[0] + ON_DECK_UV, at[1] + ON_DECK_UV],
     };
-    decks.iter().filter(|(b, _)| b.intersects(&probe)).find_map(|(_, profile)| {
-        profile.points.windows(2).enumerate().find_map(|(k, pair)| {
-            let (a, b) = (pair[0], pair[1]);
-            let inside = |i: usize| {
-                at[i] >= a[i].min(b[i]) - ON_DECK_UV && at[i] <= a[i].max(b[i]) + ON_DECK_UV
-            };
-            if !inside(0) || !inside(1) {
-                return None;
-            }
-            let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-            let length2 = dx * dx + dy * dy;
-            let t = if length2 > 0.0 {
-                (((at[0] - a[0]) * dx + (at[1] - a[1]) * dy) / length2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            let near = [a[0] + t * dx - at[0], a[1] + t * dy - at[1]];
-            (near[0].hypot(near[1]) <= ON_DECK_UV).then(|| {
-                let e = &profile.elevations;
-                e[k] + t * (e[k + 1] - e[k])
+    decks
+        .iter()
+        .filter(|(b, _)| b.intersects(&probe))
+        .find_map(|(_, profile)| {
+            profile.points.windows(2).enumerate().find_map(|(k, pair)| {
+                let (a, b) = (pair[0], pair[1]);
+                let inside = |i: usize| {
+                    at[i] >= a[i].min(b[i]) - ON_DECK_UV && at[i] <= a[i].max(b[i]) + ON_DECK_UV
+                };
+                if !inside(0) || !inside(1) {
+                    return None;
+                }
+                let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+                let length2 = dx * dx + dy * dy;
+                let t = if length2 > 0.0 {
+                    (((at[0] - a[0]) * dx + (at[1] - a[1]) * dy) / length2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let near = [a[0] + t * dx - at[0], a[1] + t * dy - at[1]];
+                (near[0].hypot(near[1]) <= ON_DECK_UV).then(|| {
+                    let e = &profile.elevations;
+                    e[k] + t * (e[k + 1] - e[k])
+                })
             })
         })
-    })
 }
 
 /// Places the trees and objects of a tile on its ground, or on a bridge's deck where their

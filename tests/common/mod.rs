@@ -559,3 +559,62 @@ impl TunnelFootprint {
             .any(|d| !self.0.heights_at(x + d[0], z + d[1], 1e-6).is_empty())
     }
 }
+
+/// The OSM store's tables of elements and facts, each with the columns that order it.
+pub const STORE_TABLES: [(&str, &str); 9] = [
+    ("nodes", "id"),
+    ("ways", "id"),
+    ("relations", "id"),
+    ("cells", "x, y, kind, id"),
+    ("groups", "id"),
+    ("group_under", "way, grp"),
+    ("joints", "node, way"),
+    ("way_facts", "way"),
+    ("coastlines", "way"),
+];
+
+/// Every row of `tables` (a table, or a table with a `WHERE`, and the columns to order it by)
+/// of an SQLite file, each as `table: [values]`, table after table.
+pub fn table_rows(file: &Path, tables: &[(&str, &str)]) -> Vec<String> {
+    let db = rusqlite::Connection::open(file).unwrap();
+    let mut rows = Vec::new();
+    for (table, order) in tables {
+        let mut statement = db
+            .prepare(&format!("SELECT * FROM {table} ORDER BY {order}"))
+            .unwrap();
+        let columns = statement.column_count();
+        let found = statement
+            .query_map([], |row| {
+                let values: Vec<rusqlite::types::Value> =
+                    (0..columns).map(|k| row.get(k)).collect::<Result<_, _>>()?;
+                Ok(format!("{table}: {values:?}"))
+            })
+            .unwrap();
+        rows.extend(found.map(Result::unwrap));
+    }
+    rows
+}
+
+/// The Python the tests run scripts with (`TERRASTITCH_PYTHON`, as `make test` sets it).
+pub fn python() -> String {
+    std::env::var("TERRASTITCH_PYTHON").unwrap_or_else(|_| "python3".to_string())
+}
+
+/// Writes an extract of `ways` (tags and `[lon, lat]` or `[lon, lat, tags]` nodes) with
+/// `scripts/ways_extract.py`.
+pub fn write_extract(ways: &serde_json::Value, out: &Path) {
+    use std::io::Write;
+    let mut child = Command::new(python())
+        .arg(repo().join("scripts/ways_extract.py"))
+        .arg(out)
+        .stdin(std::process::Stdio::piped())
+        .spawn()
+        .expect("python runs");
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(ways.to_string().as_bytes())
+        .unwrap();
+    assert!(child.wait().unwrap().success(), "ways_extract.py failed");
+}
