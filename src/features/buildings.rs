@@ -317,26 +317,37 @@ pub fn roof_spec(tags: &Tags, settings: &FeatureSettings) -> RoofSpec {
         }
         parsed
     });
-    let height_tagged = tags
-        .get("height")
-        .and_then(parse_length_m)
-        .is_some_and(|h| h > 0.0 && h <= MAX_HEIGHT_M);
-    let levels_tagged = tags
-        .get("building:levels")
-        .and_then(parse_count)
-        .is_some_and(|l| l > 0.0 && l <= MAX_LEVELS);
-    let roof_levels_tagged = tags
-        .get("roof:levels")
-        .and_then(parse_count)
-        .is_some_and(|l| (0.0..=20.0).contains(&l));
     RoofSpec {
         shape,
         height_m,
         pitch: angle.to_radians().tan(),
         direction_deg,
         across: tags.get("roof:orientation") == Some("across"),
-        over_levels: !height_tagged && levels_tagged && !roof_levels_tagged,
+        over_levels: tagged_height_m(tags).is_none()
+            && tagged_levels(tags).is_some()
+            && tagged_roof_levels(tags).is_none(),
     }
+}
+
+/// A plausible `height`, metres.
+fn tagged_height_m(tags: &Tags) -> Option<f64> {
+    tags.get("height")
+        .and_then(parse_length_m)
+        .filter(|&h| h > 0.0 && h <= MAX_HEIGHT_M)
+}
+
+/// A plausible `building:levels`.
+fn tagged_levels(tags: &Tags) -> Option<f64> {
+    tags.get("building:levels")
+        .and_then(parse_count)
+        .filter(|&l| l > 0.0 && l <= MAX_LEVELS)
+}
+
+/// A plausible `roof:levels` (counted in a building's levels when its height is).
+fn tagged_roof_levels(tags: &Tags) -> Option<f64> {
+    tags.get("roof:levels")
+        .and_then(parse_count)
+        .filter(|l| (0.0..=20.0).contains(l))
 }
 
 /// A compass direction in degrees: a number, or a point of the compass (`N`, `NNE`, … `NW`).
@@ -563,22 +574,18 @@ pub fn basement_m(tags: &Tags, settings: &FeatureSettings) -> f64 {
 /// The building's height in metres and whether it was tagged.
 pub fn height_m(tags: &Tags, settings: &FeatureSettings) -> (f64, bool) {
     if let Some(raw) = tags.get("height") {
-        match parse_length_m(raw) {
-            Some(h) if h > 0.0 && h <= MAX_HEIGHT_M => return (h, true),
-            _ => debug!(height = raw, "implausible building height ignored"),
+        match tagged_height_m(tags) {
+            Some(h) => return (h, true),
+            None => debug!(height = raw, "implausible building height ignored"),
         }
     }
     if let Some(raw) = tags.get("building:levels") {
-        match parse_count(raw) {
-            Some(levels) if levels > 0.0 && levels <= MAX_LEVELS => {
-                let roof_levels = tags
-                    .get("roof:levels")
-                    .and_then(parse_count)
-                    .filter(|l| (0.0..=20.0).contains(l))
-                    .unwrap_or(0.0);
+        match tagged_levels(tags) {
+            Some(levels) => {
+                let roof_levels = tagged_roof_levels(tags).unwrap_or(0.0);
                 return ((levels + roof_levels) * settings.level_height_m, true);
             }
-            _ => debug!(levels = raw, "implausible building:levels ignored"),
+            None => debug!(levels = raw, "implausible building:levels ignored"),
         }
     }
     let building = tags.get("building").unwrap_or("yes");

@@ -33,11 +33,17 @@ pub fn classify(tags: &Tags) -> Option<(StructureKind, i32)> {
     let layer = layer(tags);
     if tags.is_set("bridge") {
         Some((StructureKind::Bridge, layer.unwrap_or(1)))
-    } else if tags.is_set("tunnel") && tags.get("tunnel") != Some("building_passage") {
+    } else if is_tunnel(tags) {
         Some((StructureKind::Tunnel, layer.unwrap_or(-1)))
     } else {
         None
     }
+}
+
+/// True for a way under the ground: `tunnel=*` but a passage through a building, which runs
+/// on the ground.
+fn is_tunnel(tags: &Tags) -> bool {
+    tags.is_set("tunnel") && tags.get("tunnel") != Some("building_passage")
 }
 
 /// The `layer` tag, if it is a whole number.
@@ -271,10 +277,9 @@ impl WayTraits {
 }
 
 /// True for ways drawn below or away from the ground surface (bridges and tunnels are drawn as
-/// structures of their own). A passage through a building (`tunnel=building_passage`) runs on
-/// the ground.
+/// structures of their own).
 pub fn is_off_ground(tags: &Tags) -> bool {
-    (tags.is_set("tunnel") && tags.get("tunnel") != Some("building_passage"))
+    is_tunnel(tags)
         || classify(tags).is_some()
         || tags.get("indoor").is_some_and(|v| v != "no")
         || tags.get("location") == Some("underground")

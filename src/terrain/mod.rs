@@ -72,9 +72,14 @@ impl<'a> TerrainModel<'a> {
     /// Elevation in metres at `[u, v]`; sea level where no file covers the point (the caller
     /// checks coverage before rendering).
     pub fn elevation_uv(&self, p: [f64; 2]) -> f64 {
+        self.known_elevation_uv(p).unwrap_or(0.0)
+    }
+
+    /// Elevation in metres at `[u, v]`, `None` where no file covers the point.
+    pub fn known_elevation_uv(&self, p: [f64; 2]) -> Option<f64> {
         let lon = crate::tile::u_to_lon(p[0], self.tiles_per_axis);
         let lat = crate::tile::v_to_lat(p[1], self.tiles_per_axis);
-        self.elevation(lon, lat).unwrap_or(0.0)
+        self.elevation(lon, lat)
     }
 
     /// Where the raster's samples lie inside a box of tile units.
@@ -113,8 +118,6 @@ impl Elevation for TerrainModel<'_> {
     }
 
     fn known_elevation_uv(&self, p: [f64; 2]) -> Option<f64> {
-        let lon = crate::tile::u_to_lon(p[0], self.tiles_per_axis);
-        let lat = crate::tile::v_to_lat(p[1], self.tiles_per_axis);
-        self.elevation(lon, lat)
+        TerrainModel::known_elevation_uv(self, p)
     }
 }

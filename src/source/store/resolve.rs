@@ -21,10 +21,9 @@ impl Resolver {
     pub fn new(locations: NodeLocations) -> Result<Resolver, NodeStoreError> {
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
         let blocks = (CACHED_BLOCKS / threads).max(64);
-        let mut readers = (1..threads)
+        let readers = (0..threads)
             .map(|_| locations.fork(blocks))
             .collect::<Result<Vec<_>, _>>()?;
-        readers.insert(0, locations.fork(blocks)?);
         Ok(Resolver { readers })
     }
 
