@@ -257,19 +257,7 @@ pub fn triangulate(
         weights: Some(weights),
     };
 
-    // Outline segments clipped to the tile, in global tile units.
-    let mut segments: Vec<(Point, Point)> = Vec::new();
-    for surface in surfaces.iter().filter(|s| s.bounds.intersects(&rect)) {
-        for polyline in &surface.outline {
-            for pair in polyline.windows(2) {
-                if let Some((a, b)) = clip_segment(pair[0], pair[1], &rect) {
-                    if a != b {
-                        segments.push((a, b));
-                    }
-                }
-            }
-        }
-    }
+    let segments = clipped_outlines(surfaces, &rect);
 
     // 2. The edges.
     let to_local = |p: Point| {
@@ -371,6 +359,23 @@ pub fn triangulate(
         edge_vertices: edge_count,
         dropped_constraints: dropped,
     })
+}
+
+/// The outline segments of `surfaces` clipped to the tile's `rect`, in global tile units.
+fn clipped_outlines(surfaces: &[Surface], rect: &Rect) -> Vec<(Point, Point)> {
+    let mut segments = Vec::new();
+    for surface in surfaces.iter().filter(|s| s.bounds.intersects(rect)) {
+        for polyline in &surface.outline {
+            for pair in polyline.windows(2) {
+                if let Some((a, b)) = clip_segment(pair[0], pair[1], rect) {
+                    if a != b {
+                        segments.push((a, b));
+                    }
+                }
+            }
+        }
+    }
+    segments
 }
 
 /// The elevations of the seed's vertices off the sample grid (where outlines meet and cross),
