@@ -15,7 +15,8 @@ pub struct GroundParts {
     pub parts: BTreeMap<Part, MeshBuffers>,
     /// The `y` of each ground vertex in the local frame.
     pub vertex_y: Vec<f64>,
-    /// Triangles dropped because they collapse or flip once positions are `f32`.
+    /// Triangles dropped because they collapse once positions are `f32`: their three corners
+    /// lie on a line (or two of them meet), so they cover nothing.
     pub slivers: usize,
 }
 
@@ -49,8 +50,11 @@ pub fn ground_parts(
         };
         // Counter-clockwise in (x, z) faces down in a Y-up frame: reverse to face up.
         let [a, b, c] = triangle.vertices;
-        if !faces_up_in_f32([a, c, b].map(|v| ground.vertices[v as usize])) {
-            // A sliver that collapses or flips at the output's precision covers no area.
+        let corners = [a, c, b].map(|v| {
+            let [x, z] = ground.vertices[v as usize];
+            [x, vertex_y[v as usize], z]
+        });
+        if !covers_in_f32(corners) {
             slivers += 1;
             continue;
         }
@@ -76,10 +80,26 @@ pub fn ground_parts(
     }
 }
 
-/// True when the triangle `(a, b, c)` of local `(x, z)` points, rounded to `f32` as the glb
-/// stores them, has a positive area facing +y.
-fn faces_up_in_f32(corners: [[f64; 2]; 3]) -> bool {
+/// The least area, in square metres, of a ground triangle that stands almost upright (where
+/// the ground steps at a kerb or a cliff) for it to be drawn: smaller ones are seen as lines.
+const UPRIGHT_AREA_M2: f64 = 1e-4;
+
+/// True when the triangle of local `(x, y, z)` points, rounded to `f32` as the glb stores them,
+/// covers something: it faces up (a positive area seen from above), or it stands upright
+/// with an area of its own. Dropping the upright ones would open a crack in the ground where
+/// its elevation steps between two points the tile's precision sees as one place.
+fn covers_in_f32(corners: [[f64; 3]; 3]) -> bool {
     let [a, b, c] = corners.map(|p| p.map(|v| f64::from(v as f32)));
-    let cross_y = (b[1] - a[1]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[1] - a[1]);
-    cross_y > 0.0
+    let (u, w) = (sub(b, a), sub(c, a));
+    let normal = [
+        u[1] * w[2] - u[2] * w[1],
+        u[2] * w[0] - u[0] * w[2],
+        u[0] * w[1] - u[1] * w[0],
+    ];
+    let area = 0.5 * normal.iter().map(|v| v * v).sum::<f64>().sqrt();
+    normal[1] > 0.0 || area >= UPRIGHT_AREA_M2
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }

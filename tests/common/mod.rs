@@ -499,6 +499,20 @@ impl GroundLocator {
         }
     }
 
+    /// The triangles whose box meets a grid cell of the box from `a` to `b` in (x, z).
+    pub fn near(&self, a: [f64; 3], b: [f64; 3]) -> BTreeSet<usize> {
+        let cell = |v: f64| {
+            ((v / self.size * self.cells as f64).floor().max(0.0) as usize).min(self.cells - 1)
+        };
+        let mut found = BTreeSet::new();
+        for row in cell(a[2].min(b[2]))..=cell(a[2].max(b[2])) {
+            for column in cell(a[0].min(b[0]))..=cell(a[0].max(b[0])) {
+                found.extend(&self.grid[row * self.cells + column]);
+            }
+        }
+        found
+    }
+
     /// Heights of every triangle that contains (x, z) within `tolerance` (barycentric).
     pub fn heights_at(&self, x: f64, z: f64, tolerance: f64) -> Vec<f64> {
         let cell = |v: f64| {
