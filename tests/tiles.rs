@@ -234,11 +234,22 @@ fn check_ground_faces_up(tile: &DecodedTile) {
     for node in GROUND_NODES {
         for primitive in tile.primitives(node) {
             for [a, b, c] in primitive.triangles() {
-                let [a, b, c] = [a, b, c].map(|i| primitive.positions[i]);
-                let cross_y = (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2]);
+                let [a, b, c] = [a, b, c].map(|i| primitive.positions[i].map(f64::from));
+                let (u, w) = (
+                    [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+                    [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+                );
+                let normal = [
+                    u[1] * w[2] - u[2] * w[1],
+                    u[2] * w[0] - u[0] * w[2],
+                    u[0] * w[1] - u[1] * w[0],
+                ];
+                let length = normal.iter().map(|v| v * v).sum::<f64>().sqrt();
+                // Where the ground steps between two points a hair apart, a triangle stands
+                // upright and may lean either way at f32.
                 assert!(
-                    cross_y >= 0.0,
-                    "{node} triangle faces down: {a:?} {b:?} {c:?} ({cross_y})"
+                    normal[1] >= 0.0 || -normal[1] <= 0.05 * length,
+                    "{node} triangle faces down: {a:?} {b:?} {c:?} ({normal:?})"
                 );
             }
             assert!(

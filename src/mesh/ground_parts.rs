@@ -83,6 +83,9 @@ pub fn ground_parts(
 /// The least area, in square metres, of a ground triangle that stands almost upright (where
 /// the ground steps at a kerb or a cliff) for it to be drawn: smaller ones are seen as lines.
 const UPRIGHT_AREA_M2: f64 = 1e-4;
+/// How far from upright such a triangle may lean (the cosine of its normal with the vertical):
+/// one leaning further that flips at `f32` is a flat sliver, seen from below.
+const UPRIGHT_TILT: f64 = 0.05;
 
 /// True when the triangle of local `(x, y, z)` points, rounded to `f32` as the glb stores them,
 /// covers something: it faces up (a positive area seen from above), or it stands upright
@@ -96,8 +99,9 @@ fn covers_in_f32(corners: [[f64; 3]; 3]) -> bool {
         u[2] * w[0] - u[0] * w[2],
         u[0] * w[1] - u[1] * w[0],
     ];
-    let area = 0.5 * normal.iter().map(|v| v * v).sum::<f64>().sqrt();
-    normal[1] > 0.0 || area >= UPRIGHT_AREA_M2
+    let length = normal.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let upright = normal[1].abs() <= UPRIGHT_TILT * length;
+    normal[1] > 0.0 || (upright && 0.5 * length >= UPRIGHT_AREA_M2)
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
