@@ -396,3 +396,167 @@ async fn the_debug_view_shows_connectors_and_constraints() {
     assert!(server.metric("terrastitch_lp_components_total").await > 10.0);
     server.stop().await;
 }
+
+/// The tops of the bridge decks of the ten Monaco tiles, away from the ramps where a deck
+/// meets the ground (15 m from each end of a bridge and from each node another way joins),
+/// stand clear of the ground: at most 1 % of their vertices lie under the ground beneath them
+/// or a metre beside them; and where a deck passes over a road, a railway or water, its
+/// underside clears it by 2 m at 99 % of its vertices, or falls short where the LP reported
+/// the clearance violated.
+#[test]
+fn bridge_decks_stand_clear_of_the_ground_under_and_beside_them() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let sources = Inputs::open(&[sample_osm()], &sample_srtm(), 14).expect("sample data");
+    let groups = common::whole(&sources).structures();
+    let projection = Projection::new(14);
+    // Where a bridge comes down to the ground: the ends of its chains, and each of its nodes
+    // a way off the bridges joins (a road meeting it, a tunnel's portal).
+    let ways = &common::whole(&sources).data().ways;
+    let bridge_chains: Vec<_> = groups
+        .iter()
+        .flat_map(|g| &g.chains)
+        .filter(|c| c.kind == StructureKind::Bridge)
+        .collect();
+    let on_bridges: std::collections::HashSet<u32> = bridge_chains
+        .iter()
+        .flat_map(|c| c.ways.iter().map(|w| w.way))
+        .collect();
+    let joined: std::collections::HashSet<i64> = ways
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !on_bridges.contains(&(*i as u32)))
+        .flat_map(|(_, w)| w.nodes.iter().copied())
+        .collect();
+    let passed_over: std::collections::HashSet<i64> = groups
+        .iter()
+        .flat_map(|g| g.crossings.iter().map(move |c| (g, c)))
+        .filter(|(g, c)| g.chains[c.chain as usize].kind == StructureKind::Bridge)
+        .filter_map(|(_, c)| match c.other {
+            Crossed::Way(way) => Some(ways[way as usize].id),
+            Crossed::Chain { .. } => None,
+        })
+        .collect();
+    let ends: Vec<[f64; 2]> = bridge_chains
+        .iter()
+        .flat_map(|c| {
+            let joined = &joined;
+            let last = c.nodes.len() - 1;
+            (0..=last)
+                .filter(move |&k| k == 0 || k == last || joined.contains(&c.nodes[k]))
+                .map(move |k| c.positions[k])
+        })
+        .map(|p| projection.point(p))
+        .collect();
+    // Bridge ways whose clearance the LP reported it could not give (against a grade bound).
+    let short: std::collections::HashSet<i64> = settle_all(&sources)
+        .iter()
+        .flat_map(|s| s.violations(0.01))
+        .filter(|v| v.kind == ConstraintKind::Clearance)
+        .map(|v| v.way)
+        .collect();
+    let (mut mid_span, mut buried, mut over, mut clear, mut reported) = (0, 0, 0, 0, 0);
+    let mut deepest: f64 = 0.0;
+    for (x, y) in TILES {
+        let name = format!("14/{x}/{y}");
+        let tile = decode(&common::render_in_process(&name, &[], dir.path()));
+        let frame = TileId { z: 14, x, y }.frame();
+        let size = tile.tile_size();
+        let ground = GroundLocator::new(
+            GROUND_NODES
+                .iter()
+                .flat_map(|n| corners(tile.primitives(n)))
+                .collect(),
+            size,
+        );
+        // The ways the bridges pass over (not those that join them at a ramp), and water.
+        let crossed = GroundLocator::new(
+            ["road", "railway", "water"]
+                .iter()
+                .flat_map(|n| tile.primitives(n))
+                .flat_map(|primitive| {
+                    primitive.triangles().filter_map(|t| {
+                        let feature = &tile.features[primitive.feature_ids[t[0]] as usize];
+                        (feature.class == "water" || passed_over.contains(&feature.osm_id))
+                            .then(|| t.map(|i| primitive.positions[i].map(f64::from)))
+                    })
+                })
+                .collect(),
+            size,
+        );
+        let ends: Vec<(f64, f64)> = ends.iter().map(|p| frame.uv_to_local(p[0], p[1])).collect();
+        let highest = |locator: &GroundLocator, x: f64, z: f64| {
+            locator
+                .heights_at(x, z, 1e-6)
+                .into_iter()
+                .fold(f64::NEG_INFINITY, f64::max)
+        };
+        for primitive in tile.primitives("bridge") {
+            if !primitive.material.starts_with("bridge_deck") {
+                continue;
+            }
+            let mut tops = std::collections::BTreeSet::new();
+            for t in primitive.triangles() {
+                let c = t.map(|i| primitive.positions[i].map(f64::from));
+                let (u, w) = (
+                    [c[1][0] - c[0][0], c[1][1] - c[0][1], c[1][2] - c[0][2]],
+                    [c[2][0] - c[0][0], c[2][1] - c[0][1], c[2][2] - c[0][2]],
+                );
+                let n = [
+                    u[1] * w[2] - u[2] * w[1],
+                    u[2] * w[0] - u[0] * w[2],
+                    u[0] * w[1] - u[1] * w[0],
+                ];
+                if n[1] > 0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() {
+                    tops.extend(t);
+                }
+            }
+            for i in tops {
+                let p = primitive.positions[i].map(f64::from);
+                let metre = frame.scale_at(p[2]);
+                if ends
+                    .iter()
+                    .any(|e| (e.0 - p[0]).hypot(e.1 - p[2]) < 15.0 * metre)
+                {
+                    continue;
+                }
+                mid_span += 1;
+                let top = p[1] / metre;
+                let beneath = highest(&ground, p[0], p[2]) / metre;
+                let beside = [[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]]
+                    .iter()
+                    .map(|d| highest(&ground, p[0] + d[0] * metre, p[2] + d[1] * metre) / metre)
+                    .fold(beneath, f64::max);
+                if beside > top + 0.01 {
+                    buried += 1;
+                    deepest = deepest.max(beside - top);
+                }
+                let below = highest(&crossed, p[0], p[2]) / metre;
+                if below.is_finite() && below < top {
+                    over += 1;
+                    let feature = &tile.features[primitive.feature_ids[i] as usize];
+                    let tags = terrastitch::osm::Tags::from_pairs(
+                        feature
+                            .tags
+                            .iter()
+                            .map(|(k, v)| (k.clone(), v.as_str().unwrap_or("").to_string())),
+                    );
+                    if top - tags::deck_thickness_m(&tags) - below >= 2.0 {
+                        clear += 1;
+                    } else if short.contains(&feature.osm_id) {
+                        reported += 1;
+                    }
+                }
+            }
+        }
+    }
+    let buried_share = buried as f64 / mid_span.max(1) as f64;
+    let clear_share = (clear + reported) as f64 / over.max(1) as f64;
+    eprintln!(
+        "{mid_span} mid-span deck vertices: {buried} ({:.1} %) under the ground (deepest {deepest:.2} m); {over} over roads, railways and water, {clear} clear by 2 m and {reported} short where the LP reported it ({:.1} %)",
+        buried_share * 100.0,
+        clear_share * 100.0
+    );
+    assert!(mid_span > 1000, "only {mid_span} deck vertices");
+    assert!(buried_share <= 0.01);
+    assert!(clear_share >= 0.99);
+}

@@ -3,7 +3,7 @@
 //! and retaining walls, each settled by its own module.
 
 use super::roads::RoadLevels;
-use super::settled::{Level, LevelGrid};
+use super::settled::{Bound, Level, LevelGrid};
 use super::steps::Steps;
 use crate::terrain::Elevation;
 
@@ -12,7 +12,8 @@ use crate::terrain::Elevation;
 pub struct Ground<'a> {
     pub terrain: &'a dyn Elevation,
     pub water: &'a [Level],
-    /// Where tunnels cut into the ground or run under raised ground.
+    /// Where tunnels cut into the ground or run under raised ground, and bridges over
+    /// lowered ground.
     pub cuts: &'a [Level],
     /// Roads level across and junctions level.
     pub roads: &'a RoadLevels,
@@ -63,24 +64,28 @@ impl Elevation for Ground<'_> {
             return level;
         }
         // Ground raised over a tunnel's roof wins over another way's cut beside it (two
-        // carriageways whose portals are not abreast), so no tube shows through.
+        // carriageways whose portals are not abreast), so no tube shows through; the terrain
+        // lowered under a bridge's deck leaves roads and cuts as they are.
         let mut cut: Option<f64> = None;
         let mut raised: Option<f64> = None;
+        let mut lowered: Option<f64> = None;
         for level in self.cut_grid.covering(self.cuts, p) {
             let h = level.rule.elevation(p);
-            if level.at_least {
-                raised = Some(raised.map_or(h, |r: f64| r.max(h)));
-            } else if cut.is_none() {
-                cut = Some(h);
+            match level.bound {
+                Bound::AtLeast => raised = Some(raised.map_or(h, |r: f64| r.max(h))),
+                Bound::AtMost => lowered = Some(lowered.map_or(h, |l: f64| l.min(h))),
+                Bound::Exact if cut.is_none() => cut = Some(h),
+                Bound::Exact => {}
             }
         }
         let ground = cut.or_else(|| self.roads.elevation(p)).unwrap_or_else(|| {
             let terrain = self.terrain.elevation_uv(p);
-            if self.steps.is_empty() {
+            let terrain = if self.steps.is_empty() {
                 terrain
             } else {
                 self.steps.ground(p, terrain, self.terrain)
-            }
+            };
+            lowered.map_or(terrain, |lowered| lowered.min(terrain))
         });
         raised.map_or(ground, |raised| raised.max(ground))
     }

@@ -16,9 +16,21 @@ pub struct Level {
     pub pieces: Vec<Polygon>,
     pub bounds: Rect,
     pub rule: Rule,
-    /// The rule is a floor: where the terrain is higher, the terrain stays.
-    pub at_least: bool,
+    /// How the rule bounds the ground there.
+    pub bound: Bound,
     cells: CellIndex,
+}
+
+/// How a level's rule bounds the ground it covers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Bound {
+    /// The ground takes the rule's elevation.
+    Exact,
+    /// A floor: where the terrain is higher, the terrain stays (over a tunnel's roof).
+    AtLeast,
+    /// A ceiling over the terrain: where the terrain is lower, it stays (under a bridge's
+    /// deck). Roads and water keep their own levels under it.
+    AtMost,
 }
 
 /// The elevation of a settled surface.
@@ -40,6 +52,15 @@ pub enum Rule {
         /// Distance along the sections' midpoints (tile units) and elevation.
         profile: Vec<(f64, f64)>,
     },
+    /// A trough along a line (the ground under a bridge's deck): the profile's elevation at
+    /// the point's station within `half_width` of the line (tile units), rising by `rise`
+    /// metres per tile unit beyond it, so the ground slopes back up to the terrain beside.
+    Trough {
+        stations: Stations,
+        profile: Vec<(f64, f64)>,
+        half_width: f64,
+        rise: f64,
+    },
 }
 
 impl Rule {
@@ -48,6 +69,15 @@ impl Rule {
             Rule::Level(level) => *level,
             Rule::Along { stations, profile } => at_station(profile, stations.at(p)),
             Rule::Across { sections, profile } => at_station(profile, sections.at(p)),
+            Rule::Trough {
+                stations,
+                profile,
+                half_width,
+                rise,
+            } => {
+                let (along, off) = stations.place(p);
+                at_station(profile, along) + rise * (off - half_width).max(0.0)
+            }
         }
     }
 }
@@ -236,6 +266,11 @@ impl Stations {
 
     /// The station of `p`.
     pub fn at(&self, p: Point) -> f64 {
+        self.place(p).0
+    }
+
+    /// The station of `p` and its distance from the line (tile units).
+    pub fn place(&self, p: Point) -> (f64, f64) {
         let n = self.line.len();
         let dot = |a: Point, b: Point| a[0] * b[0] + a[1] * b[1];
         let mut best: Option<(f64, f64)> = None;
@@ -260,7 +295,15 @@ impl Stations {
                 best = Some((distance, along));
             }
         }
-        best.map_or(0.0, |(_, along)| along)
+        match best {
+            Some((distance, along)) => (along, distance),
+            None => (
+                0.0,
+                self.line
+                    .first()
+                    .map_or(0.0, |&a| distance_to_segment(p, a, a)),
+            ),
+        }
     }
 }
 
@@ -461,7 +504,7 @@ impl Level {
             pieces,
             bounds,
             rule,
-            at_least: false,
+            bound: Bound::Exact,
             cells,
         }
     }
@@ -471,7 +514,7 @@ impl Level {
     pub fn detached(self) -> Level {
         Level {
             surface: u32::MAX,
-            at_least: true,
+            bound: Bound::AtLeast,
             ..self
         }
     }
@@ -479,7 +522,15 @@ impl Level {
     /// The same surface with its rule as a floor under the terrain.
     pub fn at_least(self) -> Level {
         Level {
-            at_least: true,
+            bound: Bound::AtLeast,
+            ..self
+        }
+    }
+
+    /// The same surface with its rule as a ceiling over the terrain.
+    pub fn at_most(self) -> Level {
+        Level {
+            bound: Bound::AtMost,
             ..self
         }
     }
@@ -503,6 +554,20 @@ impl Level {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn a_trough_follows_its_profile_across_its_floor_and_rises_beyond() {
+        let rule = Rule::Trough {
+            stations: Stations::new(&[[0.0, 0.0], [10.0, 0.0]]),
+            profile: vec![(0.0, 5.0), (10.0, 15.0)],
+            half_width: 1.0,
+            rise: 2.0,
+        };
+        assert!((rule.elevation([5.0, 0.0]) - 10.0).abs() < 1e-12);
+        assert!((rule.elevation([5.0, -1.0]) - 10.0).abs() < 1e-12);
+        assert!((rule.elevation([5.0, 3.0]) - 14.0).abs() < 1e-12);
+        assert!((rule.elevation([2.0, -4.0]) - 13.0).abs() < 1e-12);
+    }
 
     fn square(x: f64, y: f64, size: f64) -> Level {
         let outer = vec![[x, y], [x + size, y], [x + size, y + size], [x, y + size]];

@@ -765,7 +765,7 @@ pub fn plan_tunnel(profile: &Profile, ways: &[Way], surface_margin_m: f64) -> Tu
 /// How far the ground raised over a tunnel reaches beyond the tube's sides, metres.
 const RAISED_BEYOND_M: f64 = 0.5;
 
-/// The ground tunnels reshape in a tile.
+/// The ground tunnels and bridges reshape in a tile.
 #[derive(Debug, Clone, Default)]
 pub struct GroundCuts {
     /// The rows the approach cuts need, in order: one per structure way (by index into the
@@ -774,7 +774,7 @@ pub struct GroundCuts {
     pub cuts: Vec<GroundCut>,
 }
 
-/// A stretch of ground a tunnel reshapes.
+/// A stretch of ground a tunnel or a bridge reshapes.
 #[derive(Debug, Clone)]
 pub struct GroundCut {
     /// The elevation the ground takes there. Its `surface` is left for whoever adds
@@ -788,11 +788,12 @@ pub struct GroundCut {
     pub row_of: Option<u32>,
 }
 
-/// The ground tunnels reshape in a tile: each approach cut drawn as its way's road or railway
-/// down at the floor, and the ground raised over the roof where the cover is short, with a
-/// floor over every tube that keeps other cuts from exposing it. `features` gives the feature
+/// The ground tunnels and bridges reshape in a tile: each approach cut drawn as its way's
+/// road or railway down at the floor, and the ground raised over the roof where the cover is
+/// short, with a floor over every tube that keeps other cuts from exposing it; and the
+/// terrain lowered under each bridge's deck ([`trough_under`]). `features` gives the feature
 /// row of each structure way drawn in the tile (by index into `ways`); only their stretches
-/// are returned. The feature set is left as it is: adding the cuts is the caller's part.
+/// (and the bridges with a way drawn) are returned. The feature set is left as it is: adding the cuts is the caller's part.
 pub fn ground_cuts(
     settled: &[Settled],
     ways: &[Way],
@@ -803,7 +804,14 @@ pub fn ground_cuts(
 ) -> GroundCuts {
     let mut cuts = GroundCuts::default();
     for profile in settled.iter().flat_map(|s| &s.profiles) {
-        if profile.kind != StructureKind::Tunnel {
+        if profile.kind == StructureKind::Bridge {
+            let drawn = profile.ways.iter().any(|w| features.contains_key(w));
+            if let Some(trough) = drawn
+                .then(|| trough_under(profile, ways, projection, settings))
+                .flatten()
+            {
+                cuts.cuts.push(trough);
+            }
             continue;
         }
         let plan = plan_tunnel(profile, ways, surface_margin_m);
@@ -903,6 +911,86 @@ pub fn ground_cuts(
         }
     }
     cuts
+}
+
+/// How far under a bridge deck's underside the ground is kept, metres.
+const UNDER_DECK_M: f64 = 1.0;
+/// How far beyond a deck's sides the ground is kept under it, metres.
+const TROUGH_BEYOND_M: f64 = 1.5;
+/// How far the ground lowered under a deck slopes back up to the terrain beside it, metres,
+/// and how steeply (metres up per metre out).
+const TROUGH_SIDE_M: f64 = 12.0;
+const TROUGH_SIDE_SLOPE: f64 = 1.0;
+/// How steeply the lowered ground deepens from an abutment, where the deck meets the ground
+/// (metres down per metre along).
+const TROUGH_END_SLOPE: f64 = 0.5;
+
+/// The ground a bridge's deck leaves under it: a ceiling over the terrain along the deck,
+/// its underside less [`UNDER_DECK_M`] (shallower towards an abutment, where the deck comes
+/// down to the ground), over the deck's width and [`TROUGH_BEYOND_M`] to each side (drawn as
+/// a part of the terrain, so the triangulation has its edges), then sloping back up to the
+/// terrain. The ceiling only bites where the terrain stands higher: in a valley the ground
+/// stays as it is.
+fn trough_under(
+    profile: &Profile,
+    ways: &[Way],
+    projection: &Projection,
+    settings: &FeatureSettings,
+) -> Option<GroundCut> {
+    let n = profile.points.len();
+    let length = *profile.along_m.last()?;
+    let traits: Vec<WayTraits> = profile
+        .ways
+        .iter()
+        .map(|&w| WayTraits::of(&ways[w as usize], settings))
+        .collect();
+    let depth = |i: usize| {
+        let full = traits[i].deck_thickness_m + UNDER_DECK_M;
+        let along = profile.along_m[i];
+        let from_ground = [
+            (profile.grounded[0], along),
+            (profile.grounded[1], length - along),
+        ]
+        .iter()
+        .filter(|(grounded, _)| *grounded)
+        .map(|&(_, d)| d * TROUGH_END_SLOPE)
+        .fold(full, f64::min);
+        from_ground.max(0.0)
+    };
+    let mut line: Vec<Point> = Vec::with_capacity(n);
+    let mut ceiling: Vec<(f64, f64)> = Vec::with_capacity(n);
+    let mut along = 0.0;
+    for i in 0..n {
+        if let Some(&last) = line.last() {
+            let step = distance(last, profile.points[i]);
+            if step <= 0.0 {
+                continue;
+            }
+            along += step;
+        }
+        line.push(profile.points[i]);
+        ceiling.push((along, profile.elevations[i] - depth(i)));
+    }
+    let lat = ways[profile.ways[0] as usize]
+        .positions
+        .first()
+        .map_or(0.0, |p| p.lat);
+    let width = traits.iter().map(|t| t.width_m).fold(0.0, f64::max);
+    let floor_half = projection.metres(width / 2.0 + TROUGH_BEYOND_M, lat);
+    let side = projection.metres(TROUGH_SIDE_M, lat);
+    let floor = widened_surface(FeatureClass::Terrain, 0, &line, floor_half)?;
+    let band = widened_surface(FeatureClass::Terrain, 0, &line, floor_half + side)?;
+    let rule = Rule::Trough {
+        stations: Stations::new(&line),
+        profile: ceiling,
+        half_width: floor_half,
+        rise: TROUGH_SIDE_SLOPE * projection.metres(1.0, lat).recip(),
+    };
+    Some(GroundCut {
+        level: Level::new(u32::MAX, band.pieces, band.bounds, rule).at_most(),
+        surface: Some(floor),
+        row_of: None,
+    })
 }
 
 /// How a tunnel reshapes the ground along a stretch.

@@ -6,16 +6,16 @@ use std::collections::{HashMap, HashSet};
 
 use super::ground::Ground;
 use crate::elevation::ground::Ground as SettledGround;
-use crate::elevation::settled::Rule;
+use crate::elevation::settled::{Bound, Rule};
 use crate::geometry::Point;
 use crate::tile::TileFrame;
 
 /// Puts every vertex of a settled surface's triangles at its rule's elevation (the lowest,
 /// where surfaces meet): the outline's vertices already are, and this catches a vertex the
 /// triangulation attached to the surface from just outside its outline. Vertices on the tile's
-/// edges stay as the ground model settled them (identically in both tiles). Floors
-/// ([`crate::elevation::settled::Level::at_least`]) are left to the ground model (`model`, whose
-/// water areas, cuts and roads these are).
+/// edges stay as the ground model settled them (identically in both tiles). Floors and
+/// ceilings ([`Bound`]) are left to the ground model (`model`, whose water areas, cuts and
+/// roads these are), a vertex under a floor too.
 pub fn flatten(ground: &mut Ground, model: &SettledGround<'_>, frame: &TileFrame) {
     let size_m = frame.size_m;
     let roads = model.roads;
@@ -23,7 +23,7 @@ pub fn flatten(ground: &mut Ground, model: &SettledGround<'_>, frame: &TileFrame
         .water
         .iter()
         .chain(model.cuts)
-        .filter(|l| !l.at_least)
+        .filter(|l| l.bound == Bound::Exact)
         .map(|l| (l.surface, &l.rule))
         .collect();
     let on_edge = |p: Point| p[0] == 0.0 || p[1] == 0.0 || p[0] == size_m || p[1] == size_m;
@@ -42,7 +42,7 @@ pub fn flatten(ground: &mut Ground, model: &SettledGround<'_>, frame: &TileFrame
                 let (u, v) = frame.local_to_uv(x, z);
                 // A vertex on water or in a cut (on its outline, say, next to a twin the
                 // triangulation made a hair away) keeps what the ground model gave it.
-                if !model.levels_at([u, v]).any(|l| !l.at_least) {
+                if !model.levels_at([u, v]).any(|l| l.bound == Bound::Exact) {
                     *slot = roads.elevation([u, v]);
                 }
             }
@@ -64,7 +64,7 @@ pub fn flatten(ground: &mut Ground, model: &SettledGround<'_>, frame: &TileFrame
         if let Some(level) = level.or(on_road[v]) {
             let [x, z] = ground.vertices[v];
             let (u, w) = frame.local_to_uv(x, z);
-            let raised = model.levels_at([u, w]).any(|l| l.at_least);
+            let raised = model.levels_at([u, w]).any(|l| l.bound == Bound::AtLeast);
             if !on_edge(ground.vertices[v]) && !raised {
                 ground.elevations[v] = level;
             }
