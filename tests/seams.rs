@@ -233,3 +233,100 @@ fn a_river_across_two_srtm_files_runs_at_the_same_level_in_tiles_that_read_one_o
         );
     }
 }
+
+/// A river's area (its riverbank mapped round the river, east across 10° E on real SRTM):
+/// seamless across the tiles, its water never rising downstream along the river and level
+/// across it (points of the water at one station along the river within 1 cm).
+#[test]
+fn a_river_area_runs_down_along_its_river_and_lies_level_across_it() {
+    let (west, east, lat) = (9.985, 10.035, 48.3925);
+    let river = [
+        [west, lat],
+        [9.999, lat + 0.001],
+        [10.002, lat - 0.001],
+        [east, lat],
+    ];
+    let side = |offset: f64| river.iter().map(move |p| [p[0], p[1] + offset]);
+    let mut bank: Vec<[f64; 2]> = side(0.0004).collect();
+    bank.extend(side(-0.0004).rev());
+    bank.push(bank[0]);
+    let dir = tempfile::tempdir().unwrap();
+    let extract = dir.path().join("riverbank.osm.pbf");
+    common::write_extract(
+        &serde_json::json!([
+            {"tags": {"waterway": "river", "name": "Across"}, "nodes": river},
+            {"tags": {"waterway": "riverbank"}, "nodes": bank},
+        ]),
+        &extract,
+    );
+    let srtm = repo().join("tests/data");
+    let args = [
+        "--osm".as_ref(),
+        extract.as_os_str(),
+        "--srtm".as_ref(),
+        srtm.as_os_str(),
+    ];
+    let tiles: BTreeMap<(u32, u32), DecodedTile> = [(8646, 5668), (8647, 5668), (8648, 5668)]
+        .into_iter()
+        .map(|(x, y)| {
+            let glb = render_in_process(&format!("14/{x}/{y}"), &args, dir.path());
+            ((x, y), decode(&glb))
+        })
+        .collect();
+    assert_eq!(check_pairs(&tiles), 2);
+    // Each vertex of the water at its station along the river (global tile units).
+    let projection = terrastitch::features::Projection::new(14);
+    let line: Vec<[f64; 2]> = river
+        .iter()
+        .map(|p| {
+            projection.point(terrastitch::osm::LonLat {
+                lon: p[0],
+                lat: p[1],
+            })
+        })
+        .collect();
+    let stations = terrastitch::elevation::settled::Stations::new(&line);
+    let mut water: Vec<(f64, f64)> = Vec::new();
+    for (&(x, y), tile) in &tiles {
+        let frame = terrastitch::TileId { z: 14, x, y }.frame();
+        for primitive in tile.primitives("water") {
+            for p in &primitive.positions {
+                let (u, v) = frame.local_to_uv(f64::from(p[0]), f64::from(p[2]));
+                let metres = f64::from(p[1]) / frame.scale_at(f64::from(p[2]));
+                water.push((stations.at([u, v]), metres));
+            }
+        }
+    }
+    assert!(water.len() > 20, "only {} water vertices", water.len());
+    water.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let metre = projection.metres(1.0, lat);
+    let mut upstream_low = f64::INFINITY;
+    let mut across = 0;
+    for (k, &(station, h)) in water.iter().enumerate() {
+        assert!(
+            h <= upstream_low + 0.01,
+            "the water rises to {h:.3} m at {:.1} m along the river, {upstream_low:.3} m upstream",
+            station / metre
+        );
+        upstream_low = upstream_low.min(h);
+        for &(other, g) in &water[k + 1..] {
+            if other - station > 0.05 * metre {
+                break;
+            }
+            across += 1;
+            assert!(
+                (g - h).abs() <= 0.01,
+                "across the river at {:.1} m: {h:.3} and {g:.3} m",
+                station / metre
+            );
+        }
+    }
+    let (low, high) = (water[water.len() - 1].1, water[0].1);
+    eprintln!(
+        "{} water vertices from {high:.2} m down to {low:.2} m, {across} pairs across",
+        water.len()
+    );
+    assert!(across > 0, "no two water vertices across the river");
+    // The ground falls by some metres along the river's first few hundred metres.
+    assert!(high - low > 3.0, "the water lies flat at {low:.2} m");
+}

@@ -6,7 +6,9 @@
 //! alone, so every tile that shows the water computes the same level, and the shore (where the
 //! outline's vertices take the level) is never below it. The sea lies at 0 m. A waterway drawn
 //! at its width follows the lowest ground met so far along its whole way (sampled as often),
-//! level across each station, so its water only ever runs down.
+//! level across each station, so its water only ever runs down; a river's area likewise, on
+//! the profile of the waterway in it (the thesis held river areas flat, a trench upstream of
+//! their lowest shore).
 
 use super::settled::{samples_along, Level, Rule, Stations};
 use crate::features::water::WaterBody;
@@ -28,8 +30,13 @@ pub fn levels(set: &FeatureSet, terrain: &dyn Elevation, metres_per_unit: f64) -
                 Some(WaterBody::Flowing) => {
                     downstream(&surface.centreline, terrain, metres_per_unit)?
                 }
+                // A river's area runs down as the waterway in it does, with the very same
+                // profile: where the river leaves its area, the two meet without a step.
+                Some(WaterBody::River) if surface.centreline.len() >= 2 => {
+                    downstream(&surface.centreline, terrain, metres_per_unit)?
+                }
                 Some(WaterBody::Sea) => Rule::Level(0.0),
-                Some(WaterBody::Still) | None => {
+                Some(WaterBody::Still | WaterBody::River) | None => {
                     Rule::Level(shore_minimum(surface, terrain, metres_per_unit)?)
                 }
             };
@@ -49,19 +56,48 @@ fn downstream(line: &[Point], terrain: &dyn Elevation, metres_per_unit: f64) -> 
         return None;
     }
     let step = SHORE_STEP_M / metres_per_unit;
-    let mut lowest = f64::INFINITY;
-    // Where the ground is unknown (no SRTM file), the lowest ground met before holds.
-    let mut profile: Vec<(f64, f64)> = samples_along(line, step)
+    let samples: Vec<(f64, Option<f64>)> = samples_along(line, step)
         .into_iter()
-        .map(|(along, p)| {
-            if let Some(h) = terrain.known_elevation_uv(p) {
+        .map(|(along, p)| (along, terrain.known_elevation_uv(p)))
+        .collect();
+    Some(Rule::Along {
+        stations: Stations::new(line),
+        profile: running_lowest(samples),
+    })
+}
+
+/// Points every `step` along the rings of a surface's pieces.
+fn shore_points(surface: &Surface, step: f64) -> Vec<Point> {
+    let mut points = Vec::new();
+    for ring in surface.pieces.iter().flat_map(Polygon::rings) {
+        for i in 0..ring.len() {
+            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+            let length = (b[0] - a[0]).hypot(b[1] - a[1]);
+            let steps = (length / step).ceil().max(1.0) as usize;
+            for k in 0..steps {
+                let t = k as f64 / steps as f64;
+                points.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+            }
+        }
+    }
+    points
+}
+
+/// The lowest of the known elevations met so far at each station of a line, downstream.
+/// Where the ground is unknown (no SRTM file), the lowest met before holds; stations before
+/// the first known ground lie at its level, and a line over no known ground at all at sea
+/// level.
+fn running_lowest(samples: Vec<(f64, Option<f64>)>) -> Vec<(f64, f64)> {
+    let mut lowest = f64::INFINITY;
+    let mut profile: Vec<(f64, f64)> = samples
+        .into_iter()
+        .map(|(along, h)| {
+            if let Some(h) = h {
                 lowest = lowest.min(h);
             }
             (along, lowest)
         })
         .collect();
-    // Stations before the first known ground lie at its level; a way over no known ground
-    // at all, at sea level.
     let first = profile
         .iter()
         .map(|&(_, h)| h)
@@ -72,32 +108,18 @@ fn downstream(line: &[Point], terrain: &dyn Elevation, metres_per_unit: f64) -> 
             *h = first;
         }
     }
-    Some(Rule::Along {
-        stations: Stations::new(line),
-        profile,
-    })
+    profile
 }
 
 /// The lowest known ground along the rings of a surface's pieces.
 fn shore_minimum(surface: &Surface, terrain: &dyn Elevation, metres_per_unit: f64) -> Option<f64> {
     let step = SHORE_STEP_M / metres_per_unit;
-    let mut lowest: Option<f64> = None;
-    for ring in surface.pieces.iter().flat_map(Polygon::rings) {
-        for i in 0..ring.len() {
-            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
-            let length = (b[0] - a[0]).hypot(b[1] - a[1]);
-            let steps = (length / step).ceil().max(1.0) as usize;
-            for k in 0..steps {
-                let t = k as f64 / steps as f64;
-                let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
-                // Where the ground is unknown (no SRTM file), the shore is not counted.
-                if let Some(h) = terrain.known_elevation_uv(p) {
-                    lowest = Some(lowest.map_or(h, |l: f64| l.min(h)));
-                }
-            }
-        }
-    }
-    // A shore over no known ground at all lies at sea level.
+    // Where the ground is unknown (no SRTM file), the shore is not counted; a shore over no
+    // known ground at all lies at sea level.
+    let lowest = shore_points(surface, step)
+        .into_iter()
+        .filter_map(|p| terrain.known_elevation_uv(p))
+        .reduce(f64::min);
     lowest.or(Some(0.0))
 }
 
@@ -112,6 +134,45 @@ mod tests {
         fn elevation_uv(&self, p: [f64; 2]) -> f64 {
             p[0] * 100.0
         }
+    }
+
+    #[test]
+    fn a_river_area_is_level_across_and_runs_down_along_its_waterway() {
+        let bank = Polygon {
+            outer: vec![[0.10, 0.10], [0.30, 0.10], [0.30, 0.12], [0.10, 0.12]],
+            holes: Vec::new(),
+        };
+        let mut set = FeatureSet::default();
+        let tags = crate::osm::Tags::from_pairs([("waterway", "riverbank")]);
+        let feature = set.add_feature(None, FeatureClass::Water, &tags);
+        let mut surface =
+            Surface::from_polygons(FeatureClass::Water, feature, vec![bank]).expect("a surface");
+        surface.water = Some(WaterBody::of(&tags));
+        // The river flows west, down the slope.
+        surface.centreline = vec![[0.29, 0.11], [0.2, 0.11], [0.11, 0.11]];
+        set.surfaces.push(surface);
+        let water = levels(&set, &Slope, 1000.0);
+        assert_eq!(water.len(), 1);
+        let at = |p: [f64; 2]| water[0].rule.elevation(p);
+        let mut upstream = f64::INFINITY;
+        for k in 0..=40 {
+            let x = 0.30 - 0.2 * f64::from(k) / 40.0;
+            let (south, north) = (at([x, 0.1]), at([x, 0.12]));
+            assert!(
+                (south - north).abs() < 0.01,
+                "across at {x}: {south} {north}"
+            );
+            assert!(south <= upstream + 1e-9, "rises downstream at {x}");
+            if (0.11..=0.29).contains(&x) {
+                assert!(
+                    south <= Slope.elevation_uv([x, 0.1]) + 1e-9,
+                    "above its bank at {x}"
+                );
+            }
+            upstream = south;
+        }
+        // Not held flat at its lowest shore.
+        assert!(at([0.25, 0.11]) > 20.0);
     }
 
     #[test]

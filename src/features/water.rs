@@ -1,6 +1,7 @@
 //! Water: areas (`natural=water`, `waterway=riverbank`, `landuse=reservoir|basin`) and
 //! waterways as surfaces of their width (thesis §2.3.3). Where a waterway runs inside a water
-//! area (a river with its riverbank mapped, a stream into the sea), the area alone is drawn.
+//! area (a river with its riverbank mapped, a stream into the sea), the area alone is drawn,
+//! and a river's area runs down along the waterway in it.
 
 use super::{widened_surface, Area, FeatureClass, FeatureSet, Projection, Surface};
 use crate::geometry::{Point, Polygon};
@@ -32,6 +33,9 @@ pub fn default_width_m(waterway: &str) -> Option<f64> {
 pub enum WaterBody {
     /// Tagged `waterway=*`: runs down along its centreline.
     Flowing,
+    /// A river's area (`waterway=riverbank`, `natural=water` with `water=river|stream|rapids`):
+    /// level across, running down along the waterway inside it.
+    River,
     /// The sea, at sea level.
     Sea,
     /// Anything else: lies flat.
@@ -40,7 +44,12 @@ pub enum WaterBody {
 
 impl WaterBody {
     pub fn of(tags: &Tags) -> WaterBody {
-        if tags.is_set("waterway") {
+        let river_water = matches!(tags.get("water"), Some("river" | "stream" | "rapids"));
+        if tags.get("waterway") == Some("riverbank")
+            || (tags.get("natural") == Some("water") && river_water)
+        {
+            WaterBody::River
+        } else if tags.is_set("waterway") {
             WaterBody::Flowing
         } else if tags.get("natural") == Some("sea") {
             WaterBody::Sea
@@ -99,9 +108,51 @@ fn is_waterway(set: &FeatureSet, surface: &Surface) -> bool {
             .is_some_and(|w| default_width_m(w).is_some())
 }
 
+/// Gives each river area the line of the waterway that runs furthest inside it (the longest
+/// stretch; the smaller way id between equals), the line its water runs down along. An area
+/// no waterway runs in keeps no line (and lies flat).
+fn follow_waterways_in_river_areas(set: &mut FeatureSet) {
+    let waterways: Vec<(i64, &[Point])> = set
+        .surfaces
+        .iter()
+        .filter(|s| is_waterway(set, s) && s.centreline.len() >= 2)
+        .map(|s| {
+            let id = set.features[s.feature as usize]
+                .element
+                .map_or(i64::MAX, |e| e.id);
+            (id, s.centreline.as_slice())
+        })
+        .collect();
+    let mut lines: Vec<(usize, Vec<Point>)> = Vec::new();
+    for (index, area) in set.surfaces.iter().enumerate() {
+        if area.water != Some(WaterBody::River) || is_waterway(set, area) {
+            continue;
+        }
+        let inside = |line: &[Point]| -> f64 {
+            line.windows(2)
+                .filter(|pair| area.contains(pair[0]) && area.contains(pair[1]))
+                .map(|pair| (pair[1][0] - pair[0][0]).hypot(pair[1][1] - pair[0][1]))
+                .sum()
+        };
+        let best = waterways
+            .iter()
+            .map(|&(id, line)| (inside(line), id, line))
+            .filter(|&(length, _, _)| length > 0.0)
+            .max_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)));
+        if let Some((_, _, line)) = best {
+            lines.push((index, line.to_vec()));
+        }
+    }
+    for (index, line) in lines {
+        set.surfaces[index].centreline = line;
+    }
+}
+
 /// Removes the stretches of waterways that lie inside water areas, so the water is drawn once
 /// and its ground is not cut by the waterway's edges; a waterway wholly inside loses its surface.
+/// A river area takes first the line of the waterway that runs in it.
 pub(super) fn drop_waterways_in_water_areas(set: &mut FeatureSet) {
+    follow_waterways_in_river_areas(set);
     let areas: Vec<usize> = (0..set.surfaces.len())
         .filter(|&i| {
             set.surfaces[i].class == FeatureClass::Water && !is_waterway(set, &set.surfaces[i])
@@ -175,6 +226,37 @@ pub(super) fn drop_waterways_in_water_areas(set: &mut FeatureSet) {
 mod tests {
     use super::*;
     use crate::osm::Tags;
+
+    #[test]
+    fn a_river_area_follows_the_waterway_that_runs_furthest_in_it() {
+        let mut set = FeatureSet::default();
+        let tags = Tags::from_pairs([("waterway", "riverbank")]);
+        let bank = set.add_feature(None, FeatureClass::Water, &tags);
+        let square = Polygon {
+            outer: vec![[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]],
+            holes: Vec::new(),
+        };
+        let mut area =
+            Surface::from_polygons(FeatureClass::Water, bank, vec![square]).expect("a surface");
+        area.water = Some(WaterBody::of(&tags));
+        set.surfaces.push(area);
+        let stream = [[1.0, 1.0], [3.0, 1.0]];
+        let river = [[12.0, 5.0], [8.0, 5.0], [2.0, 5.0], [-3.0, 5.0]];
+        for (kind, line) in [("stream", &stream[..]), ("river", &river[..])] {
+            let feature = set.add_feature(
+                None,
+                FeatureClass::Water,
+                &Tags::from_pairs([("waterway", kind)]),
+            );
+            let mut surface =
+                widened_surface(FeatureClass::Water, feature, line, 0.5).expect("a surface");
+            surface.centreline = line.to_vec();
+            set.surfaces.push(surface);
+        }
+        drop_waterways_in_water_areas(&mut set);
+        assert_eq!(set.surfaces[0].water, Some(WaterBody::River));
+        assert_eq!(set.surfaces[0].centreline, river.to_vec());
+    }
 
     #[test]
     fn a_river_inside_its_riverbank_is_drawn_once() {
