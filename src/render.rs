@@ -692,6 +692,11 @@ fn render_glb(
         frame,
         &settled,
     ));
+    let drawn = mesh::instances::DrawnGround::new(ground, &vertex_y, frame, &settled);
+    parts.insert(
+        Part::Stairs,
+        mesh::stairs::build(&feature_set.stairs, frame, &drawn),
+    );
     let projection = features::Projection::new(tile.z);
     let context = mesh::structures::Context {
         ways: all_ways,

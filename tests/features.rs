@@ -483,3 +483,75 @@ fn a_lamp_on_a_bridge_stands_on_its_deck() {
         foot[1]
     );
 }
+
+/// A way of steps is drawn as steps over its ramp: level treads, not sunk into the ground
+/// (but for 1 %, where another way's surface overlaps the steps) and, but for 1 %, within
+/// half a metre over it, drawn as objects of their way.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn steps_are_drawn_as_level_treads_over_their_ramp() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    let monaco = tile(&server, 8529, 5974).await;
+    let size = monaco.tile_size();
+    let locator = GroundLocator::new(
+        GROUND_NODES
+            .iter()
+            .flat_map(|n| corners(monaco.primitives(n)))
+            .collect(),
+        size,
+    );
+    let stairs: Vec<_> = monaco
+        .primitives("object")
+        .iter()
+        .filter(|p| p.material == "stairs")
+        .collect();
+    assert_eq!(stairs.len(), 1, "no steps drawn");
+    let (mut treads, mut over_ground, mut sunk, mut tall, mut highest) = (0, 0, 0, 0, 0.0f64);
+    for primitive in stairs {
+        for t in primitive.triangles() {
+            let feature = &monaco.features[primitive.feature_ids[t[0]] as usize];
+            assert_eq!(
+                (feature.class.as_str(), feature.tags.get("highway")),
+                ("object", Some(&serde_json::json!("steps")))
+            );
+            let [a, b, c] = t.map(|i| primitive.positions[i].map(f64::from));
+            let up = (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2]);
+            if up <= 1e-9 {
+                continue;
+            }
+            treads += 1;
+            assert!(
+                (a[1] - b[1]).abs() < 1e-3 && (a[1] - c[1]).abs() < 1e-3,
+                "a tread is not level: {a:?} {b:?} {c:?}"
+            );
+            let centre = [(a[0] + b[0] + c[0]) / 3.0, (a[2] + b[2] + c[2]) / 3.0];
+            let Some(&ground) = locator.heights_at(centre[0], centre[1], 1e-6).first() else {
+                continue;
+            };
+            over_ground += 1;
+            // Local units: about 1.38 to the metre here.
+            let above = (a[1] - ground) / 1.38;
+            if above < -0.05 {
+                sunk += 1;
+            }
+            if above > 0.5 {
+                tall += 1;
+            }
+            highest = highest.max(above);
+        }
+    }
+    eprintln!(
+        "{treads} tread triangles, {over_ground} over the ground: {sunk} sunk into it (where a \
+         way beside overlaps the steps), {tall} more than 0.5 m above it (where the ground \
+         steps within a tread), at most {highest:.2} m"
+    );
+    assert!(treads > 1000, "only {treads} tread triangles");
+    assert!(
+        sunk * 100 <= over_ground,
+        "{sunk} of {over_ground} treads sunk"
+    );
+    assert!(
+        tall * 100 <= over_ground,
+        "{tall} of {over_ground} treads stand tall"
+    );
+}

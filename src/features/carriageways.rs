@@ -48,8 +48,20 @@ pub fn road_line(
     Some(line)
 }
 
+/// A flight of steps on the ground: its way's whole line (global tile units), its width and
+/// the feature row its steps are drawn as (an object of the way's own).
+#[derive(Debug, Clone)]
+pub struct Stairs {
+    pub feature: u32,
+    pub line: Vec<Point>,
+    pub width_m: f64,
+    /// Tile units per metre along it.
+    pub metre: f64,
+}
+
 /// Adds the roads among `ways` as one network: a surface per way, split and cut back where
-/// ways meet, and a surface per junction (traced to its OSM node).
+/// ways meet, and a surface per junction (traced to its OSM node). A way of steps is a road
+/// of the network (its ramp) and a flight of steps over it.
 pub(super) fn add_roads(
     set: &mut FeatureSet,
     ways: &[&Way],
@@ -72,6 +84,15 @@ pub(super) fn add_roads(
         };
         let feature = set.add_feature(Some(element), FeatureClass::Road, &way.tags);
         roads.push((feature, Paving::from_tags(&way.tags), width));
+        if roads::is_steps(&way.tags) {
+            let feature = set.add_feature(Some(element), FeatureClass::Object, &way.tags);
+            set.stairs.push(Stairs {
+                feature,
+                line: line.points.clone(),
+                width_m: width,
+                metre: line.metre,
+            });
+        }
         lines.push(line);
     }
     let network = road_network::build(&lines);

@@ -232,6 +232,8 @@ pub struct FeatureSet {
     pub barriers: Vec<barriers::Barrier>,
     /// Lines where the ground steps (cliffs, retaining walls), for the elevation stage.
     pub steps: Vec<barriers::GroundStep>,
+    /// Flights of steps (`highway=steps` on the ground) to draw over their ramps.
+    pub stairs: Vec<carriageways::Stairs>,
     /// Outlines of the roads, railways and water near the tile, also those just outside it:
     /// they weigh the terrain error on both sides of a shared edge alike.
     pub nearby_outlines: Vec<Vec<Point>>,
@@ -295,6 +297,8 @@ impl FeatureSet {
         self.steps.retain(|s| s.reach().intersects(rect));
         self.power_lines
             .retain(|l| Rect::around(&l.line).intersects(rect));
+        self.stairs
+            .retain(|s| Rect::around(&s.line).intersects(rect));
         let mut used = vec![false; self.features.len()];
         used[0] = true;
         for feature in self
@@ -305,6 +309,7 @@ impl FeatureSet {
             .chain(self.barriers.iter().map(|b| b.feature))
             .chain(self.steps.iter().map(|s| s.feature))
             .chain(self.power_lines.iter().map(|l| l.feature))
+            .chain(self.stairs.iter().map(|s| s.feature))
         {
             used[feature as usize] = true;
         }
@@ -337,6 +342,9 @@ impl FeatureSet {
         }
         for line in &mut self.power_lines {
             line.feature = renumbered[line.feature as usize];
+        }
+        for stairs in &mut self.stairs {
+            stairs.feature = renumbered[stairs.feature as usize];
         }
     }
 }

@@ -124,6 +124,11 @@ pub(super) fn add_area(set: &mut FeatureSet, area: &Area<'_>, projection: &Proje
     }
 }
 
+/// A flight of steps (`highway=steps`).
+pub fn is_steps(tags: &Tags) -> bool {
+    tags.get("highway") == Some("steps")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -101,6 +101,48 @@ impl<'a> Locator<'a> {
     }
 }
 
+/// The ground as the tile draws it: the elevation of its ground mesh under a point, and off
+/// the tile the ground model's.
+pub struct DrawnGround<'a> {
+    locator: Locator<'a>,
+    vertex_y: &'a [f64],
+    frame: &'a TileFrame,
+    model: &'a dyn crate::terrain::Elevation,
+}
+
+impl<'a> DrawnGround<'a> {
+    /// `vertex_y` holds the `y` of each of `ground`'s vertices in the local frame.
+    pub fn new(
+        ground: &'a Ground,
+        vertex_y: &'a [f64],
+        frame: &'a TileFrame,
+        model: &'a dyn crate::terrain::Elevation,
+    ) -> DrawnGround<'a> {
+        DrawnGround {
+            locator: Locator::new(ground, frame.size_m),
+            vertex_y,
+            frame,
+            model,
+        }
+    }
+}
+
+impl crate::terrain::Elevation for DrawnGround<'_> {
+    fn elevation_uv(&self, p: [f64; 2]) -> f64 {
+        let (x, z) = self.frame.uv_to_local(p[0], p[1]);
+        match self.locator.locate(x, z) {
+            Some((index, weights)) => {
+                let triangle = &self.locator.ground.triangles[index];
+                let y: f64 = (0..3)
+                    .map(|k| weights[k] * self.vertex_y[triangle.vertices[k] as usize])
+                    .sum();
+                y / self.frame.scale_at(z)
+            }
+            None => self.model.elevation_uv(p),
+        }
+    }
+}
+
 fn min_max(values: [f64; 3]) -> (f64, f64) {
     (
         values.iter().copied().fold(f64::INFINITY, f64::min),

@@ -12,6 +12,7 @@ pub mod normals;
 pub mod power;
 pub mod roofs;
 pub mod skeleton;
+pub mod stairs;
 pub mod structures;
 pub mod tin;
 
@@ -36,6 +37,8 @@ pub enum Part {
     Barrier(BarrierKind),
     Object(ObjectKind),
     PowerLine,
+    /// The treads and risers of a flight of steps.
+    Stairs,
     /// A bridge's deck: paved like its road, or a railway's bed.
     BridgeDeck(Option<Paving>),
     /// A bridge's sides, underside and piers.
@@ -63,7 +66,7 @@ impl Part {
             Part::BuildingWalls(_) | Part::BuildingRoofs(_) => FeatureClass::Building,
             Part::TreeTrunk | Part::TreeCrown(..) => FeatureClass::Vegetation,
             Part::Barrier(_) => FeatureClass::Barrier,
-            Part::Object(_) | Part::PowerLine => FeatureClass::Object,
+            Part::Object(_) | Part::PowerLine | Part::Stairs => FeatureClass::Object,
             Part::BridgeDeck(_) | Part::BridgeStructure => FeatureClass::Bridge,
             Part::TunnelFloor(_) | Part::TunnelLining | Part::TunnelPortal => FeatureClass::Tunnel,
         }
@@ -87,6 +90,7 @@ impl Part {
             Part::Barrier(kind) => kind.as_str(),
             Part::Object(kind) => kind.as_str(),
             Part::PowerLine => "power_line",
+            Part::Stairs => "stairs",
             Part::BridgeDeck(None) => "bridge_deck_railway",
             Part::BridgeDeck(Some(Paving::Asphalt)) => "bridge_deck_asphalt",
             Part::BridgeDeck(Some(Paving::Concrete)) => "bridge_deck_concrete",
