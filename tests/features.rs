@@ -492,14 +492,7 @@ async fn steps_are_drawn_as_level_treads_over_their_ramp() {
     let dir = tempfile::tempdir().unwrap();
     let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
     let monaco = tile(&server, 8529, 5974).await;
-    let size = monaco.tile_size();
-    let locator = GroundLocator::new(
-        GROUND_NODES
-            .iter()
-            .flat_map(|n| corners(monaco.primitives(n)))
-            .collect(),
-        size,
-    );
+    let locator = GroundLocator::of_ground(&monaco);
     let stairs: Vec<_> = monaco
         .primitives("object")
         .iter()

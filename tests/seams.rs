@@ -169,6 +169,28 @@ fn hgt_sample(hgt: &[u8], cell: (f64, f64), lon: f64, lat: f64) -> f64 {
     f64::from(i16::from_be_bytes([hgt[k], hgt[k + 1]]))
 }
 
+/// The tiles rendered from `extract` over the Ulm SRTM files, each in its own process.
+fn render_with(
+    extract: &Path,
+    tiles: &[(u32, u32)],
+    out: &Path,
+) -> BTreeMap<(u32, u32), DecodedTile> {
+    let srtm = repo().join("tests/data");
+    let args = [
+        "--osm".as_ref(),
+        extract.as_os_str(),
+        "--srtm".as_ref(),
+        srtm.as_os_str(),
+    ];
+    tiles
+        .iter()
+        .map(|&(x, y)| {
+            let glb = render_in_process(&format!("14/{x}/{y}"), &args, out);
+            ((x, y), decode(&glb))
+        })
+        .collect()
+}
+
 #[test]
 fn a_river_across_two_srtm_files_runs_at_the_same_level_in_tiles_that_read_one_or_both() {
     // A river flowing east across 10° E, from N48E009 into N48E010: 14/8647/5668 straddles the
@@ -185,19 +207,7 @@ fn a_river_across_two_srtm_files_runs_at_the_same_level_in_tiles_that_read_one_o
         &extract,
     );
     let srtm = repo().join("tests/data");
-    let args = [
-        "--osm".as_ref(),
-        extract.as_os_str(),
-        "--srtm".as_ref(),
-        srtm.as_os_str(),
-    ];
-    let tiles: BTreeMap<(u32, u32), DecodedTile> = [(8647, 5668), (8648, 5668)]
-        .into_iter()
-        .map(|(x, y)| {
-            let glb = render_in_process(&format!("14/{x}/{y}"), &args, dir.path());
-            ((x, y), decode(&glb))
-        })
-        .collect();
+    let tiles = render_with(&extract, &[(8647, 5668), (8648, 5668)], dir.path());
     assert_eq!(check_pairs(&tiles), 1);
     // No vertex of the river's water below the lowest ground along it (SRTM samples every
     // 20 m of the line; the terrain between samples may dip a little below them).
@@ -259,20 +269,11 @@ fn a_river_area_runs_down_along_its_river_and_lies_level_across_it() {
         ]),
         &extract,
     );
-    let srtm = repo().join("tests/data");
-    let args = [
-        "--osm".as_ref(),
-        extract.as_os_str(),
-        "--srtm".as_ref(),
-        srtm.as_os_str(),
-    ];
-    let tiles: BTreeMap<(u32, u32), DecodedTile> = [(8646, 5668), (8647, 5668), (8648, 5668)]
-        .into_iter()
-        .map(|(x, y)| {
-            let glb = render_in_process(&format!("14/{x}/{y}"), &args, dir.path());
-            ((x, y), decode(&glb))
-        })
-        .collect();
+    let tiles = render_with(
+        &extract,
+        &[(8646, 5668), (8647, 5668), (8648, 5668)],
+        dir.path(),
+    );
     assert_eq!(check_pairs(&tiles), 2);
     // Each vertex of the water at its station along the river (global tile units).
     let projection = terrastitch::features::Projection::new(14);

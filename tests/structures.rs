@@ -5,9 +5,7 @@ mod common;
 
 use std::collections::{BTreeMap, HashMap};
 
-use common::{
-    corners, decode, sample_osm, sample_srtm, GroundLocator, GROUND_NODES, MONACO_TILES as TILES,
-};
+use common::{decode, sample_osm, sample_srtm, GroundLocator, MONACO_TILES as TILES};
 use terrastitch::elevation::structures::{settle, ConstraintKind, Settled};
 use terrastitch::features::structures as tags;
 use terrastitch::features::{FeatureSettings, Projection};
@@ -64,13 +62,7 @@ fn bridges_clear_what_they_cross_and_tunnels_stay_under_the_ground() {
         let frame = id.frame();
         let size = tile.tile_size();
         let elevation = |y: f64, z: f64| y / frame.scale_at(z);
-        let ground = GroundLocator::new(
-            GROUND_NODES
-                .iter()
-                .flat_map(|n| corners(tile.primitives(n)))
-                .collect(),
-            size,
-        );
+        let ground = GroundLocator::of_ground(&tile);
         // Deck triangles by OSM way.
         let mut decks: HashMap<i64, Vec<[[f64; 3]; 3]>> = HashMap::new();
         for primitive in tile.primitives("bridge") {
@@ -461,13 +453,7 @@ fn bridge_decks_stand_clear_of_the_ground_under_and_beside_them() {
         let tile = decode(&common::render_in_process(&name, &[], dir.path()));
         let frame = TileId { z: 14, x, y }.frame();
         let size = tile.tile_size();
-        let ground = GroundLocator::new(
-            GROUND_NODES
-                .iter()
-                .flat_map(|n| corners(tile.primitives(n)))
-                .collect(),
-            size,
-        );
+        let ground = GroundLocator::of_ground(&tile);
         // The ways the bridges pass over (not those that join them at a ramp), and water.
         let crossed = GroundLocator::new(
             ["road", "railway", "water"]

@@ -499,6 +499,15 @@ impl GroundLocator {
         }
     }
 
+    /// The ground a decoded tile draws (its [`GROUND_NODES`]).
+    pub fn of_ground(tile: &DecodedTile) -> GroundLocator {
+        let triangles = GROUND_NODES
+            .iter()
+            .flat_map(|n| corners(tile.primitives(n)))
+            .collect();
+        GroundLocator::new(triangles, tile.tile_size())
+    }
+
     /// The triangles whose box meets a grid cell of the box from `a` to `b` in (x, z).
     pub fn near(&self, a: [f64; 3], b: [f64; 3]) -> BTreeSet<usize> {
         let cell = |v: f64| {
