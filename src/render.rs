@@ -719,9 +719,8 @@ fn render_glb(
     let instanced = mesh::instances::place(
         (&feature_set.trees, &feature_set.objects),
         feature_set,
-        (ground, &vertex_y),
+        &drawn,
         &decks,
-        frame,
     );
     timings.shapes = started.elapsed();
 

@@ -10,6 +10,7 @@ use terrastitch::elevation::structures::{settle, ConstraintKind, Settled};
 use terrastitch::features::structures as tags;
 use terrastitch::features::{FeatureSettings, Projection};
 use terrastitch::mesh::ground::MeshSettings;
+use terrastitch::mesh::{dot, triangle_normal};
 use terrastitch::osm::structures::{Crossed, StructureKind};
 use terrastitch::provider::Inputs;
 use terrastitch::terrain::{Interpolation, TerrainModel};
@@ -482,17 +483,8 @@ fn bridge_decks_stand_clear_of_the_ground_under_and_beside_them() {
             }
             let mut tops = std::collections::BTreeSet::new();
             for t in primitive.triangles() {
-                let c = t.map(|i| primitive.positions[i].map(f64::from));
-                let (u, w) = (
-                    [c[1][0] - c[0][0], c[1][1] - c[0][1], c[1][2] - c[0][2]],
-                    [c[2][0] - c[0][0], c[2][1] - c[0][1], c[2][2] - c[0][2]],
-                );
-                let n = [
-                    u[1] * w[2] - u[2] * w[1],
-                    u[2] * w[0] - u[0] * w[2],
-                    u[0] * w[1] - u[1] * w[0],
-                ];
-                if n[1] > 0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() {
+                let n = triangle_normal(t.map(|i| primitive.positions[i].map(f64::from)));
+                if n[1] > 0.5 * dot(n, n).sqrt() {
                     tops.extend(t);
                 }
             }

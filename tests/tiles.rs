@@ -6,6 +6,7 @@ mod common;
 use std::collections::BTreeMap;
 
 use common::{corners, decode, validate, DecodedTile, GroundLocator, TestServer, GROUND_NODES};
+use terrastitch::mesh::{dot, triangle_normal};
 use terrastitch::osm::bounds_of;
 use terrastitch::provider::Inputs;
 use terrastitch::TileId;
@@ -235,16 +236,8 @@ fn check_ground_faces_up(tile: &DecodedTile) {
         for primitive in tile.primitives(node) {
             for [a, b, c] in primitive.triangles() {
                 let [a, b, c] = [a, b, c].map(|i| primitive.positions[i].map(f64::from));
-                let (u, w) = (
-                    [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-                    [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-                );
-                let normal = [
-                    u[1] * w[2] - u[2] * w[1],
-                    u[2] * w[0] - u[0] * w[2],
-                    u[0] * w[1] - u[1] * w[0],
-                ];
-                let length = normal.iter().map(|v| v * v).sum::<f64>().sqrt();
+                let normal = triangle_normal([a, b, c]);
+                let length = dot(normal, normal).sqrt();
                 // Where the ground steps between two points a hair apart, a triangle stands
                 // upright and may lean either way at f32.
                 assert!(

@@ -793,7 +793,8 @@ pub struct GroundCut {
 /// short, with a floor over every tube that keeps other cuts from exposing it; and the
 /// terrain lowered under each bridge's deck ([`trough_under`]). `features` gives the feature
 /// row of each structure way drawn in the tile (by index into `ways`); only their stretches
-/// (and the bridges with a way drawn) are returned. The feature set is left as it is: adding the cuts is the caller's part.
+/// (and the bridges with a way drawn) are returned. The feature set is left as it is: adding
+/// the cuts is the caller's part.
 pub fn ground_cuts(
     settled: &[Settled],
     ways: &[Way],
@@ -839,18 +840,7 @@ pub fn ground_cuts(
             }
             let way = &ways[portal_way as usize];
             let traits = WayTraits::of(way, settings);
-            let mut line: Vec<Point> = Vec::with_capacity(stations.len());
-            let mut profile_uv: Vec<(f64, f64)> = Vec::with_capacity(stations.len());
-            let mut along = 0.0;
-            for s in &stations {
-                if let Some(&last) = line.last() {
-                    let step = distance(last, s.point);
-                    if step <= 0.0 {
-                        continue;
-                    }
-                    along += step;
-                }
-                line.push(s.point);
+            let (line, profile_uv) = line_with_profile(stations.iter().map(|s| {
                 let k = profile
                     .along_m
                     .partition_point(|&a| a <= s.along_m)
@@ -861,8 +851,8 @@ pub fn ground_cuts(
                 } else {
                     s.elevation
                 };
-                profile_uv.push((along, elevation));
-            }
+                (s.point, elevation)
+            }));
             let lat = way.positions.first().map_or(0.0, |p| p.lat);
             let mut width = traits.width_m;
             if raised {
@@ -913,6 +903,26 @@ pub fn ground_cuts(
     cuts
 }
 
+/// The line through `points` (tile units, each with an elevation), a point where the one
+/// before it stands dropped, and each kept point's elevation at its distance along the line.
+fn line_with_profile(points: impl Iterator<Item = (Point, f64)>) -> (Vec<Point>, Vec<(f64, f64)>) {
+    let mut line: Vec<Point> = Vec::new();
+    let mut profile: Vec<(f64, f64)> = Vec::new();
+    let mut along = 0.0;
+    for (point, elevation) in points {
+        if let Some(&last) = line.last() {
+            let step = distance(last, point);
+            if step <= 0.0 {
+                continue;
+            }
+            along += step;
+        }
+        line.push(point);
+        profile.push((along, elevation));
+    }
+    (line, profile)
+}
+
 /// How far under a bridge deck's underside the ground is kept, metres.
 const UNDER_DECK_M: f64 = 1.0;
 /// How far beyond a deck's sides the ground is kept under it, metres.
@@ -957,20 +967,8 @@ fn trough_under(
         .fold(full, f64::min);
         from_ground.max(0.0)
     };
-    let mut line: Vec<Point> = Vec::with_capacity(n);
-    let mut ceiling: Vec<(f64, f64)> = Vec::with_capacity(n);
-    let mut along = 0.0;
-    for i in 0..n {
-        if let Some(&last) = line.last() {
-            let step = distance(last, profile.points[i]);
-            if step <= 0.0 {
-                continue;
-            }
-            along += step;
-        }
-        line.push(profile.points[i]);
-        ceiling.push((along, profile.elevations[i] - depth(i)));
-    }
+    let (line, ceiling) =
+        line_with_profile((0..n).map(|i| (profile.points[i], profile.elevations[i] - depth(i))));
     let lat = ways[profile.ways[0] as usize]
         .positions
         .first()

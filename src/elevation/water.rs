@@ -56,48 +56,19 @@ fn downstream(line: &[Point], terrain: &dyn Elevation, metres_per_unit: f64) -> 
         return None;
     }
     let step = SHORE_STEP_M / metres_per_unit;
-    let samples: Vec<(f64, Option<f64>)> = samples_along(line, step)
-        .into_iter()
-        .map(|(along, p)| (along, terrain.known_elevation_uv(p)))
-        .collect();
-    Some(Rule::Along {
-        stations: Stations::new(line),
-        profile: running_lowest(samples),
-    })
-}
-
-/// Points every `step` along the rings of a surface's pieces.
-fn shore_points(surface: &Surface, step: f64) -> Vec<Point> {
-    let mut points = Vec::new();
-    for ring in surface.pieces.iter().flat_map(Polygon::rings) {
-        for i in 0..ring.len() {
-            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
-            let length = (b[0] - a[0]).hypot(b[1] - a[1]);
-            let steps = (length / step).ceil().max(1.0) as usize;
-            for k in 0..steps {
-                let t = k as f64 / steps as f64;
-                points.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
-            }
-        }
-    }
-    points
-}
-
-/// The lowest of the known elevations met so far at each station of a line, downstream.
-/// Where the ground is unknown (no SRTM file), the lowest met before holds; stations before
-/// the first known ground lie at its level, and a line over no known ground at all at sea
-/// level.
-fn running_lowest(samples: Vec<(f64, Option<f64>)>) -> Vec<(f64, f64)> {
     let mut lowest = f64::INFINITY;
-    let mut profile: Vec<(f64, f64)> = samples
+    // Where the ground is unknown (no SRTM file), the lowest ground met before holds.
+    let mut profile: Vec<(f64, f64)> = samples_along(line, step)
         .into_iter()
-        .map(|(along, h)| {
-            if let Some(h) = h {
+        .map(|(along, p)| {
+            if let Some(h) = terrain.known_elevation_uv(p) {
                 lowest = lowest.min(h);
             }
             (along, lowest)
         })
         .collect();
+    // Stations before the first known ground lie at its level; a way over no known ground
+    // at all, at sea level.
     let first = profile
         .iter()
         .map(|&(_, h)| h)
@@ -108,7 +79,10 @@ fn running_lowest(samples: Vec<(f64, Option<f64>)>) -> Vec<(f64, f64)> {
             *h = first;
         }
     }
-    profile
+    Some(Rule::Along {
+        stations: Stations::new(line),
+        profile,
+    })
 }
 
 /// The lowest known ground along the rings of a surface's pieces.
@@ -116,9 +90,16 @@ fn shore_minimum(surface: &Surface, terrain: &dyn Elevation, metres_per_unit: f6
     let step = SHORE_STEP_M / metres_per_unit;
     // Where the ground is unknown (no SRTM file), the shore is not counted; a shore over no
     // known ground at all lies at sea level.
-    let lowest = shore_points(surface, step)
-        .into_iter()
-        .filter_map(|p| terrain.known_elevation_uv(p))
+    let lowest = surface
+        .pieces
+        .iter()
+        .flat_map(Polygon::rings)
+        .flat_map(|ring| {
+            let mut closed = ring.clone();
+            closed.extend(ring.first());
+            samples_along(&closed, step)
+        })
+        .filter_map(|(_, p)| terrain.known_elevation_uv(p))
         .reduce(f64::min);
     lowest.or(Some(0.0))
 }

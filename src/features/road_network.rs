@@ -197,7 +197,7 @@ fn split_and_cut(
         }
     }
     for piece in &pieces {
-        let length = polyline_length(&piece.line.points);
+        let length = geometry::polyline_length(&piece.line.points);
         let share = if piece.start.is_some() && piece.end.is_some() {
             0.45
         } else {
@@ -744,17 +744,10 @@ fn edge_corner(a: &Cap, b: &Cap, between: f64) -> Option<Point> {
     (s < -tolerance && t < -tolerance && near).then_some(corner)
 }
 
-fn polyline_length(points: &[Point]) -> f64 {
-    points
-        .windows(2)
-        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-        .sum()
-}
-
 /// The polyline without its first `start` and last `end` units of length; `None` when nothing
 /// is left.
 pub fn trim(points: &[Point], start: f64, end: f64) -> Option<Vec<Point>> {
-    let length = polyline_length(points);
+    let length = geometry::polyline_length(points);
     if start + end >= length || points.len() < 2 {
         return None;
     }

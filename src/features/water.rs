@@ -128,10 +128,13 @@ fn follow_waterways_in_river_areas(set: &mut FeatureSet) {
         if area.water != Some(WaterBody::River) || is_waterway(set, area) {
             continue;
         }
+        // The length of a line's segments with both ends in the area (each point tested once).
         let inside = |line: &[Point]| -> f64 {
+            let within: Vec<bool> = line.iter().map(|&p| area.contains(p)).collect();
             line.windows(2)
-                .filter(|pair| area.contains(pair[0]) && area.contains(pair[1]))
-                .map(|pair| (pair[1][0] - pair[0][0]).hypot(pair[1][1] - pair[0][1]))
+                .zip(within.windows(2))
+                .filter(|(_, ends)| ends[0] && ends[1])
+                .map(|(pair, _)| (pair[1][0] - pair[0][0]).hypot(pair[1][1] - pair[0][1]))
                 .sum()
         };
         let best = waterways

@@ -291,6 +291,14 @@ pub fn interpolate(xs: &[f64], ys: &[f64], x: f64) -> f64 {
     ys[k - 1] + t * (ys[k] - ys[k - 1])
 }
 
+/// The length of a polyline.
+pub fn polyline_length(points: &[Point]) -> f64 {
+    points
+        .windows(2)
+        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+        .sum()
+}
+
 /// Distance from `p` to the segment `a`–`b`.
 pub fn distance_to_segment(p: Point, a: Point, b: Point) -> f64 {
     let d = [b[0] - a[0], b[1] - a[1]];

@@ -5,7 +5,7 @@
 use std::collections::BTreeMap;
 
 use super::ground::Ground;
-use super::{MeshBuffers, Part};
+use super::{dot, triangle_normal, MeshBuffers, Part};
 use crate::features::Surface;
 use crate::tile::TileFrame;
 
@@ -92,18 +92,8 @@ const UPRIGHT_TILT: f64 = 0.05;
 /// with an area of its own. Dropping the upright ones would open a crack in the ground where
 /// its elevation steps between two points the tile's precision sees as one place.
 fn covers_in_f32(corners: [[f64; 3]; 3]) -> bool {
-    let [a, b, c] = corners.map(|p| p.map(|v| f64::from(v as f32)));
-    let (u, w) = (sub(b, a), sub(c, a));
-    let normal = [
-        u[1] * w[2] - u[2] * w[1],
-        u[2] * w[0] - u[0] * w[2],
-        u[0] * w[1] - u[1] * w[0],
-    ];
-    let length = normal.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let normal = triangle_normal(corners.map(|p| p.map(|v| f64::from(v as f32))));
+    let length = dot(normal, normal).sqrt();
     let upright = normal[1].abs() <= UPRIGHT_TILT * length;
     normal[1] > 0.0 || (upright && 0.5 * length >= UPRIGHT_AREA_M2)
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }

@@ -6,7 +6,7 @@
 
 use std::collections::BTreeMap;
 
-use super::ground::Ground;
+use super::ground::{Ground, GroundTriangle};
 use super::models::Model;
 use crate::elevation::structures::Profile;
 use crate::features::objects::PointObject;
@@ -125,19 +125,23 @@ impl<'a> DrawnGround<'a> {
             model,
         }
     }
+
+    /// The ground triangle under local `(x, z)` and the `y` of the mesh there.
+    fn under(&self, x: f64, z: f64) -> Option<(&GroundTriangle, f64)> {
+        let (index, weights) = self.locator.locate(x, z)?;
+        let triangle = &self.locator.ground.triangles[index];
+        let y = (0..3)
+            .map(|k| weights[k] * self.vertex_y[triangle.vertices[k] as usize])
+            .sum();
+        Some((triangle, y))
+    }
 }
 
 impl crate::terrain::Elevation for DrawnGround<'_> {
     fn elevation_uv(&self, p: [f64; 2]) -> f64 {
         let (x, z) = self.frame.uv_to_local(p[0], p[1]);
-        match self.locator.locate(x, z) {
-            Some((index, weights)) => {
-                let triangle = &self.locator.ground.triangles[index];
-                let y: f64 = (0..3)
-                    .map(|k| weights[k] * self.vertex_y[triangle.vertices[k] as usize])
-                    .sum();
-                y / self.frame.scale_at(z)
-            }
+        match self.under(x, z) {
+            Some((_, y)) => y / self.frame.scale_at(z),
             None => self.model.elevation_uv(p),
         }
     }
@@ -194,10 +198,10 @@ fn deck_at(decks: &[(Rect, &Profile)], at: Point) -> Option<f64> {
 pub fn place(
     (trees, objects): (&[Tree], &[PointObject]),
     feature_set: &FeatureSet,
-    (ground, vertex_y): (&Ground, &[f64]),
+    ground: &DrawnGround<'_>,
     decks: &[&Profile],
-    frame: &TileFrame,
 ) -> BTreeMap<Model, Instances> {
+    let frame = ground.frame;
     let placements = trees
         .iter()
         .map(|tree| {
@@ -222,7 +226,6 @@ pub fn place(
             feature: object.feature,
             on: None,
         }));
-    let locator = Locator::new(ground, frame.size_m);
     let decks: Vec<(Rect, &Profile)> = decks
         .iter()
         .map(|profile| (Rect::around(&profile.points), *profile))
@@ -242,10 +245,9 @@ pub fn place(
             push(&mut models, &placement, [x, y, z], frame.scale_at(z));
             continue;
         }
-        let Some((index, weights)) = locator.locate(x, z) else {
+        let Some((triangle, y)) = ground.under(x, z) else {
             continue;
         };
-        let triangle = &ground.triangles[index];
         let surface = triangle.surface;
         let allowed = match placement.on {
             Some(required) => surface == Some(required),
@@ -259,9 +261,6 @@ pub fn place(
         if !allowed {
             continue;
         }
-        let y: f64 = (0..3)
-            .map(|k| weights[k] * vertex_y[triangle.vertices[k] as usize])
-            .sum();
         let scale = frame.scale_at(z);
         push(&mut models, &placement, [x, y - SINK_M * scale, z], scale);
     }

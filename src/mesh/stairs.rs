@@ -5,7 +5,7 @@
 
 use super::MeshBuffers;
 use crate::features::carriageways::Stairs;
-use crate::geometry::Point;
+use crate::geometry::{polyline_length, Point};
 use crate::terrain::Elevation;
 use crate::tile::TileFrame;
 
@@ -22,7 +22,7 @@ const SINK_M: f64 = 0.1;
 pub fn build(stairs: &[Stairs], frame: &TileFrame, ground: &dyn Elevation) -> MeshBuffers {
     let mut buffers = MeshBuffers::default();
     for flight in stairs {
-        let length = length_of(&flight.line);
+        let length = polyline_length(&flight.line);
         // How far the ramp climbs and falls in all, at the least going's spacing.
         let fine = evenly(&flight.line, length, least_treads(length, flight.metre));
         let heights: Vec<f64> = fine.iter().map(|&p| ground.elevation_uv(p)).collect();
@@ -34,13 +34,6 @@ pub fn build(stairs: &[Stairs], frame: &TileFrame, ground: &dyn Elevation) -> Me
         }
     }
     buffers
-}
-
-/// The length of a line, in its units.
-fn length_of(line: &[Point]) -> f64 {
-    line.windows(2)
-        .map(|p| (p[1][0] - p[0][0]).hypot(p[1][1] - p[0][1]))
-        .sum()
 }
 
 /// How many treads of the least going a line of `length` tile units holds (`metre` of them
@@ -184,7 +177,7 @@ mod tests {
     fn a_flight_is_spaced_evenly_end_to_end() {
         // 10 m at 100 units to the metre, with a bend: 40 treads of the least going.
         let line = [[0.0, 0.0], [600.0, 0.0], [600.0, 400.0]];
-        let length = length_of(&line);
+        let length = polyline_length(&line);
         assert_eq!(least_treads(length, 100.0), 40);
         let points = evenly(&line, length, 40);
         assert_eq!(points.len(), 41);
