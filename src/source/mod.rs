@@ -2,6 +2,7 @@
 //! rasters ([`srtm`]), and either downloaded from configured URLs ([`fetch`]). Files and the
 //! network are all it knows: what the data is for is decided above it.
 
+pub mod external_sort;
 pub mod fetch;
 pub mod node_locations;
 pub mod osc;

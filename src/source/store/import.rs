@@ -16,8 +16,9 @@
 //!
 //! Everything is written to `PATH.partial` and renamed over the store when whole, so a store
 //! at its path is always a finished one; an import that stops leaves the old store in use.
-//! Memory holds SQLite's page cache, the node file's block cache and index, the ids of the
-//! bridge and tunnel ways, one cluster's surroundings while its groups are found, and the
+//! Memory holds SQLite's page cache, the node file's block cache and index, two batches of
+//! blocks (one decoded while the other is written), a run of the joint references being
+//! sorted, the ids of the bridge and tunnel ways, one cluster's surroundings while its groups are found, and the
 //! groups found until they are written.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -30,11 +31,12 @@ use osmpbf::{BlobDecode, BlobReader, Element};
 use rusqlite::{params, Connection};
 
 use super::codec::{self, DecodeError};
-use super::resolve::{ResolvedWriter, Resolver};
+use super::resolve::{Resolved, ResolvedWriter, Resolver};
 use super::{ExtractRecord, FORMAT, SCHEMA};
 use crate::osm::index::{cells_of, meets};
 use crate::osm::structures::Classify;
 use crate::osm::{bounds_of, Bounds, LonLat, OsmData, OsmIndex, Tags, Way};
+use crate::source::external_sort::{ExternalSort, RUN_RECORDS};
 use crate::source::node_locations::{Decimicro, NodeLocations, NodeStoreError, NodeWriter};
 
 /// The feature rules the store's extract-wide facts need (given by the layer that knows
@@ -260,7 +262,6 @@ fn begin(path: &Path) -> Result<Partial, ImportError> {
     // tunnel).
     db.execute_batch(
         "CREATE TEMP TABLE raw_ways (id INTEGER PRIMARY KEY, data BLOB NOT NULL);
-         CREATE TEMP TABLE joint_refs (node INTEGER NOT NULL, way INTEGER NOT NULL);
          CREATE TEMP TABLE parts (id INTEGER PRIMARY KEY, near_tunnels INTEGER NOT NULL,
              west REAL NOT NULL, south REAL NOT NULL, east REAL NOT NULL, north REAL NOT NULL);
          CREATE TEMP TABLE node_parts (id INTEGER PRIMARY KEY);",
@@ -383,13 +384,14 @@ fn write_all(
     resolver.locations().sync()?;
     drop(resolver);
     let structure_ways = std::mem::take(&mut ways.structure_ways);
+    let joint_refs = std::mem::replace(&mut ways.joint_refs, ExternalSort::new(nodes_path, 1));
     state.ways = ways.written;
     drop(ways);
     state.phase = Phase::Indexing;
     progress(&state);
     imported.tagged_nodes = index_nodes(partial, n)?;
     imported.relations = index_relations(partial, n)?;
-    imported.joints = find_joints(partial)?;
+    imported.joints = find_joints(partial, joint_refs)?;
     imported.ways = state.ways;
     clock.done(Phase::Indexing);
     state.phase = Phase::Structures;
@@ -569,7 +571,8 @@ fn decode_all(blobs: &[(u64, osmpbf::Blob)], rules: &Rules) -> Vec<Result<Rows, 
     })
 }
 
-/// One extract being read.
+/// One extract being read: a thread reads and decodes its blocks (on every core), writes the
+/// node file and resolves the ways, while this one writes the store.
 struct Reading<'a> {
     partial: &'a Partial,
     path: &'a Path,
@@ -579,7 +582,35 @@ struct Reading<'a> {
     one_pass: bool,
 }
 
-impl Reading<'_> {
+/// What the decoding thread hands the store's: a batch of blocks decoded (only the tagged
+/// nodes kept), their ways resolved when they come after every node.
+struct Decoded {
+    rows: Vec<Rows>,
+    resolved: Vec<Resolved>,
+    /// Nodes and resolved ways in the batch.
+    nodes: u64,
+    ways: u64,
+    /// Bytes of the extract read so far.
+    read: u64,
+}
+
+/// What the decoding thread found of the whole extract.
+#[derive(Default)]
+struct Decoding {
+    header: Option<Bounds>,
+    extent: Option<Bounds>,
+    sequence: Option<u64>,
+}
+
+/// Reads and decodes one extract's blocks.
+struct Decoder<'a> {
+    path: &'a Path,
+    rules: &'a Rules,
+    n: f64,
+    one_pass: bool,
+}
+
+impl Decoder<'_> {
     fn failed(&self, offset: u64, error: RowsError) -> ImportError {
         match error {
             RowsError::Pbf(message) => ImportError::Pbf {
@@ -594,6 +625,85 @@ impl Reading<'_> {
         }
     }
 
+    fn unsorted(&self) -> ImportError {
+        ImportError::Unsorted {
+            path: self.path.to_path_buf(),
+        }
+    }
+
+    /// Decodes the blocks `reader` gives, a batch at a time, and sends them on `send` until
+    /// the extract ends or the receiver hangs up.
+    fn run<R: Read + Send>(
+        &self,
+        mut reader: BlobReader<R>,
+        read: &AtomicU64,
+        nodes: &mut Nodes,
+        send: std::sync::mpsc::SyncSender<Decoded>,
+    ) -> Result<Decoding, ImportError> {
+        let mut found = Decoding::default();
+        let mut last_way = None;
+        loop {
+            let mut batch = Vec::with_capacity(BATCH);
+            while batch.len() < BATCH {
+                let offset = read.load(Ordering::Relaxed);
+                let Some(blob) = reader.next() else { break };
+                let blob = blob.map_err(|e| self.failed(offset, RowsError::Pbf(e.to_string())))?;
+                batch.push((offset, blob));
+            }
+            if batch.is_empty() {
+                return Ok(found);
+            }
+            let mut decoded = Decoded {
+                rows: Vec::with_capacity(batch.len()),
+                resolved: Vec::new(),
+                nodes: 0,
+                ways: 0,
+                read: 0,
+            };
+            let mut batch_ways = Vec::new();
+            for rows in decode_all(&batch, self.rules) {
+                let mut rows = rows.map_err(|(offset, e)| self.failed(offset, e))?;
+                found.header = rows.header.or(found.header);
+                found.sequence = rows.sequence.or(found.sequence);
+                if self.one_pass && last_way.is_some() && !rows.nodes.is_empty() {
+                    return Err(self.unsorted());
+                }
+                if self.one_pass {
+                    for &(id, _) in &rows.ways {
+                        if last_way.is_some_and(|last| id <= last) {
+                            return Err(self.unsorted());
+                        }
+                        last_way = Some(id);
+                    }
+                    batch_ways.append(&mut rows.ways);
+                }
+                if !rows.nodes.is_empty() {
+                    let Nodes::Writing(node_writer) = nodes else {
+                        return Err(self.unsorted());
+                    };
+                    for node in &rows.nodes {
+                        node_writer.push(node.id, node.at)?;
+                        crate::source::osm_pbf::grow(&mut found.extent, node.position);
+                    }
+                    decoded.nodes += rows.nodes.len() as u64;
+                    rows.nodes.retain(|node| node.tags.is_some());
+                }
+                decoded.rows.push(rows);
+            }
+            if !batch_ways.is_empty() {
+                decoded.ways = batch_ways.len() as u64;
+                decoded.resolved = nodes.resolver()?.resolve(&batch_ways, self.n, self.rules)?;
+            }
+            decoded.read = read.load(Ordering::Relaxed);
+            if send.send(decoded).is_err() {
+                // The store's thread stopped, with an error of its own.
+                return Ok(found);
+            }
+        }
+    }
+}
+
+impl Reading<'_> {
     /// Reads the extract: node positions to the node file, the rest to the store.
     fn extract(
         &mut self,
@@ -616,70 +726,42 @@ impl Reading<'_> {
             digest: digest.clone(),
         };
         let before = state.bytes;
-        let mut reader = BlobReader::new(counting);
+        let reader = BlobReader::new(counting);
         // The version the store records is the one read: taken before, checked after.
         let file_version = crate::source::srtm::file_version(path).unwrap_or_default();
-        let mut writer = RowWriter::new(self.partial)?;
+        let decoder = Decoder {
+            path,
+            rules: self.rules,
+            n: self.n,
+            one_pass: self.one_pass,
+        };
         let sqlite = self.partial.sqlite();
         self.partial.db.execute_batch("BEGIN").map_err(&sqlite)?;
-        let (mut header, mut extent, mut sequence) = (None, None, None);
-        let mut last_way = None;
-        loop {
-            let mut batch = Vec::with_capacity(BATCH);
-            while batch.len() < BATCH {
-                let offset = read.load(Ordering::Relaxed);
-                let Some(blob) = reader.next() else { break };
-                let blob = blob.map_err(|e| self.failed(offset, RowsError::Pbf(e.to_string())))?;
-                batch.push((offset, blob));
-            }
-            if batch.is_empty() {
-                break;
-            }
-            let mut batch_ways = Vec::new();
-            for rows in decode_all(&batch, self.rules) {
-                let mut rows = rows.map_err(|(offset, e)| self.failed(offset, e))?;
-                header = rows.header.or(header);
-                sequence = rows.sequence.or(sequence);
-                if self.one_pass && last_way.is_some() && !rows.nodes.is_empty() {
-                    return Err(self.unsorted());
-                }
-                if self.one_pass {
-                    for &(id, _) in &rows.ways {
-                        if last_way.is_some_and(|last| id <= last) {
-                            return Err(self.unsorted());
-                        }
-                        last_way = Some(id);
-                    }
-                    state.ways += rows.ways.len() as u64;
-                    batch_ways.append(&mut rows.ways);
-                }
-                let node_writer = match nodes {
-                    Nodes::Writing(node_writer) => Some(node_writer),
-                    _ if rows.nodes.is_empty() => None,
-                    _ => return Err(self.unsorted()),
-                };
-                writer.write(rows, node_writer, &mut extent, state)?;
-            }
-            if !batch_ways.is_empty() {
-                let resolved = nodes.resolver()?.resolve(&batch_ways, self.n, self.rules)?;
-                for way in resolved {
-                    ways.write(way)?;
-                }
-            }
-            state.bytes = before + read.load(Ordering::Relaxed);
-            progress(state);
-        }
-        drop(writer);
+        let found = std::thread::scope(|scope| {
+            // Two batches in flight: one being decoded while one is written.
+            let (send, receive) = std::sync::mpsc::sync_channel(1);
+            let decoding = scope.spawn(|| decoder.run(reader, &read, nodes, send));
+            let written = self.write_decoded(receive, ways, before, state, progress);
+            let found = decoding.join().map_err(|_| ImportError::Io {
+                path: path.to_path_buf(),
+                source: std::io::Error::other("decoding the extract panicked"),
+            });
+            // The store's error first: the decoder only stops early because of it.
+            written?;
+            found?
+        })?;
         self.partial.db.execute_batch("COMMIT").map_err(&sqlite)?;
-        drop(reader);
         let digest = std::mem::take(&mut *digest.lock().unwrap_or_else(|p| p.into_inner()));
         let digest: String = digest.finalize()[..8]
             .iter()
             .map(|b| format!("{b:02x}"))
             .collect();
-        let bounds = header.or(extent).ok_or_else(|| ImportError::Empty {
-            path: path.to_path_buf(),
-        })?;
+        let bounds = found
+            .header
+            .or(found.extent)
+            .ok_or_else(|| ImportError::Empty {
+                path: path.to_path_buf(),
+            })?;
         if crate::source::srtm::file_version(path).unwrap_or_default() != file_version {
             return Err(ImportError::Changed {
                 path: path.to_path_buf(),
@@ -693,14 +775,34 @@ impl Reading<'_> {
             digest,
             file_version,
             bounds: [bounds.west, bounds.south, bounds.east, bounds.north],
-            replication_sequence: sequence,
+            replication_sequence: found.sequence,
         })
     }
 
-    fn unsorted(&self) -> ImportError {
-        ImportError::Unsorted {
-            path: self.path.to_path_buf(),
+    /// Writes what the decoder sends, as it comes; returns at its first error (dropping
+    /// `receive`, which stops the decoder).
+    fn write_decoded(
+        &self,
+        receive: std::sync::mpsc::Receiver<Decoded>,
+        ways: &mut ResolvedWriter,
+        before: u64,
+        state: &mut Progress,
+        progress: &dyn Fn(&Progress),
+    ) -> Result<(), ImportError> {
+        let mut writer = RowWriter::new(self.partial)?;
+        for decoded in receive {
+            for rows in decoded.rows {
+                writer.write(rows, state)?;
+            }
+            for resolved in &decoded.resolved {
+                ways.write(resolved)?;
+            }
+            state.nodes += decoded.nodes;
+            state.ways += decoded.ways;
+            state.bytes = before + decoded.read;
+            progress(state);
         }
+        Ok(())
     }
 }
 
@@ -730,28 +832,18 @@ impl<'a> RowWriter<'a> {
         })
     }
 
-    fn write(
-        &mut self,
-        rows: Rows,
-        nodes: Option<&mut NodeWriter>,
-        extent: &mut Option<Bounds>,
-        state: &mut Progress,
-    ) -> Result<(), ImportError> {
+    /// Writes the tagged nodes, raw ways and relations of `rows`.
+    fn write(&mut self, rows: Rows, state: &mut Progress) -> Result<(), ImportError> {
         let sqlite = self.partial.sqlite();
-        if let Some(nodes) = nodes {
-            for node in rows.nodes {
-                nodes.push(node.id, node.at)?;
-                crate::source::osm_pbf::grow(extent, node.position);
-                if let Some(tags) = node.tags {
-                    let p = node.position;
-                    self.node
-                        .execute(params![node.id, p.lon, p.lat, tags])
-                        .map_err(&sqlite)?;
-                    if node.deep {
-                        self.node_part.execute(params![node.id]).map_err(&sqlite)?;
-                    }
+        for node in rows.nodes {
+            if let Some(tags) = node.tags {
+                let p = node.position;
+                self.node
+                    .execute(params![node.id, p.lon, p.lat, tags])
+                    .map_err(&sqlite)?;
+                if node.deep {
+                    self.node_part.execute(params![node.id]).map_err(&sqlite)?;
                 }
-                state.nodes += 1;
             }
         }
         for (id, row) in rows.ways {
@@ -798,8 +890,8 @@ fn resolve_ways(
                 continue;
             }
         }
-        for way in resolver.resolve(&batch, n, rules)? {
-            writer.write(way)?;
+        for resolved in resolver.resolve(&batch, n, rules)? {
+            writer.write(&resolved)?;
         }
         progress(state);
         if batch.len() < RESOLVE_BATCH {
@@ -886,37 +978,59 @@ fn index_relations(partial: &Partial, n: f64) -> Result<u64, ImportError> {
     Ok(count)
 }
 
-/// The joints: nodes the road network's ways meet more than once, with the ways through each;
-/// and for each way, its joints with the ways through them. Returns how many joints there are.
-fn find_joints(partial: &Partial) -> Result<u64, ImportError> {
+/// The joints: nodes the road network's ways meet more than once (`refs`: each way's node
+/// references, as (node, way)), with the ways through each; and for each way, its joints with
+/// the ways through them. Returns how many joints there are.
+fn find_joints(partial: &Partial, refs: ExternalSort<2>) -> Result<u64, ImportError> {
     let sqlite = partial.sqlite();
+    let io = |source| ImportError::Io {
+        path: partial.path.clone(),
+        source,
+    };
     let db = &partial.db;
-    db.execute_batch(
-        "INSERT INTO joints (node, way)
-             SELECT DISTINCT node, way FROM joint_refs WHERE node IN
-                 (SELECT node FROM joint_refs GROUP BY node HAVING count(*) > 1);
-         DROP TABLE joint_refs;
-         BEGIN;",
-    )
-    .map_err(&sqlite)?;
+    db.execute_batch("BEGIN").map_err(&sqlite)?;
+    // (way, joint, a way through it), for each way through each joint.
+    let mut facts = ExternalSort::<3>::new(&partial.path, RUN_RECORDS);
+    let mut joints = 0u64;
     {
-        let mut read = db
-            .prepare(
-                "SELECT j1.way, j1.node, j2.way FROM joints j1 JOIN joints j2 ON j2.node = j1.node
-                 ORDER BY j1.way, j1.node, j2.way",
-            )
+        let mut insert = db
+            .prepare("INSERT INTO joints (node, way) VALUES (?1, ?2)")
             .map_err(&sqlite)?;
+        let mut joint = |node: i64, ways: &mut Vec<i64>| -> Result<(), ImportError> {
+            if ways.len() > 1 {
+                ways.dedup();
+                for &way in ways.iter() {
+                    insert.execute(params![node, way]).map_err(&sqlite)?;
+                    for &through in ways.iter() {
+                        facts.push([way, node, through]).map_err(io)?;
+                    }
+                }
+                joints += 1;
+            }
+            ways.clear();
+            Ok(())
+        };
+        let mut current: Option<i64> = None;
+        let mut ways = Vec::new();
+        for r in refs.sorted().map_err(io)? {
+            let [node, way] = r.map_err(io)?;
+            if current.is_some_and(|c| c != node) {
+                joint(current.unwrap_or(node), &mut ways)?;
+            }
+            current = Some(node);
+            ways.push(way);
+        }
+        if let Some(node) = current {
+            joint(node, &mut ways)?;
+        }
+    }
+    {
         let mut insert = db
             .prepare("INSERT INTO way_facts (way, joints) VALUES (?1, ?2)")
             .map_err(&sqlite)?;
-        let mut rows = read.query([]).map_err(&sqlite)?;
         let mut current: Option<(i64, codec::WayJoints)> = None;
-        while let Some(row) = rows.next().map_err(&sqlite)? {
-            let (way, node, through): (i64, i64, i64) = (
-                row.get(0).map_err(&sqlite)?,
-                row.get(1).map_err(&sqlite)?,
-                row.get(2).map_err(&sqlite)?,
-            );
+        for fact in facts.sorted().map_err(io)? {
+            let [way, node, through] = fact.map_err(io)?;
             if current.as_ref().is_some_and(|(w, _)| *w != way) {
                 if let Some((w, joints)) = current.take() {
                     insert
@@ -937,11 +1051,7 @@ fn find_joints(partial: &Partial) -> Result<u64, ImportError> {
         }
     }
     db.execute_batch("COMMIT").map_err(&sqlite)?;
-    db.query_row("SELECT count(DISTINCT node) FROM joints", [], |row| {
-        row.get::<_, i64>(0)
-    })
-    .map(|n| n as u64)
-    .map_err(&sqlite)
+    Ok(joints)
 }
 
 /// A group found, ready to store: its place in the order of the whole data (its smallest

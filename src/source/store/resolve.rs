@@ -2,6 +2,8 @@
 //! from the node file, the cells its box meets and the facts the import keeps of it, on every
 //! core; then written to the store in the order given, on one thread.
 
+use std::ops::Range;
+
 use rusqlite::{params, Statement};
 
 use super::codec;
@@ -9,6 +11,7 @@ use super::import::{ImportError, Partial, Rules};
 use crate::osm::index::{cells_of, is_coastline};
 use crate::osm::structures::may_be_crossed;
 use crate::osm::{bounds_of, Bounds, LonLat};
+use crate::source::external_sort::{ExternalSort, RUN_RECORDS};
 use crate::source::node_locations::{NodeLocations, NodeStoreError, CACHED_BLOCKS};
 
 /// Readers of the node file, one for each thread that resolves ways.
@@ -32,7 +35,8 @@ impl Resolver {
         &self.readers[0]
     }
 
-    /// Resolves `ways` (ids and raw rows), spread over the cores; in the order given.
+    /// Resolves `ways` (ids and raw rows), spread over the cores: one [`Resolved`] for each
+    /// thread's share, in the order given.
     pub fn resolve(
         &mut self,
         ways: &[(i64, Vec<u8>)],
@@ -40,26 +44,23 @@ impl Resolver {
         rules: &Rules,
     ) -> Result<Vec<Resolved>, ImportError> {
         let per_thread = ways.len().div_ceil(self.readers.len()).max(256);
+        let resolve_all = |chunk: &[(i64, Vec<u8>)], reader: &mut NodeLocations| {
+            let mut resolved = Resolved::default();
+            for (id, data) in chunk {
+                resolved.push(*id, data, reader, n, rules)?;
+            }
+            Ok::<_, ImportError>(resolved)
+        };
         if ways.len() <= per_thread {
-            return ways
-                .iter()
-                .map(|(id, data)| resolve(*id, data, &mut self.readers[0], n, rules))
-                .collect();
+            return Ok(vec![resolve_all(ways, &mut self.readers[0])?]);
         }
         std::thread::scope(|scope| {
             let workers: Vec<_> = ways
                 .chunks(per_thread)
                 .zip(self.readers.iter_mut())
-                .map(|(chunk, reader)| {
-                    scope.spawn(move || {
-                        chunk
-                            .iter()
-                            .map(|(id, data)| resolve(*id, data, reader, n, rules))
-                            .collect::<Result<Vec<_>, _>>()
-                    })
-                })
+                .map(|(chunk, reader)| scope.spawn(move || resolve_all(chunk, reader)))
                 .collect();
-            let mut resolved = Vec::with_capacity(ways.len());
+            let mut resolved = Vec::with_capacity(workers.len());
             for worker in workers {
                 let part = worker.join().map_err(|_| {
                     ImportError::NodeFile(NodeStoreError::Io {
@@ -67,31 +68,44 @@ impl Resolver {
                         source: std::io::Error::other("resolving ways panicked"),
                     })
                 })?;
-                resolved.extend(part?);
+                resolved.push(part?);
             }
             Ok(resolved)
         })
     }
 }
 
-/// A way resolved.
+/// Ways resolved, in order, kept in a few buffers rather than a few allocations a way: they
+/// are resolved on one thread and freed on another, and glibc frees memory another thread
+/// allocated slowly, under a lock the allocating threads contend for.
+#[derive(Default)]
 pub struct Resolved {
+    ways: Vec<Entry>,
+    /// Rows and raw rows.
+    bytes: Vec<u8>,
+    cells: Vec<(u32, u32)>,
+    /// Missing nodes and joint references.
+    nodes: Vec<i64>,
+}
+
+/// A way resolved: where its parts lie in the buffers of its [`Resolved`].
+struct Entry {
     id: i64,
     /// Its nodes missing from the extracts, and then its raw row (kept so that a diff adding
     /// them completes it).
-    missing: Vec<i64>,
-    raw: Option<Vec<u8>>,
+    missing: Range<usize>,
+    raw: Option<Range<usize>>,
     /// What is stored of it when two or more of its nodes were found.
     way: Option<ResolvedWay>,
 }
 
 struct ResolvedWay {
-    row: Vec<u8>,
+    row: Range<usize>,
     bounds: Option<Bounds>,
-    cells: Vec<(u32, u32)>,
+    cells: Range<usize>,
     /// Its node references when it joins the road network (a node repeated next to itself
     /// once, as the in-memory index counts).
-    joint_refs: Vec<i64>,
+    joint_refs: Range<usize>,
     structure: bool,
     coastline: bool,
     part: Option<Part>,
@@ -106,74 +120,91 @@ enum Part {
     NearTunnels,
 }
 
-fn resolve(
-    id: i64,
-    data: &[u8],
-    locations: &mut NodeLocations,
-    n: f64,
-    rules: &Rules,
-) -> Result<Resolved, ImportError> {
-    let (tags, refs) = codec::decode_raw_way(data)?;
-    let mut nodes = Vec::with_capacity(refs.len());
-    let mut at = Vec::with_capacity(refs.len());
-    let mut missing = Vec::new();
-    for &node in &refs {
-        match locations.get(node)? {
-            Some(p) => {
-                nodes.push(node);
-                at.push(p);
+impl Resolved {
+    /// Resolves way `id`, given as `data` (its raw row), and adds it.
+    fn push(
+        &mut self,
+        id: i64,
+        data: &[u8],
+        locations: &mut NodeLocations,
+        n: f64,
+        rules: &Rules,
+    ) -> Result<(), ImportError> {
+        let (tags, refs) = codec::decode_raw_way(data)?;
+        let mut nodes = Vec::with_capacity(refs.len());
+        let mut at = Vec::with_capacity(refs.len());
+        let missing_from = self.nodes.len();
+        for &node in &refs {
+            match locations.get(node)? {
+                Some(p) => {
+                    nodes.push(node);
+                    at.push(p);
+                }
+                None => self.nodes.push(node),
             }
-            None => missing.push(node),
         }
-    }
-    let raw = (!missing.is_empty()).then(|| data.to_vec());
-    if nodes.len() < 2 {
-        return Ok(Resolved {
-            id,
-            missing,
-            raw,
-            way: None,
-        });
-    }
-    let positions: Vec<LonLat> = at
-        .iter()
-        .map(|p| {
-            let (lon, lat) = p.lon_lat();
-            LonLat { lon, lat }
-        })
-        .collect();
-    let bounds = bounds_of(&positions);
-    let cells = bounds.map_or_else(Vec::new, |b| cells_of(&b, n).collect());
-    let joint_refs = if (rules.joins)(&tags) {
-        nodes
+        let missing = missing_from..self.nodes.len();
+        let raw = (!missing.is_empty()).then(|| self.bytes_of(data));
+        if nodes.len() < 2 {
+            self.ways.push(Entry {
+                id,
+                missing,
+                raw,
+                way: None,
+            });
+            return Ok(());
+        }
+        let positions: Vec<LonLat> = at
             .iter()
-            .enumerate()
-            .filter(|&(k, node)| k == 0 || nodes[k - 1] != *node)
-            .map(|(_, &node)| node)
-            .collect()
-    } else {
-        Vec::new()
-    };
-    let structure = (rules.classify)(&tags).is_some();
-    let part = if structure || may_be_crossed(&tags) {
-        Some(Part::Always)
-    } else {
-        (rules.depth)(&tags).map(|_| Part::NearTunnels)
-    };
-    Ok(Resolved {
-        id,
-        missing,
-        raw,
-        way: Some(ResolvedWay {
-            row: codec::encode_way(&tags, &nodes, &at),
+            .map(|p| {
+                let (lon, lat) = p.lon_lat();
+                LonLat { lon, lat }
+            })
+            .collect();
+        let bounds = bounds_of(&positions);
+        let cells_from = self.cells.len();
+        if let Some(b) = bounds {
+            self.cells.extend(cells_of(&b, n));
+        }
+        let joints_from = self.nodes.len();
+        if (rules.joins)(&tags) {
+            self.nodes.extend(
+                nodes
+                    .iter()
+                    .enumerate()
+                    .filter(|&(k, node)| k == 0 || nodes[k - 1] != *node)
+                    .map(|(_, &node)| node),
+            );
+        }
+        let structure = (rules.classify)(&tags).is_some();
+        let part = if structure || may_be_crossed(&tags) {
+            Some(Part::Always)
+        } else {
+            (rules.depth)(&tags).map(|_| Part::NearTunnels)
+        };
+        let way = ResolvedWay {
+            row: self.bytes_of(&codec::encode_way(&tags, &nodes, &at)),
             bounds,
-            cells,
-            joint_refs,
+            cells: cells_from..self.cells.len(),
+            joint_refs: joints_from..self.nodes.len(),
             structure,
             coastline: is_coastline(&tags),
             part,
-        }),
-    })
+        };
+        self.ways.push(Entry {
+            id,
+            missing,
+            raw,
+            way: Some(way),
+        });
+        Ok(())
+    }
+
+    fn bytes_of(&mut self, bytes: &[u8]) -> Range<usize> {
+        let from = self.bytes.len();
+        self.bytes.extend_from_slice(bytes);
+        from..self.bytes.len()
+    }
 }
 
 /// Writes resolved ways to the store: the way, its cells, its joint references, whether it
@@ -182,11 +213,12 @@ pub struct ResolvedWriter<'a> {
     partial: &'a Partial,
     way: Statement<'a>,
     cell: Statement<'a>,
-    joint_ref: Statement<'a>,
     coast: Statement<'a>,
     incomplete: Statement<'a>,
     missing: Statement<'a>,
     part: Statement<'a>,
+    /// The node references of the ways that join the road network, as (node, way).
+    pub joint_refs: ExternalSort<2>,
     /// The ids of the bridge and tunnel ways written.
     pub structure_ways: Vec<i64>,
     /// How many ways were written.
@@ -201,7 +233,6 @@ impl<'a> ResolvedWriter<'a> {
             partial,
             way: prepare("INSERT INTO ways (id, data) VALUES (?1, ?2)")?,
             cell: prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 1, ?3)")?,
-            joint_ref: prepare("INSERT INTO joint_refs (node, way) VALUES (?1, ?2)")?,
             coast: prepare("INSERT INTO coastlines (way) VALUES (?1)")?,
             incomplete: prepare("INSERT INTO incomplete_ways (way, data) VALUES (?1, ?2)")?,
             missing: prepare("INSERT OR IGNORE INTO missing_nodes (node, way) VALUES (?1, ?2)")?,
@@ -209,29 +240,47 @@ impl<'a> ResolvedWriter<'a> {
                 "INSERT INTO parts (id, near_tunnels, west, south, east, north)
                  VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
             )?,
+            joint_refs: ExternalSort::new(&partial.path, RUN_RECORDS),
             structure_ways: Vec::new(),
             written: 0,
         })
     }
 
-    pub fn write(&mut self, resolved: Resolved) -> Result<(), ImportError> {
+    /// Writes the ways of `resolved`, in order.
+    pub fn write(&mut self, resolved: &Resolved) -> Result<(), ImportError> {
+        for entry in &resolved.ways {
+            self.write_way(resolved, entry)?;
+        }
+        Ok(())
+    }
+
+    fn write_way(&mut self, resolved: &Resolved, entry: &Entry) -> Result<(), ImportError> {
         let sqlite = self.partial.sqlite();
-        let id = resolved.id;
-        if let Some(raw) = resolved.raw {
-            self.incomplete.execute(params![id, raw]).map_err(&sqlite)?;
-            for node in resolved.missing {
+        let id = entry.id;
+        if let Some(raw) = &entry.raw {
+            self.incomplete
+                .execute(params![id, &resolved.bytes[raw.clone()]])
+                .map_err(&sqlite)?;
+            for &node in &resolved.nodes[entry.missing.clone()] {
                 self.missing.execute(params![node, id]).map_err(&sqlite)?;
             }
         }
-        let Some(way) = resolved.way else {
+        let Some(way) = &entry.way else {
             return Ok(());
         };
-        self.way.execute(params![id, way.row]).map_err(&sqlite)?;
-        for (x, y) in way.cells {
+        self.way
+            .execute(params![id, &resolved.bytes[way.row.clone()]])
+            .map_err(&sqlite)?;
+        for &(x, y) in &resolved.cells[way.cells.clone()] {
             self.cell.execute(params![x, y, id]).map_err(&sqlite)?;
         }
-        for node in way.joint_refs {
-            self.joint_ref.execute(params![node, id]).map_err(&sqlite)?;
+        for &node in &resolved.nodes[way.joint_refs.clone()] {
+            self.joint_refs
+                .push([node, id])
+                .map_err(|source| ImportError::Io {
+                    path: self.partial.path.clone(),
+                    source,
+                })?;
         }
         if way.structure {
             self.structure_ways.push(id);
