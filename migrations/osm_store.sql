@@ -33,8 +33,9 @@ CREATE TABLE cells (
     x INTEGER NOT NULL,
     y INTEGER NOT NULL,
     kind INTEGER NOT NULL,
-    id INTEGER NOT NULL
-);
+    id INTEGER NOT NULL,
+    PRIMARY KEY (x, y, kind, id)
+) WITHOUT ROWID;
 
 -- Bridges and tunnels found over all the data: one row a group, named by the smallest id of
 -- its structure ways (the order the whole data's index finds them in).

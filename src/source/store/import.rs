@@ -28,8 +28,10 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use osmpbf::{BlobDecode, BlobReader, Element};
+use rusqlite::types::Value;
 use rusqlite::{params, Connection};
 
+use super::batch_insert::BatchInsert;
 use super::codec::{self, DecodeError};
 use super::resolve::{Resolved, ResolvedWriter, Resolver};
 use super::{ExtractRecord, FORMAT, SCHEMA};
@@ -248,7 +250,7 @@ pub fn import(
     };
     partial
         .db
-        .execute_batch("DETACH DATABASE scratch; ANALYZE;")
+        .execute_batch("DETACH DATABASE scratch; PRAGMA analysis_limit = 4000; ANALYZE;")
         .map_err(sqlite)?;
     let scratch = partial.scratch.clone();
     drop(partial);
@@ -442,12 +444,14 @@ fn write_all(
     drop(resolver);
     let structure_ways = std::mem::take(&mut ways.structure_ways);
     let joint_refs = std::mem::replace(&mut ways.joint_refs, ExternalSort::new(nodes_path, 1));
+    let mut cells = std::mem::replace(&mut ways.cells, ExternalSort::new(nodes_path, 1));
     state.ways = ways.written;
     drop(ways);
     state.phase = Phase::Indexing;
     progress(&state);
-    imported.tagged_nodes = index_nodes(partial, n)?;
-    imported.relations = index_relations(partial, n)?;
+    imported.tagged_nodes = index_nodes(partial, n, &mut cells)?;
+    imported.relations = index_relations(partial, n, &mut cells)?;
+    write_cells(partial, cells)?;
     imported.joints = find_joints(partial, joint_refs)?;
     imported.ways = state.ways;
     clock.done(Phase::Indexing);
@@ -859,7 +863,7 @@ impl Reading<'_> {
             state.bytes = before + decoded.read;
             progress(state);
         }
-        Ok(())
+        ways.flush()
     }
 }
 
@@ -950,6 +954,7 @@ fn resolve_ways(
         for resolved in resolver.resolve(&batch, n, rules)? {
             writer.write(&resolved)?;
         }
+        writer.flush()?;
         progress(state);
         if batch.len() < RESOLVE_BATCH {
             break;
@@ -962,11 +967,16 @@ fn resolve_ways(
     Ok(())
 }
 
+/// The rows of the cells table, (x, y, kind, id), sorted before they are written: the table
+/// is a B-tree on all four, filled in order.
+pub(super) type CellRows = ExternalSort<4>;
+
 /// Registers every row `select` gives (an id and a blob or two coordinates) as an element of
 /// `kind` in the cells of the box `bounds` makes of it; returns how many rows there were.
 fn register(
     partial: &Partial,
     n: f64,
+    cells: &mut CellRows,
     select: &str,
     kind: i64,
     bounds: &dyn Fn(&rusqlite::Row<'_>) -> Result<Option<Bounds>, ImportError>,
@@ -975,16 +985,18 @@ fn register(
     let db = &partial.db;
     db.execute_batch("BEGIN").map_err(&sqlite)?;
     let mut read = db.prepare(select).map_err(&sqlite)?;
-    let mut insert = db
-        .prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, ?3, ?4)")
-        .map_err(&sqlite)?;
     let mut rows = read.query([]).map_err(&sqlite)?;
     let mut count = 0u64;
     while let Some(row) = rows.next().map_err(&sqlite)? {
         let id: i64 = row.get(0).map_err(&sqlite)?;
         if let Some(b) = bounds(row)? {
             for (x, y) in cells_of(&b, n) {
-                insert.execute(params![x, y, kind, id]).map_err(&sqlite)?;
+                cells
+                    .push([i64::from(x), i64::from(y), kind, id])
+                    .map_err(|source| ImportError::Io {
+                        path: partial.path.clone(),
+                        source,
+                    })?;
             }
         }
         count += 1;
@@ -995,44 +1007,77 @@ fn register(
 }
 
 /// Registers the tagged nodes in their cells; returns how many there are.
-fn index_nodes(partial: &Partial, n: f64) -> Result<u64, ImportError> {
+fn index_nodes(partial: &Partial, n: f64, cells: &mut CellRows) -> Result<u64, ImportError> {
     let sqlite = partial.sqlite();
-    register(partial, n, "SELECT id, lon, lat FROM nodes", 0, &|row| {
-        let position = LonLat {
-            lon: row.get(1).map_err(&sqlite)?,
-            lat: row.get(2).map_err(&sqlite)?,
-        };
-        Ok(bounds_of(&[position]))
-    })
+    register(
+        partial,
+        n,
+        cells,
+        "SELECT id, lon, lat FROM nodes",
+        0,
+        &|row| {
+            let position = LonLat {
+                lon: row.get(1).map_err(&sqlite)?,
+                lat: row.get(2).map_err(&sqlite)?,
+            };
+            Ok(bounds_of(&[position]))
+        },
+    )
 }
 
-/// Registers each relation in the cells of its ways' box (and its member relations' ways'),
-/// then indexes the cells; returns how many relations there are.
-fn index_relations(partial: &Partial, n: f64) -> Result<u64, ImportError> {
+/// Registers each relation in the cells of its ways' box (and its member relations' ways');
+/// returns how many relations there are.
+fn index_relations(partial: &Partial, n: f64, cells: &mut CellRows) -> Result<u64, ImportError> {
     let sqlite = partial.sqlite();
     let db = &partial.db;
-    let count = register(partial, n, "SELECT id, data FROM relations", 2, &|row| {
-        let id: i64 = row.get(0).map_err(&sqlite)?;
-        let data: Vec<u8> = row.get(1).map_err(&sqlite)?;
-        let relation = codec::decode_relation(id, &data)?;
-        let mut positions = Vec::new();
-        for way in super::relation_ways(db, &relation).map_err(&sqlite)? {
-            match super::way(db, way)? {
-                Some(way) => positions.extend(way.positions),
-                None => {
-                    db.prepare_cached(
-                        "INSERT OR IGNORE INTO missing_members (way, relation) VALUES (?1, ?2)",
-                    )
-                    .and_then(|mut insert| insert.execute(params![way, id]))
-                    .map_err(&sqlite)?;
+    register(
+        partial,
+        n,
+        cells,
+        "SELECT id, data FROM relations",
+        2,
+        &|row| {
+            let id: i64 = row.get(0).map_err(&sqlite)?;
+            let data: Vec<u8> = row.get(1).map_err(&sqlite)?;
+            let relation = codec::decode_relation(id, &data)?;
+            let mut positions = Vec::new();
+            for way in super::relation_ways(db, &relation).map_err(&sqlite)? {
+                match super::way(db, way)? {
+                    Some(way) => positions.extend(way.positions),
+                    None => {
+                        db.prepare_cached(
+                            "INSERT OR IGNORE INTO missing_members (way, relation) VALUES (?1, ?2)",
+                        )
+                        .and_then(|mut insert| insert.execute(params![way, id]))
+                        .map_err(&sqlite)?;
+                    }
                 }
             }
+            Ok(bounds_of(&positions))
+        },
+    )
+}
+
+/// Writes the cells table, in its order.
+fn write_cells(partial: &Partial, cells: CellRows) -> Result<(), ImportError> {
+    let sqlite = partial.sqlite();
+    let io = |source| ImportError::Io {
+        path: partial.path.clone(),
+        source,
+    };
+    let db = &partial.db;
+    db.execute_batch("BEGIN").map_err(&sqlite)?;
+    {
+        let mut insert =
+            BatchInsert::new(db, "INSERT INTO cells (x, y, kind, id)", 4).map_err(&sqlite)?;
+        for row in cells.sorted().map_err(io)? {
+            insert
+                .push(row.map_err(io)?.map(Value::Integer))
+                .map_err(&sqlite)?;
         }
-        Ok(bounds_of(&positions))
-    })?;
-    db.execute_batch("CREATE INDEX cells_at ON cells (x, y, kind, id);")
-        .map_err(&sqlite)?;
-    Ok(count)
+        insert.flush().map_err(&sqlite)?;
+    }
+    db.execute_batch("COMMIT").map_err(&sqlite)
 }
 
 /// The joints: nodes the road network's ways meet more than once (`refs`: each way's node

@@ -9,6 +9,7 @@
 //! ways at their joints, and the coastlines; indexed with the facts found over the whole data,
 //! so a tile comes out byte for byte as from the extract in memory.
 
+mod batch_insert;
 pub mod codec;
 pub mod import;
 mod resolve;
@@ -31,7 +32,7 @@ use codec::DecodeError;
 /// The schema of a store.
 pub const SCHEMA: &str = include_str!("../../../migrations/osm_store.sql");
 /// The store's format: a store of another is imported again.
-pub const FORMAT: u32 = 3;
+pub const FORMAT: u32 = 4;
 
 /// One extract as imported.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]

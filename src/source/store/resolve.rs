@@ -4,10 +4,13 @@
 
 use std::ops::Range;
 
+use rusqlite::types::Value;
 use rusqlite::{params, Statement};
 
+use super::batch_insert::BatchInsert;
+
 use super::codec;
-use super::import::{ImportError, Partial, Rules};
+use super::import::{CellRows, ImportError, Partial, Rules};
 use crate::osm::index::{cells_of, is_coastline};
 use crate::osm::structures::may_be_crossed;
 use crate::osm::{bounds_of, Bounds, LonLat};
@@ -211,12 +214,13 @@ impl Resolved {
 /// is a coastline, how it may take part in groups, and what is missing of it.
 pub struct ResolvedWriter<'a> {
     partial: &'a Partial,
-    way: Statement<'a>,
-    cell: Statement<'a>,
+    way: BatchInsert<'a>,
     coast: Statement<'a>,
     incomplete: Statement<'a>,
     missing: Statement<'a>,
-    part: Statement<'a>,
+    part: BatchInsert<'a>,
+    /// The cells of the ways, as rows of the cells table.
+    pub cells: CellRows,
     /// The node references of the ways that join the road network, as (node, way).
     pub joint_refs: ExternalSort<2>,
     /// The ids of the bridge and tunnel ways written.
@@ -231,19 +235,29 @@ impl<'a> ResolvedWriter<'a> {
         let prepare = |sql: &str| partial.db.prepare(sql).map_err(&sqlite);
         Ok(ResolvedWriter {
             partial,
-            way: prepare("INSERT INTO ways (id, data) VALUES (?1, ?2)")?,
-            cell: prepare("INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 1, ?3)")?,
+            way: BatchInsert::new(&partial.db, "INSERT INTO ways (id, data)", 2)
+                .map_err(&sqlite)?,
             coast: prepare("INSERT INTO coastlines (way) VALUES (?1)")?,
             incomplete: prepare("INSERT INTO incomplete_ways (way, data) VALUES (?1, ?2)")?,
             missing: prepare("INSERT OR IGNORE INTO missing_nodes (node, way) VALUES (?1, ?2)")?,
-            part: prepare(
-                "INSERT INTO parts (id, near_tunnels, west, south, east, north)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
-            )?,
+            part: BatchInsert::new(
+                &partial.db,
+                "INSERT INTO parts (id, near_tunnels, west, south, east, north)",
+                6,
+            )
+            .map_err(&sqlite)?,
+            cells: ExternalSort::new(&partial.path, RUN_RECORDS),
             joint_refs: ExternalSort::new(&partial.path, RUN_RECORDS),
             structure_ways: Vec::new(),
             written: 0,
         })
+    }
+
+    /// Writes the rows held (before the transaction commits).
+    pub fn flush(&mut self) -> Result<(), ImportError> {
+        let sqlite = self.partial.sqlite();
+        self.way.flush().map_err(&sqlite)?;
+        self.part.flush().map_err(&sqlite)
     }
 
     /// Writes the ways of `resolved`, in order.
@@ -269,18 +283,22 @@ impl<'a> ResolvedWriter<'a> {
             return Ok(());
         };
         self.way
-            .execute(params![id, &resolved.bytes[way.row.clone()]])
+            .push([
+                Value::Integer(id),
+                Value::Blob(resolved.bytes[way.row.clone()].to_vec()),
+            ])
             .map_err(&sqlite)?;
+        let io = |source| ImportError::Io {
+            path: self.partial.path.clone(),
+            source,
+        };
         for &(x, y) in &resolved.cells[way.cells.clone()] {
-            self.cell.execute(params![x, y, id]).map_err(&sqlite)?;
+            self.cells
+                .push([i64::from(x), i64::from(y), 1, id])
+                .map_err(io)?;
         }
         for &node in &resolved.nodes[way.joint_refs.clone()] {
-            self.joint_refs
-                .push([node, id])
-                .map_err(|source| ImportError::Io {
-                    path: self.partial.path.clone(),
-                    source,
-                })?;
+            self.joint_refs.push([node, id]).map_err(io)?;
         }
         if way.structure {
             self.structure_ways.push(id);
@@ -290,13 +308,13 @@ impl<'a> ResolvedWriter<'a> {
         }
         if let (Some(part), Some(b)) = (way.part, way.bounds) {
             self.part
-                .execute(params![
-                    id,
-                    part == Part::NearTunnels,
-                    b.west,
-                    b.south,
-                    b.east,
-                    b.north
+                .push([
+                    Value::Integer(id),
+                    Value::Integer(i64::from(part == Part::NearTunnels)),
+                    Value::Real(b.west),
+                    Value::Real(b.south),
+                    Value::Real(b.east),
+                    Value::Real(b.north),
                 ])
                 .map_err(&sqlite)?;
         }

@@ -888,7 +888,7 @@ impl Update<'_> {
                 .map_err(&sqlite)?;
                 if let Some((x, y)) = cell(*p) {
                     db.execute(
-                        "INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, 0, ?3)",
+                        "INSERT OR IGNORE INTO cells (x, y, kind, id) VALUES (?1, ?2, 0, ?3)",
                         params![x, y, edit.id],
                     )
                     .map_err(&sqlite)?;
@@ -989,7 +989,7 @@ impl Update<'_> {
     /// Registers an element of `kind` in the cells of its box.
     fn encell(&self, kind: i64, id: i64, b: &Bounds) -> Result<(), UpdateError> {
         self.each_cell(
-            "INSERT INTO cells (x, y, kind, id) VALUES (?1, ?2, ?3, ?4)",
+            "INSERT OR IGNORE INTO cells (x, y, kind, id) VALUES (?1, ?2, ?3, ?4)",
             kind,
             id,
             b,
