@@ -12,8 +12,8 @@ use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
-/// Records held before a run is written (64 MiB of pairs).
-pub const RUN_RECORDS: usize = 1 << 22;
+/// Records held before a run is written (32 MiB of pairs).
+pub const RUN_RECORDS: usize = 1 << 21;
 
 /// Records of `K` integers, sorted in the order of their integers (the first, then the next).
 pub struct ExternalSort<const K: usize> {

@@ -166,23 +166,10 @@ impl<R: Read> Read for Counting<R> {
 /// The store being written.
 pub(super) struct Partial {
     pub path: PathBuf,
-    /// The scratch database attached to it.
-    pub scratch: PathBuf,
     pub db: Connection,
 }
 
 impl Partial {
-    /// Lets other connections read the store: its lock, held since the import began, is let
-    /// go (a lock is taken again, and kept, when the store is next written).
-    fn share(&self) -> Result<(), ImportError> {
-        self.db
-            .execute_batch(
-                "PRAGMA locking_mode = NORMAL; SELECT 1 FROM meta LIMIT 1;
-                 SELECT 1 FROM scratch.parts LIMIT 1;",
-            )
-            .map_err(self.sqlite())
-    }
-
     pub fn sqlite(&self) -> impl Fn(rusqlite::Error) -> ImportError + '_ {
         move |source| ImportError::Sqlite {
             path: self.path.clone(),
@@ -234,9 +221,7 @@ pub fn import(
         match outcome {
             Ok(imported) => break (partial, imported),
             Err(error) => {
-                let scratch = partial.scratch.clone();
                 drop(partial);
-                let _ = std::fs::remove_file(&scratch);
                 let _ = std::fs::remove_file(&partial_path);
                 let _ = std::fs::remove_file(&nodes_path);
                 if one_pass && matches!(error, ImportError::Unsorted { .. }) {
@@ -250,11 +235,9 @@ pub fn import(
     };
     partial
         .db
-        .execute_batch("DETACH DATABASE scratch; PRAGMA analysis_limit = 4000; ANALYZE;")
+        .execute_batch("PRAGMA analysis_limit = 4000; ANALYZE;")
         .map_err(sqlite)?;
-    let scratch = partial.scratch.clone();
     drop(partial);
-    let _ = std::fs::remove_file(&scratch);
     // Durable before it replaces the store.
     std::fs::File::open(&partial_path)
         .and_then(|f| f.sync_all())
@@ -272,8 +255,6 @@ fn begin(path: &Path) -> Result<Partial, ImportError> {
         path: path.to_path_buf(),
         source,
     };
-    let scratch = scratch_path(path);
-    let _ = std::fs::remove_file(&scratch);
     let db = Connection::open(path).map_err(sqlite)?;
     db.execute_batch(
         "PRAGMA journal_mode = OFF; PRAGMA synchronous = OFF; PRAGMA cache_size = -131072;
@@ -281,55 +262,20 @@ fn begin(path: &Path) -> Result<Partial, ImportError> {
     )
     .map_err(sqlite)?;
     db.execute_batch(SCHEMA).map_err(sqlite)?;
-    // In a database of their own beside the store, which the threads finding groups read too
-    // and which is removed when the import ends: the ways as read, and the ways (with their
-    // boxes) and nodes that may take part in bridge and tunnel groups (`near_tunnels`: only
-    // near a tunnel).
-    attach_scratch(&db, &scratch).map_err(sqlite)?;
+    // The ways as read, the road network's node references, and the ways (with their boxes)
+    // and nodes that may take part in bridge and tunnel groups (`near_tunnels`: only near a
+    // tunnel).
     db.execute_batch(
-        "PRAGMA scratch.journal_mode = OFF; PRAGMA scratch.synchronous = OFF;
-         CREATE TABLE scratch.raw_ways (id INTEGER PRIMARY KEY, data BLOB NOT NULL);
-         CREATE TABLE scratch.parts (id INTEGER PRIMARY KEY, near_tunnels INTEGER NOT NULL,
+        "CREATE TEMP TABLE raw_ways (id INTEGER PRIMARY KEY, data BLOB NOT NULL);
+         CREATE TEMP TABLE parts (id INTEGER PRIMARY KEY, near_tunnels INTEGER NOT NULL,
              west REAL NOT NULL, south REAL NOT NULL, east REAL NOT NULL, north REAL NOT NULL);
-         CREATE TABLE scratch.node_parts (id INTEGER PRIMARY KEY);",
+         CREATE TEMP TABLE node_parts (id INTEGER PRIMARY KEY);",
     )
     .map_err(sqlite)?;
     Ok(Partial {
         path: path.to_path_buf(),
-        scratch,
         db,
     })
-}
-
-/// The import's scratch database beside the store being written at `partial`.
-fn scratch_path(partial: &Path) -> PathBuf {
-    with_suffix(partial, ".scratch")
-}
-
-/// Another connection to the store being written at `path`, to read it with its scratch
-/// database (after [`Partial::share`]).
-fn reader(path: &Path, scratch: &Path) -> Result<Connection, ImportError> {
-    let sqlite = |source| ImportError::Sqlite {
-        path: path.to_path_buf(),
-        source,
-    };
-    let db = Connection::open_with_flags(
-        path,
-        rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY | rusqlite::OpenFlags::SQLITE_OPEN_NO_MUTEX,
-    )
-    .map_err(sqlite)?;
-    attach_scratch(&db, scratch).map_err(sqlite)?;
-    db.execute_batch("PRAGMA cache_size = -65536; PRAGMA mmap_size = 4294967296;")
-        .map_err(sqlite)?;
-    Ok(db)
-}
-
-fn attach_scratch(db: &Connection, scratch: &Path) -> rusqlite::Result<()> {
-    db.execute(
-        "ATTACH DATABASE ?1 AS scratch",
-        params![scratch.to_string_lossy()],
-    )
-    .map(|_| ())
 }
 
 /// A new name for the node file of the store at `store`: the store names the one it reads, so
@@ -1179,33 +1125,46 @@ fn find_structures(
     rules: &Rules,
 ) -> Result<u64, ImportError> {
     let n = f64::from(1u32 << zoom);
+    // The store is read for one cluster while the groups of the one before are found.
     let clusters = batches(clusters(&partial.db, structure_ways, n, rules)?);
-    // Found on every core, each thread reading the clusters it takes with a connection of its
-    // own (their order is restored below).
-    partial.share()?;
+    // Found on every core (their order is restored below).
     let finders = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let (path, scratch) = (partial.path.as_path(), partial.scratch.as_path());
+    let (send, receive) = std::sync::mpsc::sync_channel::<(&Cluster, OsmData)>(finders);
+    let receive = std::sync::Mutex::new(receive);
+    let receive = &receive;
     let mut found: Vec<FoundGroup> = std::thread::scope(|scope| {
         let workers: Vec<_> = (0..finders)
             .map(|_| {
-                scope.spawn(|| {
-                    let db = reader(path, scratch)?;
+                scope.spawn(move || {
                     let mut found = Vec::new();
-                    while let Some(cluster) = clusters.get(next.fetch_add(1, Ordering::Relaxed)) {
-                        let data = cluster_data(&db, path, cluster, rules, Candidates::Marked)?;
+                    loop {
+                        let next = receive.lock().unwrap_or_else(|p| p.into_inner()).recv();
+                        let Ok((cluster, data)) = next else { break };
                         found.extend(cluster.groups(data, zoom, rules));
                     }
-                    Ok::<_, ImportError>(found)
+                    found
                 })
             })
             .collect();
+        for cluster in &clusters {
+            let data = cluster_data(
+                &partial.db,
+                &partial.path,
+                cluster,
+                rules,
+                Candidates::Marked,
+            )?;
+            if send.send((cluster, data)).is_err() {
+                break;
+            }
+        }
+        drop(send);
         let mut found = Vec::new();
         for worker in workers {
             found.extend(worker.join().map_err(|_| ImportError::Io {
-                path: path.to_path_buf(),
+                path: partial.path.clone(),
                 source: std::io::Error::other("finding bridge and tunnel groups panicked"),
-            })??);
+            })?);
         }
         Ok::<_, ImportError>(found)
     })?;
