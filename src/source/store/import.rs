@@ -170,6 +170,14 @@ pub(super) struct Partial {
 }
 
 impl Partial {
+    /// The error of a file the import works in beside the store (a sort's runs).
+    pub fn io(&self) -> impl Fn(std::io::Error) -> ImportError + '_ {
+        move |source| ImportError::Io {
+            path: self.path.clone(),
+            source,
+        }
+    }
+
     pub fn sqlite(&self) -> impl Fn(rusqlite::Error) -> ImportError + '_ {
         move |source| ImportError::Sqlite {
             path: self.path.clone(),
@@ -939,10 +947,7 @@ fn register(
             for (x, y) in cells_of(&b, n) {
                 cells
                     .push([i64::from(x), i64::from(y), kind, id])
-                    .map_err(|source| ImportError::Io {
-                        path: partial.path.clone(),
-                        source,
-                    })?;
+                    .map_err(partial.io())?;
             }
         }
         count += 1;
@@ -1006,19 +1011,15 @@ fn index_relations(partial: &Partial, n: f64, cells: &mut CellRows) -> Result<u6
 
 /// Writes the cells table, in its order.
 fn write_cells(partial: &Partial, cells: CellRows) -> Result<(), ImportError> {
-    let sqlite = partial.sqlite();
-    let io = |source| ImportError::Io {
-        path: partial.path.clone(),
-        source,
-    };
+    let (sqlite, io) = (partial.sqlite(), partial.io());
     let db = &partial.db;
     db.execute_batch("BEGIN").map_err(&sqlite)?;
     {
         let mut insert =
             BatchInsert::new(db, "INSERT INTO cells (x, y, kind, id)", 4).map_err(&sqlite)?;
-        for row in cells.sorted().map_err(io)? {
+        for row in cells.sorted().map_err(&io)? {
             insert
-                .push(row.map_err(io)?.map(Value::Integer))
+                .push(row.map_err(&io)?.map(Value::Integer))
                 .map_err(&sqlite)?;
         }
         insert.flush().map_err(&sqlite)?;
@@ -1030,11 +1031,7 @@ fn write_cells(partial: &Partial, cells: CellRows) -> Result<(), ImportError> {
 /// references, as (node, way)), with the ways through each; and for each way, its joints with
 /// the ways through them. Returns how many joints there are.
 fn find_joints(partial: &Partial, refs: ExternalSort<2>) -> Result<u64, ImportError> {
-    let sqlite = partial.sqlite();
-    let io = |source| ImportError::Io {
-        path: partial.path.clone(),
-        source,
-    };
+    let (sqlite, io) = (partial.sqlite(), partial.io());
     let db = &partial.db;
     db.execute_batch("BEGIN").map_err(&sqlite)?;
     // (way, joint, a way through it), for each way through each joint.
@@ -1050,7 +1047,7 @@ fn find_joints(partial: &Partial, refs: ExternalSort<2>) -> Result<u64, ImportEr
                 for &way in ways.iter() {
                     insert.execute(params![node, way]).map_err(&sqlite)?;
                     for &through in ways.iter() {
-                        facts.push([way, node, through]).map_err(io)?;
+                        facts.push([way, node, through]).map_err(&io)?;
                     }
                 }
                 joints += 1;
@@ -1060,8 +1057,8 @@ fn find_joints(partial: &Partial, refs: ExternalSort<2>) -> Result<u64, ImportEr
         };
         let mut current: Option<i64> = None;
         let mut ways = Vec::new();
-        for r in refs.sorted().map_err(io)? {
-            let [node, way] = r.map_err(io)?;
+        for r in refs.sorted().map_err(&io)? {
+            let [node, way] = r.map_err(&io)?;
             if current.is_some_and(|c| c != node) {
                 joint(current.unwrap_or(node), &mut ways)?;
             }
@@ -1077,8 +1074,8 @@ fn find_joints(partial: &Partial, refs: ExternalSort<2>) -> Result<u64, ImportEr
             .prepare("INSERT INTO way_facts (way, joints) VALUES (?1, ?2)")
             .map_err(&sqlite)?;
         let mut current: Option<(i64, codec::WayJoints)> = None;
-        for fact in facts.sorted().map_err(io)? {
-            let [way, node, through] = fact.map_err(io)?;
+        for fact in facts.sorted().map_err(&io)? {
+            let [way, node, through] = fact.map_err(&io)?;
             if current.as_ref().is_some_and(|(w, _)| *w != way) {
                 if let Some((w, joints)) = current.take() {
                     insert

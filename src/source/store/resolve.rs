@@ -288,17 +288,14 @@ impl<'a> ResolvedWriter<'a> {
                 Value::Blob(resolved.bytes[way.row.clone()].to_vec()),
             ])
             .map_err(&sqlite)?;
-        let io = |source| ImportError::Io {
-            path: self.partial.path.clone(),
-            source,
-        };
+        let io = self.partial.io();
         for &(x, y) in &resolved.cells[way.cells.clone()] {
             self.cells
                 .push([i64::from(x), i64::from(y), 1, id])
-                .map_err(io)?;
+                .map_err(&io)?;
         }
         for &node in &resolved.nodes[way.joint_refs.clone()] {
-            self.joint_refs.push([node, id]).map_err(io)?;
+            self.joint_refs.push([node, id]).map_err(&io)?;
         }
         if way.structure {
             self.structure_ways.push(id);
