@@ -17,9 +17,9 @@
 //! Everything is written to `PATH.partial` and renamed over the store when whole, so a store
 //! at its path is always a finished one; an import that stops leaves the old store in use.
 //! Memory holds SQLite's page cache, the node file's block cache and index, two batches of
-//! blocks (one decoded while the other is written), a run of the joint references being
-//! sorted, the ids of the bridge and tunnel ways, one cluster's surroundings while its groups are found, and the
-//! groups found until they are written.
+//! blocks (one decoded while the other is written), a run each of the cells' rows and of the
+//! joint references being sorted, the ids of the bridge and tunnel ways, one cluster's
+//! surroundings while its groups are found, and the groups found until they are written.
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::io::Read;
@@ -366,10 +366,12 @@ fn write_all(
     for path in extracts {
         let mut reading = Reading {
             partial,
-            path,
-            rules,
-            n,
-            one_pass,
+            decoder: Decoder {
+                path,
+                rules,
+                n,
+                one_pass,
+            },
         };
         records.push(reading.extract(&mut nodes, &mut ways, &mut state, progress)?);
     }
@@ -396,11 +398,14 @@ fn write_all(
     }
     resolver.locations().sync()?;
     drop(resolver);
-    let structure_ways = std::mem::take(&mut ways.structure_ways);
-    let joint_refs = std::mem::replace(&mut ways.joint_refs, ExternalSort::new(nodes_path, 1));
-    let mut cells = std::mem::replace(&mut ways.cells, ExternalSort::new(nodes_path, 1));
-    state.ways = ways.written;
-    drop(ways);
+    let ResolvedWriter {
+        structure_ways,
+        joint_refs,
+        mut cells,
+        written,
+        ..
+    } = ways;
+    state.ways = written;
     state.phase = Phase::Indexing;
     progress(&state);
     imported.tagged_nodes = index_nodes(partial, n, &mut cells)?;
@@ -590,11 +595,7 @@ fn decode_all(blobs: &[(u64, osmpbf::Blob)], rules: &Rules) -> Vec<Result<Rows, 
 /// node file and resolves the ways, while this one writes the store.
 struct Reading<'a> {
     partial: &'a Partial,
-    path: &'a Path,
-    rules: &'a Rules,
-    n: f64,
-    /// Whether its ways are resolved as they come (all its nodes come before them).
-    one_pass: bool,
+    decoder: Decoder<'a>,
 }
 
 /// What the decoding thread hands the store's: a batch of blocks decoded (only the tagged
@@ -622,6 +623,7 @@ struct Decoder<'a> {
     path: &'a Path,
     rules: &'a Rules,
     n: f64,
+    /// Whether its ways are resolved as they come (all its nodes come before them).
     one_pass: bool,
 }
 
@@ -728,7 +730,7 @@ impl Reading<'_> {
         progress: &dyn Fn(&Progress),
     ) -> Result<ExtractRecord, ImportError> {
         use sha2::Digest;
-        let path = self.path;
+        let path = self.decoder.path;
         let file = std::fs::File::open(path).map_err(|source| ImportError::Open {
             path: path.to_path_buf(),
             source,
@@ -744,18 +746,13 @@ impl Reading<'_> {
         let reader = BlobReader::new(counting);
         // The version the store records is the one read: taken before, checked after.
         let file_version = crate::source::srtm::file_version(path).unwrap_or_default();
-        let decoder = Decoder {
-            path,
-            rules: self.rules,
-            n: self.n,
-            one_pass: self.one_pass,
-        };
         let sqlite = self.partial.sqlite();
         self.partial.db.execute_batch("BEGIN").map_err(&sqlite)?;
         let found = std::thread::scope(|scope| {
             // Two batches in flight: one being decoded while one is written.
             let (send, receive) = std::sync::mpsc::sync_channel(1);
-            let decoding = scope.spawn(|| decoder.run(reader, &read, nodes, send));
+            let decoder = &self.decoder;
+            let decoding = scope.spawn(move || decoder.run(reader, &read, nodes, send));
             let written = self.write_decoded(receive, ways, before, state, progress);
             let found = decoding.join().map_err(|_| ImportError::Io {
                 path: path.to_path_buf(),
@@ -1059,8 +1056,8 @@ fn find_joints(partial: &Partial, refs: ExternalSort<2>) -> Result<u64, ImportEr
         let mut ways = Vec::new();
         for r in refs.sorted().map_err(&io)? {
             let [node, way] = r.map_err(&io)?;
-            if current.is_some_and(|c| c != node) {
-                joint(current.unwrap_or(node), &mut ways)?;
+            if let Some(before) = current.filter(|&c| c != node) {
+                joint(before, &mut ways)?;
             }
             current = Some(node);
             ways.push(way);

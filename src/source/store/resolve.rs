@@ -8,7 +8,6 @@ use rusqlite::types::Value;
 use rusqlite::{params, Statement};
 
 use super::batch_insert::BatchInsert;
-
 use super::codec;
 use super::import::{CellRows, ImportError, Partial, Rules};
 use crate::osm::index::{cells_of, is_coastline};
@@ -210,8 +209,9 @@ impl Resolved {
     }
 }
 
-/// Writes resolved ways to the store: the way, its cells, its joint references, whether it
-/// is a coastline, how it may take part in groups, and what is missing of it.
+/// Writes resolved ways to the store: the way, whether it is a coastline, how it may take part
+/// in groups, and what is missing of it; and gathers its cells and joint references, to be
+/// sorted before they are written.
 pub struct ResolvedWriter<'a> {
     partial: &'a Partial,
     way: BatchInsert<'a>,
