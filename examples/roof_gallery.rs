@@ -141,6 +141,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 drawn: true,
                 base: None,
                 appearance: appearance(&tags),
+                passages: Vec::new(),
             };
             let shell = solid(&building, frame.size_m, 0.0, 0.0);
             extrude(&building, &shell, &frame, &mut walls, &mut roofs);

@@ -374,37 +374,176 @@ async fn power_lines_hang_above_the_ground() {
     server.stop().await;
 }
 
-/// A road through a building (`tunnel=building_passage`) is a road on the ground, drawn up to
-/// the building's walls: Monaco's 14/8529/5974 has four, two of them reaching beyond their
-/// building (the other two lie wholly under theirs, whose walls stand over them).
+/// A road through a building (`tunnel=building_passage`) is a road on the ground that runs on
+/// under the building, whose walls open over it: Monaco's 14/8529/5974 has four. Every passage
+/// is drawn; where a building stands over a passage's paving, no face of it lies within 2.5 m
+/// over the road and no wall across it comes lower, and each such building is still a closed
+/// shell in the glb.
 #[test]
-fn roads_through_buildings_are_drawn_on_the_ground() {
+fn roads_through_buildings_run_on_under_their_raised_floors() {
+    use std::collections::{BTreeMap, BTreeSet};
     let dir = tempfile::tempdir().unwrap();
     let tile = decode(&common::render_in_process("14/8529/5974", &[], dir.path()));
-    let passages: Vec<(usize, i64)> = tile
+    let passages: BTreeSet<usize> = tile
         .features
         .iter()
         .enumerate()
         .filter(|(_, f)| f.tags.get("tunnel").and_then(|v| v.as_str()) == Some("building_passage"))
-        .map(|(index, f)| (index, f.osm_id))
-        .collect();
-    let drawn = |feature: usize| {
-        tile.primitives("road").iter().any(|p| {
-            p.indices
-                .chunks_exact(3)
-                .any(|t| p.feature_ids[t[0] as usize] as usize == feature)
-        })
-    };
-    let undrawn: Vec<i64> = passages
-        .iter()
-        .filter(|&&(feature, _)| !drawn(feature))
-        .map(|&(_, id)| id)
+        .map(|(index, _)| index)
         .collect();
     assert!(passages.len() >= 4, "passages with a row: {passages:?}");
+    // The passages' paving triangles.
+    let mut paving: Vec<[[f32; 3]; 3]> = Vec::new();
+    let mut drawn: BTreeSet<usize> = BTreeSet::new();
+    for p in tile.primitives("road") {
+        for t in p.indices.chunks_exact(3) {
+            let feature = p.feature_ids[t[0] as usize] as usize;
+            if passages.contains(&feature) {
+                drawn.insert(feature);
+                paving.push([0, 1, 2].map(|k| p.positions[t[k] as usize]));
+            }
+        }
+    }
+    assert_eq!(drawn, passages, "every passage drawn");
+    // Building faces over the paving (at its centroid) and walls standing across it (points
+    // along their foot strictly inside it), compared with the road's height at that point.
+    let mut covered = 0;
+    let mut low = Vec::new();
+    let mut carved: BTreeSet<u32> = BTreeSet::new();
+    // Directed edges (by their ends' bits) of each building's triangles.
+    type Edges = BTreeMap<([u32; 3], [u32; 3]), i32>;
+    let mut edges: BTreeMap<u32, Edges> = BTreeMap::new();
+    for p in tile.primitives("building") {
+        for t in p.indices.chunks_exact(3) {
+            let feature = p.feature_ids[t[0] as usize];
+            let c = [0, 1, 2].map(|k| p.positions[t[k] as usize]);
+            let key = |q: [f32; 3]| q.map(f32::to_bits);
+            let building = edges.entry(feature).or_default();
+            for k in 0..3 {
+                *building
+                    .entry((key(c[k]), key(c[(k + 1) % 3])))
+                    .or_default() += 1;
+            }
+            for road in &paving {
+                let plan = road.map(|q| [q[0], q[2]]);
+                // (point, height, whether it is a wall's foot)
+                let mut points: Vec<([f32; 2], f32, bool)> = Vec::new();
+                let middle = centroid(plan);
+                if let Some(y) = height_in_plan(c, middle) {
+                    covered += 1;
+                    points.push((middle, y, false));
+                }
+                for k in 1..8 {
+                    let s = k as f32 / 8.0;
+                    for (i, j) in [(0, 1), (1, 2), (2, 0)] {
+                        let q = [
+                            c[i][0] + s * (c[j][0] - c[i][0]),
+                            c[i][2] + s * (c[j][2] - c[i][2]),
+                        ];
+                        if strictly_inside(plan, q) {
+                            points.extend(wall_bottom(c, q).map(|y| (q, y, true)));
+                        }
+                    }
+                }
+                for (q, y, foot) in points {
+                    carved.insert(feature);
+                    let under = height_in_plan(*road, q).unwrap_or(f32::NAN);
+                    // A face under the road is a floor in the ground; a wall reaching below
+                    // the headroom stands in the way.
+                    if y < under + 2.5 && (foot || y > under - 0.25) {
+                        low.push((feature, under, y));
+                    }
+                }
+            }
+        }
+    }
+    assert!(covered >= 20, "{covered} building faces over passages");
     assert!(
-        passages.len() - undrawn.len() >= 2,
-        "passages without a road: {undrawn:?}"
+        low.is_empty(),
+        "{} building faces within 2.5 m over a passage (way, tags, road, face), e.g. {:?}",
+        low.len(),
+        low.iter()
+            .take(5)
+            .map(|l| (
+                tile.features[l.0 as usize].osm_id,
+                &tile.features[l.0 as usize].tags,
+                l.1,
+                l.2
+            ))
+            .collect::<Vec<_>>()
     );
+    let open: Vec<u32> = carved
+        .iter()
+        .copied()
+        .filter(|f| {
+            let building = &edges[f];
+            building
+                .iter()
+                .any(|(&(a, b), &n)| building.get(&(b, a)).copied().unwrap_or(0) != n)
+        })
+        .collect();
+    assert!(
+        open.is_empty(),
+        "buildings over passages not closed: {open:?} of {carved:?}"
+    );
+}
+
+fn centroid(t: [[f32; 2]; 3]) -> [f32; 2] {
+    [
+        (t[0][0] + t[1][0] + t[2][0]) / 3.0,
+        (t[0][1] + t[1][1] + t[2][1]) / 3.0,
+    ]
+}
+
+/// Whether `p` lies inside the plan triangle `t` and 2 cm or more from its sides.
+fn strictly_inside(t: [[f32; 2]; 3], p: [f32; 2]) -> bool {
+    (0..3).all(|k| {
+        let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+        let side = |q: [f32; 2]| (b[0] - a[0]) * (q[1] - a[1]) - (b[1] - a[1]) * (q[0] - a[0]);
+        let length = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+        length > 0.0 && side(p) * side(c).signum() > 0.02 * length
+    })
+}
+
+/// The lowest point at `p` (x, z) of an upright triangle whose foot passes through it in plan.
+fn wall_bottom(c: [[f32; 3]; 3], p: [f32; 2]) -> Option<f32> {
+    let (i, j) = [(0, 1), (1, 2), (0, 2)]
+        .into_iter()
+        .max_by(|&(a, b), &(x, y)| {
+            let length = |m: usize, n: usize| (c[n][0] - c[m][0]).hypot(c[n][2] - c[m][2]);
+            length(a, b).total_cmp(&length(x, y))
+        })?;
+    let d = [c[j][0] - c[i][0], c[j][2] - c[i][2]];
+    let along = |q: [f32; 2]| {
+        ((q[0] - c[i][0]) * d[0] + (q[1] - c[i][2]) * d[1]) / (d[0] * d[0] + d[1] * d[1])
+    };
+    let at = along(p);
+    let mut lowest: Option<f32> = None;
+    for (m, n) in [(0, 1), (1, 2), (2, 0)] {
+        let (a, b) = (along([c[m][0], c[m][2]]), along([c[n][0], c[n][2]]));
+        if a == b || at < a.min(b) || at > a.max(b) {
+            continue;
+        }
+        let y = c[m][1] + (at - a) / (b - a) * (c[n][1] - c[m][1]);
+        lowest = Some(lowest.map_or(y, |l| l.min(y)));
+    }
+    lowest
+}
+
+/// The height at `p` (x, z) of a triangle that covers it in plan.
+fn height_in_plan(c: [[f32; 3]; 3], p: [f32; 2]) -> Option<f32> {
+    let [a, b, d] = c.map(|q| [f64::from(q[0]), f64::from(q[2]), f64::from(q[1])]);
+    let (x, z) = (f64::from(p[0]), f64::from(p[1]));
+    let det = (b[0] - a[0]) * (d[1] - a[1]) - (d[0] - a[0]) * (b[1] - a[1]);
+    if det.abs() < 1e-9 {
+        return None;
+    }
+    let u = ((x - a[0]) * (d[1] - a[1]) - (d[0] - a[0]) * (z - a[1])) / det;
+    let v = ((b[0] - a[0]) * (z - a[1]) - (x - a[0]) * (b[1] - a[1])) / det;
+    if u < 0.0 || v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    Some((a[2] + u * (b[2] - a[2]) + v * (d[2] - a[2])) as f32)
 }
 
 /// A street lamp on a bridge's way stands on the deck, not on the ground under it.

@@ -125,6 +125,44 @@ pub(super) fn replace_outlines_by_parts(set: &mut FeatureSet) {
     }
 }
 
+/// Opens the buildings that roads pass through (`tunnel=building_passage`): each such road's
+/// surface is marked a passage (the ground under it is the road's, not the building's), and
+/// every building drawn on the ground whose footprint its pieces may reach is given them, so
+/// its walls open over the road and its floors stand above it.
+pub(super) fn open_passages(set: &mut FeatureSet) {
+    let FeatureSet {
+        features,
+        surfaces,
+        buildings,
+        ..
+    } = set;
+    for surface in surfaces.iter_mut() {
+        let info = &features[surface.feature as usize];
+        if surface.class != FeatureClass::Road
+            || info.tags.get("tunnel") != Some("building_passage")
+        {
+            continue;
+        }
+        surface.passage = true;
+        for building in buildings.iter_mut() {
+            let footprint = building.footprint.bounds();
+            if !building.drawn
+                || building.min_height_m > 0.0
+                || !footprint.intersects(&surface.bounds)
+            {
+                continue;
+            }
+            building.passages.extend(
+                surface
+                    .pieces
+                    .iter()
+                    .filter(|piece| piece.bounds().intersects(&footprint))
+                    .cloned(),
+            );
+        }
+    }
+}
+
 /// A point inside a polygon: the centroid of the first of its triangles.
 fn interior_point(polygon: &crate::geometry::Polygon) -> crate::geometry::Point {
     crate::geometry::constrained::triangulate_polygon(polygon)
@@ -628,6 +666,7 @@ pub(super) fn add_area(
             drawn: true,
             base: None,
             appearance: appearance(area.tags),
+            passages: Vec::new(),
         });
     }
     if part {
@@ -770,6 +809,50 @@ mod tests {
     }
 
     #[test]
+    fn a_road_tagged_as_a_building_passage_opens_the_buildings_it_reaches() {
+        use crate::geometry::Polygon;
+        let rect = |x0: f64, y0: f64, x1: f64, y1: f64| Polygon {
+            outer: vec![[x0, y0], [x1, y0], [x1, y1], [x0, y1]],
+            holes: Vec::new(),
+        };
+        let mut set = FeatureSet::default();
+        let s = FeatureSettings::default();
+        for x in [0.0, 10.0] {
+            let t = tags(&[("building", "yes")]);
+            let feature = set.add_feature(None, FeatureClass::Building, &t);
+            set.buildings.push(BuildingShape {
+                feature,
+                footprint: rect(x, 0.0, x + 4.0, 4.0),
+                height_m: 10.0,
+                height_tagged: true,
+                basement_m: 0.0,
+                roof: roof_spec(&t, &s),
+                min_height_m: 0.0,
+                drawn: true,
+                base: None,
+                appearance: appearance(&t),
+                passages: Vec::new(),
+            });
+        }
+        let mut road = |pairs: &[(&str, &str)], piece: Polygon| {
+            let feature = set.add_feature(None, FeatureClass::Road, &tags(pairs));
+            let surface = Surface::from_polygons(FeatureClass::Road, feature, vec![piece]);
+            set.surfaces.extend(surface);
+        };
+        // A passage through the first building; a street through the second.
+        road(
+            &[("highway", "service"), ("tunnel", "building_passage")],
+            rect(1.0, -2.0, 2.0, 6.0),
+        );
+        road(&[("highway", "residential")], rect(11.0, -2.0, 12.0, 6.0));
+        open_passages(&mut set);
+        assert!(set.surfaces[0].passage);
+        assert!(!set.surfaces[1].passage);
+        assert_eq!(set.buildings[0].passages, vec![rect(1.0, -2.0, 2.0, 6.0)]);
+        assert!(set.buildings[1].passages.is_empty());
+    }
+
+    #[test]
     fn parts_that_cover_their_outline_replace_it() {
         use crate::geometry::Polygon;
         let square = |x0: f64, x1: f64| Polygon {
@@ -796,6 +879,7 @@ mod tests {
                 drawn: true,
                 base: None,
                 appearance: appearance(&t),
+                passages: Vec::new(),
             });
         };
         add(&mut set, &[("building", "yes")], square(0.0, 2.0));

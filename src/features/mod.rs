@@ -127,6 +127,9 @@ pub struct Surface {
     pub paving: Option<roads::Paving>,
     /// Lies in the road it runs along (a tram's track): drawn over roads.
     pub embedded: bool,
+    /// A road through a building (`tunnel=building_passage`): the ground under the building's
+    /// raised floors, drawn over the building's footprint.
+    pub passage: bool,
     /// The line a surface drawn at a width follows (a waterway's, in the direction it flows),
     /// in global tile units; empty for areas.
     pub centreline: Vec<Point>,
@@ -163,6 +166,7 @@ impl Surface {
             cover: None,
             paving: None,
             embedded: false,
+            passage: false,
             centreline: Vec::new(),
             piece_lines: Vec::new(),
             water: None,
@@ -214,6 +218,9 @@ pub struct BuildingShape {
     /// part outside any.
     pub base: Option<usize>,
     pub appearance: buildings::Appearance,
+    /// The surfaces of the roads that pass through the building (`tunnel=building_passage`)
+    /// whose bounds meet its footprint: the walls open over them, its floors above.
+    pub passages: Vec<Polygon>,
 }
 
 /// Everything the features of one tile contribute.
@@ -449,6 +456,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     }
     buildings::link_building_relations(&mut set, &selection.relations);
     buildings::replace_outlines_by_parts(&mut set);
+    buildings::open_passages(&mut set);
     set.nearby_outlines = set
         .surfaces
         .iter()

@@ -239,6 +239,86 @@ pub fn triangulate_polygon(polygon: &Polygon) -> Vec<Vec<Point>> {
         .collect()
 }
 
+/// A polygon triangulated with other polygons' rings stitched in: see [`cut_polygon`].
+#[derive(Debug, Clone, Default)]
+pub struct CutPolygon {
+    /// The triangles inside the polygon, counter-clockwise, each with whether it lies in one of
+    /// the cuts.
+    pub triangles: Vec<([Point; 3], bool)>,
+    /// `edges[r][i]`: the polygon's ring `r` from its point `i` to the next, as the points it
+    /// passes through (its ends and where a cut's ring crosses or touches it).
+    pub edges: Vec<Vec<Vec<Point>>>,
+}
+
+/// Triangles covering `polygon` (its rings in the order given), split along the rings of
+/// `cuts` where they run inside it, each marked with whether it lies in a cut. Corners are the
+/// very points of the rings and the crossing points shared by both rings.
+pub fn cut_polygon(polygon: &Polygon, cuts: &[Polygon]) -> CutPolygon {
+    let to_point = |p: Point2<f64>| [p.x, p.y];
+    let mut segments = Vec::new();
+    let mut of_edge: Vec<Vec<Option<usize>>> = Vec::new();
+    for ring in polygon.rings() {
+        let mut slots = Vec::with_capacity(ring.len());
+        for i in 0..ring.len() {
+            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+            if a == b {
+                slots.push(None);
+                continue;
+            }
+            slots.push(Some(segments.len()));
+            segments.push((Point2::new(a[0], a[1]), Point2::new(b[0], b[1])));
+        }
+        of_edge.push(slots);
+    }
+    for ring in cuts.iter().flat_map(Polygon::rings) {
+        for i in 0..ring.len() {
+            let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
+            if a != b {
+                segments.push((Point2::new(a[0], a[1]), Point2::new(b[0], b[1])));
+            }
+        }
+    }
+    if segments
+        .iter()
+        .flat_map(|(a, b)| [a, b])
+        .any(|p| !(p.x.is_finite() && p.y.is_finite()))
+    {
+        return CutPolygon::default();
+    }
+    // The same splitting the triangulation does, so the edges' points are its vertices.
+    let split = split_at_crossings(&segments);
+    let edges = of_edge
+        .iter()
+        .map(|slots| {
+            slots
+                .iter()
+                .map(|slot| match slot {
+                    Some(k) => split[*k].iter().copied().map(to_point).collect(),
+                    None => Vec::new(),
+                })
+                .collect()
+        })
+        .collect();
+    let (cdt, _) = insert(&Cdt::new(), &segments);
+    let triangles = cdt
+        .inner_faces()
+        .filter_map(|face| {
+            let [a, b, c] = face.vertices().map(|v| to_point(v.position()));
+            let centroid = [(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0];
+            if !polygon.contains(centroid) {
+                return None;
+            }
+            let corners = if super::signed_area2(&[a, b, c]) >= 0.0 {
+                [a, b, c]
+            } else {
+                [a, c, b]
+            };
+            Some((corners, cuts.iter().any(|cut| cut.contains(centroid))))
+        })
+        .collect();
+    CutPolygon { triangles, edges }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -13,7 +13,7 @@ use super::roofs::{
     bend, centred_roof, long_axis, profile_roof, skeleton_roof, spread, square_up, CentredRoof,
     RoofEnd, RoofError, RoofMesh, SkeletonRoof,
 };
-use super::{newell, MeshBuffers, Part};
+use super::{newell, passages, MeshBuffers, Part};
 use crate::features::buildings::{Finish, RoofShape, RoofSpec};
 use crate::features::BuildingShape;
 use crate::geometry::constrained::triangulate_polygon;
@@ -145,8 +145,21 @@ impl Fallback {
 }
 
 /// The shell of a building whose lowest and highest ground (under its outline) are `low` and
-/// `high`, metres.
+/// `high`, metres, closed over the roads that pass through it.
 pub fn solid(building: &BuildingShape, size_m: f64, low: f64, high: f64) -> Solid {
+    solid_over_passages(building, size_m, low, high, None)
+}
+
+/// The shell of a building (see [`solid`]) whose walls open over the roads that pass through
+/// it ([`BuildingShape::passages`]), under a ceiling [`passages::HEADROOM_M`] over `ground`
+/// (the ground as settled, by tile units) where the walls above leave room for it.
+pub fn solid_over_passages(
+    building: &BuildingShape,
+    size_m: f64,
+    low: f64,
+    high: f64,
+    ground: Option<&dyn Elevation>,
+) -> Solid {
     let footprint = &building.footprint;
     let Some(&origin) = footprint
         .outer
@@ -157,11 +170,7 @@ pub fn solid(building: &BuildingShape, size_m: f64, low: f64, high: f64) -> Soli
     };
     let mut rings: Vec<Vec<Point>> = footprint
         .rings()
-        .map(|r| {
-            r.iter()
-                .map(|p| [(p[0] - origin[0]) * size_m, (p[1] - origin[1]) * size_m])
-                .collect()
-        })
+        .map(|r| plan_ring(r, origin, size_m))
         .collect();
     for (index, ring) in rings.iter_mut().enumerate() {
         if (index == 0) == (signed_area2(ring) < 0.0) {
@@ -179,6 +188,38 @@ pub fn solid(building: &BuildingShape, size_m: f64, low: f64, high: f64) -> Soli
         low - WALL_SKIRT_M
     };
     let (pitched, fallback) = pitched_roof(building, &rings);
+    if let Some(roof) = &pitched {
+        rings.clone_from(&roof.rings);
+    }
+    let plan = Polygon {
+        outer: rings[0].clone(),
+        holes: rings[1..].to_vec(),
+    };
+    // Roads through the building, the ground under them by plan metres.
+    let ground_at = |p: Point| {
+        ground.map_or(low, |g| {
+            g.elevation_uv([origin[0] + p[0] / size_m, origin[1] + p[1] / size_m])
+        })
+    };
+    let carving = ground
+        .filter(|_| !floating && !building.passages.is_empty())
+        .and_then(|_| {
+            let plan_of = |p: &Polygon| Polygon {
+                outer: plan_ring(&p.outer, origin, size_m),
+                holes: p
+                    .holes
+                    .iter()
+                    .map(|h| plan_ring(h, origin, size_m))
+                    .collect(),
+            };
+            let cuts: Vec<Polygon> = building.passages.iter().map(plan_of).collect();
+            passages::Carving::new(&plan, &cuts)
+        });
+    if let Some(carving) = carving.as_ref().filter(|_| !building.height_tagged) {
+        // A guessed height leaves a storey over a road through the building.
+        let ceiling = carving.highest_ground(&ground_at) + passages::HEADROOM_M;
+        top = top.max(ceiling + passages::STOREY_M);
+    }
     let mut solid = Solid {
         origin,
         size_m,
@@ -198,7 +239,6 @@ pub fn solid(building: &BuildingShape, size_m: f64, low: f64, high: f64) -> Soli
             } else {
                 top - roof.height
             };
-            rings.clone_from(&roof.rings);
             let raise = |c: [f64; 3]| [c[0], c[1], eaves + c[2]];
             solid.roof = roof.slopes.iter().map(|t| t.map(raise)).collect();
             // A side whose top rounds onto the eaves is none.
@@ -213,28 +253,33 @@ pub fn solid(building: &BuildingShape, size_m: f64, low: f64, high: f64) -> Soli
         }
         None => top,
     };
+    let carving = carving.and_then(|c| c.with_ceiling(&ground_at, eaves));
     // Walls: the building lies left of every edge (outer ring counter-clockwise, holes
     // clockwise), so `a, b` at the bottom then `b, a` at the eaves faces outwards.
     // Their tops pass through the points where the roof above them bends.
     for (r, ring) in rings.iter().enumerate() {
         for i in 0..ring.len() {
             let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
-            if a != b {
-                let mut wall = vec![at(a, bottom), at(b, bottom), at(b, eaves)];
-                if let Some(roof) = &pitched {
-                    wall.extend(roof.edge_points(r, i).iter().rev().map(|&p| at(p, eaves)));
+            if a == b {
+                continue;
+            }
+            let mut top = vec![at(b, eaves)];
+            if let Some(roof) = &pitched {
+                top.extend(roof.edge_points(r, i).iter().rev().map(|&p| at(p, eaves)));
+            }
+            top.push(at(a, eaves));
+            match &carving {
+                Some(carving) => solid.walls.extend(carving.wall(r, i, bottom, &top)),
+                None => {
+                    let mut wall = vec![at(a, bottom), at(b, bottom)];
+                    wall.extend(top);
+                    solid.walls.push(wall);
                 }
-                wall.push(at(a, eaves));
-                solid.walls.push(wall);
             }
         }
     }
-    let plan = Polygon {
-        outer: rings[0].clone(),
-        holes: rings[1..].to_vec(),
-    };
     let cap = triangulate_polygon(&plan);
-    let oriented = |t: &Vec<Point>, up: bool, elevation: f64| {
+    let oriented = |t: &[Point], up: bool, elevation: f64| {
         let [a, b, c] = [t[0], t[1], t[2]];
         let (b, c) = if (signed_area2(&[a, b, c]) > 0.0) == up {
             (b, c)
@@ -243,12 +288,29 @@ pub fn solid(building: &BuildingShape, size_m: f64, low: f64, high: f64) -> Soli
         };
         [at(a, elevation), at(b, elevation), at(c, elevation)]
     };
-    solid.floor = cap.iter().map(|t| oriented(t, false, bottom)).collect();
+    match &carving {
+        Some(carving) => {
+            solid.walls.extend(carving.side_walls(bottom));
+            solid.floor = carving
+                .floor()
+                .map(|t| oriented(t, false, bottom))
+                .chain(carving.ceiling())
+                .collect();
+        }
+        None => solid.floor = cap.iter().map(|t| oriented(t, false, bottom)).collect(),
+    }
     if pitched.is_none() {
         solid.flat_roof = true;
         solid.roof = cap.iter().map(|t| oriented(t, true, top)).collect();
     }
     solid
+}
+
+/// A ring in tile units in a building's plan: metres around `origin`.
+fn plan_ring(ring: &[Point], origin: Point, size_m: f64) -> Vec<Point> {
+    ring.iter()
+        .map(|p| [(p[0] - origin[0]) * size_m, (p[1] - origin[1]) * size_m])
+        .collect()
 }
 
 /// The buildings drawn in the tile as parts, one primitive per finish of walls and of roofs;
@@ -308,7 +370,13 @@ pub fn solids(
             let (low, high) = *ranges.entry(base).or_insert_with(|| {
                 ground_range(&buildings[base].footprint, terrain, ground, sample_step_uv)
             });
-            Some(solid(building, frame.size_m, low, high))
+            Some(solid_over_passages(
+                building,
+                frame.size_m,
+                low,
+                high,
+                Some(ground),
+            ))
         })
         .collect()
 }
@@ -604,6 +672,8 @@ fn skeleton_roof_within(
 
 #[cfg(test)]
 mod tests {
+    use std::collections::HashMap;
+
     use super::*;
     use crate::features::buildings::{appearance, basement_m, height_m, min_height_m, roof_spec};
     use crate::features::FeatureSettings;
@@ -631,6 +701,7 @@ mod tests {
             drawn: true,
             base: None,
             appearance: appearance(&tags),
+            passages: Vec::new(),
         }
     }
 
@@ -683,6 +754,96 @@ mod tests {
                 "{cosine}"
             );
         }
+    }
+
+    /// Directed edges of a shell's faces not met by exactly one edge running the other way.
+    fn unmatched_edges(solid: &Solid) -> usize {
+        let key = |c: [f64; 3]| c.map(|x| (x + 0.0).to_bits());
+        let mut edges: HashMap<([u64; 3], [u64; 3]), i32> = HashMap::new();
+        for face in solid.faces() {
+            for i in 0..face.len() {
+                let (a, b) = (key(face[i]), key(face[(i + 1) % face.len()]));
+                if a != b {
+                    *edges.entry((a, b)).or_default() += 1;
+                }
+            }
+        }
+        edges
+            .iter()
+            .filter(|(&(a, b), &n)| n != 1 || edges.get(&(b, a)) != Some(&1))
+            .count()
+    }
+
+    /// Level ground at 100 m.
+    struct Level100;
+
+    impl Elevation for Level100 {
+        fn elevation_uv(&self, _: [f64; 2]) -> f64 {
+            100.0
+        }
+    }
+
+    #[test]
+    fn a_road_through_a_building_opens_its_walls_under_a_closed_shell() {
+        let footprint = [[0.0, 0.0], [20.0, 0.0], [20.0, 12.0], [0.0, 12.0]];
+        let road = Polygon {
+            outer: vec![
+                [0.008, -0.005],
+                [0.0125, -0.005],
+                [0.0125, 0.02],
+                [0.008, 0.02],
+            ],
+            holes: Vec::new(),
+        };
+        for roof in ["flat", "gabled", "hipped"] {
+            let mut house = building(
+                &[("building", "yes"), ("height", "12"), ("roof:shape", roof)],
+                &footprint,
+            );
+            house.passages = vec![road.clone()];
+            let closed = solid(&house, 1000.0, 100.0, 100.0);
+            let open = solid_over_passages(&house, 1000.0, 100.0, 100.0, Some(&Level100));
+            assert_eq!(unmatched_edges(&closed), 0, "{roof}: closed shell");
+            assert_eq!(unmatched_edges(&open), 0, "{roof}: opened shell");
+            // The ceiling over the road, 4 m over its ground, spans the passage: 4.5 m × 12 m.
+            let ceiling: f64 = open
+                .floor
+                .iter()
+                .filter(|t| t.iter().all(|c| (c[2] - 104.0).abs() < 1e-9))
+                .map(|t| newell(t)[2].abs() / 2.0)
+                .sum();
+            assert!(
+                (ceiling - 54.0).abs() < 1e-6,
+                "{roof}: ceiling {ceiling} m²"
+            );
+            // No wall reaches below the ceiling inside the passage.
+            let inside = |c: &[f64; 3]| c[0] > 8.0 + 1e-9 && c[0] < 12.5 - 1e-9;
+            let low_in_passage = open
+                .walls
+                .iter()
+                .flatten()
+                .filter(|c| inside(c) && c[2] < 104.0 - 1e-9)
+                .count();
+            assert_eq!(low_in_passage, 0, "{roof}: wall corners below the ceiling");
+        }
+    }
+
+    #[test]
+    fn a_building_too_low_for_a_passage_stays_closed_over_the_road() {
+        let footprint = [[0.0, 0.0], [20.0, 0.0], [20.0, 12.0], [0.0, 12.0]];
+        let mut shed = building(&[("building", "yes"), ("height", "3")], &footprint);
+        shed.passages = vec![Polygon {
+            outer: vec![
+                [0.008, -0.005],
+                [0.0125, -0.005],
+                [0.0125, 0.02],
+                [0.008, 0.02],
+            ],
+            holes: Vec::new(),
+        }];
+        let shell = solid_over_passages(&shed, 1000.0, 100.0, 100.0, Some(&Level100));
+        assert_eq!(shell.walls.len(), 4);
+        assert_eq!(unmatched_edges(&shell), 0);
     }
 
     #[test]

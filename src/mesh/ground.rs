@@ -306,15 +306,18 @@ pub fn triangulate(
     // 5. Classification.
     let buckets = SurfaceBuckets::new(rect, BUCKETS_PER_SIDE, surfaces);
     // Where surfaces overlap, the lowest rank wins: the class's priority, where a track
-    // embedded in a road ranks as the road and before it; among land covers the smaller area
-    // (the detail: a pitch in a park); then the lower feature id.
+    // embedded in a road ranks as the road and before it and a road through a building before
+    // the building; among land covers the smaller area (the detail: a pitch in a park); then
+    // the lower feature id.
     let rank: Vec<(u8, bool, f64, u32)> = surfaces
         .iter()
         .map(|s| {
-            let priority = if s.embedded {
-                FeatureClass::Road.ground_priority()
+            let priority = if s.passage {
+                0
+            } else if s.embedded {
+                FeatureClass::Road.ground_priority() + 1
             } else {
-                s.class.ground_priority()
+                s.class.ground_priority() + 1
             };
             let detail = match s.class {
                 FeatureClass::LandCover => s.pieces.iter().map(Polygon::area).sum(),
@@ -650,6 +653,7 @@ mod tests {
             cover: None,
             paving: None,
             embedded: false,
+            passage: false,
             centreline: Vec::new(),
             piece_lines: Vec::new(),
             junction_at: None,
@@ -880,6 +884,7 @@ mod tests {
                         cover: None,
             paving: None,
             embedded: false,
+            passage: false,
             centreline: Vec::new(),
             piece_lines: Vec::new(),
             junction_at: None,

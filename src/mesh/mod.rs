@@ -9,6 +9,7 @@ pub mod ground_parts;
 pub mod instances;
 pub mod models;
 pub mod normals;
+pub mod passages;
 pub mod power;
 pub mod roofs;
 pub mod skeleton;
