@@ -28,7 +28,17 @@ tests/.chromium:
 	command -v chromium >/dev/null || (apt-get update && apt-get install -y --no-install-recommends chromium)
 	touch $@
 
-test: tests/js/node_modules/.installed tests/py/.venv/.installed static/vendor/.installed tests/.chromium lint
+# PostgreSQL's server programs for the tests of the shared tile cache (Debian's package), unless
+# installed; the tests start a throwaway cluster of their own. PostgreSQL refuses to run as
+# root: as root, the tests run it as the unprivileged user terrastitch-pg, created here.
+tests/.postgresql:
+	ls /usr/lib/postgresql/*/bin/initdb >/dev/null 2>&1 || command -v initdb >/dev/null || \
+		(apt-get update && apt-get install -y --no-install-recommends postgresql)
+	if [ "$$(id -u)" = 0 ] && ! id terrastitch-pg >/dev/null 2>&1; then \
+		useradd --system --no-create-home --shell /usr/sbin/nologin terrastitch-pg; fi
+	touch $@
+
+test: tests/js/node_modules/.installed tests/py/.venv/.installed static/vendor/.installed tests/.chromium tests/.postgresql lint
 	TERRASTITCH_PYTHON=$(CURDIR)/tests/py/.venv/bin/python $(CARGO) test --release
 
 # The fast tier: no extract read, no browser, no server process.

@@ -160,9 +160,12 @@ impl SourcesConfig {
 pub struct CacheConfig {
     /// The SQLite file tiles are kept in (created with its directory if missing).
     pub path: PathBuf,
-    /// Memory for the in-process cache in front of SQLite, in MiB.
+    /// A PostgreSQL database to keep the tiles in instead (`postgres://user:password@host/db`),
+    /// shared by every process that names it; empty for the SQLite file.
+    pub url: String,
+    /// Memory for the in-process cache in front of the store, in MiB.
     pub memory_mib: u64,
-    /// Largest size of the SQLite cache's tiles, MiB; past it the least recently served go
+    /// Largest size of the stored tiles, MiB; past it the least recently served go
     /// (0: no cap).
     pub max_size_mib: u64,
 }
@@ -171,6 +174,7 @@ impl Default for CacheConfig {
     fn default() -> Self {
         CacheConfig {
             path: PathBuf::from("cache/tiles.sqlite"),
+            url: String::new(),
             memory_mib: 256,
             max_size_mib: 10240,
         }

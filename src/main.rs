@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 
-use terrastitch::cache::{MbtilesStore, SqliteStore, TileCache};
+use terrastitch::cache::{MbtilesStore, PostgresStore, SqliteStore, TileCache, TileStore};
 use terrastitch::config::ServerConfig;
 use terrastitch::config::{Config, LogFormat};
 use terrastitch::format::Format;
@@ -261,10 +261,25 @@ fn init_logging(format: LogFormat) {
     }
 }
 
-/// The tile store a configuration names.
-fn open_store(config: &Config) -> Result<SqliteStore> {
+/// The tile store a configuration names: its PostgreSQL database (`cache.url`), else its
+/// SQLite file.
+fn open_store(config: &Config) -> Result<Arc<dyn TileStore>> {
     let cap = (config.cache.max_size_mib > 0).then(|| config.cache.max_size_mib * 1024 * 1024);
-    Ok(SqliteStore::open_or_set_aside(&config.cache.path, cap)?)
+    let url = config.cache.url.trim();
+    if url.is_empty() {
+        return Ok(Arc::new(SqliteStore::open_or_set_aside(
+            &config.cache.path,
+            cap,
+        )?));
+    }
+    if !(url.starts_with("postgres://") || url.starts_with("postgresql://")) {
+        anyhow::bail!(
+            "cache.url must be a PostgreSQL URL (postgres://user:password@host/database), not {url:?}"
+        );
+    }
+    let store = PostgresStore::open(url, cap)?;
+    tracing::info!(place = store.place(), "tiles kept in PostgreSQL");
+    Ok(Arc::new(store))
 }
 
 fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
@@ -279,7 +294,7 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
     }
     server::memory::limit_arenas();
     let store = open_store(&config)?;
-    let cache = TileCache::new(Arc::new(store), config.cache.memory_mib * 1024 * 1024);
+    let cache = TileCache::new(store, config.cache.memory_mib * 1024 * 1024);
     let state = AppState::new(cache, &config.server);
     let fetcher = Arc::new(Fetcher::new(config.sources.fetch_settings()));
     let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
@@ -512,7 +527,7 @@ fn seed_area(
     area: &AreaArgs,
     config: &Config,
     provider: &dyn TileProvider,
-    store: &SqliteStore,
+    store: &dyn TileStore,
     shard: seed::Shard,
 ) -> Result<seed::SeedReport> {
     let range = TileRange::covering(config.server.zoom, &area.bbox);
@@ -569,14 +584,14 @@ fn seed_into_store(
     mut config: Config,
     area: &AreaArgs,
     shard: seed::Shard,
-) -> Result<(Config, Renderer, SqliteStore)> {
+) -> Result<(Config, Renderer, Arc<dyn TileStore>)> {
     if let Some(cache) = &area.cache {
         config.cache.path = cache.clone();
     }
     let fetcher = Arc::new(Fetcher::new(config.sources.fetch_settings()));
     let renderer = open_renderer(&config, fetcher)?;
     let store = open_store(&config)?;
-    let report = seed_area(area, &config, &renderer, &store, shard)?;
+    let report = seed_area(area, &config, &renderer, store.as_ref(), shard)?;
     if !report.failed.is_empty() {
         anyhow::bail!("{} tiles could not be made", report.failed.len());
     }
@@ -603,7 +618,13 @@ fn export(args: ExportArgs, config: Config) -> Result<()> {
             "an MBTiles file holds one format; export to a directory (-o DIR/) for several"
         );
     }
-    let written = export::export(&store, &keys, &target, &args.area.bbox, config.server.zoom)?;
+    let written = export::export(
+        store.as_ref(),
+        &keys,
+        &target,
+        &args.area.bbox,
+        config.server.zoom,
+    )?;
     eprintln!(
         "exported {} tiles, {} bytes of tile data, to {}",
         written.tiles,

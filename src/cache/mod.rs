@@ -11,6 +11,7 @@
 pub mod encoding;
 mod flight;
 pub mod mbtiles;
+pub mod postgres;
 pub mod sqlite;
 pub mod store;
 
@@ -22,6 +23,7 @@ use sha2::Digest;
 use crate::format::TileKey;
 use encoding::Bodies;
 pub use mbtiles::MbtilesStore;
+pub use postgres::PostgresStore;
 pub use sqlite::SqliteStore;
 pub use store::{
     unix_now, Provenance, SolutionEntry, StoreError, StoredEntry, StoredTile, TileFilter,

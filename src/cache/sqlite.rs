@@ -14,7 +14,7 @@ use crate::tile::TileId;
 
 /// The migrations, in order; the schema version is the number of migrations applied.
 /// Solved LP components kept at most (a few hundred bytes to a few kilobytes each).
-const MAX_SOLUTIONS: i64 = 100_000;
+pub(super) const MAX_SOLUTIONS: i64 = 100_000;
 
 const MIGRATIONS: &[(&str, &str)] = &[
     (
@@ -32,7 +32,7 @@ const MIGRATIONS: &[(&str, &str)] = &[
 ];
 
 /// Eviction brings the store down to this share of its cap, so it does not run on every put.
-const EVICT_TO: f64 = 0.9;
+pub(super) const EVICT_TO: f64 = 0.9;
 
 /// One SQLite connection behind a lock, with the file it is on for its errors.
 pub(super) struct Database {
@@ -252,7 +252,7 @@ const ROW_OVERHEAD: usize = 64;
 
 /// The bytes a stored tile counts against the cap: its bodies, its text columns and the row's
 /// overhead, so that many small tiles fill the cap as the file grows.
-fn stored_bytes(key: &TileKey, tile: &StoredTile) -> usize {
+pub(super) fn stored_bytes(key: &TileKey, tile: &StoredTile) -> usize {
     tile.bodies.stored_len()
         + tile.etag.len()
         + tile.made_by.pipeline.len()

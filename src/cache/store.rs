@@ -1,5 +1,6 @@
-//! What a durable tile store does, whatever keeps the bytes: [`TileStore`], with SQLite as the
-//! one implementation ([`super::sqlite::SqliteStore`]).
+//! What a durable tile store does, whatever keeps the bytes: [`TileStore`], in SQLite (one
+//! file, the default: [`super::sqlite::SqliteStore`]) or PostgreSQL (shared by several
+//! processes: [`super::postgres::PostgresStore`]).
 
 use std::path::PathBuf;
 
@@ -14,6 +15,12 @@ pub enum StoreError {
         path: PathBuf,
         #[source]
         source: rusqlite::Error,
+    },
+    #[error("tile cache {place}: {source}")]
+    Postgres {
+        place: String,
+        #[source]
+        source: postgres::Error,
     },
     #[error("tile cache {path}: cannot create its directory: {source}")]
     Directory {

@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod compressed;
+pub mod pg_cluster;
 pub mod process;
 
 use std::collections::{BTreeMap, BTreeSet};

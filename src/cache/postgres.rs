@@ -1,0 +1,526 @@
+//! A [`TileStore`] in PostgreSQL, shared by every process that names the same database
+//! (`cache.url = "postgres://…"`): the same rows, codings, validators, size cap and
+//! least-recently-served eviction as [`super::sqlite::SqliteStore`].
+//!
+//! Calls block (the `postgres` client runs its own small runtime); like every store call they
+//! run on the blocking pool. Connections are kept in a small pool of our own and opened as
+//! needed; one that failed is dropped, not returned.
+
+use std::sync::Mutex;
+
+use postgres::{Client, NoTls};
+
+use super::encoding::{Bodies, Encoding};
+use super::sqlite::{stored_bytes, EVICT_TO, MAX_SOLUTIONS};
+use super::store::{
+    Provenance, SolutionEntry, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage,
+};
+use crate::format::{Format, TileKey};
+use crate::tile::TileId;
+
+/// The schema's migrations, in order; the database records how many it has applied.
+const MIGRATIONS: &[(&str, &str)] = &[(
+    "tiles",
+    include_str!("../../migrations/postgres/0001_tiles.sql"),
+)];
+
+/// Connections kept open when idle, at most.
+const IDLE_CONNECTIONS: usize = 8;
+
+/// The key of the advisory lock processes take while they migrate the schema.
+const MIGRATION_LOCK: i64 = 0x7465_7272_6173_7469;
+
+/// Tiles of a list removed or listed by one statement.
+const TILES_PER_STATEMENT: usize = 1_000;
+
+pub struct PostgresStore {
+    /// Where the database is, without its password (for errors and logs).
+    place: String,
+    url: String,
+    max_bytes: Option<u64>,
+    idle: Mutex<Vec<Client>>,
+}
+
+impl std::fmt::Debug for PostgresStore {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PostgresStore")
+            .field("place", &self.place)
+            .field("max_bytes", &self.max_bytes)
+            .finish()
+    }
+}
+
+/// A connection taken from the pool, given back when dropped unless it broke.
+struct Pooled<'a> {
+    store: &'a PostgresStore,
+    client: Option<Client>,
+}
+
+impl std::ops::Deref for Pooled<'_> {
+    type Target = Client;
+    fn deref(&self) -> &Client {
+        self.client
+            .as_ref()
+            .expect("a pooled connection until dropped")
+    }
+}
+
+impl std::ops::DerefMut for Pooled<'_> {
+    fn deref_mut(&mut self) -> &mut Client {
+        self.client
+            .as_mut()
+            .expect("a pooled connection until dropped")
+    }
+}
+
+impl Drop for Pooled<'_> {
+    fn drop(&mut self) {
+        if let Some(client) = self.client.take().filter(|c| !c.is_closed()) {
+            let mut idle = self.store.idle.lock().unwrap_or_else(|p| p.into_inner());
+            if idle.len() < IDLE_CONNECTIONS {
+                idle.push(client);
+            }
+        }
+    }
+}
+
+/// `url` without the password it may hold.
+fn redacted(url: &str) -> String {
+    if !url.contains("://") {
+        // key=value settings: any password's value hidden.
+        return url
+            .split_whitespace()
+            .map(|part| match part.split_once('=') {
+                Some(("password", _)) => "password=***".to_string(),
+                _ => part.to_string(),
+            })
+            .collect::<Vec<_>>()
+            .join(" ");
+    }
+    match (url.find("://"), url.rfind('@')) {
+        (Some(scheme), Some(at)) if at > scheme => {
+            let credentials = &url[scheme + 3..at];
+            match credentials.find(':') {
+                Some(colon) => format!(
+                    "{}{}:***{}",
+                    &url[..scheme + 3],
+                    &credentials[..colon],
+                    &url[at..]
+                ),
+                None => url.to_string(),
+            }
+        }
+        _ => url.to_string(),
+    }
+}
+
+impl PostgresStore {
+    /// Connects to the database at `url`, applying the schema's migrations it lacks (one process
+    /// at a time); past `max_bytes` of tiles, the least recently served are evicted.
+    pub fn open(url: &str, max_bytes: Option<u64>) -> Result<PostgresStore, StoreError> {
+        let store = PostgresStore {
+            place: redacted(url),
+            url: url.to_string(),
+            max_bytes,
+            idle: Mutex::new(Vec::new()),
+        };
+        store.migrate()?;
+        Ok(store)
+    }
+
+    /// Where the database is, without its password.
+    pub fn place(&self) -> &str {
+        &self.place
+    }
+
+    fn error(&self, source: postgres::Error) -> StoreError {
+        StoreError::Postgres {
+            place: self.place.clone(),
+            source,
+        }
+    }
+
+    fn client(&self) -> Result<Pooled<'_>, StoreError> {
+        let kept = self.idle.lock().unwrap_or_else(|p| p.into_inner()).pop();
+        let client = match kept {
+            Some(client) => client,
+            None => Client::connect(&self.url, NoTls).map_err(|e| self.error(e))?,
+        };
+        Ok(Pooled {
+            store: self,
+            client: Some(client),
+        })
+    }
+
+    fn migrate(&self) -> Result<(), StoreError> {
+        let mut client = self.client()?;
+        let mut transaction = client.transaction().map_err(|e| self.error(e))?;
+        transaction
+            .execute("SELECT pg_advisory_xact_lock($1)", &[&MIGRATION_LOCK])
+            .map_err(|e| self.error(e))?;
+        transaction
+            .batch_execute(
+                "CREATE TABLE IF NOT EXISTS terrastitch_schema (
+                     id integer PRIMARY KEY CHECK (id = 0), version bigint NOT NULL);
+                 INSERT INTO terrastitch_schema VALUES (0, 0) ON CONFLICT DO NOTHING;",
+            )
+            .map_err(|e| self.error(e))?;
+        let version: i64 = transaction
+            .query_one("SELECT version FROM terrastitch_schema", &[])
+            .map_err(|e| self.error(e))?
+            .get(0);
+        if version > MIGRATIONS.len() as i64 {
+            return Err(StoreError::NewerSchema {
+                path: self.place.clone().into(),
+                found: version,
+                supported: MIGRATIONS.len(),
+            });
+        }
+        for (number, (name, sql)) in MIGRATIONS.iter().enumerate().skip(version.max(0) as usize) {
+            transaction.batch_execute(sql).map_err(|e| self.error(e))?;
+            transaction
+                .execute(
+                    "UPDATE terrastitch_schema SET version = $1",
+                    &[&(number as i64 + 1)],
+                )
+                .map_err(|e| self.error(e))?;
+            tracing::info!(place = %self.place, migration = name, "tile cache schema migrated");
+        }
+        transaction.commit().map_err(|e| self.error(e))
+    }
+
+    /// Deletes the least recently served tiles (never `keep`) until the store is under
+    /// [`EVICT_TO`] of its cap; returns how many went.
+    fn evict(
+        &self,
+        transaction: &mut postgres::Transaction<'_>,
+        keep: &TileKey,
+    ) -> Result<u64, postgres::Error> {
+        let Some(cap) = self.max_bytes else {
+            return Ok(0);
+        };
+        let total: i64 = transaction
+            .query_one("SELECT bytes FROM usage WHERE id = 0", &[])?
+            .get(0);
+        let mut total = total.max(0) as u64;
+        if total <= cap {
+            return Ok(0);
+        }
+        let target = (cap as f64 * EVICT_TO) as u64;
+        let (z, x, y) = key_columns(&keep.tile);
+        let oldest = transaction.query(
+            "SELECT z, x, y, format, size FROM tiles
+             WHERE NOT (z = $1 AND x = $2 AND y = $3 AND format = $4)
+             ORDER BY accessed_at ASC LIMIT 10000",
+            &[&z, &x, &y, &keep.format.as_str()],
+        )?;
+        let mut evicted = 0;
+        for row in oldest {
+            if total <= target {
+                break;
+            }
+            let size: i64 = row.get(4);
+            evicted += transaction.execute(
+                "DELETE FROM tiles WHERE z = $1 AND x = $2 AND y = $3 AND format = $4",
+                &[
+                    &row.get::<_, i16>(0),
+                    &row.get::<_, i32>(1),
+                    &row.get::<_, i32>(2),
+                    &row.get::<_, String>(3),
+                ],
+            )?;
+            total = total.saturating_sub(size.max(0) as u64);
+        }
+        Ok(evicted)
+    }
+
+    fn delete_row(&self, key: &TileKey) -> Result<(), StoreError> {
+        let (z, x, y) = key_columns(&key.tile);
+        self.client()?
+            .execute(
+                "DELETE FROM tiles WHERE z = $1 AND x = $2 AND y = $3 AND format = $4",
+                &[&z, &x, &y, &key.format.as_str()],
+            )
+            .map_err(|e| self.error(e))?;
+        Ok(())
+    }
+
+    /// The condition and parameters of a filter over whole tables (a list of tiles is matched
+    /// by arrays of its columns).
+    fn select_keys(
+        &self,
+        filter: &TileFilter,
+        statement: &str,
+        order: &str,
+    ) -> Result<Vec<postgres::Row>, StoreError> {
+        let mut client = self.client()?;
+        let rows = match filter {
+            TileFilter::All => client.query(&format!("{statement} {order}"), &[]),
+            TileFilter::Range(range) => client.query(
+                &format!(
+                    "{statement} WHERE z = $1 AND x BETWEEN $2 AND $3 AND y BETWEEN $4 AND $5 \
+                     {order}"
+                ),
+                &[
+                    &i16::from(range.z),
+                    &column(range.min_x),
+                    &column(range.max_x),
+                    &column(range.min_y),
+                    &column(range.max_y),
+                ],
+            ),
+            TileFilter::Tiles(tiles) => {
+                let mut rows = Vec::new();
+                for chunk in tiles.chunks(TILES_PER_STATEMENT) {
+                    let zs: Vec<i16> = chunk.iter().map(|t| i16::from(t.z)).collect();
+                    let xs: Vec<i32> = chunk.iter().map(|t| column(t.x)).collect();
+                    let ys: Vec<i32> = chunk.iter().map(|t| column(t.y)).collect();
+                    rows.extend(
+                        client
+                            .query(
+                                &format!(
+                                    "{statement} WHERE (z, x, y) IN \
+                                     (SELECT * FROM unnest($1::smallint[], $2::integer[], \
+                                     $3::integer[])) {order}"
+                                ),
+                                &[&zs, &xs, &ys],
+                            )
+                            .map_err(|e| self.error(e))?,
+                    );
+                }
+                Ok(rows)
+            }
+        };
+        rows.map_err(|e| self.error(e))
+    }
+}
+
+/// A tile coordinate as its column (coordinates of zoom 30 and below fit).
+fn column(v: u32) -> i32 {
+    i32::try_from(v).unwrap_or(i32::MAX)
+}
+
+fn key_columns(tile: &TileId) -> (i16, i32, i32) {
+    (i16::from(tile.z), column(tile.x), column(tile.y))
+}
+
+/// The key of a row whose first four columns are `z`, `x`, `y`, `format` (`None` for a
+/// format this version does not know).
+fn key_of(row: &postgres::Row) -> Option<TileKey> {
+    let z: i16 = row.get(0);
+    let (x, y): (i32, i32) = (row.get(1), row.get(2));
+    Some(TileKey {
+        tile: TileId {
+            z: u8::try_from(z).ok()?,
+            x: u32::try_from(x).ok()?,
+            y: u32::try_from(y).ok()?,
+        },
+        format: Format::from_name(row.get::<_, &str>(3))?,
+    })
+}
+
+impl TileStore for PostgresStore {
+    fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError> {
+        let (z, x, y) = key_columns(&key.tile);
+        let row = self
+            .client()?
+            .query_opt(
+                "SELECT data, encoding, data_br, etag, pipeline, sources, created_at FROM tiles
+                 WHERE z = $1 AND x = $2 AND y = $3 AND format = $4",
+                &[&z, &x, &y, &key.format.as_str()],
+            )
+            .map_err(|e| self.error(e))?;
+        let Some(row) = row else {
+            return Ok(None);
+        };
+        let etag: String = row.get(3);
+        let coding = Encoding::from_name(row.get(1)).unwrap_or(Encoding::Identity);
+        let bodies = match Bodies::from_stored(row.get(0), coding, row.get(2))
+            .and_then(|bodies| bodies.verify(&etag).map(|()| bodies))
+        {
+            Ok(bodies) => bodies,
+            Err(error) => {
+                tracing::warn!(tile = %key.tile, format = key.format.as_str(), %error, "dropping a damaged cached tile");
+                self.delete_row(key)?;
+                return Ok(None);
+            }
+        };
+        Ok(Some(StoredTile {
+            bodies,
+            etag,
+            made_by: Provenance {
+                pipeline: row.get(4),
+                sources: row.get(5),
+            },
+            created_at: row.get(6),
+        }))
+    }
+
+    fn put(&self, key: &TileKey, tile: &StoredTile) -> Result<(), StoreError> {
+        let (coding, primary) = tile.bodies.primary();
+        let (z, x, y) = key_columns(&key.tile);
+        let size = stored_bytes(key, tile) as i64;
+        let mut client = self.client()?;
+        let mut transaction = client.transaction().map_err(|e| self.error(e))?;
+        // A tile made again keeps the time it was last served.
+        transaction
+            .execute(
+                "INSERT INTO tiles
+                   (z, x, y, format, pipeline, data, etag, created_at,
+                    encoding, data_br, sources, size, accessed_at)
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $8)
+                 ON CONFLICT (z, x, y, format) DO UPDATE SET
+                   pipeline = excluded.pipeline, data = excluded.data, etag = excluded.etag,
+                   created_at = excluded.created_at, encoding = excluded.encoding,
+                   data_br = excluded.data_br, sources = excluded.sources,
+                   size = excluded.size",
+                &[
+                    &z,
+                    &x,
+                    &y,
+                    &key.format.as_str(),
+                    &tile.made_by.pipeline,
+                    &primary.as_ref(),
+                    &tile.etag,
+                    &tile.created_at,
+                    &coding.as_str(),
+                    &tile.bodies.brotli.as_deref(),
+                    &tile.made_by.sources,
+                    &size,
+                ],
+            )
+            .map_err(|e| self.error(e))?;
+        let evicted = self
+            .evict(&mut transaction, key)
+            .map_err(|e| self.error(e))?;
+        transaction.commit().map_err(|e| self.error(e))?;
+        if evicted > 0 {
+            tracing::info!(
+                evicted,
+                cap = self.max_bytes,
+                "cache over its size cap; least recently served tiles evicted"
+            );
+        }
+        Ok(())
+    }
+
+    fn touch(&self, keys: &[TileKey], at: i64) -> Result<(), StoreError> {
+        let mut client = self.client()?;
+        let mut transaction = client.transaction().map_err(|e| self.error(e))?;
+        let statement = transaction
+            .prepare(
+                "UPDATE tiles SET accessed_at = greatest(accessed_at, $5)
+                 WHERE z = $1 AND x = $2 AND y = $3 AND format = $4",
+            )
+            .map_err(|e| self.error(e))?;
+        for key in keys {
+            let (z, x, y) = key_columns(&key.tile);
+            transaction
+                .execute(&statement, &[&z, &x, &y, &key.format.as_str(), &at])
+                .map_err(|e| self.error(e))?;
+        }
+        transaction.commit().map_err(|e| self.error(e))
+    }
+
+    fn remove(&self, filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
+        let rows = self.select_keys(filter, "DELETE FROM tiles", "RETURNING z, x, y, format")?;
+        Ok(rows.iter().filter_map(key_of).collect())
+    }
+
+    fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
+        let rows = self.select_keys(
+            filter,
+            "SELECT z, x, y, format, pipeline, sources, size, accessed_at FROM tiles",
+            "ORDER BY accessed_at DESC",
+        )?;
+        let mut entries: Vec<StoredEntry> = rows
+            .iter()
+            .filter_map(|row| {
+                Some(StoredEntry {
+                    key: key_of(row)?,
+                    made_by: Provenance {
+                        pipeline: row.get(4),
+                        sources: row.get(5),
+                    },
+                    size: row.get::<_, i64>(6).max(0) as u64,
+                    accessed_at: row.get(7),
+                })
+            })
+            .collect();
+        // Lists read in chunks come back chunk by chunk: one order for the whole.
+        entries.sort_by_key(|e| std::cmp::Reverse(e.accessed_at));
+        Ok(entries)
+    }
+
+    fn usage(&self) -> Result<Usage, StoreError> {
+        let row = self
+            .client()?
+            .query_one("SELECT tiles, bytes FROM usage WHERE id = 0", &[])
+            .map_err(|e| self.error(e))?;
+        Ok(Usage {
+            tiles: row.get::<_, i64>(0).max(0) as u64,
+            bytes: row.get::<_, i64>(1).max(0) as u64,
+        })
+    }
+
+    fn solutions(&self, limit: usize) -> Result<Vec<SolutionEntry>, StoreError> {
+        let rows = self
+            .client()?
+            .query(
+                "SELECT key, data FROM solutions ORDER BY kept DESC LIMIT $1",
+                &[&i64::try_from(limit).unwrap_or(i64::MAX)],
+            )
+            .map_err(|e| self.error(e))?;
+        Ok(rows
+            .iter()
+            .filter_map(|row| {
+                let key = <[u8; 32]>::try_from(row.get::<_, &[u8]>(0)).ok()?;
+                Some((key, row.get::<_, Vec<u8>>(1)))
+            })
+            .collect())
+    }
+
+    fn keep_solutions(&self, entries: &[SolutionEntry]) -> Result<(), StoreError> {
+        if entries.is_empty() {
+            return Ok(());
+        }
+        let mut client = self.client()?;
+        let mut transaction = client.transaction().map_err(|e| self.error(e))?;
+        let insert = transaction
+            .prepare("INSERT INTO solutions (key, data) VALUES ($1, $2) ON CONFLICT DO NOTHING")
+            .map_err(|e| self.error(e))?;
+        for (key, data) in entries {
+            transaction
+                .execute(&insert, &[&key.as_slice(), data])
+                .map_err(|e| self.error(e))?;
+        }
+        transaction
+            .execute(
+                "DELETE FROM solutions WHERE kept <= (SELECT max(kept) FROM solutions) - $1",
+                &[&MAX_SOLUTIONS],
+            )
+            .map_err(|e| self.error(e))?;
+        transaction.commit().map_err(|e| self.error(e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_database_url_is_named_without_its_password() {
+        assert_eq!(
+            redacted("postgres://tiles:secret@db.example:5432/tiles"),
+            "postgres://tiles:***@db.example:5432/tiles"
+        );
+        assert_eq!(
+            redacted("postgres://tiles@db/tiles"),
+            "postgres://tiles@db/tiles"
+        );
+        assert_eq!(
+            redacted("host=/run/postgresql dbname=tiles password=secret"),
+            "host=/run/postgresql dbname=tiles password=***"
+        );
+    }
+}
