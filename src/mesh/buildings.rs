@@ -783,10 +783,10 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_road_through_a_building_opens_its_walls_under_a_closed_shell() {
-        let footprint = [[0.0, 0.0], [20.0, 0.0], [20.0, 12.0], [0.0, 12.0]];
-        let road = Polygon {
+    /// A road 4.5 m wide crossing a 20 m × 12 m footprint from south to north (tile units of
+    /// 1,000 m).
+    fn road_across() -> Polygon {
+        Polygon {
             outer: vec![
                 [0.008, -0.005],
                 [0.0125, -0.005],
@@ -794,7 +794,13 @@ mod tests {
                 [0.008, 0.02],
             ],
             holes: Vec::new(),
-        };
+        }
+    }
+
+    #[test]
+    fn a_road_through_a_building_opens_its_walls_under_a_closed_shell() {
+        let footprint = [[0.0, 0.0], [20.0, 0.0], [20.0, 12.0], [0.0, 12.0]];
+        let road = road_across();
         for roof in ["flat", "gabled", "hipped"] {
             let mut house = building(
                 &[("building", "yes"), ("height", "12"), ("roof:shape", roof)],
@@ -832,15 +838,7 @@ mod tests {
     fn a_building_too_low_for_a_passage_stays_closed_over_the_road() {
         let footprint = [[0.0, 0.0], [20.0, 0.0], [20.0, 12.0], [0.0, 12.0]];
         let mut shed = building(&[("building", "yes"), ("height", "3")], &footprint);
-        shed.passages = vec![Polygon {
-            outer: vec![
-                [0.008, -0.005],
-                [0.0125, -0.005],
-                [0.0125, 0.02],
-                [0.008, 0.02],
-            ],
-            holes: Vec::new(),
-        }];
+        shed.passages = vec![road_across()];
         let shell = solid_over_passages(&shed, 1000.0, 100.0, 100.0, Some(&Level100));
         assert_eq!(shell.walls.len(), 4);
         assert_eq!(unmatched_edges(&shell), 0);

@@ -113,21 +113,26 @@ impl Cluster {
         cluster
     }
 
-    fn run(&self, program: &str, args: &[&std::ffi::OsStr]) {
+    /// One of the server's programs, run as the cluster's user.
+    fn command(&self, program: &str) -> Command {
         let path = self.bin.join(program);
-        let mut command = match &self.as_user {
+        match &self.as_user {
             Some(user) => {
                 let mut c = Command::new("runuser");
                 c.args(["-u", user, "--"]).arg(&path);
                 c
             }
             None => Command::new(&path),
-        };
-        let output = command
+        }
+    }
+
+    fn run(&self, program: &str, args: &[&std::ffi::OsStr]) {
+        let output = self
+            .command(program)
             .args(args)
             .current_dir(self.dir.path())
             .output()
-            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            .unwrap_or_else(|e| panic!("{program}: {e}"));
         assert!(
             output.status.success(),
             "{program} failed: {}{}",
@@ -155,16 +160,8 @@ impl Cluster {
 impl Drop for Cluster {
     fn drop(&mut self) {
         let data = self.dir.path().join("data");
-        let path = self.bin.join("pg_ctl");
-        let mut command = match &self.as_user {
-            Some(user) => {
-                let mut c = Command::new("runuser");
-                c.args(["-u", user, "--"]).arg(&path);
-                c
-            }
-            None => Command::new(&path),
-        };
-        let _ = command
+        let _ = self
+            .command("pg_ctl")
             .args(["-D".as_ref(), data.as_os_str()])
             .args(["-m", "immediate", "-w", "stop"])
             .output();
