@@ -190,7 +190,8 @@ impl PostgresStore {
     }
 
     /// Deletes the least recently served tiles (never `keep`) until the store is under
-    /// [`EVICT_TO`] of its cap; returns how many went.
+    /// [`EVICT_TO`] of its cap, reading at most 10,000 candidates a time (the next store goes
+    /// on); returns how many went.
     fn evict(
         &self,
         transaction: &mut postgres::Transaction<'_>,
@@ -245,8 +246,9 @@ impl PostgresStore {
         Ok(())
     }
 
-    /// The condition and parameters of a filter over whole tables (a list of tiles is matched
-    /// by arrays of its columns).
+    /// The rows of `statement` (a `SELECT` or `DELETE` of the tiles table) over the tiles a
+    /// filter selects, `order` (or `RETURNING`) after its condition; a list of tiles is matched
+    /// by arrays of its columns, a statement per thousand tiles.
     fn select_keys(
         &self,
         filter: &TileFilter,
