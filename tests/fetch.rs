@@ -400,7 +400,8 @@ async fn an_extract_published_anew_at_its_url_is_fetched_and_its_tiles_made_agai
 }
 
 /// The source check notices local files that changed: a new SRTM file far away reloads the
-/// sources but leaves the tile fresh; its own SRTM file rewritten makes it stale.
+/// sources but leaves the tile fresh, as does its own SRTM file written again with the same
+/// bytes; other bytes in it make the tile stale.
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_changed_local_file_makes_stale_only_the_tiles_it_reaches() {
     let dir = tempfile::tempdir().unwrap();
@@ -432,10 +433,21 @@ async fn a_changed_local_file_makes_stale_only_the_tiles_it_reaches() {
     assert_eq!(fresh.headers()["x-cache"], "hit");
     let _ = fresh.bytes().await;
 
-    let bytes = std::fs::read(srtm.join("N43E007.hgt")).unwrap();
+    // The same bytes written anew (a copy made on another machine, another time): the tile
+    // was made from the same data, and stays fresh.
+    let mut bytes = std::fs::read(srtm.join("N43E007.hgt")).unwrap();
     std::fs::remove_file(srtm.join("N43E007.hgt")).unwrap();
     tokio::time::sleep(Duration::from_millis(20)).await;
-    std::fs::write(srtm.join("N43E007.hgt"), bytes).unwrap();
+    std::fs::write(srtm.join("N43E007.hgt"), &bytes).unwrap();
+    assert_eq!(check().await.unwrap(), 0, "the same content stales nothing");
+    let fresh = reqwest::get(server.url(TILE)).await.unwrap();
+    assert_eq!(fresh.headers()["x-cache"], "hit");
+    let _ = fresh.bytes().await;
+
+    // Other content (one sample a metre higher): stale.
+    let sample = u16::from_be_bytes([bytes[0], bytes[1]]).wrapping_add(1);
+    bytes[..2].copy_from_slice(&sample.to_be_bytes());
+    std::fs::write(srtm.join("N43E007.hgt"), &bytes).unwrap();
     assert_eq!(check().await.unwrap(), 1);
     let stale = reqwest::get(server.url(TILE)).await.unwrap();
     assert_eq!(stale.headers()["x-cache"], "stale");

@@ -251,11 +251,40 @@ pub fn file_version(path: &Path) -> Result<String, SrtmError> {
     Ok(format!("{}-{modified}", metadata.len()))
 }
 
-/// A cell's file and its version (size and modification time).
+/// A cell's file: its version (size and modification time), cheap to check for changes, and
+/// the digest of its content, what tiles record as their source's version (the same file has
+/// the same digest on every machine, whenever it was copied), read when first asked for.
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct CellFile {
     path: PathBuf,
     version: String,
+    content: std::sync::OnceLock<String>,
+}
+
+impl CellFile {
+    fn new(path: PathBuf, version: String) -> CellFile {
+        CellFile {
+            path,
+            version,
+            content: std::sync::OnceLock::new(),
+        }
+    }
+
+    /// The digest of the file's bytes (its size and modification time if it cannot be read).
+    fn content_version(&self) -> String {
+        self.content
+            .get_or_init(|| {
+                use sha2::Digest;
+                match fs::read(&self.path) {
+                    Ok(bytes) => {
+                        let digest = sha2::Sha256::digest(&bytes);
+                        digest[..16].iter().map(|b| format!("{b:02x}")).collect()
+                    }
+                    Err(_) => self.version.clone(),
+                }
+            })
+            .clone()
+    }
 }
 
 /// The SRTM files of one directory (and of the directory downloads go to), checked at start,
@@ -314,10 +343,7 @@ impl SrtmDirectory {
                 actual: len,
             });
         }
-        let file = CellFile {
-            path: path.to_path_buf(),
-            version: file_version(path)?,
-        };
+        let file = CellFile::new(path.to_path_buf(), file_version(path)?);
         self.files
             .write()
             .unwrap_or_else(|p| p.into_inner())
@@ -389,7 +415,7 @@ fn index_directory(root: &Path) -> Result<BTreeMap<CellId, CellFile>, SrtmError>
         let plain_exists = files.get(&cell).is_some_and(|f| !is_zip(&f.path));
         if !plain_exists {
             let version = file_version(&path)?;
-            files.insert(cell, CellFile { path, version });
+            files.insert(cell, CellFile::new(path, version));
         }
     }
     Ok(files)
@@ -410,8 +436,8 @@ impl SrtmDirectory {
         self.read().get(&cell).map(|f| f.version.clone())
     }
 
-    /// The cells with a file whose latitude and longitude are in the ranges, with the files'
-    /// versions, in order.
+    /// The cells with a file whose latitude and longitude are in the ranges, with the digests
+    /// of the files' content, in order.
     pub fn versions_in(
         &self,
         lats: std::ops::RangeInclusive<i32>,
@@ -433,7 +459,7 @@ impl SrtmDirectory {
         self.read()
             .range(first..=last)
             .filter(|(cell, _)| lons.contains(&cell.lon))
-            .map(|(cell, file)| (*cell, file.version.clone()))
+            .map(|(cell, file)| (*cell, file.content_version()))
             .collect()
     }
 
