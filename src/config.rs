@@ -168,6 +168,9 @@ pub struct CacheConfig {
     /// Largest size of the stored tiles, MiB; past it the least recently served go
     /// (0: no cap).
     pub max_size_mib: u64,
+    /// With `url`: how long a process's claim on a tile it renders, or on queued work it took,
+    /// lasts unrenewed, seconds; a process that dies lets its claims lapse after this long.
+    pub lease_s: u64,
 }
 
 impl Default for CacheConfig {
@@ -177,6 +180,7 @@ impl Default for CacheConfig {
             url: String::new(),
             memory_mib: 256,
             max_size_mib: 10240,
+            lease_s: 15,
         }
     }
 }

@@ -7,11 +7,11 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 
-use terrastitch::cache::{MbtilesStore, PostgresStore, SqliteStore, TileCache, TileStore};
+use terrastitch::cache::{Cluster, MbtilesStore, PostgresStore, SqliteStore, TileCache, TileStore};
 use terrastitch::config::ServerConfig;
 use terrastitch::config::{Config, LogFormat};
 use terrastitch::format::Format;
-use terrastitch::offline::{export, seed};
+use terrastitch::offline::{export, seed, shared_seed};
 use terrastitch::provider::{Archive, Renderer, TileProvider};
 use terrastitch::render::StageTimings;
 use terrastitch::server::{self, AppState};
@@ -36,7 +36,8 @@ enum Command {
     Serve(ServeArgs),
     /// Render one tile to a file, without the server.
     Render(RenderArgs),
-    /// Render every tile of a box into the cache (resumable; --shard splits the work).
+    /// Render every tile of a box into the cache (resumable; --shard splits the work; with a
+    /// PostgreSQL cache, workers on any number of machines share one queue).
     Seed(SeedArgs),
     /// Write a box's tiles to an MBTiles file, or to DIR/z/x/y.glb with `-o DIR/`.
     Export(ExportArgs),
@@ -139,8 +140,13 @@ struct RenderArgs {
 #[derive(Args)]
 struct AreaArgs {
     /// The box, as W,S,E,N in degrees (e.g. 7.40,43.72,7.44,43.75)
-    #[arg(long, value_name = "W,S,E,N", allow_hyphen_values = true)]
-    bbox: LonLatBounds,
+    #[arg(
+        long,
+        value_name = "W,S,E,N",
+        allow_hyphen_values = true,
+        required = true
+    )]
+    bbox: Option<LonLatBounds>,
     /// Formats to make: glb, terrain (quantized-mesh with normals and water mask); repeat for
     /// several
     #[arg(long = "format", value_name = "FORMAT", default_values = ["glb"])]
@@ -148,13 +154,26 @@ struct AreaArgs {
     /// SQLite file of the tile cache [default: cache/tiles.sqlite]
     #[arg(long, value_name = "FILE")]
     cache: Option<PathBuf>,
+    /// PostgreSQL tile cache shared by a cluster (postgres://user:password@host/database),
+    /// instead of the SQLite file [default: cache.url]
+    #[arg(long, value_name = "URL")]
+    cache_url: Option<String>,
     /// Renders at once [default: one per core]
     #[arg(long, value_name = "N")]
     threads: Option<usize>,
 }
 
+impl AreaArgs {
+    fn bbox(&self) -> Result<LonLatBounds> {
+        self.bbox.context("--bbox W,S,E,N is needed")
+    }
+}
+
 #[derive(Args)]
+#[command(subcommand_negates_reqs = true, args_conflicts_with_subcommands = true)]
 struct SeedArgs {
+    #[command(subcommand)]
+    action: Option<SeedAction>,
     #[command(flatten)]
     area: AreaArgs,
     #[command(flatten)]
@@ -162,6 +181,21 @@ struct SeedArgs {
     /// Make only the i-th of n shares of the box's tiles (1 ≤ i ≤ n), e.g. 2/4
     #[arg(long, value_name = "i/n")]
     shard: Option<seed::Shard>,
+}
+
+#[derive(Subcommand)]
+enum SeedAction {
+    /// What the cluster's queue holds, which workers work on it, and which tiles failed.
+    Status(StatusArgs),
+}
+
+#[derive(Args)]
+struct StatusArgs {
+    #[command(flatten)]
+    sources: SourceArgs,
+    /// PostgreSQL tile cache shared by the cluster [default: cache.url]
+    #[arg(long, value_name = "URL")]
+    cache_url: Option<String>,
 }
 
 #[derive(Args)]
@@ -231,7 +265,10 @@ fn main() -> Result<()> {
     let sources = match &cli.command {
         Command::Serve(args) => &args.sources,
         Command::Render(args) => &args.sources,
-        Command::Seed(args) => &args.sources,
+        Command::Seed(args) => match &args.action {
+            Some(SeedAction::Status(status)) => &status.sources,
+            None => &args.sources,
+        },
         Command::Export(args) => &args.sources,
         Command::Import(args) => &args.sources,
         Command::Update(args) => &args.sources,
@@ -261,25 +298,31 @@ fn init_logging(format: LogFormat) {
     }
 }
 
-/// The tile store a configuration names: its PostgreSQL database (`cache.url`), else its
-/// SQLite file.
-fn open_store(config: &Config) -> Result<Arc<dyn TileStore>> {
+/// The processes sharing a PostgreSQL store.
+type SharedBy = Arc<Cluster>;
+
+/// The tile store a configuration names: its PostgreSQL database (`cache.url`), with the
+/// cluster that shares it, else its SQLite file.
+fn open_store(config: &Config) -> Result<(Arc<dyn TileStore>, Option<SharedBy>)> {
     let cap = (config.cache.max_size_mib > 0).then(|| config.cache.max_size_mib * 1024 * 1024);
     let url = config.cache.url.trim();
     if url.is_empty() {
-        return Ok(Arc::new(SqliteStore::open_or_set_aside(
-            &config.cache.path,
-            cap,
-        )?));
+        let store = SqliteStore::open_or_set_aside(&config.cache.path, cap)?;
+        return Ok((Arc::new(store), None));
     }
+    let store = open_postgres(url, cap)?;
+    let cluster = store.cluster(std::time::Duration::from_secs(config.cache.lease_s));
+    tracing::info!(place = store.place(), "tiles kept in PostgreSQL");
+    Ok((Arc::new(store), Some(Arc::new(cluster))))
+}
+
+fn open_postgres(url: &str, cap: Option<u64>) -> Result<PostgresStore> {
     if !(url.starts_with("postgres://") || url.starts_with("postgresql://")) {
         anyhow::bail!(
             "cache.url must be a PostgreSQL URL (postgres://user:password@host/database), not {url:?}"
         );
     }
-    let store = PostgresStore::open(url, cap)?;
-    tracing::info!(place = store.place(), "tiles kept in PostgreSQL");
-    Ok(Arc::new(store))
+    Ok(PostgresStore::open(url, cap)?)
 }
 
 fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
@@ -293,8 +336,12 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
         return serve_archive(&file, config);
     }
     server::memory::limit_arenas();
-    let store = open_store(&config)?;
+    let (store, cluster) = open_store(&config)?;
     let cache = TileCache::new(store, config.cache.memory_mib * 1024 * 1024);
+    let cache = match cluster {
+        Some(cluster) => cache.with_cluster(cluster),
+        None => cache,
+    };
     let state = AppState::new(cache, &config.server);
     let fetcher = Arc::new(Fetcher::new(config.sources.fetch_settings()));
     let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
@@ -528,9 +575,10 @@ fn seed_area(
     config: &Config,
     provider: &dyn TileProvider,
     store: &dyn TileStore,
+    cluster: Option<&Arc<Cluster>>,
     shard: seed::Shard,
 ) -> Result<seed::SeedReport> {
-    let range = TileRange::covering(config.server.zoom, &area.bbox);
+    let range = TileRange::covering(config.server.zoom, &area.bbox()?);
     let formats = formats(&area.formats)?;
     let plan = seed::plan(provider, store, range, &formats, shard)?;
     eprintln!(
@@ -552,14 +600,28 @@ fn seed_area(
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(2, |n| n.get()));
     let limit = (config.server.render_timeout_ms > 0)
         .then(|| std::time::Duration::from_millis(config.server.render_timeout_ms));
-    let report = seed::seed(
-        provider,
-        store,
-        &plan.to_make,
-        threads,
-        limit,
-        &|progress| bar.set_position(progress.done as u64),
-    )?;
+    let show = |progress: seed::Progress| {
+        bar.set_length(progress.total as u64);
+        bar.set_position(progress.done as u64);
+    };
+    let report = match cluster {
+        Some(cluster) => {
+            eprintln!(
+                "working on the cluster's seed queue as {}",
+                cluster.holder()
+            );
+            shared_seed::seed(
+                provider,
+                store,
+                cluster,
+                &plan.to_make,
+                threads,
+                limit,
+                &show,
+            )?
+        }
+        None => seed::seed(provider, store, &plan.to_make, threads, limit, &show)?,
+    };
     bar.finish_and_clear();
     let (found, solved) = terrastitch::render::lp_components_reused();
     eprintln!(
@@ -588,10 +650,25 @@ fn seed_into_store(
     if let Some(cache) = &area.cache {
         config.cache.path = cache.clone();
     }
+    if let Some(url) = &area.cache_url {
+        config.cache.url = url.clone();
+    }
     let fetcher = Arc::new(Fetcher::new(config.sources.fetch_settings()));
     let renderer = open_renderer(&config, fetcher)?;
-    let store = open_store(&config)?;
-    let report = seed_area(area, &config, &renderer, store.as_ref(), shard)?;
+    let (store, cluster) = open_store(&config)?;
+    if cluster.is_some() && shard != seed::Shard::default() {
+        anyhow::bail!(
+            "--shard is for separate caches: workers on a PostgreSQL cache share its queue"
+        );
+    }
+    let report = seed_area(
+        area,
+        &config,
+        &renderer,
+        store.as_ref(),
+        cluster.as_ref(),
+        shard,
+    )?;
     if !report.failed.is_empty() {
         anyhow::bail!("{} tiles could not be made", report.failed.len());
     }
@@ -599,13 +676,58 @@ fn seed_into_store(
 }
 
 fn seed(args: SeedArgs, config: Config) -> Result<()> {
+    if let Some(SeedAction::Status(status)) = &args.action {
+        return seed_status(status, config);
+    }
     seed_into_store(config, &args.area, args.shard.unwrap_or_default()).map(|_| ())
+}
+
+/// Prints what the cluster's queue holds, its workers and its failed tiles.
+fn seed_status(args: &StatusArgs, config: Config) -> Result<()> {
+    let url = args.cache_url.clone().unwrap_or(config.cache.url.clone());
+    if url.trim().is_empty() {
+        anyhow::bail!(
+            "seed status reads a cluster's PostgreSQL cache: name it with --cache-url or cache.url"
+        );
+    }
+    let store = open_postgres(url.trim(), None)?;
+    let status = store
+        .cluster(std::time::Duration::from_secs(config.cache.lease_s))
+        .status()?;
+    let usage = store.usage()?;
+    println!(
+        "cache {}: {} tiles, {} bytes",
+        store.place(),
+        usage.tiles,
+        usage.bytes
+    );
+    if status.queues.is_empty() {
+        println!("queue: empty");
+    }
+    for queue in &status.queues {
+        println!(
+            "queue {}: {} waiting, {} being made, {} failed",
+            queue.kind, queue.waiting, queue.taken, queue.failed
+        );
+    }
+    println!("render leases held: {}", status.leases);
+    for worker in &status.workers {
+        println!(
+            "worker {} ({}): up {:.0} s, last heard {:.0} s ago, {} made, {} failed",
+            worker.name, worker.kind, worker.running_s, worker.silent_s, worker.made, worker.failed
+        );
+    }
+    for (key, error) in &status.failures {
+        println!("failed {} ({}): {error}", key.tile, key.format.as_str());
+    }
+    Ok(())
 }
 
 fn export(args: ExportArgs, config: Config) -> Result<()> {
     // Whatever the cache lacks is made first; nothing is exported if a tile fails.
     let (config, renderer, store) = seed_into_store(config, &args.area, seed::Shard::default())?;
-    let range = TileRange::covering(config.server.zoom, &args.area.bbox);
+    let bbox = args.area.bbox()?;
+    let range = TileRange::covering(config.server.zoom, &bbox);
     let formats = formats(&args.area.formats)?;
     let keys: Vec<_> = range
         .tiles()
@@ -618,13 +740,7 @@ fn export(args: ExportArgs, config: Config) -> Result<()> {
             "an MBTiles file holds one format; export to a directory (-o DIR/) for several"
         );
     }
-    let written = export::export(
-        store.as_ref(),
-        &keys,
-        &target,
-        &args.area.bbox,
-        config.server.zoom,
-    )?;
+    let written = export::export(store.as_ref(), &keys, &target, &bbox, config.server.zoom)?;
     eprintln!(
         "exported {} tiles, {} bytes of tile data, to {}",
         written.tiles,

@@ -280,7 +280,7 @@ async fn a_tile_is_identical_twice_and_after_a_restart_comes_from_sqlite() {
     let server = TestServer::start(&cache).await;
     let third = fetch(&server, path).await;
     assert_eq!(third.headers()["x-cache"], "hit");
-    assert_eq!(third.headers()["x-cache-layer"], "sqlite");
+    assert_eq!(third.headers()["x-cache-layer"], "store");
     assert_eq!(third.bytes().await.unwrap(), first);
     assert_eq!(server.metric("terrastitch_renders_total").await, 0.0);
 

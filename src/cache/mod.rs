@@ -23,6 +23,7 @@ use sha2::Digest;
 use crate::format::TileKey;
 use encoding::Bodies;
 pub use mbtiles::MbtilesStore;
+pub use postgres::cluster::{Cluster, Event};
 pub use postgres::PostgresStore;
 pub use sqlite::SqliteStore;
 pub use store::{
@@ -42,7 +43,7 @@ impl Origin {
     pub fn as_str(self) -> &'static str {
         match self {
             Origin::Memory => "memory",
-            Origin::Store => "sqlite",
+            Origin::Store => "store",
             Origin::Rendered => "render",
         }
     }
@@ -102,7 +103,13 @@ pub struct TileCache {
     flights: Arc<flight::Flights>,
     /// Purges lately made, so a tile made again from before one is not stored after it.
     purges: Arc<Mutex<Purges>>,
+    /// The other processes sharing the store, when it is shared: a tile is claimed there
+    /// before it is made, and purges and new versions are told to them.
+    cluster: Option<Arc<Cluster>>,
 }
+
+/// How often a process waiting for another's render of a tile looks for it in the store.
+const LANDING_POLL: std::time::Duration = std::time::Duration::from_millis(50);
 
 /// How long a purge is remembered; a remake begun before the oldest purge remembered is not
 /// stored if any purge came since.
@@ -156,7 +163,21 @@ impl TileCache {
             touched: Arc::default(),
             flights: Arc::default(),
             purges: Arc::default(),
+            cluster: None,
         }
+    }
+
+    /// The same cache, coordinating its renders, purges and new versions with the other
+    /// processes of `cluster`.
+    pub fn with_cluster(self, cluster: Arc<Cluster>) -> TileCache {
+        TileCache {
+            cluster: Some(cluster),
+            ..self
+        }
+    }
+
+    pub fn cluster(&self) -> Option<&Arc<Cluster>> {
+        self.cluster.as_ref()
     }
 
     pub fn store(&self) -> &Arc<dyn TileStore> {
@@ -199,43 +220,24 @@ impl TileCache {
         E: std::error::Error + Send + Sync + 'static,
     {
         let store = self.store.clone();
+        let cluster = self.cluster.clone().filter(|_| keep);
         let made_by = wanted.cloned().unwrap_or_default();
         let lookup_or_render = async move {
-            let lookup = {
-                let store = store.clone();
-                tokio::task::spawn_blocking(move || {
-                    let found = store.get(&key)?;
-                    if found.is_some() {
-                        store.touch(&[key], unix_now())?;
-                    }
-                    Ok::<_, StoreError>(found)
-                })
-                .await
-                .map_err(|e| CacheError::Panicked(e.to_string()))?
-            };
-            // A store that cannot be read (damaged, its disk gone) does not stop the tile: it
-            // is made again.
-            let lookup = lookup.unwrap_or_else(|error| {
-                tracing::error!(tile = %key.tile, format = key.format.as_str(), %error, "reading the stored tile failed; making it again");
-                None
-            });
-            if let Some(found) = lookup {
-                return Ok(Arc::new(CachedTile {
-                    bodies: found.bodies,
-                    etag: found.etag,
-                    made_by: found.made_by,
-                    loaded_from: Origin::Store,
-                    stored: true,
-                }));
+            if let Some(found) = lookup(&store, key).await? {
+                return Ok(Arc::new(found));
             }
-            let store = keep.then_some(store);
-            let made = render_and_store(store, key, made_by, None, Box::new(render))
-                .await?
-                .ok_or_else(|| CacheError::Panicked("a tile was dropped unasked".into()))?;
-            Ok(Arc::new(CachedTile {
-                loaded_from: Origin::Rendered,
-                ..made
-            }))
+            let made = match cluster {
+                Some(cluster) => {
+                    render_claimed(cluster, store, key, made_by, Box::new(render)).await?
+                }
+                None => {
+                    render_and_store(keep.then_some(store), key, made_by, None, Box::new(render))
+                        .await?
+                        .ok_or_else(|| CacheError::Panicked("a tile was dropped unasked".into()))?
+                }
+            };
+            // Made here, or found in the store once another process made it.
+            Ok(Arc::new(made))
         };
         // Detached and shared: when the request that started it goes away, the render it paid
         // a slot for still ends in the store, and a request that comes meanwhile waits for it
@@ -295,6 +297,9 @@ impl TileCache {
                     Remade::Unstored
                 };
                 self.memory.insert(key, Arc::new(tile)).await;
+                if remade == Remade::Stored {
+                    self.tell(Event::Stored(vec![key])).await;
+                }
                 Ok(remade)
             }
             None => Ok(Remade::Purged),
@@ -304,24 +309,11 @@ impl TileCache {
     /// Removes the tiles `filter` selects from the store and from memory; a remake of one of
     /// them under way is not stored. Returns the keys removed.
     pub async fn purge(&self, filter: TileFilter) -> Result<Vec<TileKey>, StoreError> {
-        {
-            let mut purges = self.purges.lock().unwrap_or_else(|p| p.into_inner());
-            purges.made += 1;
-            let number = purges.made;
-            purges
-                .recent
-                .push_back((number, std::time::Instant::now(), filter.clone()));
-            while purges
-                .recent
-                .front()
-                .is_some_and(|p| p.1.elapsed() > PURGE_MEMORY)
-            {
-                purges.recent.pop_front();
-            }
-        }
+        self.record_purge(filter.clone());
         let all = filter == TileFilter::All;
         let store = self.store.clone();
-        let removed = tokio::task::spawn_blocking(move || store.remove(&filter))
+        let removing = filter.clone();
+        let removed = tokio::task::spawn_blocking(move || store.remove(&removing))
             .await
             .map_err(|e| StoreError::Panicked(panic_message(e)))??;
         if all {
@@ -329,7 +321,60 @@ impl TileCache {
         } else {
             self.forget(&removed).await;
         }
+        self.tell(Event::Purged(filter)).await;
         Ok(removed)
+    }
+
+    /// Remembers a purge, so a remake under way of a tile it removed is not stored.
+    fn record_purge(&self, filter: TileFilter) {
+        let mut purges = self.purges.lock().unwrap_or_else(|p| p.into_inner());
+        purges.made += 1;
+        let number = purges.made;
+        purges
+            .recent
+            .push_back((number, std::time::Instant::now(), filter));
+        while purges
+            .recent
+            .front()
+            .is_some_and(|p| p.1.elapsed() > PURGE_MEMORY)
+        {
+            purges.recent.pop_front();
+        }
+    }
+
+    /// Tells the other processes of the cluster, if there are any (a failure is logged: their
+    /// memory then holds a tile longer, until its next broadcast or eviction).
+    async fn tell(&self, event: Event) {
+        let Some(cluster) = self.cluster.clone() else {
+            return;
+        };
+        let told = tokio::task::spawn_blocking(move || cluster.broadcast(&event)).await;
+        if let Ok(Err(error)) = told {
+            tracing::warn!(%error, "telling the cluster failed");
+        }
+    }
+
+    /// Applies what another process of the cluster told: its new tiles and purges leave
+    /// memory (a purge is also remembered, as one made here would be).
+    pub async fn heard(&self, event: Event) {
+        match event {
+            Event::Stored(keys) => self.forget(&keys).await,
+            Event::Purged(TileFilter::All) | Event::Missed => {
+                self.record_purge(TileFilter::All);
+                self.forget_all();
+            }
+            Event::Purged(filter) => {
+                self.record_purge(filter.clone());
+                let held: Vec<TileKey> = self
+                    .memory
+                    .iter()
+                    .map(|(key, _)| *key)
+                    .filter(|key| filter.matches(key.tile))
+                    .collect();
+                self.forget(&held).await;
+            }
+            Event::Work => {}
+        }
     }
 
     /// Drops tiles from memory (after they were removed from the store).
@@ -372,6 +417,88 @@ pub enum Remade {
     Unstored,
     /// The tile was purged while it was made: the new one is dropped.
     Purged,
+}
+
+/// The stored tile, marked as read from the store (and its use recorded). A store that cannot
+/// be read (damaged, its disk gone) does not stop the tile: it is made again.
+async fn lookup<E>(
+    store: &Arc<dyn TileStore>,
+    key: TileKey,
+) -> Result<Option<CachedTile>, CacheError<E>>
+where
+    E: std::error::Error + Send + Sync + 'static,
+{
+    let store = store.clone();
+    let lookup = tokio::task::spawn_blocking(move || {
+        let found = store.get(&key)?;
+        if found.is_some() {
+            store.touch(&[key], unix_now())?;
+        }
+        Ok::<_, StoreError>(found)
+    })
+    .await
+    .map_err(|e| CacheError::Panicked(e.to_string()))?;
+    let found = lookup.unwrap_or_else(|error| {
+        tracing::error!(tile = %key.tile, format = key.format.as_str(), %error, "reading the stored tile failed; making it again");
+        None
+    });
+    Ok(found.map(|found| CachedTile {
+        bodies: found.bodies,
+        etag: found.etag,
+        made_by: found.made_by,
+        loaded_from: Origin::Store,
+        stored: true,
+    }))
+}
+
+/// Makes and stores a tile once in the whole cluster: claims it first; while another process
+/// holds the claim, waits for the tile to land in the store (or for the claim to lapse, its
+/// holder gone, and takes it over).
+async fn render_claimed<E>(
+    cluster: Arc<Cluster>,
+    store: Arc<dyn TileStore>,
+    key: TileKey,
+    made_by: Provenance,
+    render: Render<E>,
+) -> Result<CachedTile, CacheError<E>>
+where
+    E: std::error::Error + Send + Sync + 'static,
+{
+    let dropped = || CacheError::Panicked("a tile was dropped unasked".into());
+    loop {
+        let claiming = cluster.clone();
+        let claim = tokio::task::spawn_blocking(move || claiming.try_lease(&key))
+            .await
+            .map_err(|e| CacheError::Panicked(panic_message(e)))?;
+        match claim {
+            Ok(true) => {
+                // It may have landed between the lookup and the claim.
+                let made = match lookup(&store, key).await? {
+                    Some(found) => Ok(found),
+                    None => render_and_store(Some(store), key, made_by, None, render)
+                        .await
+                        .and_then(|made| made.ok_or_else(dropped)),
+                };
+                let releasing = cluster.clone();
+                let released = tokio::task::spawn_blocking(move || releasing.release(&key)).await;
+                if let Ok(Err(error)) = released {
+                    tracing::warn!(tile = %key.tile, %error, "releasing the claim on a tile failed; it lapses");
+                }
+                return made;
+            }
+            Ok(false) => {}
+            Err(error) => {
+                tracing::warn!(tile = %key.tile, %error, "claiming the tile in the cluster failed; made here");
+                return render_and_store(Some(store), key, made_by, None, render)
+                    .await
+                    .and_then(|made| made.ok_or_else(dropped));
+            }
+        }
+        tokio::time::sleep(LANDING_POLL).await;
+        if let Some(found) = lookup(&store, key).await? {
+            return Ok(found);
+        }
+    }
 }
 
 /// Renders a tile on the blocking pool, compresses it and stores it (when given a store); with

@@ -173,19 +173,7 @@ pub fn seed(
                 }
                 let i = next.fetch_add(1, Ordering::Relaxed);
                 let Some(&key) = keys.get(i) else { return };
-                let deadline = render_limit.map_or(Deadline::none(), Deadline::after);
-                let outcome = provider
-                    .make(key, deadline)
-                    .map_err(|e| e.to_string())
-                    .and_then(|made| {
-                        let tile = StoredTile {
-                            etag: etag_of(&made.bytes),
-                            bodies: Bodies::compress(made.bytes).map_err(|e| e.to_string())?,
-                            made_by: provider.provenance(key.tile).unwrap_or_default(),
-                            created_at: unix_now(),
-                        };
-                        Ok(tile)
-                    });
+                let outcome = make_tile(provider, key, render_limit);
                 match outcome {
                     Ok(tile) => match store.put(&key, &tile) {
                         Ok(()) => {
@@ -228,6 +216,22 @@ pub fn seed(
     report.elapsed = started.elapsed();
     report.failed.sort_by_key(|(key, _)| *key);
     Ok(report)
+}
+
+/// Makes a tile as the store keeps it (compressed, with its validator and provenance).
+pub(super) fn make_tile(
+    provider: &dyn TileProvider,
+    key: TileKey,
+    render_limit: Option<Duration>,
+) -> Result<StoredTile, String> {
+    let deadline = render_limit.map_or(Deadline::none(), Deadline::after);
+    let made = provider.make(key, deadline).map_err(|e| e.to_string())?;
+    Ok(StoredTile {
+        etag: etag_of(&made.bytes),
+        bodies: Bodies::compress(made.bytes).map_err(|e| e.to_string())?,
+        made_by: provider.provenance(key.tile).unwrap_or_default(),
+        created_at: unix_now(),
+    })
 }
 
 #[cfg(test)]

@@ -431,6 +431,9 @@ pub async fn serve(
             Err(error) => tracing::warn!(%error, "reading solved elevation components failed"),
         },
     ));
+    if let Some(cluster) = state.cache.cluster().cloned() {
+        join_cluster(&state, &cluster)?;
+    }
     background.extend(regenerate::start(&state, state.work.background_workers));
     if let Some(interval) = state.work.check_interval {
         background.push(tokio::spawn(regenerate::watch_sources(
@@ -446,6 +449,34 @@ pub async fn serve(
     state.work.pool.close();
     flush(&state).await;
     result
+}
+
+/// Joins the cluster sharing the store: says this server is in it, renews its claims while it
+/// runs, and applies what the other processes broadcast (their new tiles and purges leave
+/// memory; queued work wakes the workers).
+fn join_cluster(state: &AppState, cluster: &Arc<crate::cache::Cluster>) -> std::io::Result<()> {
+    let registering = cluster.clone();
+    tokio::task::spawn_blocking(move || {
+        if let Err(error) = registering.register("serve") {
+            tracing::warn!(%error, "registering with the cluster failed");
+        }
+    });
+    cluster.start_heartbeat()?;
+    let (told, mut heard) = tokio::sync::mpsc::unbounded_channel();
+    cluster.listen(move |event| {
+        let _ = told.send(event);
+    })?;
+    let applying = state.clone();
+    tokio::spawn(async move {
+        while let Some(event) = heard.recv().await {
+            if event == crate::cache::Event::Work {
+                applying.work.regenerator.wake_all();
+            }
+            applying.cache.heard(event).await;
+        }
+    });
+    tracing::info!(holder = cluster.holder(), "joined the cluster");
+    Ok(())
 }
 
 /// Every few seconds: tell the store which tiles memory served, and keep the elevation

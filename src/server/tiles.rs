@@ -152,7 +152,7 @@ pub async fn serve(
     }
     if served.stale {
         Metrics::count(&state.metrics.stale_served);
-        state.work.regenerator.stale(key);
+        state.work.regenerator.stale(key, state.cache.cluster());
     }
     Ok(respond(&state, key, &served, &request_headers))
 }

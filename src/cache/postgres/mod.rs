@@ -6,9 +6,10 @@
 //! run on the blocking pool. Connections are kept in a small pool of our own and opened as
 //! needed; one that failed is dropped, not returned.
 
-use std::sync::Mutex;
+pub mod cluster;
+mod connections;
 
-use postgres::{Client, NoTls};
+use std::sync::Arc;
 
 use super::encoding::{Bodies, Encoding};
 use super::sqlite::{stored_bytes, EVICT_TO, MAX_SOLUTIONS};
@@ -17,15 +18,20 @@ use super::store::{
 };
 use crate::format::{Format, TileKey};
 use crate::tile::TileId;
+pub use cluster::Cluster;
+use connections::Connections;
 
 /// The schema's migrations, in order; the database records how many it has applied.
-const MIGRATIONS: &[(&str, &str)] = &[(
-    "tiles",
-    include_str!("../../migrations/postgres/0001_tiles.sql"),
-)];
-
-/// Connections kept open when idle, at most.
-const IDLE_CONNECTIONS: usize = 8;
+const MIGRATIONS: &[(&str, &str)] = &[
+    (
+        "tiles",
+        include_str!("../../../migrations/postgres/0001_tiles.sql"),
+    ),
+    (
+        "cluster",
+        include_str!("../../../migrations/postgres/0002_cluster.sql"),
+    ),
+];
 
 /// The key of the advisory lock processes take while they migrate the schema.
 const MIGRATION_LOCK: i64 = 0x7465_7272_6173_7469;
@@ -34,83 +40,16 @@ const MIGRATION_LOCK: i64 = 0x7465_7272_6173_7469;
 const TILES_PER_STATEMENT: usize = 1_000;
 
 pub struct PostgresStore {
-    /// Where the database is, without its password (for errors and logs).
-    place: String,
-    url: String,
+    connections: Arc<Connections>,
     max_bytes: Option<u64>,
-    idle: Mutex<Vec<Client>>,
 }
 
 impl std::fmt::Debug for PostgresStore {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("PostgresStore")
-            .field("place", &self.place)
+            .field("place", &self.place())
             .field("max_bytes", &self.max_bytes)
             .finish()
-    }
-}
-
-/// A connection taken from the pool, given back when dropped unless it broke.
-struct Pooled<'a> {
-    store: &'a PostgresStore,
-    client: Option<Client>,
-}
-
-impl std::ops::Deref for Pooled<'_> {
-    type Target = Client;
-    fn deref(&self) -> &Client {
-        self.client
-            .as_ref()
-            .expect("a pooled connection until dropped")
-    }
-}
-
-impl std::ops::DerefMut for Pooled<'_> {
-    fn deref_mut(&mut self) -> &mut Client {
-        self.client
-            .as_mut()
-            .expect("a pooled connection until dropped")
-    }
-}
-
-impl Drop for Pooled<'_> {
-    fn drop(&mut self) {
-        if let Some(client) = self.client.take().filter(|c| !c.is_closed()) {
-            let mut idle = self.store.idle.lock().unwrap_or_else(|p| p.into_inner());
-            if idle.len() < IDLE_CONNECTIONS {
-                idle.push(client);
-            }
-        }
-    }
-}
-
-/// `url` without the password it may hold.
-fn redacted(url: &str) -> String {
-    if !url.contains("://") {
-        // key=value settings: any password's value hidden.
-        return url
-            .split_whitespace()
-            .map(|part| match part.split_once('=') {
-                Some(("password", _)) => "password=***".to_string(),
-                _ => part.to_string(),
-            })
-            .collect::<Vec<_>>()
-            .join(" ");
-    }
-    match (url.find("://"), url.rfind('@')) {
-        (Some(scheme), Some(at)) if at > scheme => {
-            let credentials = &url[scheme + 3..at];
-            match credentials.find(':') {
-                Some(colon) => format!(
-                    "{}{}:***{}",
-                    &url[..scheme + 3],
-                    &credentials[..colon],
-                    &url[at..]
-                ),
-                None => url.to_string(),
-            }
-        }
-        _ => url.to_string(),
     }
 }
 
@@ -119,10 +58,8 @@ impl PostgresStore {
     /// at a time); past `max_bytes` of tiles, the least recently served are evicted.
     pub fn open(url: &str, max_bytes: Option<u64>) -> Result<PostgresStore, StoreError> {
         let store = PostgresStore {
-            place: redacted(url),
-            url: url.to_string(),
+            connections: Arc::new(Connections::new(url)),
             max_bytes,
-            idle: Mutex::new(Vec::new()),
         };
         store.migrate()?;
         Ok(store)
@@ -130,26 +67,22 @@ impl PostgresStore {
 
     /// Where the database is, without its password.
     pub fn place(&self) -> &str {
-        &self.place
+        self.connections.place()
+    }
+
+    /// What the processes sharing this database coordinate with: render leases, the work
+    /// queue and broadcasts, on the same connections. `lease` is how long a claim lasts
+    /// unrenewed.
+    pub fn cluster(&self, lease: std::time::Duration) -> Cluster {
+        Cluster::new(self.connections.clone(), lease)
     }
 
     fn error(&self, source: postgres::Error) -> StoreError {
-        StoreError::Postgres {
-            place: self.place.clone(),
-            source,
-        }
+        self.connections.error(source)
     }
 
-    fn client(&self) -> Result<Pooled<'_>, StoreError> {
-        let kept = self.idle.lock().unwrap_or_else(|p| p.into_inner()).pop();
-        let client = match kept {
-            Some(client) => client,
-            None => Client::connect(&self.url, NoTls).map_err(|e| self.error(e))?,
-        };
-        Ok(Pooled {
-            store: self,
-            client: Some(client),
-        })
+    fn client(&self) -> Result<connections::Pooled<'_>, StoreError> {
+        self.connections.client()
     }
 
     fn migrate(&self) -> Result<(), StoreError> {
@@ -171,7 +104,7 @@ impl PostgresStore {
             .get(0);
         if version > MIGRATIONS.len() as i64 {
             return Err(StoreError::NewerSchema {
-                path: self.place.clone().into(),
+                path: self.place().to_string().into(),
                 found: version,
                 supported: MIGRATIONS.len(),
             });
@@ -184,7 +117,7 @@ impl PostgresStore {
                     &[&(number as i64 + 1)],
                 )
                 .map_err(|e| self.error(e))?;
-            tracing::info!(place = %self.place, migration = name, "tile cache schema migrated");
+            tracing::info!(place = %self.place(), migration = name, "tile cache schema migrated");
         }
         transaction.commit().map_err(|e| self.error(e))
     }
@@ -503,26 +436,5 @@ impl TileStore for PostgresStore {
             )
             .map_err(|e| self.error(e))?;
         transaction.commit().map_err(|e| self.error(e))
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_database_url_is_named_without_its_password() {
-        assert_eq!(
-            redacted("postgres://tiles:secret@db.example:5432/tiles"),
-            "postgres://tiles:***@db.example:5432/tiles"
-        );
-        assert_eq!(
-            redacted("postgres://tiles@db/tiles"),
-            "postgres://tiles@db/tiles"
-        );
-        assert_eq!(
-            redacted("host=/run/postgresql dbname=tiles password=secret"),
-            "host=/run/postgresql dbname=tiles password=***"
-        );
     }
 }

@@ -1,0 +1,158 @@
+//! The connections to one PostgreSQL database that a process keeps: a small pool of our own
+//! over the blocking `postgres` client, opened as needed; a connection that broke is dropped,
+//! not given back.
+
+use std::sync::Mutex;
+
+use postgres::{Client, NoTls};
+
+use crate::cache::store::StoreError;
+
+/// Connections kept open when idle, at most.
+const IDLE_CONNECTIONS: usize = 8;
+
+pub struct Connections {
+    /// Where the database is, without its password (for errors and logs).
+    place: String,
+    url: String,
+    idle: Mutex<Vec<Client>>,
+}
+
+impl std::fmt::Debug for Connections {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Connections")
+            .field("place", &self.place)
+            .finish()
+    }
+}
+
+/// A connection taken from the pool, given back when dropped unless it broke.
+pub struct Pooled<'a> {
+    connections: &'a Connections,
+    client: Option<Client>,
+}
+
+impl std::ops::Deref for Pooled<'_> {
+    type Target = Client;
+    fn deref(&self) -> &Client {
+        self.client
+            .as_ref()
+            .expect("a pooled connection until dropped")
+    }
+}
+
+impl std::ops::DerefMut for Pooled<'_> {
+    fn deref_mut(&mut self) -> &mut Client {
+        self.client
+            .as_mut()
+            .expect("a pooled connection until dropped")
+    }
+}
+
+impl Drop for Pooled<'_> {
+    fn drop(&mut self) {
+        if let Some(client) = self.client.take().filter(|c| !c.is_closed()) {
+            let mut idle = self.connections.lock();
+            if idle.len() < IDLE_CONNECTIONS {
+                idle.push(client);
+            }
+        }
+    }
+}
+
+impl Connections {
+    /// Connections to the database at `url`; none is opened yet.
+    pub fn new(url: &str) -> Connections {
+        Connections {
+            place: redacted(url),
+            url: url.to_string(),
+            idle: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// Where the database is, without its password.
+    pub fn place(&self) -> &str {
+        &self.place
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Client>> {
+        self.idle.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// A store error naming the database.
+    pub fn error(&self, source: postgres::Error) -> StoreError {
+        StoreError::Postgres {
+            place: self.place.clone(),
+            source,
+        }
+    }
+
+    /// A connection from the pool, or a new one.
+    pub fn client(&self) -> Result<Pooled<'_>, StoreError> {
+        let kept = self.lock().pop();
+        let client = match kept {
+            Some(client) => client,
+            None => self.connect()?,
+        };
+        Ok(Pooled {
+            connections: self,
+            client: Some(client),
+        })
+    }
+
+    /// A connection of its own, outside the pool (one that listens for notifications).
+    pub fn connect(&self) -> Result<Client, StoreError> {
+        Client::connect(&self.url, NoTls).map_err(|e| self.error(e))
+    }
+}
+
+/// `url` without the password it may hold.
+pub fn redacted(url: &str) -> String {
+    if !url.contains("://") {
+        // key=value settings: any password's value hidden.
+        return url
+            .split_whitespace()
+            .map(|part| match part.split_once('=') {
+                Some(("password", _)) => "password=***".to_string(),
+                _ => part.to_string(),
+            })
+            .collect::<Vec<_>>()
+            .join(" ");
+    }
+    match (url.find("://"), url.rfind('@')) {
+        (Some(scheme), Some(at)) if at > scheme => {
+            let credentials = &url[scheme + 3..at];
+            match credentials.find(':') {
+                Some(colon) => format!(
+                    "{}{}:***{}",
+                    &url[..scheme + 3],
+                    &credentials[..colon],
+                    &url[at..]
+                ),
+                None => url.to_string(),
+            }
+        }
+        _ => url.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_database_url_is_named_without_its_password() {
+        assert_eq!(
+            redacted("postgres://tiles:secret@db.example:5432/tiles"),
+            "postgres://tiles:***@db.example:5432/tiles"
+        );
+        assert_eq!(
+            redacted("postgres://tiles@db/tiles"),
+            "postgres://tiles@db/tiles"
+        );
+        assert_eq!(
+            redacted("host=/run/postgresql dbname=tiles password=secret"),
+            "host=/run/postgresql dbname=tiles password=***"
+        );
+    }
+}
