@@ -5,7 +5,7 @@
 CARGO ?= cargo
 NPM ?= npm
 
-.PHONY: run test check lint bench bench-hardening bench-terrain bench-roofs bench-elevation bench-scale clean-cache
+.PHONY: run test check lint bench bench-hardening bench-terrain bench-roofs bench-elevation bench-scale bench-cluster clean-cache
 
 run: static/vendor/.installed
 	$(CARGO) run --release -- serve
@@ -89,6 +89,12 @@ bench-scale: tests/py/.venv/.installed
 	$(CARGO) build --release
 	tests/py/.venv/bin/python -m pip install --quiet --disable-pip-version-check -r tests/py/requirements-bench.txt
 	scripts/bench_scale.sh $(COPIES)
+
+# Several processes on one PostgreSQL database: cold tiles over 1, 2 and 3 replicas, cached
+# reads against SQLite, seeding with 1 and 2 workers, size per stored tile.
+bench-cluster: tests/.postgresql
+	$(CARGO) build --release
+	python3 scripts/bench_cluster.py
 
 bench-roofs:
 	$(CARGO) build --release --examples

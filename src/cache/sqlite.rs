@@ -405,13 +405,7 @@ impl TileStore for SqliteStore {
             .map_err(|e| self.error(e))?;
         let evicted = self.evict(&transaction, key).map_err(|e| self.error(e))?;
         transaction.commit().map_err(|e| self.error(e))?;
-        if evicted > 0 {
-            tracing::info!(
-                evicted,
-                cap = self.max_bytes,
-                "cache over its size cap; least recently served tiles evicted"
-            );
-        }
+        super::store::log_eviction(evicted, self.max_bytes);
         Ok(())
     }
 

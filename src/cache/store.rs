@@ -161,6 +161,17 @@ pub trait TileStore: Send + Sync + std::fmt::Debug {
     }
 }
 
+/// Says that a store over its size cap evicted tiles (nothing when it evicted none).
+pub(super) fn log_eviction(evicted: u64, cap: Option<u64>) {
+    if evicted > 0 {
+        tracing::info!(
+            evicted,
+            cap,
+            "cache over its size cap; least recently served tiles evicted"
+        );
+    }
+}
+
 /// Now, in seconds since the Unix epoch.
 pub fn unix_now() -> i64 {
     std::time::SystemTime::now()

@@ -202,19 +202,8 @@ pub fn solid_over_passages(
         })
     };
     let carving = ground
-        .filter(|_| !floating && !building.passages.is_empty())
-        .and_then(|_| {
-            let plan_of = |p: &Polygon| Polygon {
-                outer: plan_ring(&p.outer, origin, size_m),
-                holes: p
-                    .holes
-                    .iter()
-                    .map(|h| plan_ring(h, origin, size_m))
-                    .collect(),
-            };
-            let cuts: Vec<Polygon> = building.passages.iter().map(plan_of).collect();
-            passages::Carving::new(&plan, &cuts)
-        });
+        .filter(|_| !floating)
+        .and_then(|_| carving_of(building, &plan, origin, size_m));
     if let Some(carving) = carving.as_ref().filter(|_| !building.height_tagged) {
         // A guessed height leaves a storey over a road through the building.
         let ceiling = carving.highest_ground(&ground_at) + passages::HEADROOM_M;
@@ -304,6 +293,29 @@ pub fn solid_over_passages(
         solid.roof = cap.iter().map(|t| oriented(t, true, top)).collect();
     }
     solid
+}
+
+/// The roads through a building cut into its plan (metres around `origin`); `None` when no
+/// road reaches under it.
+fn carving_of(
+    building: &BuildingShape,
+    plan: &Polygon,
+    origin: Point,
+    size_m: f64,
+) -> Option<passages::Carving> {
+    if building.passages.is_empty() {
+        return None;
+    }
+    let plan_of = |p: &Polygon| Polygon {
+        outer: plan_ring(&p.outer, origin, size_m),
+        holes: p
+            .holes
+            .iter()
+            .map(|h| plan_ring(h, origin, size_m))
+            .collect(),
+    };
+    let cuts: Vec<Polygon> = building.passages.iter().map(plan_of).collect();
+    passages::Carving::new(plan, &cuts)
 }
 
 /// A ring in tile units in a building's plan: metres around `origin`.

@@ -15,6 +15,7 @@ use serde_json::{json, Value};
 use super::error::ApiError;
 use super::regenerate::queue_stored;
 use super::AppState;
+use crate::cache::postgres::cluster::JobKind;
 use crate::cache::TileFilter;
 use crate::tile::{LonLatBounds, TileId, TileRange};
 
@@ -164,9 +165,17 @@ pub async fn regenerate(
         .await
         .map_err(ApiError::internal)?;
     tracing::info!(queued, "regeneration asked for");
+    let in_line = match state.cache.cluster().cloned() {
+        // The cluster's queue, which every process works on.
+        Some(cluster) => tokio::task::spawn_blocking(move || cluster.pending(JobKind::Regenerate))
+            .await
+            .map_err(|e| ApiError::internal(e.to_string()))?
+            .map_err(|e| ApiError::internal(e.to_string()))? as usize,
+        None => state.work.regenerator.len(),
+    };
     Ok((
         StatusCode::ACCEPTED,
-        Json(json!({ "queued": queued, "in_line": state.work.regenerator.len() })),
+        Json(json!({ "queued": queued, "in_line": in_line })),
     ))
 }
 

@@ -329,13 +329,7 @@ impl TileStore for PostgresStore {
             .evict(&mut transaction, key)
             .map_err(|e| self.error(e))?;
         transaction.commit().map_err(|e| self.error(e))?;
-        if evicted > 0 {
-            tracing::info!(
-                evicted,
-                cap = self.max_bytes,
-                "cache over its size cap; least recently served tiles evicted"
-            );
-        }
+        crate::cache::store::log_eviction(evicted, self.max_bytes);
         Ok(())
     }
 
