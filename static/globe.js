@@ -4,7 +4,7 @@
 // the bare WGS 84 ellipsoid, on which SRTM heights stand at sea level as in the flat viewer.
 //
 // Query: ?compress=none for uncompressed content (meshopt by default); the URL hash
-// `#lat,lon,height` sets where the camera looks from.
+// `#lat,lon,height` sets where the camera looks from (else the centre of the server's data).
 /* global Cesium */
 
 const params = new URLSearchParams(window.location.search);
@@ -127,7 +127,19 @@ try {
   showError(`The tileset could not be loaded: ${error.message ?? error}`);
 }
 
-const start = viewFromHash() ?? { lat: 43.7384, lon: 7.4246, height: 1500 };
+/** The centre of the server's data (`/tiles.json`), or null when it does not say. */
+async function dataCentre() {
+  try {
+    const [lon, lat] = (await (await fetch('tiles.json')).json()).center ?? [];
+    if (Number.isFinite(lon) && Number.isFinite(lat)) return { lat, lon, height: 1500 };
+  } catch (error) {
+    // No description: the page's own start.
+  }
+  return null;
+}
+
+// Where the URL says, else over the server's data, else Monte-Carlo (the bundled sample).
+const start = viewFromHash() ?? (await dataCentre()) ?? { lat: 43.7384, lon: 7.4246, height: 1500 };
 lookAt(start.lat, start.lon, start.height);
 
 window.terrastitchGlobe = {

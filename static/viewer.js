@@ -14,8 +14,18 @@ const ZOOM = 14;
 const EARTH_CIRCUMFERENCE_M = 40075016.68557849;
 const TILE_M = EARTH_CIRCUMFERENCE_M / 2 ** ZOOM;
 const TILES_PER_AXIS = 2 ** ZOOM;
-/** Monte-Carlo, in the bundled sample. */
-const START = { lat: 43.7396, lon: 7.4255, distance: 1800, heading: 20, tilt: 50 };
+/** What the server says of its tiles (`/tiles.json`): where its data is, which compressions. */
+const DESCRIPTION = await fetch('tiles.json')
+  .then((response) => (response.ok ? response.json() : null))
+  .catch(() => null);
+/** Where the page opens when its URL names no place: the centre of the server's data (Monte-Carlo
+ * in the bundled sample, and when the server does not say). */
+const START = (() => {
+  const view = { lat: 43.7396, lon: 7.4255, distance: 1800, heading: 20, tilt: 50 };
+  const [lon, lat] = DESCRIPTION?.center ?? [];
+  return Number.isFinite(lon) && Number.isFinite(lat) && Math.abs(lat) <= 85
+    ? { ...view, lat, lon } : view;
+})();
 /** Tiles kept loaded; the least recently wanted beyond this are dropped and their GPU memory freed. */
 const MAX_LOADED = 36;
 /** Tile requests in flight at once. */
@@ -214,15 +224,12 @@ function jumpTo(view) {
 // Tiles come compressed (EXT_meshopt_compression over KHR_mesh_quantization, about a quarter
 // of the bytes) unless the page's query says `?compress=none`, or the server does not offer
 // it (a server of an archive offers the compression the archive holds).
-const COMPRESS = await (async () => {
+const COMPRESS = (() => {
   const wanted = new URLSearchParams(window.location.search).get('compress') === 'none'
     ? 'none' : 'meshopt';
-  try {
-    const offered = (await (await fetch('tiles.json')).json()).glb_compressions;
-    if (Array.isArray(offered) && offered.length > 0 && !offered.includes(wanted)) return offered[0];
-  } catch (error) {
-    // No description: ask for what the page wants.
-  }
+  // Without a description, ask for what the page wants.
+  const offered = DESCRIPTION?.glb_compressions;
+  if (Array.isArray(offered) && offered.length > 0 && !offered.includes(wanted)) return offered[0];
   return wanted;
 })();
 const loader = new GLTFLoader();

@@ -5,7 +5,9 @@
 
 mod common;
 
-use common::{browser_check, repo, TestServer};
+use common::{browser_check, repo, write_extract, TestServer};
+use terrastitch::config::Config;
+use terrastitch::provider::Inputs;
 
 /// Hôtel de Paris, next to the start view in Monte-Carlo.
 const KNOWN_BUILDING: &str = "157719657";
@@ -25,7 +27,8 @@ async fn the_viewer_streams_tiles_and_shows_what_is_clicked() {
         "viewer_check.mjs",
         "viewer",
         vec![
-            server.url("/"),
+            // The start view this check knows its building from.
+            server.url("/#43.7396,7.4255,1800,20,50"),
             artifacts.display().to_string(),
             KNOWN_BUILDING.to_string(),
         ],
@@ -85,5 +88,80 @@ async fn the_viewer_streams_tiles_and_shows_what_is_clicked() {
         report["steps"]["framesPerSecond"],
         report["glRenderer"]
     );
+    server.stop().await;
+}
+
+/// A server of another region (a few ways near Ulm, on the test SRTM files): the viewer and the
+/// globe, their URLs naming no place, open on its data and ask for nothing it lacks.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn both_viewers_open_on_the_data_of_a_server_of_another_region() {
+    let dir = tempfile::tempdir().unwrap();
+    let extract = dir.path().join("ulm.osm.pbf");
+    // Inside tile 14/8647/5668 (9.998–10.020 E, 48.385–48.400 N).
+    write_extract(
+        &serde_json::json!([
+            {"tags": {"highway": "residential", "name": "Teststraße"},
+             "nodes": [[10.001, 48.389], [10.009, 48.392], [10.016, 48.396]]},
+            {"tags": {"building": "yes", "building:levels": "3"},
+             "nodes": [[10.006, 48.393], [10.0066, 48.393], [10.0066, 48.3934],
+                       [10.006, 48.3934], [10.006, 48.393]]},
+        ]),
+        &extract,
+    );
+    let zoom = Config::default().server.zoom;
+    let sources = Inputs::open(&[extract], &repo().join("tests/data"), zoom).unwrap();
+    let server_config = terrastitch::config::ServerConfig {
+        render_threads: 2,
+        ..Config::default().server
+    };
+    let server =
+        TestServer::start_with(&dir.path().join("cache.sqlite"), sources, &server_config).await;
+    let report = browser_check(
+        "open_check.mjs",
+        "open",
+        vec![
+            server.url("/"),
+            repo().join("tests/artifacts/open").display().to_string(),
+        ],
+    )
+    .await;
+    let text = serde_json::to_string_pretty(&report).unwrap();
+    assert!(report["error"].is_null(), "{text}");
+    assert_eq!(report["pageErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["consoleErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["failedRequests"], serde_json::json!([]), "{text}");
+    let refused: Vec<&serde_json::Value> = report["answers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|answer| answer[0].as_u64().unwrap() >= 400)
+        .collect();
+    assert!(refused.is_empty(), "answered with an error: {refused:?}");
+    // The viewer loaded the data's tile, and keeps the place in its URL.
+    let loaded = report["viewer"]["loaded"].as_array().unwrap();
+    assert!(loaded.contains(&serde_json::json!("8647/5668")), "{text}");
+    assert_eq!(report["viewer"]["failed"], serde_json::json!([]), "{text}");
+    assert!(
+        report["viewer"]["hash"]
+            .as_str()
+            .unwrap()
+            .starts_with("#48.3"),
+        "{text}"
+    );
+    // The globe looks at the data and loaded content there.
+    let looks_at = &report["globe"]["looksAt"];
+    let (lon, lat) = (looks_at[0].as_f64().unwrap(), looks_at[1].as_f64().unwrap());
+    assert!(
+        (lon - 10.0085).abs() < 0.05 && (lat - 48.3925).abs() < 0.05,
+        "{text}"
+    );
+    let content = report["globe"]["loaded"].as_array().unwrap();
+    assert!(
+        content
+            .iter()
+            .any(|u| u.as_str().unwrap().contains("14/8647/5668.glb")),
+        "{text}"
+    );
+    assert_eq!(report["globe"]["failed"], serde_json::json!([]), "{text}");
     server.stop().await;
 }
