@@ -176,7 +176,8 @@ def cached(env, args=()):
 def seed(pg, workers):
     url, name = pg.database()
     started = time.time()
-    processes = [subprocess.Popen([BIN, 'seed', '--bbox', BBOX, '--threads', '1', '--cache-url', url],
+    processes = [subprocess.Popen([BIN, 'seed', '--bbox', BBOX, '--format', 'glb', '--threads', '1',
+                                   '--cache-url', url],
                                   stderr=subprocess.DEVNULL, env={**os.environ, 'RUST_LOG': 'warn'})
                  for _ in range(workers)]
     codes = [p.wait() for p in processes]

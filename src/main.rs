@@ -147,9 +147,10 @@ struct AreaArgs {
         required = true
     )]
     bbox: Option<LonLatBounds>,
-    /// Formats to make: glb, terrain (quantized-mesh with normals and water mask); repeat for
-    /// several
-    #[arg(long = "format", value_name = "FORMAT", default_values = ["glb"])]
+    /// Formats to make: glb, glb-meshopt, glb-enu, glb-enu-meshopt, terrain (quantized-mesh
+    /// with normals and water mask); repeat or separate with commas for several [default:
+    /// seed: glb-meshopt,glb-enu-meshopt (what the viewer and the globe ask for); export: glb]
+    #[arg(long = "format", value_name = "FORMAT")]
     formats: Vec<String>,
     /// SQLite file of the tile cache [default: cache/tiles.sqlite]
     #[arg(long, value_name = "FILE")]
@@ -167,7 +168,22 @@ impl AreaArgs {
     fn bbox(&self) -> Result<LonLatBounds> {
         self.bbox.context("--bbox W,S,E,N is needed")
     }
+
+    /// The same area, in `defaults` when no format was named.
+    fn or_formats(mut self, defaults: &[&str]) -> AreaArgs {
+        if self.formats.is_empty() {
+            self.formats = defaults.iter().map(|f| f.to_string()).collect();
+        }
+        self
+    }
 }
+
+/// What `seed` makes when no format is named: the variants the bundled viewer
+/// (`glb-meshopt`) and globe (`glb-enu-meshopt`) ask for, so a seeded region opens warm.
+const SEED_FORMATS: &[&str] = &["glb-meshopt", "glb-enu-meshopt"];
+
+/// What `export` writes when no format is named (an MBTiles file holds one).
+const EXPORT_FORMATS: &[&str] = &["glb"];
 
 #[derive(Args)]
 #[command(subcommand_negates_reqs = true, args_conflicts_with_subcommands = true)]
@@ -679,7 +695,8 @@ fn seed(args: SeedArgs, config: Config) -> Result<()> {
     if let Some(SeedAction::Status(status)) = &args.action {
         return seed_status(status, config);
     }
-    seed_into_store(config, &args.area, args.shard.unwrap_or_default()).map(|_| ())
+    let area = args.area.or_formats(SEED_FORMATS);
+    seed_into_store(config, &area, args.shard.unwrap_or_default()).map(|_| ())
 }
 
 /// Prints what the cluster's queue holds, its workers and its failed tiles.
@@ -724,11 +741,12 @@ fn seed_status(args: &StatusArgs, config: Config) -> Result<()> {
 }
 
 fn export(args: ExportArgs, config: Config) -> Result<()> {
+    let area = args.area.or_formats(EXPORT_FORMATS);
     // Whatever the cache lacks is made first; nothing is exported if a tile fails.
-    let (config, renderer, store) = seed_into_store(config, &args.area, seed::Shard::default())?;
-    let bbox = args.area.bbox()?;
+    let (config, renderer, store) = seed_into_store(config, &area, seed::Shard::default())?;
+    let bbox = area.bbox()?;
     let range = TileRange::covering(config.server.zoom, &bbox);
-    let formats = formats(&args.area.formats)?;
+    let formats = formats(&area.formats)?;
     let keys: Vec<_> = range
         .tiles()
         .flat_map(|tile| formats.iter().map(move |&format| (tile, format)))

@@ -64,7 +64,17 @@ fn shards_split_a_seed_and_a_second_run_makes_nothing() {
     let mut made = 0;
     for shard in ["1/2", "2/2"] {
         let (ok, stderr) = run(
-            &["seed", "--bbox", &area, "--shard", shard, "--threads", "2"],
+            &[
+                "seed",
+                "--bbox",
+                &area,
+                "--format",
+                "glb",
+                "--shard",
+                shard,
+                "--threads",
+                "2",
+            ],
             &cache,
         );
         assert!(ok, "{stderr}");
@@ -76,7 +86,7 @@ fn shards_split_a_seed_and_a_second_run_makes_nothing() {
     }
     assert_eq!(made, 4);
     assert_eq!(check_cache(&cache), 4, "the shards did not overlap");
-    let (ok, stderr) = run(&["seed", "--bbox", &area], &cache);
+    let (ok, stderr) = run(&["seed", "--bbox", &area, "--format", "glb"], &cache);
     assert!(ok, "{stderr}");
     assert_eq!(planned(&stderr), (0, 4));
     // A box outside the data is refused by the parser, not by the renderer.
@@ -120,7 +130,7 @@ fn a_seed_finds_the_elevation_components_an_earlier_seed_solved_and_makes_the_sa
     let dir = tempfile::tempdir().unwrap();
     let cache = dir.path().join("cache.sqlite");
     let area = bbox(8528, 8529, 5974, 5974);
-    let (ok, stderr) = run(&["seed", "--bbox", &area], &cache);
+    let (ok, stderr) = run(&["seed", "--bbox", &area, "--format", "glb"], &cache);
     assert!(ok, "{stderr}");
     let (solved, found) = components(&stderr);
     assert!(solved > 0, "{stderr}");
@@ -132,7 +142,7 @@ fn a_seed_finds_the_elevation_components_an_earlier_seed_solved_and_makes_the_sa
     drop(store);
 
     // A new process makes the tiles again from the components the first one kept.
-    let (ok, stderr) = run(&["seed", "--bbox", &area], &cache);
+    let (ok, stderr) = run(&["seed", "--bbox", &area, "--format", "glb"], &cache);
     assert!(ok, "{stderr}");
     // Every component the first run met, solved there or found from its other tile.
     assert_eq!(components(&stderr), (0, solved + found), "{stderr}");
@@ -146,7 +156,8 @@ fn a_seed_killed_midway_leaves_a_sound_cache_and_resumes() {
     let cache = dir.path().join("cache.sqlite");
     let area = bbox(8528, 8530, 5973, 5974);
     let mut child = terrastitch()
-        .args(["seed", "--bbox", &area, "--threads", "1", "--cache"])
+        .args(["seed", "--bbox", &area, "--format", "glb", "--threads", "1"])
+        .arg("--cache")
         .arg(&cache)
         .stderr(Stdio::null())
         .spawn()
@@ -175,12 +186,42 @@ fn a_seed_killed_midway_leaves_a_sound_cache_and_resumes() {
     let before = check_cache(&cache);
     assert!((1..6).contains(&before), "{before}");
 
-    let (ok, stderr) = run(&["seed", "--bbox", &area], &cache);
+    let (ok, stderr) = run(&["seed", "--bbox", &area, "--format", "glb"], &cache);
     assert!(ok, "{stderr}");
     let (to_make, already) = planned(&stderr);
     assert_eq!(already, before, "{stderr}");
     assert_eq!(to_make + already, 6, "{stderr}");
     assert_eq!(check_cache(&cache), 6);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_seed_without_formats_makes_what_the_viewer_and_the_globe_ask_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache.sqlite");
+    let area = bbox(8528, 8528, 5974, 5974);
+    let (ok, stderr) = run(&["seed", "--bbox", &area], &cache);
+    assert!(ok, "{stderr}");
+    let store = SqliteStore::open(&cache, None).unwrap();
+    let mut formats: Vec<&str> = store
+        .list(&TileFilter::All)
+        .unwrap()
+        .iter()
+        .map(|e| e.key.format.as_str())
+        .collect();
+    formats.sort();
+    assert_eq!(formats, ["glb-enu-meshopt", "glb-meshopt"]);
+    drop(store);
+    // The viewer's and the globe's first requests are hits.
+    let server = common::TestServer::start(&cache).await;
+    for path in [
+        "/tiles/14/8528/5974.glb?compress=meshopt",
+        "/3dtiles/14/8528/5974.glb?compress=meshopt",
+    ] {
+        let response = server.get(path, &[]).await;
+        assert_eq!(response.status(), 200, "{path}");
+        assert_eq!(response.headers()["x-cache"], "hit", "{path}");
+    }
+    server.stop().await;
 }
 
 #[test]
