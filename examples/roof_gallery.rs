@@ -155,6 +155,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         bounds: tile.bounds(),
         size_m: frame.size_m,
         generator: "roof_gallery".to_string(),
+        vertical_datum: Default::default(),
     };
     let bytes = glb::write(
         &description,

@@ -17,6 +17,7 @@ pub mod elevation;
 pub mod features;
 pub mod format;
 pub mod geodesy;
+pub mod geoid;
 pub mod geometry;
 pub mod mesh;
 pub mod offline;

@@ -17,6 +17,7 @@ use std::time::{Duration, Instant};
 
 use crate::elevation;
 use crate::features::{self, FeatureClass, FeatureSet, FeatureSettings};
+use crate::geoid::VerticalDatum;
 use crate::mesh::ground::{self, Ground, MeshSettings};
 use crate::mesh::ground_parts::GroundParts;
 use crate::mesh::{self, MeshBuffers, Part};
@@ -32,6 +33,10 @@ pub struct RenderSettings {
     pub interpolation: Interpolation,
     pub mesh: MeshSettings,
     pub features: FeatureSettings,
+    /// What the heights of east-north-up content and quantized-mesh terrain are measured from
+    /// (the flat frame keeps SRTM's heights). Last, and left out of the fingerprint at its
+    /// default, so tiles made before it existed keep theirs.
+    pub vertical_datum: VerticalDatum,
 }
 
 impl RenderSettings {
@@ -39,6 +44,10 @@ impl RenderSettings {
     pub fn fingerprint(&self) -> String {
         use sha2::Digest;
         let text = serde_json::to_string(self).expect("settings serialize");
+        let text = match self.vertical_datum {
+            VerticalDatum::Srtm => text.replace(r#","vertical_datum":"srtm"}"#, "}"),
+            _ => text,
+        };
         let digest = sha2::Sha256::digest(text.as_bytes());
         digest[..6].iter().map(|b| format!("{b:02x}")).collect()
     }
@@ -642,7 +651,8 @@ pub fn render_within(
     guarded(tile, || {
         let mut timings = StageTimings::default();
         let prepared = prepare(tile, selection, mosaic, settings, &mut timings, deadline)?;
-        Ok(render_glb(tile, &prepared, variant, timings))
+        let datum = settings.vertical_datum;
+        Ok(render_glb(tile, &prepared, variant, datum, timings))
     })
 }
 
@@ -650,6 +660,7 @@ fn render_glb(
     tile: TileId,
     prepared: &Prepared<'_>,
     variant: crate::format::Variant,
+    vertical_datum: VerticalDatum,
     mut timings: StageTimings,
 ) -> RenderedTile {
     let Prepared {
@@ -730,6 +741,7 @@ fn render_glb(
         bounds: tile.bounds(),
         size_m: frame.size_m,
         generator: format!("terrastitch {}", env!("CARGO_PKG_VERSION")),
+        vertical_datum,
     };
     let bytes = glb::write(
         &description,
@@ -769,7 +781,12 @@ pub fn render_terrain(
     guarded(tile, || {
         let mut timings = StageTimings::default();
         let prepared = prepare(tile, selection, mosaic, settings, &mut timings, deadline)?;
-        Ok(encode_terrain(&prepared, extensions, timings))
+        Ok(encode_terrain(
+            &prepared,
+            extensions,
+            settings.vertical_datum,
+            timings,
+        ))
     })
 }
 
@@ -798,13 +815,19 @@ pub fn render_overview_terrain(
             &mut timings,
             deadline,
         )?;
-        Ok(encode_terrain(&prepared, extensions, timings))
+        Ok(encode_terrain(
+            &prepared,
+            extensions,
+            settings.vertical_datum,
+            timings,
+        ))
     })
 }
 
 fn encode_terrain(
     prepared: &Prepared<'_>,
     extensions: crate::format::Extensions,
+    datum: VerticalDatum,
     mut timings: StageTimings,
 ) -> RenderedTerrain {
     let started = Instant::now();
@@ -821,7 +844,8 @@ fn encode_terrain(
         .filter(|s| s.class == FeatureClass::Water)
         .collect();
     let water = extensions.watermask.then_some(waters.as_slice());
-    let terrain_tile = quantized_mesh::TerrainTile::of_ground(ground, normals, frame, water);
+    let terrain_tile =
+        quantized_mesh::TerrainTile::of_ground(ground, normals, frame, water).in_datum(datum);
     let (bytes, report) = quantized_mesh::encode(&terrain_tile, extensions);
     timings.encode = started.elapsed();
     RenderedTerrain {

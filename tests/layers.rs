@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 const ALLOWED: &[(&str, &[&str])] = &[
     ("tile", &[]),
     ("geodesy", &[]),
+    ("geoid", &[]),
     ("panics", &[]),
     ("parallel", &[]),
     ("geometry", &["tile"]),
@@ -45,6 +46,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "osm",
             "geometry",
             "geodesy",
+            "geoid",
             "format",
             "tile",
         ],
@@ -61,13 +63,14 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "geometry",
             "panics",
             "parallel",
+            "geoid",
             "format",
             "tile",
         ],
     ),
     ("source", &["osm", "terrain", "geometry", "tile"]),
     ("cache", &["format", "panics", "tile"]),
-    ("config", &["source", "render", "format", "tile"]),
+    ("config", &["source", "render", "geoid", "format", "tile"]),
     (
         "provider",
         &[

@@ -7,11 +7,14 @@
 //! runtime turns Y-up content to Z-up (`x`, `-z`, `y`) before it applies the tile's
 //! [`EastNorthUp::transform`], which carries east-north-up into Earth-centred, Earth-fixed
 //! coordinates. Heights are SRTM's (above the EGM96 geoid) used as heights above the ellipsoid,
-//! so the tiles sit on a bare WGS 84 globe the way they sit at sea level in the flat frame.
+//! so the tiles sit on a bare WGS 84 globe the way they sit at sea level in the flat frame; or,
+//! with the `egm96` datum, heights above the ellipsoid (SRTM's plus the geoid's undulation at
+//! each vertex), so they sit on a terrain in ellipsoid heights.
 
 use std::collections::BTreeMap;
 
 use crate::geodesy::{east_north_up, ecef, Vector};
+use crate::geoid::VerticalDatum;
 use crate::mesh::instances::Instances;
 use crate::mesh::models::Model;
 use crate::mesh::{MeshBuffers, Part};
@@ -30,10 +33,18 @@ pub struct EastNorthUp {
     axes: [Vector; 3],
     /// The tile's side in its flat frame, as written (f32): a vertex there is on the edge.
     edge_f32: f32,
+    /// What heights are measured from.
+    datum: VerticalDatum,
 }
 
 impl EastNorthUp {
+    /// The frame, heights SRTM's.
     pub fn new(tile: TileId) -> EastNorthUp {
+        EastNorthUp::in_datum(tile, VerticalDatum::Srtm)
+    }
+
+    /// The frame, heights measured from `datum`.
+    pub fn in_datum(tile: TileId, datum: VerticalDatum) -> EastNorthUp {
         let frame = tile.frame();
         let half = frame.size_m / 2.0;
         let (lon, lat) = frame.to_lon_lat(half, half);
@@ -42,6 +53,7 @@ impl EastNorthUp {
             origin: ecef(lon, lat, 0.0),
             axes: east_north_up(lon, lat),
             edge_f32: frame.size_m as f32,
+            datum,
         }
     }
 
@@ -70,7 +82,8 @@ impl EastNorthUp {
     fn geodetic(&self, p: [f32; 3]) -> (f64, f64, f64) {
         let (x, z) = (self.exact(p[0]), self.exact(p[2]));
         let (lon, lat) = self.frame.to_lon_lat(x, z);
-        (lon, lat, f64::from(p[1]) / self.frame.scale_at(z))
+        let height = f64::from(p[1]) / self.frame.scale_at(z) + self.datum.offset(lon, lat);
+        (lon, lat, height)
     }
 
     /// Earth-fixed coordinates into this frame, glTF Y-up (`x` east, `y` up, `z` south).

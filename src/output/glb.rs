@@ -28,6 +28,7 @@ use serde_json::{json as value, Value};
 use crate::features::vegetation::TreeKind;
 use crate::features::{FeatureClass, FeatureInfo};
 use crate::format::{Frame, Variant};
+use crate::geoid::VerticalDatum;
 use crate::mesh::instances::Instances;
 use crate::mesh::models::Model;
 use crate::mesh::{MeshBuffers, Part};
@@ -44,6 +45,8 @@ pub struct TileDescription {
     pub bounds: LonLatBounds,
     pub size_m: f64,
     pub generator: String,
+    /// What east-north-up content's heights are measured from.
+    pub vertical_datum: VerticalDatum,
 }
 
 /// Steps of the shared position grid along a tile's side.
@@ -375,7 +378,8 @@ pub fn write(
     features: &[FeatureInfo],
     variant: Variant,
 ) -> Vec<u8> {
-    let enu = (variant.frame == Frame::EastNorthUp).then(|| EastNorthUp::new(description.tile));
+    let enu = (variant.frame == Frame::EastNorthUp)
+        .then(|| EastNorthUp::in_datum(description.tile, description.vertical_datum));
     let carried;
     let (parts, instanced) = match &enu {
         Some(enu) => {

@@ -24,6 +24,7 @@ use std::collections::HashMap;
 use crate::features::Surface;
 use crate::format::Extensions;
 use crate::geodesy::{ecef, enu_to_ecef, scaled};
+use crate::geoid::VerticalDatum;
 use crate::mesh::ground::Ground;
 use crate::tile::TileFrame;
 
@@ -40,7 +41,8 @@ pub struct TerrainTile {
     pub positions: Vec<[f64; 2]>,
     /// Longitude and latitude of each vertex, degrees (for the ECEF header values).
     pub lon_lat: Vec<[f64; 2]>,
-    /// Height of each vertex above the ellipsoid, metres.
+    /// Height of each vertex, metres: SRTM's, used as above the ellipsoid, or above the
+    /// ellipsoid ([`TerrainTile::in_datum`]).
     pub heights: Vec<f64>,
     /// Unit normal of each vertex in (east, north, up).
     pub normals: Vec<[f64; 3]>,
@@ -90,6 +92,19 @@ impl TerrainTile {
                 .collect(),
             water: water.map(|surfaces| water_mask(surfaces, frame)),
         }
+    }
+}
+
+impl TerrainTile {
+    /// The same tile with its heights measured from `datum` (each vertex offset by the datum
+    /// at its own place, so neighbours' shared edge vertices move alike).
+    pub fn in_datum(mut self, datum: VerticalDatum) -> TerrainTile {
+        if datum != VerticalDatum::Srtm {
+            for (height, [lon, lat]) in self.heights.iter_mut().zip(&self.lon_lat) {
+                *height += datum.offset(*lon, *lat);
+            }
+        }
+        self
     }
 }
 

@@ -189,7 +189,15 @@ impl TileProvider for Renderer {
     fn ground_range(&self, tile: TileId) -> Option<(f64, f64)> {
         let sampled = tile.z == self.zoom;
         match self.inputs.ground_range(tile, sampled, HEIGHT_SAMPLES) {
-            Ok(range) => range,
+            // In the heights the content is written in.
+            Ok(range) => range.map(|(low, high)| {
+                let b = tile.bounds();
+                let (below, above) = self
+                    .settings
+                    .vertical_datum
+                    .offset_range(b.west, b.south, b.east, b.north);
+                (low + below, high + above)
+            }),
             Err(error) => {
                 tracing::warn!(%tile, %error, "no ground range for the tile");
                 None
