@@ -56,7 +56,7 @@ struct SourceArgs {
     /// OSM extract (.osm.pbf); repeat for several [default: data/monaco-osrm-2016.osm.pbf]
     #[arg(long = "osm", value_name = "FILE")]
     osm: Vec<PathBuf>,
-    /// Directory of SRTM .hgt / .hgt.zip files [default: data]
+    /// Directory of SRTM .hgt, .hgt.zip or .hgt.gz files [default: data]
     #[arg(long, value_name = "DIR")]
     srtm: Option<PathBuf>,
     /// The imported OSM store to read (imported when missing or older than the extracts)

@@ -466,7 +466,8 @@ pub fn is_url(text: &str) -> bool {
 /// The URL and file name of an SRTM cell from a template with `{lat}` (`N43`), `{lon}`
 /// (`E007`) or `{name}` (`N43E007`), e.g. `https://example.org/srtm/{lat}{lon}.hgt.zip`.
 /// The file is named after the cell, whatever the URL calls it (`N43E007.SRTMGL1.hgt.zip`,
-/// `…/N43/E007.hgt`): `N43E007.hgt.zip` when the URL names a zip file, else `N43E007.hgt`.
+/// `…/N43/E007.hgt`): `N43E007.hgt.zip` when the URL names a zip file, `N43E007.hgt.gz` a
+/// gzip file, else `N43E007.hgt`.
 pub fn srtm_download(template: &str, cell_name: &str) -> (String, String) {
     let (lat, lon) = cell_name.split_at(3.min(cell_name.len()));
     let url = template
@@ -474,8 +475,15 @@ pub fn srtm_download(template: &str, cell_name: &str) -> (String, String) {
         .replace("{lat}", lat)
         .replace("{lon}", lon);
     let path = url.split(['?', '#']).next().unwrap_or("");
-    let zipped = path.to_ascii_lowercase().ends_with(".zip");
-    let name = format!("{cell_name}.hgt{}", if zipped { ".zip" } else { "" });
+    let lower = path.to_ascii_lowercase();
+    let packed = if lower.ends_with(".zip") {
+        ".zip"
+    } else if lower.ends_with(".gz") {
+        ".gz"
+    } else {
+        ""
+    };
+    let name = format!("{cell_name}.hgt{packed}");
     (url, name)
 }
 
@@ -497,6 +505,8 @@ mod tests {
         // Named after the cell, whatever the URL calls the file.
         let (_, name) = srtm_download("http://h/{lat}/{lon}.hgt", "S12W071");
         assert_eq!(name, "S12W071.hgt");
+        let (_, name) = srtm_download("https://m/skadi/{lat}/{name}.hgt.gz", "N43E007");
+        assert_eq!(name, "N43E007.hgt.gz");
         let (_, name) = srtm_download("http://h/{name}.SRTMGL1.hgt.ZIP?x=1", "N43E007");
         assert_eq!(name, "N43E007.hgt.zip");
     }

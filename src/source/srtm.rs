@@ -1,4 +1,5 @@
-//! SRTM elevation tiles: `.hgt` and `.hgt.zip` files, 1 and 3 arc-seconds.
+//! SRTM elevation tiles: `.hgt`, `.hgt.zip` and `.hgt.gz` files (what the free SRTM mirrors
+//! serve), 1 and 3 arc-seconds.
 //!
 //! A file named after its south-west corner (`N43E007.hgt`) holds a square of big-endian `i16`
 //! samples, 1201² (3″) or 3601² (1″), row 0 on the north edge, column 0 on the west edge.
@@ -42,6 +43,12 @@ pub enum SrtmError {
     Zip { path: PathBuf, message: String },
     #[error("SRTM archive {path} holds no .hgt file")]
     EmptyZip { path: PathBuf },
+    #[error("SRTM file {path} is not a readable gzip file: {source}")]
+    Gzip {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("SRTM file {path} holds only voids")]
     AllVoid { path: PathBuf },
     #[error("SRTM file {path} is not elevation data: {percent:.1} % of its samples lie outside {} to {} m", PLAUSIBLE_M.0, PLAUSIBLE_M.1)]
@@ -97,7 +104,7 @@ pub fn decode(cell: CellId, bytes: &[u8], path: &Path) -> Result<SrtmTile, SrtmE
     })
 }
 
-/// Reads a `.hgt` or `.hgt.zip` file.
+/// Reads a `.hgt`, `.hgt.zip` or `.hgt.gz` file.
 pub fn read(cell: CellId, path: &Path) -> Result<SrtmTile, SrtmError> {
     let bytes = read_hgt_bytes(path)?;
     decode(cell, &bytes, path)
@@ -114,8 +121,24 @@ fn read_hgt_bytes(path: &Path) -> Result<Vec<u8>, SrtmError> {
         path: path.to_path_buf(),
         source,
     };
-    if !is_zip(path) {
-        return fs::read(path).map_err(io);
+    match packing(path) {
+        Packing::Plain => return fs::read(path).map_err(io),
+        Packing::Gzip => {
+            // No more than the largest tile and a byte: a file that inflates past it is
+            // refused by its size, not read into memory whole.
+            let file = fs::File::open(path).map_err(io)?;
+            let limit = (SAMPLES_1_ARCSEC * SAMPLES_1_ARCSEC * 2) as u64 + 1;
+            let mut bytes = Vec::new();
+            flate2::read::GzDecoder::new(file)
+                .take(limit)
+                .read_to_end(&mut bytes)
+                .map_err(|source| SrtmError::Gzip {
+                    path: path.to_path_buf(),
+                    source,
+                })?;
+            return Ok(bytes);
+        }
+        Packing::Zip => {}
     }
     let file = fs::File::open(path).map_err(io)?;
     let zip_error = |error: zip::result::ZipError| SrtmError::Zip {
@@ -144,8 +167,10 @@ fn hgt_len(path: &Path) -> Result<u64, SrtmError> {
         path: path.to_path_buf(),
         source,
     };
-    if !is_zip(path) {
-        return Ok(fs::metadata(path).map_err(io)?.len());
+    match packing(path) {
+        Packing::Plain => return Ok(fs::metadata(path).map_err(io)?.len()),
+        Packing::Gzip => return gzip_len(path),
+        Packing::Zip => {}
     }
     let file = fs::File::open(path).map_err(io)?;
     let zip_error = |error: zip::result::ZipError| SrtmError::Zip {
@@ -164,9 +189,42 @@ fn hgt_len(path: &Path) -> Result<u64, SrtmError> {
     })
 }
 
-fn is_zip(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|ext| ext.eq_ignore_ascii_case("zip"))
+/// How a file holds its `.hgt` data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Packing {
+    Plain,
+    Zip,
+    Gzip,
+}
+
+fn packing(path: &Path) -> Packing {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some(ext) if ext.eq_ignore_ascii_case("zip") => Packing::Zip,
+        Some(ext) if ext.eq_ignore_ascii_case("gz") => Packing::Gzip,
+        _ => Packing::Plain,
+    }
+}
+
+fn is_packed(path: &Path) -> bool {
+    packing(path) != Packing::Plain
+}
+
+/// The uncompressed length a gzip file declares (its last four bytes: the length modulo 2³²,
+/// exact for any SRTM tile); reading the data checks it.
+fn gzip_len(path: &Path) -> Result<u64, SrtmError> {
+    use std::io::{Seek, SeekFrom};
+    let gzip = |source| SrtmError::Gzip {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut file = fs::File::open(path).map_err(|source| SrtmError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut trailer = [0u8; 4];
+    file.seek(SeekFrom::End(-4)).map_err(gzip)?;
+    file.read_exact(&mut trailer).map_err(gzip)?;
+    Ok(u64::from(u32::from_le_bytes(trailer)))
 }
 
 /// Fills voids: each void takes the inverse-distance blend of the nearest valid sample in each of
@@ -308,8 +366,8 @@ impl std::fmt::Debug for SrtmDirectory {
 }
 
 impl SrtmDirectory {
-    /// Indexes `root` (not recursively) and checks the size of every `.hgt`/`.hgt.zip` in it.
-    /// When both forms of a cell exist, the plain `.hgt` is used.
+    /// Indexes `root` (not recursively) and checks the size of every `.hgt`, `.hgt.zip` and
+    /// `.hgt.gz` in it. When several forms of a cell exist, the plain `.hgt` is used.
     pub fn open(root: &Path) -> Result<SrtmDirectory, SrtmError> {
         SrtmDirectory::open_all(root, &[])
     }
@@ -404,6 +462,7 @@ fn index_directory(root: &Path) -> Result<BTreeMap<CellId, CellFile>, SrtmError>
         let lower = name.to_ascii_lowercase();
         let stem = lower
             .strip_suffix(".hgt.zip")
+            .or_else(|| lower.strip_suffix(".hgt.gz"))
             .or_else(|| lower.strip_suffix(".hgt"));
         let Some(cell) = stem.and_then(CellId::from_name) else {
             continue;
@@ -412,7 +471,7 @@ fn index_directory(root: &Path) -> Result<BTreeMap<CellId, CellFile>, SrtmError>
         if side_for_len(len).is_none() {
             return Err(SrtmError::BadSize { path, actual: len });
         }
-        let plain_exists = files.get(&cell).is_some_and(|f| !is_zip(&f.path));
+        let plain_exists = files.get(&cell).is_some_and(|f| !is_packed(&f.path));
         if !plain_exists {
             let version = file_version(&path)?;
             files.insert(cell, CellFile::new(path, version));
@@ -571,6 +630,37 @@ mod tests {
         );
         assert_eq!(tile.bilinear(7.0, 44.0), Some(100.0));
         assert!(directory.tile(CellId { lat: 0, lon: 0 }).unwrap().is_none());
+    }
+
+    #[test]
+    fn reads_a_gzipped_file_as_the_mirrors_serve_it() {
+        use std::io::Write;
+        let dir = tempfile::tempdir().unwrap();
+        let side = SAMPLES_3_ARCSEC;
+        let mut samples = vec![0u8; side * side * 2];
+        samples[0..2].copy_from_slice(&250i16.to_be_bytes());
+        let file = fs::File::create(dir.path().join("N43E007.hgt.gz")).unwrap();
+        let mut gzip = flate2::write::GzEncoder::new(file, flate2::Compression::fast());
+        gzip.write_all(&samples).unwrap();
+        gzip.finish().unwrap();
+
+        let directory = SrtmDirectory::open(dir.path()).unwrap();
+        let cell = CellId { lat: 43, lon: 7 };
+        assert_eq!(directory.cells(), vec![cell]);
+        let tile = directory.tile(cell).unwrap().unwrap();
+        assert_eq!(tile.sample(0, 0), 250.0);
+
+        // A gzip file cut short is refused by name when it is read.
+        let whole = fs::read(dir.path().join("N43E007.hgt.gz")).unwrap();
+        let cut = dir.path().join("N44E007.hgt.gz");
+        let mut bytes = whole[..whole.len() / 2].to_vec();
+        bytes.extend_from_slice(&whole[whole.len() - 8..]);
+        fs::write(&cut, bytes).unwrap();
+        let error = read(CellId { lat: 44, lon: 7 }, &cut).unwrap_err();
+        assert!(
+            matches!(error, SrtmError::Gzip { .. }) && error.to_string().contains("N44E007.hgt.gz"),
+            "{error}"
+        );
     }
 
     #[test]
