@@ -336,7 +336,8 @@ fn purges_and_new_tiles_on_one_replica_reach_the_others_memory() {
 /// Starts `terrastitch seed` on `bbox` into the shared database.
 fn seed_worker(url: &str, bbox: &str, lease_s: u64) -> Process {
     let child = common::terrastitch()
-        .args(["seed", "--bbox", bbox, "--threads", "1", "--cache-url", url])
+        .args(["seed", "--bbox", bbox, "--format", "glb", "--threads", "1"])
+        .args(["--cache-url", url])
         .env("TERRASTITCH_CACHE__LEASE_S", lease_s.to_string())
         .stdout(Stdio::null())
         .stderr(Stdio::null())
