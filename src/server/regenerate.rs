@@ -226,6 +226,9 @@ async fn remake(state: &AppState, job: Job) -> Result<bool, String> {
     let Some(wanted) = provider.provenance(key.tile) else {
         return Ok(false);
     };
+    // Counted before the tile is looked for: a purge after this, even one that comes between
+    // the look and the render, keeps the new tile out of the store.
+    let purges_so_far = state.cache.purges_so_far();
     let store = state.cache.store().clone();
     let listed =
         tokio::task::spawn_blocking(move || store.list(&TileFilter::Tiles(vec![key.tile]))).await;
@@ -241,8 +244,6 @@ async fn remake(state: &AppState, job: Job) -> Result<bool, String> {
     if !job.force && stored.made_by == wanted {
         return Ok(false);
     }
-    // Nor one purged while it is made.
-    let purges_so_far = state.cache.purges_so_far();
     let render = render_job(state, provider, key, Priority::Background);
     match state.cache.remake(key, wanted, purges_so_far, render).await {
         Ok(Remade::Stored) => {
