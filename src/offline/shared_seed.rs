@@ -18,6 +18,9 @@ use crate::provider::TileProvider;
 /// How long a row whose tile another process is making waits before it is taken again.
 const CLAIMED_ELSEWHERE: Duration = Duration::from_secs(1);
 
+/// How often the progress shown counts what is left in the whole queue.
+const COUNT_EVERY: Duration = Duration::from_secs(2);
+
 /// How often a worker with nothing to take looks whether rows others hold came back.
 const IDLE_LOOK: Duration = Duration::from_millis(500);
 
@@ -54,41 +57,18 @@ pub fn seed(
         tracing::warn!(%error, "reading solved elevation components failed");
     }
     cluster.enqueue(keys, JobKind::Seed, Priority::Seed, false)?;
-    let total = cluster.pending(JobKind::Seed)? as usize;
-    let left = AtomicUsize::new(total);
-    let report = Mutex::new(SeedReport::default());
+    let tally = Tally {
+        total: cluster.pending(JobKind::Seed)? as usize,
+        ..Tally::default()
+    };
+    tally.left.store(tally.total, Ordering::Relaxed);
     let stop: Mutex<Option<StoreError>> = Mutex::new(None);
     let stopped = || stop.lock().map_or(true, |s| s.is_some());
     std::thread::scope(|scope| {
         for _ in 0..threads.max(1) {
             scope.spawn(|| {
-                let worked = work(
-                    provider,
-                    store,
-                    cluster,
-                    render_limit,
-                    &stopped,
-                    |outcome| {
-                        let mut r = report.lock().unwrap_or_else(|p| p.into_inner());
-                        match outcome {
-                            (_, Outcome::Made(bytes)) => {
-                                r.made += 1;
-                                r.stored_bytes += bytes;
-                            }
-                            (key, Outcome::Failed(error, true)) => r.failed.push((key, error)),
-                            _ => {}
-                        }
-                        drop(r);
-                        if let Ok(pending) = cluster.pending(JobKind::Seed) {
-                            left.store(pending as usize, Ordering::Relaxed);
-                        }
-                        progress(Progress {
-                            done: total.saturating_sub(left.load(Ordering::Relaxed)),
-                            total,
-                        });
-                    },
-                );
-                if let Err(error) = worked {
+                let tell = |done| tally.record(cluster, done, progress);
+                if let Err(error) = work(provider, store, cluster, render_limit, &stopped, tell) {
                     if let Ok(mut s) = stop.lock() {
                         s.get_or_insert(error);
                     }
@@ -99,10 +79,61 @@ pub fn seed(
     if let Some(error) = stop.into_inner().unwrap_or_else(|p| p.into_inner()) {
         return Err(error);
     }
-    let mut report = report.into_inner().unwrap_or_else(|p| p.into_inner());
+    let mut report = tally.report.into_inner().unwrap_or_else(|p| p.into_inner());
     report.elapsed = started.elapsed();
     report.failed.sort_by_key(|(key, _)| *key);
     Ok(report)
+}
+
+/// What this worker made, and how much of the queue is left.
+#[derive(Default)]
+struct Tally {
+    report: Mutex<SeedReport>,
+    /// Rows in the queue when this worker began.
+    total: usize,
+    /// Rows left: counted down as this worker finishes them, and set from the queue now and
+    /// then (the others' work shows there; a count of a long queue is not free).
+    left: AtomicUsize,
+    last_count: Mutex<Option<Instant>>,
+}
+
+impl Tally {
+    fn record(
+        &self,
+        cluster: &Cluster,
+        (key, outcome): (TileKey, Outcome),
+        progress: &(dyn Fn(Progress) + Sync),
+    ) {
+        let mut report = self.report.lock().unwrap_or_else(|p| p.into_inner());
+        match outcome {
+            Outcome::Made(bytes) => {
+                report.made += 1;
+                report.stored_bytes += bytes;
+            }
+            Outcome::Failed(error, true) => report.failed.push((key, error)),
+            Outcome::Current => {}
+            // Still in the queue.
+            Outcome::Failed(_, false) | Outcome::Deferred => return,
+        }
+        drop(report);
+        let _ = self
+            .left
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| {
+                Some(n.saturating_sub(1))
+            });
+        let mut counted = self.last_count.lock().unwrap_or_else(|p| p.into_inner());
+        if counted.is_none_or(|at| at.elapsed() >= COUNT_EVERY) {
+            *counted = Some(Instant::now());
+            if let Ok(pending) = cluster.pending(JobKind::Seed) {
+                self.left.store(pending as usize, Ordering::Relaxed);
+            }
+        }
+        drop(counted);
+        progress(Progress {
+            done: self.total.saturating_sub(self.left.load(Ordering::Relaxed)),
+            total: self.total,
+        });
+    }
 }
 
 /// One thread's loop: takes rows until the queue is empty or the seed stops.
