@@ -116,6 +116,16 @@ class Server:
         self.process.wait()
 
 
+def run_together(threads):
+    """Starts the threads at once and waits for them all; the seconds it took."""
+    started = time.time()
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return time.time() - started
+
+
 def cold(pg, replicas):
     url, _ = pg.database()
     servers = [Server({'TERRASTITCH_CACHE__URL': url, 'TERRASTITCH_SERVER__CHECK_INTERVAL_S': '0'})
@@ -128,14 +138,8 @@ def cold(pg, replicas):
         with lock:
             statuses.append(status)
 
-    threads = [threading.Thread(target=ask, args=(i * 3 + k, tile))
-               for i, tile in enumerate(TILES) for k in range(3)]
-    started = time.time()
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    elapsed = time.time() - started
+    elapsed = run_together([threading.Thread(target=ask, args=(i * 3 + k, tile))
+                            for i, tile in enumerate(TILES) for k in range(3)])
     renders = sum(s.metric('terrastitch_renders_total') for s in servers)
     for s in servers:
         s.stop()
@@ -162,13 +166,7 @@ def cached(env, args=()):
                     count[0] += 1
         conn.close()
 
-    threads = [threading.Thread(target=client, args=(n,)) for n in range(16)]
-    started = time.time()
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
-    elapsed = time.time() - started
+    elapsed = run_together([threading.Thread(target=client, args=(n,)) for n in range(16)])
     server.stop()
     return count[0] / elapsed, count[0]
 
