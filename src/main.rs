@@ -460,8 +460,26 @@ fn render_one(
     tile: TileId,
     settings: &terrastitch::render::RenderSettings,
     variant: terrastitch::format::Variant,
+    served_zoom: u8,
 ) -> Result<(std::time::Duration, terrastitch::render::RenderedTile)> {
     let started = Instant::now();
+    if tile.z < served_zoom {
+        // A tile for far views: sea level where no SRTM file covers it.
+        let osm = sources.osm_for(tile)?;
+        let selection = osm.selection(tile);
+        let mosaic = sources.mosaic_for(tile, &selection)?;
+        let load = started.elapsed();
+        let rendered = terrastitch::render::render_overview(
+            tile,
+            &selection,
+            &mosaic,
+            settings,
+            terrastitch::features::overview::Level::new(tile, served_zoom, &sources.osm.coverage()),
+            variant,
+            terrastitch::render::Deadline::none(),
+        )?;
+        return Ok((load, rendered));
+    }
     if sources.check_coverage(tile).is_err() {
         sources.fetch_missing_srtm(tile)?;
     }
@@ -504,12 +522,13 @@ fn render(args: RenderArgs, config: Config) -> Result<()> {
     // Opening the sources counts in the load of the first tile rendered.
     let mut opened = Some(started.elapsed());
     let sources = renderer.inputs();
+    let served_zoom = renderer.offer().zoom;
     for &earlier in &before {
         opened = None;
-        render_one(sources, earlier, &config.render, variant)?;
+        render_one(sources, earlier, &config.render, variant, served_zoom)?;
     }
     let counted = terrastitch::render::lp_components_reused();
-    let (load, rendered) = render_one(sources, tile, &config.render, variant)?;
+    let (load, rendered) = render_one(sources, tile, &config.render, variant, served_zoom)?;
     let load = load + opened.unwrap_or_default();
     std::fs::write(&args.output, &rendered.glb)
         .with_context(|| format!("cannot write {}", args.output.display()))?;

@@ -358,26 +358,7 @@ fn prepare<'a>(
     // Cliffs and retaining walls step the terrain.
     let steps = elevation::steps::Steps::new(&feature_set.steps);
     let settled = elevation::ground::Ground::new(&terrain, &water, &cuts, &roads, &steps);
-    // The settled ground at many points at once (the tile's sample grid), over threads.
-    let sample = |points: &[[f64; 2]]| {
-        with_ground_models(
-            points,
-            &frame,
-            mosaic,
-            settings,
-            &settled,
-            &|points, _, settled| points.iter().map(|&p| settled.elevation_uv(p)).collect(),
-        )
-    };
-    let mut ground = ground::triangulate(
-        &frame,
-        &settings.mesh,
-        &feature_set.surfaces,
-        &feature_set.nearby_outlines,
-        &settled,
-        &sample,
-    )?;
-    mesh::flatten::flatten(&mut ground, &settled, &frame);
+    let ground = triangulated(&frame, mosaic, settings, &feature_set, &settled)?;
     timings.triangulation = started.elapsed();
     deadline.check(tile, "triangulation")?;
 
@@ -397,6 +378,88 @@ fn prepare<'a>(
         all_ways: selection.all_ways,
         feature_settings: settings.features.clone(),
         surface_margin_m: margin,
+        feature_set,
+        ground,
+        normals,
+    })
+}
+
+/// The ground of a tile triangulated with its surfaces stitched in, the settled elevations on
+/// its vertices.
+fn triangulated(
+    frame: &TileFrame,
+    mosaic: &Mosaic,
+    settings: &RenderSettings,
+    feature_set: &FeatureSet,
+    settled: &elevation::ground::Ground<'_>,
+) -> Result<Ground, RenderError> {
+    // The settled ground at many points at once (the tile's sample grid), over threads.
+    let sample = |points: &[[f64; 2]]| {
+        with_ground_models(
+            points,
+            frame,
+            mosaic,
+            settings,
+            settled,
+            &|points, _, settled| points.iter().map(|&p| settled.elevation_uv(p)).collect(),
+        )
+    };
+    let mut ground = ground::triangulate(
+        frame,
+        &settings.mesh,
+        &feature_set.surfaces,
+        &feature_set.nearby_outlines,
+        settled,
+        &sample,
+    )?;
+    mesh::flatten::flatten(&mut ground, settled, frame);
+    Ok(ground)
+}
+
+/// What a tile coarser than the served zoom is made from: its generalised features (see
+/// [`features::overview`]) and its ground at the coarser error bound, draped: no bridges,
+/// tunnels or road profiles, water at its levels.
+fn prepare_overview<'a>(
+    tile: TileId,
+    selection: &Selection<'_>,
+    mosaic: &'a Mosaic,
+    settings: &RenderSettings,
+    level: features::overview::Level,
+    timings: &mut StageTimings,
+    deadline: Deadline,
+) -> Result<Prepared<'a>, RenderError> {
+    let frame = tile.frame();
+    let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
+    let started = Instant::now();
+    let feature_set = features::overview::collect(selection, level, &settings.features);
+    timings.features = started.elapsed();
+    deadline.check(tile, "features")?;
+
+    let started = Instant::now();
+    let water = elevation::water::levels(&feature_set, &terrain, frame.size_m);
+    let roads = elevation::roads::RoadLevels::default();
+    let steps = elevation::steps::Steps::new(&[]);
+    let settled = elevation::ground::Ground::new(&terrain, &water, &[], &roads, &steps);
+    let ground = triangulated(&frame, mosaic, settings, &feature_set, &settled)?;
+    timings.triangulation = started.elapsed();
+    deadline.check(tile, "triangulation")?;
+
+    let started = Instant::now();
+    let normals = ground_normals(&ground, &frame, mosaic, settings, &settled);
+    timings.normals = started.elapsed();
+    Ok(Prepared {
+        frame,
+        terrain,
+        water,
+        structures: Vec::new(),
+        structure_features: HashMap::new(),
+        cuts: Vec::new(),
+        roads,
+        steps,
+        road_profiles: elevation::road_profiles::RoadProfiles::default(),
+        all_ways: &[],
+        feature_settings: settings.features.clone(),
+        surface_margin_m: settings.mesh.max_error_m,
         feature_set,
         ground,
         normals,
@@ -802,9 +865,7 @@ pub fn render_overview_terrain(
     extensions: crate::format::Extensions,
     deadline: Deadline,
 ) -> Result<RenderedTerrain, RenderError> {
-    let levels_above = i32::from(served_zoom) - i32::from(tile.z);
-    let mut settings = settings.clone();
-    settings.mesh.max_error_m *= 2f64.powi(levels_above.max(0));
+    let settings = overview_settings(settings, tile, served_zoom);
     guarded(tile, || {
         let mut timings = StageTimings::default();
         let prepared = prepare(
@@ -821,6 +882,43 @@ pub fn render_overview_terrain(
             settings.vertical_datum,
             timings,
         ))
+    })
+}
+
+/// The settings of a tile above the served zoom: an error bound that doubles with each level.
+fn overview_settings(settings: &RenderSettings, tile: TileId, served_zoom: u8) -> RenderSettings {
+    let levels_above = i32::from(served_zoom) - i32::from(tile.z);
+    let mut settings = settings.clone();
+    settings.mesh.max_error_m *= 2f64.powi(levels_above.max(0));
+    settings
+}
+
+/// Renders a tile above the served zoom as glb, for far views: the ground at the error bound of
+/// [`render_overview_terrain`], with land cover and water as colours, major roads and railways
+/// draped on it, and buildings merged into flat-roofed blocks (see [`features::overview`]).
+pub fn render_overview(
+    tile: TileId,
+    selection: &Selection<'_>,
+    mosaic: &Mosaic,
+    settings: &RenderSettings,
+    level: features::overview::Level,
+    variant: crate::format::Variant,
+    deadline: Deadline,
+) -> Result<RenderedTile, RenderError> {
+    let settings = overview_settings(settings, tile, tile.z + level.levels_above);
+    guarded(tile, || {
+        let mut timings = StageTimings::default();
+        let prepared = prepare_overview(
+            tile,
+            selection,
+            mosaic,
+            &settings,
+            level,
+            &mut timings,
+            deadline,
+        )?;
+        let datum = settings.vertical_datum;
+        Ok(render_glb(tile, &prepared, variant, datum, timings))
     })
 }
 

@@ -6,7 +6,7 @@ mod common;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-use common::{decode, render_in_process, repo, DecodedTile, GROUND_NODES};
+use common::{along_side, decode, ground_edge as edge, render_in_process, repo, DecodedTile};
 
 /// The ten Monaco tiles inside both the extract and N43E007, and the Ulm tile across the
 /// N48E009/N48E010 seam with its neighbours.
@@ -29,35 +29,6 @@ fn ulm_tiles() -> Vec<(u32, u32)> {
 fn render(tile: (u32, u32), srtm: &Path, out: &Path) -> Vec<u8> {
     let tile = format!("14/{}/{}", tile.0, tile.1);
     render_in_process(&tile, &["--srtm".as_ref(), srtm.as_os_str()], out)
-}
-
-/// Where along a side of a tile of `size` a vertex lies, if it is on that side.
-fn along_side(p: &[f32; 3], side: &str, size: f32) -> Option<f32> {
-    let (on_side, along) = match side {
-        "west" => (p[0] == 0.0, p[2]),
-        "east" => (p[0] == size, p[2]),
-        "north" => (p[2] == 0.0, p[0]),
-        "south" => (p[2] == size, p[0]),
-        _ => unreachable!(),
-    };
-    on_side.then_some(along)
-}
-
-/// Ground vertices (every ground class) on one side of a tile, as bit patterns of
-/// (y, along, normal): a normal that differs would show as a lighting seam.
-fn edge(tile: &DecodedTile, side: &str) -> BTreeSet<(u32, u32, [u32; 3])> {
-    let size = tile.tile_size() as f32;
-    let mut vertices = BTreeSet::new();
-    for node in GROUND_NODES {
-        for primitive in tile.primitives(node) {
-            for (p, normal) in primitive.positions.iter().zip(&primitive.normals) {
-                if let Some(along) = along_side(p, side, size) {
-                    vertices.insert((p[1].to_bits(), along.to_bits(), normal.map(f32::to_bits)));
-                }
-            }
-        }
-    }
-    vertices
 }
 
 /// Vertices of bridges and tunnels on one side of a tile, as bit patterns of (y, along):

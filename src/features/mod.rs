@@ -13,6 +13,7 @@ pub mod carriageways;
 pub mod coastline;
 pub mod landcover;
 pub mod objects;
+pub mod overview;
 pub mod power;
 pub mod railways;
 pub mod road_network;
@@ -487,6 +488,30 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, tile: TileId, projec
     if selection.coastlines.is_empty() {
         return;
     }
+    // The sea reaches a little past the tile, so that the ground either side of an edge knows
+    // it alike (its elevation is the sea's); the triangulation clips it to the tile.
+    let rect = tile_rect(tile);
+    let beyond = Rect {
+        min: [rect.min[0] - SEA_BEYOND, rect.min[1] - SEA_BEYOND],
+        max: [rect.max[0] + SEA_BEYOND, rect.max[1] + SEA_BEYOND],
+    };
+    add_sea_in(
+        set,
+        selection,
+        projection,
+        &beyond,
+        coastline::CutCoast::Nearest,
+    );
+}
+
+/// The sea inside `beyond` from the coastlines, as one water surface.
+fn add_sea_in(
+    set: &mut FeatureSet,
+    selection: &Selection<'_>,
+    projection: &Projection,
+    beyond: &Rect,
+    cut: coastline::CutCoast,
+) {
     let project = |way: &crate::osm::Way| projection.points(&way.positions);
     let near_ways: Vec<&crate::osm::Way> = selection
         .ways
@@ -496,14 +521,7 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, tile: TileId, projec
         .collect();
     let near = coastline::chains(&near_ways, &project);
     let all = || coastline::chains(&selection.coastlines, &project);
-    // The sea reaches a little past the tile, so that the ground either side of an edge knows
-    // it alike (its elevation is the sea's); the triangulation clips it to the tile.
-    let rect = tile_rect(tile);
-    let beyond = Rect {
-        min: [rect.min[0] - SEA_BEYOND, rect.min[1] - SEA_BEYOND],
-        max: [rect.max[0] + SEA_BEYOND, rect.max[1] + SEA_BEYOND],
-    };
-    let sea = coastline::sea(&near, &all, &beyond);
+    let sea = coastline::sea(&near, &all, beyond, cut);
     // The whole coast near the tile weighs the terrain error, also just across an edge.
     set.nearby_outlines
         .extend(near.into_iter().map(|chain| chain.points));

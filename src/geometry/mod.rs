@@ -312,6 +312,38 @@ pub fn distance_to_segment(p: Point, a: Point, b: Point) -> f64 {
     ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt()
 }
 
+/// The indices of the points a line simplified to `tolerance` keeps (Ramer–Douglas–Peucker):
+/// the ends, and every point that lies further than `tolerance` from the simplified line
+/// between its neighbours kept. A closed ring keeps its first (and last) point.
+pub fn simplified_indices(points: &[Point], tolerance: f64) -> Vec<usize> {
+    if points.len() <= 2 {
+        return (0..points.len()).collect();
+    }
+    let mut keep = vec![false; points.len()];
+    keep[0] = true;
+    keep[points.len() - 1] = true;
+    let mut spans = vec![(0, points.len() - 1)];
+    while let Some((first, last)) = spans.pop() {
+        let farthest = (first + 1..last)
+            .map(|i| {
+                (
+                    i,
+                    distance_to_segment(points[i], points[first], points[last]),
+                )
+            })
+            .fold(
+                (first, 0.0),
+                |best, next| if next.1 > best.1 { next } else { best },
+            );
+        if farthest.1 > tolerance {
+            keep[farthest.0] = true;
+            spans.push((first, farthest.0));
+            spans.push((farthest.0, last));
+        }
+    }
+    (0..points.len()).filter(|&i| keep[i]).collect()
+}
+
 /// Twice the signed area of the triangle `a`, `b`, `c` (positive when it turns from the first
 /// axis towards the second).
 pub fn orient(a: Point, b: Point, c: Point) -> f64 {

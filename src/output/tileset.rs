@@ -5,9 +5,12 @@
 //! content zoom (12, 10, 8, … for content at 14); each lists the sixteen tiles two zooms down
 //! that meet the data's coverage, as external tilesets, and the last level lists the content
 //! tiles themselves. The root tileset lists the finest level (from 12 up) at which the coverage
-//! takes [`ROOT_CHILDREN`] tiles or fewer. Parents hold no content of their own (`REPLACE`
-//! refinement over empty parents): the content appears when the camera is near enough for the
-//! parent's geometric error to matter.
+//! takes [`ROOT_CHILDREN`] tiles or fewer. Parents at the zooms of far views (13, 12, 10 and 8
+//! under content at 14, see [`overview`]) carry their own generalised content, which their
+//! children replace as the camera nears (`REPLACE`); a tileset file at 12 lists the tiles of
+//! 13 inline, each with its four children. A tile with content is placed by its east-north-up
+//! frame, written relative to its parent's, since a tile's transform applies to its children.
+//! Parents at other zooms, and every parent of an archive of one zoom, are empty.
 //!
 //! Every bounding volume is a region (radians, heights in metres): the SRTM heights under the
 //! tile widened by [`BELOW_GROUND_M`] and [`ABOVE_GROUND_M`] for tunnels, water and buildings
@@ -20,6 +23,7 @@
 use serde_json::{json, Value};
 
 use super::enu::EastNorthUp;
+use crate::features::overview;
 use crate::tile::{LonLatBounds, TileId, TileRange};
 
 /// Zooms between one tileset file and the next.
@@ -51,6 +55,9 @@ pub struct Plan {
     /// List tiles whose ground is unknown, with a wide height range (SRTM files are fetched
     /// when a tile is asked for, or an archive is served without sources).
     pub list_unknown: bool,
+    /// The parents at the zooms of far views carry content of their own
+    /// ([`overview::is_overview_zoom`]); without it (an archive of one zoom), parents are empty.
+    pub parent_content: bool,
 }
 
 /// Lowest and highest ground under a tile, metres; `None` where no elevation is known.
@@ -130,9 +137,64 @@ impl Plan {
     /// `tile`): a twelfth of a child's ground size, so that (at CesiumJS's default of 16 pixels)
     /// content tiles open from about 8 km away on a 1,000-pixel-high view.
     fn geometric_error(&self, z: u8, tile: TileId) -> f64 {
-        let latitude = (tile.bounds().north + tile.bounds().south) / 2.0;
-        let ground = TileId { z, x: 0, y: 0 }.size_m() * latitude.to_radians().cos();
-        ground / 12.0
+        ground_size(z, tile) / 12.0
+    }
+
+    /// Whether `tile` has content: the content zoom, and the parents at the zooms of far views.
+    fn has_content(&self, tile: TileId) -> bool {
+        tile.z == self.content_zoom
+            || (self.parent_content && overview::is_overview_zoom(tile.z, self.content_zoom))
+    }
+
+    /// The error of a tile's own content, metres: none at the content zoom; for a parent, what
+    /// its generalisation leaves out or moves: areas and blocks narrower than eight
+    /// tolerances (a 128th of its ground size) and heights averaged over blocks, bounded by
+    /// twice that. Errors shrink from each level of content to the next.
+    fn content_error(&self, tile: TileId) -> f64 {
+        if tile.z >= self.content_zoom {
+            return 0.0;
+        }
+        ground_size(tile.z, tile) / 64.0
+    }
+
+    /// The geometric error of a listed tile.
+    fn error_of(&self, tile: TileId) -> f64 {
+        if self.has_content(tile) {
+            self.content_error(tile)
+        } else {
+            self.geometric_error(tile.z + LEVEL_STEP, tile)
+        }
+    }
+
+    /// Where a tile's content stands in the world: its east-north-up frame; `None` (the
+    /// world's frame) for a tile without content.
+    fn world(&self, tile: TileId) -> Option<[f64; 16]> {
+        self.has_content(tile)
+            .then(|| EastNorthUp::new(tile).transform())
+    }
+
+    /// The zoom-`z + 1` tiles a tileset file of zoom `z` lists with their children inline,
+    /// when `z + 1` has content (13 under the file of 12); otherwise its children are listed
+    /// directly.
+    fn inline_level(&self, tile: TileId) -> bool {
+        let next = TileId {
+            z: tile.z + 1,
+            ..tile
+        };
+        tile.z + 1 < self.content_zoom && self.has_content(next)
+    }
+
+    /// The tiles one zoom below `tile` that meet the coverage.
+    fn quarters(&self, tile: TileId) -> Vec<TileId> {
+        (0..2)
+            .flat_map(|dy| (0..2).map(move |dx| (dx, dy)))
+            .map(|(dx, dy)| TileId {
+                z: tile.z + 1,
+                x: tile.x * 2 + dx,
+                y: tile.y * 2 + dy,
+            })
+            .filter(|&t| self.meets_coverage(t))
+            .collect()
     }
 
     /// The tile's region, or `None` when its ground is unknown and such tiles are not listed.
@@ -145,31 +207,45 @@ impl Plan {
         Some(region_over(tile, range))
     }
 
-    /// A tile entry: content tiles with their content and transform, others pointing at their
-    /// own tileset file; `up` leads from the file that lists it to `3dtiles/`. `None` for a tile
-    /// not listed.
-    fn entry(&self, tile: TileId, up: &str, heights: Heights<'_>) -> Option<Value> {
+    /// A tile entry, placed relative to `parent` (the world of the tile that lists it): a
+    /// content tile with its content; a tile with a tileset file pointing at it (its own
+    /// content is that file's root's); a tile listed inline with its content and children. `up`
+    /// leads from the file that lists it to `3dtiles/`. `None` for a tile not listed.
+    fn entry(
+        &self,
+        tile: TileId,
+        parent: Option<[f64; 16]>,
+        up: &str,
+        heights: Heights<'_>,
+    ) -> Option<Value> {
         let region = self.region(tile, heights)?;
-        Some(if tile.z == self.content_zoom {
-            json!({
-                "boundingVolume": {"region": region},
-                "geometricError": 0.0,
-                "refine": "REPLACE",
-                "transform": EastNorthUp::new(tile).transform(),
-                "content": {
-                    "uri": format!("{up}{}/{}/{}.glb{}", tile.z, tile.x, tile.y, self.query)
-                }
-            })
-        } else {
-            json!({
-                "boundingVolume": {"region": region},
-                "geometricError": self.geometric_error(tile.z + LEVEL_STEP, tile),
-                "refine": "REPLACE",
-                "content": {
-                    "uri": format!("{up}{}/{}/{}.json{}", tile.z, tile.x, tile.y, self.query)
-                }
-            })
-        })
+        let world = self.world(tile);
+        let mut entry = json!({
+            "boundingVolume": {"region": region},
+            "geometricError": self.error_of(tile),
+            "refine": "REPLACE",
+        });
+        if let Some(transform) = relative(parent, world) {
+            entry["transform"] = json!(transform);
+        }
+        let (z, x, y) = (tile.z, tile.x, tile.y);
+        if self.has_tileset(tile) {
+            entry["content"] = json!({"uri": format!("{up}{z}/{x}/{y}.json{}", self.query)});
+            return Some(entry);
+        }
+        if self.has_content(tile) {
+            entry["content"] = json!({"uri": format!("{up}{z}/{x}/{y}.glb{}", self.query)});
+        }
+        if tile.z < self.content_zoom {
+            let children: Vec<Value> = self
+                .quarters(tile)
+                .into_iter()
+                .filter_map(|t| self.entry(t, world, up, heights))
+                .collect();
+            entry["boundingVolume"]["region"] = json!(enclosing(Some(region), &children));
+            entry["children"] = json!(children);
+        }
+        Some(entry)
     }
 
     fn asset() -> Value {
@@ -191,18 +267,23 @@ impl Plan {
         let tiles = self.covered_at(top);
         let children: Vec<Value> = tiles
             .iter()
-            .filter_map(|&t| self.entry(t, up, heights))
+            .filter_map(|&t| self.entry(t, None, up, heights))
             .collect();
         let region = enclosing(None, &children).unwrap_or([0.0; 6]);
         let error = tiles
             .first()
             .map_or(0.0, |&t| 4.0 * self.geometric_error(top + LEVEL_STEP, t));
-        Self::document(region, error, children)
+        Self::document(region, error, None, children)
     }
 
-    /// A tileset file: a root without content over `children`.
-    fn document(region: [f64; 6], error: f64, children: Vec<Value>) -> Value {
-        json!({
+    /// A tileset file: a root over `children`, with content when given.
+    fn document(
+        region: [f64; 6],
+        error: f64,
+        content: Option<String>,
+        children: Vec<Value>,
+    ) -> Value {
+        let mut document = json!({
             "asset": Self::asset(),
             "geometricError": error,
             "root": {
@@ -211,24 +292,82 @@ impl Plan {
                 "refine": "REPLACE",
                 "children": children
             }
-        })
+        });
+        if let Some(uri) = content {
+            document["root"]["content"] = json!({ "uri": uri });
+        }
+        document
     }
 
-    /// `/3dtiles/{z}/{x}/{y}.json`: the tile and the tiles `LEVEL_STEP` zooms below it.
+    /// `/3dtiles/{z}/{x}/{y}.json`: the tile (with its content, placed by the entry that points
+    /// here), and the tiles `LEVEL_STEP` zooms below it (through the zoom between, inline,
+    /// where that zoom has content).
     pub fn subtree(&self, tile: TileId, heights: Heights<'_>) -> Value {
-        let error = self.geometric_error(tile.z + LEVEL_STEP, tile);
-        let children: Vec<Value> = self
-            .children(tile)
+        let error = self.error_of(tile);
+        let world = self.world(tile);
+        // From `3dtiles/{z}/{x}/{y}.json` back to `3dtiles/`.
+        let up = "../../";
+        let below = match self.inline_level(tile) {
+            true => self.quarters(tile),
+            false => self.children(tile),
+        };
+        let children: Vec<Value> = below
             .into_iter()
-            // From `3dtiles/{z}/{x}/{y}.json` back to `3dtiles/`.
-            .filter_map(|t| self.entry(t, "../../", heights))
+            .filter_map(|t| self.entry(t, world, up, heights))
             .collect();
         let own = self
             .region(tile, heights)
             .unwrap_or_else(|| region_over(tile, UNKNOWN_HEIGHTS));
         let region = enclosing(Some(own), &children).unwrap_or(own);
-        Self::document(region, error, children)
+        let content = self.has_content(tile).then(|| {
+            let (z, x, y) = (tile.z, tile.x, tile.y);
+            format!("{up}{z}/{x}/{y}.glb{}", self.query)
+        });
+        Self::document(region, error, content, children)
     }
+}
+
+/// The ground size of a zoom-`z` tile at `tile`'s latitude, metres.
+fn ground_size(z: u8, tile: TileId) -> f64 {
+    let latitude = (tile.bounds().north + tile.bounds().south) / 2.0;
+    TileId { z, x: 0, y: 0 }.size_m() * latitude.to_radians().cos()
+}
+
+/// The transform that places a frame `own` (column-major; `None` for the world's) inside
+/// `parent`'s: `parent⁻¹ · own`, for a 3D Tiles tile whose parent's transform applies to it.
+/// Both are rigid (a rotation and a translation), so the inverse is the transposed rotation.
+/// `None` when the frames are the same.
+fn relative(parent: Option<[f64; 16]>, own: Option<[f64; 16]>) -> Option<[f64; 16]> {
+    let identity = {
+        let mut m = [0.0; 16];
+        m[0] = 1.0;
+        m[5] = 1.0;
+        m[10] = 1.0;
+        m[15] = 1.0;
+        m
+    };
+    if parent == own {
+        return None;
+    }
+    let p = parent.unwrap_or(identity);
+    let c = own.unwrap_or(identity);
+    // Column j of the rotation is m[4j..4j + 3]; the translation is m[12..15].
+    let column = |m: &[f64; 16], j: usize| [m[4 * j], m[4 * j + 1], m[4 * j + 2]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut out = identity;
+    for j in 0..4 {
+        let v = match j {
+            3 => {
+                let (t, o) = (column(&c, 3), column(&p, 3));
+                [t[0] - o[0], t[1] - o[1], t[2] - o[2]]
+            }
+            _ => column(&c, j),
+        };
+        for i in 0..3 {
+            out[4 * j + i] = dot(column(&p, i), v);
+        }
+    }
+    Some(out)
 }
 
 /// The region of a tile over ground from `low` to `high`, widened for what is under and on it.
@@ -277,6 +416,7 @@ mod tests {
             coverage: vec!["7.40,43.72,7.44,43.75".parse().unwrap()],
             query: String::new(),
             list_unknown: false,
+            parent_content: false,
         }
     }
 
@@ -401,6 +541,7 @@ mod tests {
             coverage: vec!["5.0,43.0,8.0,45.0".parse().unwrap()],
             query: "?compress=meshopt".to_string(),
             list_unknown: false,
+            parent_content: false,
         };
         let top = plan.top_zoom();
         assert!(top < 12 && (14 - top) % LEVEL_STEP == 0, "{top}");
@@ -413,5 +554,110 @@ mod tests {
         // A level that is not a tileset level, or a tile outside the data, has no file.
         assert!(!plan.has_tileset(TileId { z: 13, x: 0, y: 0 }));
         assert!(!plan.has_tileset(TileId { z: top, x: 0, y: 0 }));
+    }
+
+    fn matrix_product(a: &[f64; 16], b: &[f64; 16]) -> [f64; 16] {
+        let mut out = [0.0; 16];
+        for col in 0..4 {
+            for row in 0..4 {
+                out[4 * col + row] = (0..4).map(|k| a[4 * k + row] * b[4 * col + k]).sum();
+            }
+        }
+        out
+    }
+
+    fn transform_of(entry: &Value) -> [f64; 16] {
+        let values: Vec<f64> = entry["transform"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        values.try_into().unwrap()
+    }
+
+    #[test]
+    fn parents_carry_content_placed_through_their_ancestors_frames() {
+        let mut plan = monaco();
+        plan.parent_content = true;
+        let parent = TileId {
+            z: 12,
+            x: 2132,
+            y: 1493,
+        };
+        let subtree = plan.subtree(parent, &flat);
+        let root = &subtree["root"];
+        assert_eq!(root["content"]["uri"], "../../12/2132/1493.glb");
+        let world12 = EastNorthUp::new(parent).transform();
+        let quarters = root["children"].as_array().unwrap();
+        assert!(!quarters.is_empty());
+        let mut leaves = 0;
+        for quarter in quarters {
+            let uri = quarter["content"]["uri"].as_str().unwrap();
+            assert!(
+                uri.starts_with("../../13/") && uri.ends_with(".glb"),
+                "{uri}"
+            );
+            let error13 = quarter["geometricError"].as_f64().unwrap();
+            assert!(error13 > 0.0 && error13 < root["geometricError"].as_f64().unwrap());
+            let world13 = matrix_product(&world12, &transform_of(quarter));
+            for leaf in quarter["children"].as_array().unwrap() {
+                assert_eq!(leaf["geometricError"], 0.0);
+                let uri = leaf["content"]["uri"].as_str().unwrap();
+                let parts: Vec<u32> = uri
+                    .trim_start_matches("../../")
+                    .trim_end_matches(".glb")
+                    .split('/')
+                    .map(|p| p.parse().unwrap())
+                    .collect();
+                let tile = TileId {
+                    z: parts[0] as u8,
+                    x: parts[1],
+                    y: parts[2],
+                };
+                assert_eq!(tile.z, 14);
+                // Placed through both parents, the leaf stands where its own frame is.
+                let placed = matrix_product(&world13, &transform_of(leaf));
+                let own = EastNorthUp::new(tile).transform();
+                for (a, b) in placed.iter().zip(own) {
+                    assert!((a - b).abs() < 1e-6, "{placed:?} against {own:?}");
+                }
+                leaves += 1;
+            }
+        }
+        assert_eq!(leaves, plan.children(parent).len());
+        // The file of 10 lists the tiles of 12 by their files, placed inside its own frame.
+        let ten = plan.subtree(
+            TileId {
+                z: 10,
+                x: 533,
+                y: 373,
+            },
+            &flat,
+        );
+        assert_eq!(ten["root"]["content"]["uri"], "../../10/533/373.glb");
+        let entry = &ten["root"]["children"][0];
+        assert!(entry["content"]["uri"].as_str().unwrap().ends_with(".json"));
+        let uri = entry["content"]["uri"].as_str().unwrap();
+        let parts: Vec<u32> = uri
+            .trim_start_matches("../../")
+            .trim_end_matches(".json")
+            .split('/')
+            .map(|p| p.parse().unwrap())
+            .collect();
+        let child = TileId {
+            z: parts[0] as u8,
+            x: parts[1],
+            y: parts[2],
+        };
+        let world10 = EastNorthUp::new(TileId {
+            z: 10,
+            x: 533,
+            y: 373,
+        })
+        .transform();
+        let placed = matrix_product(&world10, &transform_of(entry));
+        let own = EastNorthUp::new(child).transform();
+        assert!(placed.iter().zip(own).all(|(a, b)| (a - b).abs() < 1e-6));
     }
 }

@@ -40,7 +40,8 @@ impl MakeError {
     }
 }
 
-/// Makes `key` from `sources`. Terrain tiles above `served_zoom` are overviews: terrain alone.
+/// Makes `key` from `sources`. Tiles above `served_zoom` are overviews: terrain alone, or glb
+/// generalised for far views.
 pub fn make(
     sources: &Inputs,
     key: TileKey,
@@ -54,9 +55,23 @@ pub fn make(
             let osm = sources.osm_for(tile)?;
             let selection = osm.selection(tile);
             let mosaic = sources.mosaic_for(tile, &selection)?;
-            let rendered = crate::render::render_within(
-                tile, &selection, &mosaic, settings, variant, deadline,
-            )?;
+            let rendered = if tile.z < served_zoom {
+                crate::render::render_overview(
+                    tile,
+                    &selection,
+                    &mosaic,
+                    settings,
+                    crate::features::overview::Level::new(
+                        tile,
+                        served_zoom,
+                        &sources.osm.coverage(),
+                    ),
+                    variant,
+                    deadline,
+                )
+            } else {
+                crate::render::render_within(tile, &selection, &mosaic, settings, variant, deadline)
+            }?;
             Ok(Made {
                 triangles: rendered.stats.triangles,
                 lp_components: rendered.stats.lp_components,

@@ -101,9 +101,13 @@ impl Renderer {
         &self.pipeline
     }
 
-    /// A terrain tile coarser than the served zoom: an overview, made wherever it is asked.
+    /// A tile coarser than the served zoom: terrain at any zoom, glb at the levels of far
+    /// views ([`crate::features::overview::is_overview_zoom`]).
     fn is_overview(&self, key: TileKey) -> bool {
-        matches!(key.format, Format::Terrain(_)) && key.tile.z < self.zoom
+        match key.format {
+            Format::Terrain(_) => key.tile.z < self.zoom,
+            Format::Glb(_) => crate::features::overview::is_overview_zoom(key.tile.z, self.zoom),
+        }
     }
 }
 
@@ -125,8 +129,15 @@ impl TileProvider for Renderer {
         }
         Err(Unavailable::NotOffered(match format {
             Format::Glb(_) => format!(
-                "zoom {} is not served; this server serves glb tiles at zoom {}",
-                tile.z, self.zoom
+                "zoom {} is not served; this server serves glb tiles at zoom {} and, for far \
+                 views, at zooms {}",
+                tile.z,
+                self.zoom,
+                crate::features::overview::overview_zooms(self.zoom)
+                    .iter()
+                    .map(|z| z.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
             Format::Terrain(_) => format!(
                 "zoom {} is not served; this server serves terrain at zooms 0 to {}",
@@ -163,6 +174,9 @@ impl TileProvider for Renderer {
             return true;
         }
         let bounds = key.tile.bounds();
+        if matches!(key.format, Format::Glb(_)) {
+            return self.inputs.osm.covers(&bounds);
+        }
         self.inputs.srtm.cells().iter().any(|cell| {
             let (lon, lat) = (f64::from(cell.lon), f64::from(cell.lat));
             let cell = crate::tile::LonLatBounds {

@@ -61,6 +61,35 @@ pub const MONACO_TILES: [(u32, u32); 10] = [
 /// The glTF nodes of the ground (every class but buildings).
 pub const GROUND_NODES: [&str; 5] = ["terrain", "road", "railway", "water", "landcover"];
 
+/// Where along a side of a tile of `size` a vertex lies, if it is on that side.
+pub fn along_side(p: &[f32; 3], side: &str, size: f32) -> Option<f32> {
+    let (on_side, along) = match side {
+        "west" => (p[0] == 0.0, p[2]),
+        "east" => (p[0] == size, p[2]),
+        "north" => (p[2] == 0.0, p[0]),
+        "south" => (p[2] == size, p[0]),
+        _ => unreachable!(),
+    };
+    on_side.then_some(along)
+}
+
+/// Ground vertices (every ground class) on one side of a tile, as bit patterns of
+/// (y, along, normal): a normal that differs would show as a lighting seam.
+pub fn ground_edge(tile: &DecodedTile, side: &str) -> BTreeSet<(u32, u32, [u32; 3])> {
+    let size = tile.tile_size() as f32;
+    let mut vertices = BTreeSet::new();
+    for node in GROUND_NODES {
+        for primitive in tile.primitives(node) {
+            for (p, normal) in primitive.positions.iter().zip(&primitive.normals) {
+                if let Some(along) = along_side(p, side, size) {
+                    vertices.insert((p[1].to_bits(), along.to_bits(), normal.map(f32::to_bits)));
+                }
+            }
+        }
+    }
+    vertices
+}
+
 /// Runs a browser check of `tests/js` with Node (`node SCRIPT ARGS…`) off the async executor
 /// and returns the JSON report it prints; the artefacts folder `tests/artifacts/{folder}` is
 /// made first.

@@ -1,0 +1,584 @@
+//! The features of a tile coarser than the served zoom (a parent of the 3D Tiles hierarchy, seen
+//! from afar): what such a view shows, generalised to the tile's own scale.
+//!
+//! * every line and ring is simplified to the level's tolerance (a 1,024th of the tile's ground
+//!   size) before the feature families read it, so a way is simplified alike in every tile it
+//!   crosses, and neighbours' edges meet where its outline crosses them;
+//! * land cover and water areas, the sea and rivers, as at the served zoom, without the areas
+//!   smaller than the level can show;
+//! * major roads and railways (fewer classes the coarser the level), widened to at least one and
+//!   a half tolerances so they stay visible, draped on the ground;
+//! * buildings merged into blocks: the footprints of one height band are closed (grown by a
+//!   tolerance and shrunk back) so buildings nearer each other than two tolerances join, then
+//!   simplified; a block keeps the mean height of its buildings (weighted by area), has a flat
+//!   roof and is drawn by the one tile that owns the centre of its bounds.
+//!
+//! Left out: minor roads, paths, tunnels, bridges' structures, trees, objects, barriers, power
+//! lines, steps. Coarser than [`BLOCKS_UP_TO`] levels above the served zoom, no buildings.
+
+use geo::algorithm::buffer::{BufferStyle, LineJoin};
+use geo::{Area as _, Buffer, SimplifyVwPreserve};
+
+use super::buildings;
+use super::{
+    areas_of, landcover, railways, roads, tile_rect, water, widened_surface, Area, BuildingShape,
+    FeatureClass, FeatureSet, FeatureSettings, Projection,
+};
+use crate::geometry::{Point, Polygon, Rect};
+use crate::osm::index::Selection;
+use crate::osm::{ElementRef, ElementType, Tags, Way};
+use crate::tile::{LonLatBounds, TileId};
+
+/// Buildings are drawn as blocks up to this many levels above the served zoom.
+pub const BLOCKS_UP_TO: u8 = 4;
+/// Fraction of a tile's ground size that its lines are simplified to.
+const TOLERANCE_PER_TILE: f64 = 1.0 / 1024.0;
+/// Roads and railways are drawn at least this many tolerances wide.
+const MIN_WIDTH_TOLERANCES: f64 = 1.5;
+/// Areas smaller than a square this many tolerances wide are left out.
+const MIN_AREA_TOLERANCES: f64 = 8.0;
+/// Blocks smaller than a square this many tolerances wide are left out.
+const MIN_BLOCK_TOLERANCES: f64 = 3.0;
+/// The upper bounds of the height bands buildings merge within, metres.
+const HEIGHT_BANDS_M: [f64; 4] = [12.0, 24.0, 48.0, 96.0];
+
+/// The levels above the served zoom that glb tiles are made at for far views: the parents of
+/// the 3D Tiles hierarchy.
+pub const OVERVIEW_LEVELS: [u8; 4] = [1, 2, 4, 6];
+
+/// Whether glb tiles are made at `zoom` for far views when the served zoom is `served_zoom`.
+pub fn is_overview_zoom(zoom: u8, served_zoom: u8) -> bool {
+    served_zoom
+        .checked_sub(zoom)
+        .is_some_and(|d| OVERVIEW_LEVELS.contains(&d))
+}
+
+/// The zooms of far views, finest first.
+pub fn overview_zooms(served_zoom: u8) -> Vec<u8> {
+    OVERVIEW_LEVELS
+        .iter()
+        .filter_map(|&d| served_zoom.checked_sub(d))
+        .collect()
+}
+
+/// How far a tile is generalised.
+#[derive(Debug, Clone, Copy)]
+pub struct Level {
+    pub tile: TileId,
+    /// Zooms between the tile and the served zoom (at least one).
+    pub levels_above: u8,
+    /// The box of the OSM data over the tile: a coarse tile reaches past its extracts, and
+    /// where the data ends nothing is known, not even which side of the coast it is.
+    pub data: Option<LonLatBounds>,
+}
+
+impl Level {
+    /// The level of `tile` when the served zoom is `served_zoom` and the OSM data covers the
+    /// boxes of `coverage`.
+    pub fn new(tile: TileId, served_zoom: u8, coverage: &[LonLatBounds]) -> Level {
+        let bounds = tile.bounds();
+        let data = coverage
+            .iter()
+            .filter(|c| c.intersects(&bounds))
+            .copied()
+            .reduce(|a, b| LonLatBounds {
+                west: a.west.min(b.west),
+                south: a.south.min(b.south),
+                east: a.east.max(b.east),
+                north: a.north.max(b.north),
+            });
+        Level {
+            tile,
+            levels_above: served_zoom.saturating_sub(tile.z).max(1),
+            data,
+        }
+    }
+
+    /// The part of the tile (and a little past it) where the sea can be known, in global tile
+    /// units: the tile's square grown as at the served zoom, cut to the data's box.
+    fn sea_rect(&self, projection: &Projection) -> Option<Rect> {
+        let data = self.data?;
+        let corner = |lon: f64, lat: f64| projection.point(crate::osm::LonLat { lon, lat });
+        let [west, north] = corner(data.west, data.north);
+        let [east, south] = corner(data.east, data.south);
+        let tile = tile_rect(self.tile);
+        let margin = super::SEA_BEYOND;
+        let rect = Rect {
+            min: [
+                (tile.min[0] - margin).max(west),
+                (tile.min[1] - margin).max(north),
+            ],
+            max: [
+                (tile.max[0] + margin).min(east),
+                (tile.max[1] + margin).min(south),
+            ],
+        };
+        (rect.min[0] < rect.max[0] && rect.min[1] < rect.max[1]).then_some(rect)
+    }
+
+    /// The simplification tolerance, in global tile units at the tile's zoom.
+    pub fn tolerance_uv(&self) -> f64 {
+        TOLERANCE_PER_TILE
+    }
+
+    /// The tolerance in ground metres at the tile's centre.
+    pub fn tolerance_m(&self) -> f64 {
+        let bounds = self.tile.bounds();
+        let latitude = (bounds.north + bounds.south) / 2.0;
+        self.tile.size_m() * latitude.to_radians().cos() * TOLERANCE_PER_TILE
+    }
+
+    /// The road classes drawn at this level.
+    fn draws_road(&self, highway: &str) -> bool {
+        let base = highway.strip_suffix("_link").unwrap_or(highway);
+        let rank = match base {
+            "motorway" | "trunk" => 0,
+            "primary" => 1,
+            "secondary" => 2,
+            "tertiary" => 3,
+            _ => return false,
+        };
+        let coarsest = match self.levels_above {
+            1 => 3,
+            2 | 3 => 2,
+            4 | 5 => 1,
+            _ => 0,
+        };
+        rank <= coarsest
+    }
+}
+
+/// The generalised features of `level`'s tile.
+pub fn collect(selection: &Selection<'_>, level: Level, settings: &FeatureSettings) -> FeatureSet {
+    let tile = level.tile;
+    let projection = Projection::new(tile.z);
+    let mut set = FeatureSet::default();
+    set.add_feature(None, FeatureClass::Terrain, &Tags::default());
+
+    let simplified = simplify_ways(&selection.ways, &projection, level.tolerance_uv());
+    let coastlines = simplify_ways(&selection.coastlines, &projection, level.tolerance_uv());
+    let generalised = Selection {
+        ways: simplified.iter().collect(),
+        relations: selection.relations.clone(),
+        coastlines: coastlines.iter().collect(),
+        ..Selection::default()
+    };
+    let min_area = (MIN_AREA_TOLERANCES * level.tolerance_uv()).powi(2);
+    for way in &generalised.ways {
+        add_line(&mut set, way, &projection, level);
+    }
+    for area in areas_of(&generalised) {
+        water::add_area(&mut set, &area, &projection);
+        landcover::add_area(&mut set, &area, &projection);
+    }
+    drop_small_pieces(&mut set, min_area);
+    // As at the served zoom: outlines just across an edge weigh the terrain error there too.
+    set.nearby_outlines = set
+        .surfaces
+        .iter()
+        .filter(|s| {
+            matches!(
+                s.class,
+                FeatureClass::Road | FeatureClass::Railway | FeatureClass::Water
+            )
+        })
+        .flat_map(|s| s.outline.iter().cloned())
+        .collect();
+    if let Some(rect) = level.sea_rect(&projection) {
+        super::add_sea_in(
+            &mut set,
+            &generalised,
+            &projection,
+            &rect,
+            super::coastline::CutCoast::Unknown,
+        );
+    }
+    water::drop_waterways_in_water_areas(&mut set);
+    if level.levels_above <= BLOCKS_UP_TO {
+        add_blocks(&mut set, &areas_of(selection), &projection, level, settings);
+    }
+    set.retain_touching(&tile_rect(tile));
+    set
+}
+
+/// The ways with their lines simplified (Ramer–Douglas–Peucker on the projected points, ends
+/// kept); buildings are left out (they become blocks from the ways as mapped).
+fn simplify_ways(ways: &[&Way], projection: &Projection, tolerance: f64) -> Vec<Way> {
+    ways.iter()
+        .filter(|w| !buildings::is_building(&w.tags) && !buildings::is_building_part(&w.tags))
+        .map(|way| {
+            let points = projection.points(&way.positions);
+            let kept = crate::geometry::simplified_indices(&points, tolerance);
+            Way {
+                id: way.id,
+                tags: way.tags.clone(),
+                nodes: kept.iter().map(|&i| way.nodes[i]).collect(),
+                positions: kept.iter().map(|&i| way.positions[i]).collect(),
+            }
+        })
+        .collect()
+}
+
+/// A major road, a railway or a river, widened to at least the level's smallest width.
+fn add_line(set: &mut FeatureSet, way: &Way, projection: &Projection, level: Level) {
+    if way.positions.len() < 2 || super::structures::is_off_ground(&way.tags) || is_area(&way.tags)
+    {
+        return;
+    }
+    let (class, width) = if let Some(highway) = way.tags.get("highway") {
+        if !level.draws_road(highway) {
+            return;
+        }
+        let settings = FeatureSettings::default();
+        (FeatureClass::Road, roads::width_m(&way.tags, &settings))
+    } else if let Some(railway) = way.tags.get("railway") {
+        if !matches!(railway, "rail" | "light_rail" | "narrow_gauge") {
+            return;
+        }
+        let width = railways::width_m(way.tags.get("gauge"), false);
+        (FeatureClass::Railway, Some(width))
+    } else if matches!(way.tags.get("waterway"), Some("river" | "canal")) {
+        water::add_waterway(set, way, projection);
+        return;
+    } else {
+        return;
+    };
+    let Some(width) = width else {
+        return;
+    };
+    let line = projection.points(&way.positions);
+    let min_width = MIN_WIDTH_TOLERANCES * level.tolerance_uv();
+    let half_width = projection
+        .metres(width / 2.0, way.positions[0].lat)
+        .max(min_width / 2.0);
+    let element = ElementRef {
+        element_type: ElementType::Way,
+        id: way.id,
+    };
+    let feature = set.add_feature(Some(element), class, &way.tags);
+    match widened_surface(class, feature, &line, half_width) {
+        Some(mut surface) => {
+            if class == FeatureClass::Road {
+                surface.paving = Some(roads::Paving::from_tags(&way.tags));
+            }
+            set.surfaces.push(surface);
+        }
+        None => {
+            set.features.pop();
+        }
+    }
+}
+
+fn is_area(tags: &Tags) -> bool {
+    tags.get("area") == Some("yes")
+}
+
+/// Leaves out the area pieces smaller than `min_area` (tile units squared), and the surfaces
+/// left without pieces; surfaces drawn along a line keep theirs.
+fn drop_small_pieces(set: &mut FeatureSet, min_area: f64) {
+    set.surfaces.retain_mut(|surface| {
+        if !surface.centreline.is_empty()
+            || !matches!(surface.class, FeatureClass::Water | FeatureClass::LandCover)
+        {
+            return true;
+        }
+        let before = surface.pieces.len();
+        surface.pieces.retain(|p| p.area() >= min_area);
+        if surface.pieces.len() == before {
+            return true;
+        }
+        if surface.pieces.is_empty() {
+            return false;
+        }
+        surface.outline = surface
+            .pieces
+            .iter()
+            .flat_map(|p| p.rings())
+            .map(|ring| {
+                let mut closed = ring.clone();
+                closed.push(ring[0]);
+                closed
+            })
+            .collect();
+        surface.bounds = surface
+            .pieces
+            .iter()
+            .map(Polygon::bounds)
+            .reduce(|a, b| a.union(&b))
+            .unwrap_or(surface.bounds);
+        true
+    });
+}
+
+/// A building footprint with the height it stands to.
+struct Footprint {
+    polygon: Polygon,
+    height_m: f64,
+    area: f64,
+    centre: Point,
+}
+
+/// Adds the blocks the tile owns, built from the buildings of `areas`.
+fn add_blocks(
+    set: &mut FeatureSet,
+    areas: &[Area<'_>],
+    projection: &Projection,
+    level: Level,
+    settings: &FeatureSettings,
+) {
+    let mut bands: Vec<Vec<Footprint>> = (0..=HEIGHT_BANDS_M.len()).map(|_| Vec::new()).collect();
+    for area in areas {
+        if !buildings::is_building(area.tags) {
+            continue;
+        }
+        let (height_m, _) = buildings::height_m(area.tags, settings);
+        let band = HEIGHT_BANDS_M
+            .iter()
+            .position(|&top| height_m < top)
+            .unwrap_or(HEIGHT_BANDS_M.len());
+        for polygon in area.polygons.iter().filter_map(|p| projection.polygon(p)) {
+            let bounds = polygon.bounds();
+            bands[band].push(Footprint {
+                area: polygon.area(),
+                centre: centre_of(&bounds),
+                polygon,
+                height_m,
+            });
+        }
+    }
+    let tile = tile_rect(level.tile);
+    let tags = Tags::from_pairs([("building", "block")]);
+    for footprints in bands.iter().filter(|b| !b.is_empty()) {
+        for (outline, height_m) in blocks_of(footprints, level.tolerance_uv()) {
+            if !tile.owns(centre_of(&outline.bounds())) {
+                continue;
+            }
+            let feature = set.add_feature(None, FeatureClass::Building, &tags);
+            set.buildings
+                .push(block_shape(feature, outline, height_m, settings));
+        }
+    }
+}
+
+fn centre_of(rect: &Rect) -> Point {
+    [
+        (rect.min[0] + rect.max[0]) / 2.0,
+        (rect.min[1] + rect.max[1]) / 2.0,
+    ]
+}
+
+/// A flat-roofed block standing on its lowest ground.
+fn block_shape(
+    feature: u32,
+    footprint: Polygon,
+    height_m: f64,
+    settings: &FeatureSettings,
+) -> BuildingShape {
+    let flat = Tags::from_pairs([("roof:shape", "flat")]);
+    BuildingShape {
+        feature,
+        footprint,
+        height_m,
+        height_tagged: true,
+        basement_m: 0.0,
+        roof: buildings::roof_spec(&flat, settings),
+        min_height_m: 0.0,
+        drawn: true,
+        base: None,
+        appearance: buildings::appearance(&Tags::default()),
+        passages: Vec::new(),
+    }
+}
+
+/// The blocks of one height band: the footprints closed by `tolerance`, simplified, the small
+/// ones left out; each with the area-weighted mean height of the footprints whose centre it
+/// holds.
+fn blocks_of(footprints: &[Footprint], tolerance: f64) -> Vec<(Polygon, f64)> {
+    let all = geo::MultiPolygon::new(footprints.iter().map(|f| to_geo(&f.polygon)).collect());
+    let style = |distance: f64| BufferStyle::new(distance).line_join(LineJoin::Miter(2.0));
+    let closed = all
+        .buffer_with_style(style(tolerance))
+        .buffer_with_style(style(-tolerance));
+    let min_area = (MIN_BLOCK_TOLERANCES * tolerance).powi(2);
+    let mut blocks: Vec<(Polygon, f64)> = closed
+        .0
+        .iter()
+        .map(|p| p.simplify_vw_preserve(tolerance * tolerance))
+        .filter(|p| p.unsigned_area() >= min_area)
+        .filter_map(|p| from_geo(&p))
+        .filter_map(|polygon| {
+            let bounds = polygon.bounds();
+            let (mut weighted, mut total) = (0.0, 0.0);
+            for f in footprints {
+                if bounds.contains(f.centre) && polygon.contains(f.centre) {
+                    weighted += f.height_m * f.area;
+                    total += f.area;
+                }
+            }
+            (total > 0.0).then(|| (polygon, weighted / total))
+        })
+        .collect();
+    // The order the overlay returns them in, made independent of it.
+    blocks.sort_by(|a, b| {
+        let (ka, kb) = (a.0.outer[0], b.0.outer[0]);
+        ka[0].total_cmp(&kb[0]).then(ka[1].total_cmp(&kb[1]))
+    });
+    blocks
+}
+
+fn to_geo(polygon: &Polygon) -> geo::Polygon<f64> {
+    let ring = |points: &[Point]| {
+        geo::LineString::from(points.iter().map(|p| (p[0], p[1])).collect::<Vec<_>>())
+    };
+    geo::Polygon::new(
+        ring(&polygon.outer),
+        polygon.holes.iter().map(|h| ring(h)).collect(),
+    )
+}
+
+fn from_geo(polygon: &geo::Polygon<f64>) -> Option<Polygon> {
+    let ring = |line: &geo::LineString<f64>| {
+        crate::geometry::dedup_ring(&line.coords().map(|c| [c.x, c.y]).collect::<Vec<_>>())
+    };
+    let outer = ring(polygon.exterior());
+    if outer.len() < 3 {
+        return None;
+    }
+    let holes = polygon
+        .interiors()
+        .iter()
+        .map(ring)
+        .filter(|h| h.len() >= 3)
+        .collect();
+    Some(Polygon { outer, holes })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::osm::LonLat;
+
+    fn way(id: i64, tags: &[(&str, &str)], points: &[(f64, f64)]) -> Way {
+        Way {
+            id,
+            tags: Tags::from_pairs(tags.iter().copied()),
+            nodes: (0..points.len() as i64).map(|i| id * 1000 + i).collect(),
+            positions: points
+                .iter()
+                .map(|&(lon, lat)| LonLat { lon, lat })
+                .collect(),
+        }
+    }
+
+    fn square(x: f64, y: f64, size: f64) -> Polygon {
+        Polygon {
+            outer: vec![[x, y], [x + size, y], [x + size, y + size], [x, y + size]],
+            holes: Vec::new(),
+        }
+    }
+
+    fn footprint(polygon: Polygon, height_m: f64) -> Footprint {
+        let bounds = polygon.bounds();
+        Footprint {
+            area: polygon.area(),
+            centre: centre_of(&bounds),
+            polygon,
+            height_m,
+        }
+    }
+
+    #[test]
+    fn buildings_nearer_than_two_tolerances_merge_into_one_block() {
+        let t = 0.001;
+        let near = [
+            footprint(square(0.0, 0.0, 0.01), 10.0),
+            footprint(square(0.0115, 0.0, 0.01), 20.0),
+        ];
+        let blocks = blocks_of(&near, t);
+        assert_eq!(blocks.len(), 1);
+        // Weighted by area (equal here): the mean.
+        assert!((blocks[0].1 - 15.0).abs() < 1e-9);
+        let far = [
+            footprint(square(0.0, 0.0, 0.01), 10.0),
+            footprint(square(0.0130, 0.0, 0.01), 20.0),
+        ];
+        assert_eq!(blocks_of(&far, t).len(), 2);
+    }
+
+    #[test]
+    fn blocks_smaller_than_the_level_shows_are_left_out() {
+        let t = 0.001;
+        let tiny = [footprint(square(0.0, 0.0, 0.002), 10.0)];
+        assert!(blocks_of(&tiny, t).is_empty());
+        let large = [footprint(square(0.0, 0.0, 0.004), 10.0)];
+        assert_eq!(blocks_of(&large, t).len(), 1);
+    }
+
+    #[test]
+    fn a_block_keeps_its_footprints_outline_within_the_tolerance() {
+        let t = 0.001;
+        // An L of two touching rectangles with a notch far smaller than the tolerance.
+        let l = Polygon {
+            outer: vec![
+                [0.0, 0.0],
+                [0.02, 0.0],
+                [0.02, 0.0001],
+                [0.0201, 0.0001],
+                [0.0201, 0.01],
+                [0.01, 0.01],
+                [0.01, 0.02],
+                [0.0, 0.02],
+            ],
+            holes: Vec::new(),
+        };
+        let blocks = blocks_of(&[footprint(l.clone(), 9.0)], t);
+        assert_eq!(blocks.len(), 1);
+        let block = &blocks[0].0;
+        assert!(block.outer.len() < l.outer.len(), "{:?}", block.outer);
+        for p in &block.outer {
+            let off = l
+                .outer
+                .iter()
+                .zip(l.outer.iter().cycle().skip(1))
+                .map(|(&a, &b)| crate::geometry::distance_to_segment(*p, a, b))
+                .fold(f64::INFINITY, f64::min);
+            assert!(off <= t, "{p:?} lies {off} from the footprint");
+        }
+        assert!((block.area() - l.area()).abs() < 0.02 * l.area());
+    }
+
+    #[test]
+    fn coarser_levels_draw_fewer_road_classes() {
+        let tile = TileId { z: 13, x: 0, y: 0 };
+        let at = |above: u8| Level {
+            tile,
+            levels_above: above,
+            data: None,
+        };
+        assert!(at(1).draws_road("tertiary"));
+        assert!(!at(2).draws_road("tertiary"));
+        assert!(at(2).draws_road("secondary"));
+        assert!(at(4).draws_road("primary_link"));
+        assert!(!at(4).draws_road("secondary"));
+        assert!(at(6).draws_road("motorway"));
+        assert!(!at(6).draws_road("primary"));
+        assert!(!at(1).draws_road("residential"));
+    }
+
+    #[test]
+    fn a_way_is_simplified_alike_whichever_tile_asks() {
+        let projection = Projection::new(12);
+        let wiggly: Vec<(f64, f64)> = (0..50)
+            .map(|i| {
+                let x = 7.40 + f64::from(i) * 0.001;
+                (x, 43.73 + if i % 2 == 0 { 0.0 } else { 0.000_01 })
+            })
+            .collect();
+        let road = way(1, &[("highway", "primary")], &wiggly);
+        let simplified = simplify_ways(&[&road], &projection, TOLERANCE_PER_TILE);
+        assert_eq!(simplified[0].positions.len(), 2);
+        assert_eq!(simplified[0].nodes, vec![1000, 1049]);
+        let building = way(2, &[("building", "yes")], &wiggly);
+        assert!(simplify_ways(&[&building], &projection, TOLERANCE_PER_TILE).is_empty());
+    }
+}

@@ -1,0 +1,147 @@
+//! Tiles for far views: the glb parents at zooms 13, 12, 10 and 8, generalised from the same
+//! data as the zoom-14 content. Neighbours at one level share their edges exactly, as at 14;
+//! every level stays within its size budget; a parent holds fewer, coarser things than its
+//! children together.
+
+mod common;
+
+use common::{decode, ground_edge, render_in_process, repo, DecodedTile};
+
+/// Largest glb-meshopt parent tile allowed, bytes.
+const PARENT_BUDGET: usize = 1_500_000;
+
+fn render(tile: &str, variant: &str, out: &std::path::Path) -> Vec<u8> {
+    render_in_process(
+        tile,
+        &[
+            "--variant".as_ref(),
+            variant.as_ref(),
+            "--srtm".as_ref(),
+            repo().join("data").as_os_str(),
+        ],
+        out,
+    )
+}
+
+fn triangles(tile: &DecodedTile) -> usize {
+    tile.placed_nodes()
+        .flat_map(|(_, primitives)| primitives)
+        .map(|p| p.indices.len() / 3)
+        .sum()
+}
+
+/// Pairs inside the data, where its coastline is whole on both sides: where the extract cuts a
+/// coastline open, a coarse tile past its end has no sea, and the tile holding the cut may.
+#[test]
+fn neighbouring_parents_share_their_edges_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    for (z, pairs) in [
+        (
+            13,
+            vec![((4264, 2986), (4265, 2986)), ((4264, 2986), (4264, 2987))],
+        ),
+        (12, vec![((2132, 1493), (2132, 1494))]),
+    ] {
+        for ((ax, ay), (bx, by)) in pairs {
+            let a = decode(&render(&format!("{z}/{ax}/{ay}"), "glb", dir.path()));
+            let b = decode(&render(&format!("{z}/{bx}/{by}"), "glb", dir.path()));
+            let (mine, theirs) = if bx > ax {
+                ("east", "west")
+            } else {
+                ("south", "north")
+            };
+            let (ea, eb) = (ground_edge(&a, mine), ground_edge(&b, theirs));
+            assert!(
+                ea.len() >= 2,
+                "{z}/{ax}/{ay} has {} edge vertices",
+                ea.len()
+            );
+            assert!(
+                ea == eb,
+                "{z}/{ax}/{ay} {mine} edge ({} vertices) differs from {z}/{bx}/{by} ({}): only in the first {:?}, only in the second {:?}",
+                ea.len(),
+                eb.len(),
+                ea.difference(&eb).take(3).collect::<Vec<_>>(),
+                eb.difference(&ea).take(3).collect::<Vec<_>>()
+            );
+        }
+    }
+}
+
+#[test]
+fn every_level_of_far_views_stays_within_its_budget_and_is_coarser_than_the_next() {
+    let dir = tempfile::tempdir().unwrap();
+    // The tile over Monaco at each level, finest first.
+    let levels = [
+        "14/8529/5974",
+        "13/4264/2987",
+        "12/2132/1493",
+        "10/533/373",
+        "8/133/93",
+    ];
+    let mut buildings_before = usize::MAX;
+    for (k, tile) in levels.iter().enumerate() {
+        let bytes = render(tile, "glb-meshopt", dir.path());
+        let plain = decode(&render(tile, "glb", dir.path()));
+        let triangles = triangles(&plain);
+        let buildings = plain
+            .features
+            .iter()
+            .filter(|f| f.class == "building")
+            .count();
+        eprintln!(
+            "{tile}: {} bytes with meshopt, {triangles} triangles, {buildings} buildings",
+            bytes.len()
+        );
+        if k == 0 {
+            buildings_before = buildings;
+            continue;
+        }
+        assert!(
+            bytes.len() <= PARENT_BUDGET,
+            "{tile} takes {} bytes",
+            bytes.len()
+        );
+        assert!(triangles > 0, "{tile} is empty");
+        // Blocks merge buildings: each level has fewer than the one below it (none at 8).
+        assert!(
+            buildings < buildings_before || buildings == 0,
+            "{tile} has {buildings} buildings, the level below {buildings_before}"
+        );
+        buildings_before = buildings;
+        // Blocks have flat roofs: each block's upward faces lie at one height.
+        let mut roofs: std::collections::BTreeMap<u32, (f32, f32)> = Default::default();
+        for primitive in plain.primitives("building") {
+            for [a, b, c] in primitive.triangles() {
+                let [p, q, r] = [a, b, c].map(|i| primitive.positions[i]);
+                let u = [q[0] - p[0], q[1] - p[1], q[2] - p[2]];
+                let v = [r[0] - p[0], r[1] - p[1], r[2] - p[2]];
+                let n = [
+                    u[1] * v[2] - u[2] * v[1],
+                    u[2] * v[0] - u[0] * v[2],
+                    u[0] * v[1] - u[1] * v[0],
+                ];
+                let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                if length == 0.0 || n[1] / length < 0.999 {
+                    continue;
+                }
+                let feature = primitive.feature_ids[a];
+                let y = p[1].max(q[1]).max(r[1]);
+                let entry = roofs.entry(feature).or_insert((y, y));
+                *entry = (entry.0.min(y), entry.1.max(y));
+            }
+        }
+        assert_eq!(
+            !roofs.is_empty(),
+            buildings > 0,
+            "{tile}: roofs of {buildings} blocks"
+        );
+        for (feature, (low, high)) in roofs {
+            assert!(
+                high - low < 0.05,
+                "{tile}: block {feature} has level faces from {low} to {high} m"
+            );
+        }
+    }
+    assert_eq!(buildings_before, 0, "buildings drawn at zoom 8");
+}
