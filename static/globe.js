@@ -1,17 +1,26 @@
 // The served tiles on a CesiumJS globe, loaded as a 3D Tiles 1.1 tileset (`/tileset.json`):
 // content in east-north-up frames placed by each tile's transform, features picked from the
-// tile's EXT_structural_metadata table. No imagery or terrain service is asked for: the globe is
-// the bare WGS 84 ellipsoid, on which SRTM heights stand at sea level as in the flat viewer.
+// tile's EXT_structural_metadata table. The globe's surface is the server's own quantized-mesh
+// terrain (`/layer.json`), made from the same ground as the content, so the content sits on it
+// (lifted by `CONTENT_LIFT_M`, a drawing bias only: where the two surfaces are the same
+// triangles, the content's are drawn in front). Parents of the tileset carry coarse content, so
+// a view from far away shows the data before the zoom-14 tiles open. No imagery is asked for.
 //
-// Query: ?compress=none for uncompressed content (meshopt by default); the URL hash
-// `#lat,lon,height` sets where the camera looks from (else the centre of the server's data).
+// Query: ?compress=none for uncompressed content (meshopt by default); ?terrain=none for the
+// bare WGS 84 ellipsoid instead of the server's terrain; the URL hash `#lat,lon,height` sets where
+// the camera looks from (else the centre of the server's data), `#lat,lon,height,pitch` also how
+// steeply (degrees, -90 straight down; -45 by default).
 /* global Cesium */
 
 const params = new URLSearchParams(window.location.search);
 const compress = params.get('compress') ?? 'meshopt';
+const ownTerrain = params.get('terrain') !== 'none';
+/** How far the content is drawn above the terrain it shares its ground with, metres. */
+const CONTENT_LIFT_M = 0.5;
 const status = document.getElementById('status');
 
 const stats = {
+  terrain: null,
   loaded: [],
   failed: [],
   allLoaded: false,
@@ -33,6 +42,19 @@ const viewer = new Cesium.Viewer('globe', {
   selectionIndicator: false,
   terrainProvider: new Cesium.EllipsoidTerrainProvider(),
 });
+if (ownTerrain) {
+  try {
+    viewer.terrainProvider = await Cesium.CesiumTerrainProvider.fromUrl('.', {
+      requestVertexNormals: true,
+    });
+    stats.terrain = 'server';
+  } catch (error) {
+    // An archive of glb tiles has no terrain: the ellipsoid stays.
+    stats.terrain = `ellipsoid (${error.message ?? error})`;
+  }
+} else {
+  stats.terrain = 'ellipsoid';
+}
 viewer.scene.globe.baseColor = Cesium.Color.fromCssColorString('#28435f');
 viewer.scene.globe.depthTestAgainstTerrain = false;
 
@@ -44,7 +66,7 @@ function showError(message) {
 function viewFromHash() {
   const parts = window.location.hash.slice(1).split(',').map(Number);
   if (parts.length >= 2 && parts.every(Number.isFinite)) {
-    return { lat: parts[0], lon: parts[1], height: parts[2] ?? 1500 };
+    return { lat: parts[0], lon: parts[1], height: parts[2] ?? 1500, pitch: parts[3] ?? -45 };
   }
   return null;
 }
@@ -107,6 +129,14 @@ let tileset = null;
 try {
   tileset = await Cesium.Cesium3DTileset.fromUrl(`tileset.json?compress=${encodeURIComponent(compress)}`);
   viewer.scene.primitives.add(tileset);
+  if (stats.terrain === 'server') {
+    // Up at the tileset's centre, by the lift.
+    const centre = tileset.boundingSphere.center;
+    const up = Cesium.Ellipsoid.WGS84.geodeticSurfaceNormal(centre, new Cesium.Cartesian3());
+    tileset.modelMatrix = Cesium.Matrix4.fromTranslation(
+      Cesium.Cartesian3.multiplyByScalar(up, CONTENT_LIFT_M, up),
+    );
+  }
   tileset.tileLoad.addEventListener((tile) => {
     stats.loaded.push(tile.content.url.replace(/^.*3dtiles\//, ''));
   });
@@ -140,7 +170,7 @@ async function dataCentre() {
 
 // Where the URL says, else over the server's data, else Monte-Carlo (the bundled sample).
 const start = viewFromHash() ?? (await dataCentre()) ?? { lat: 43.7384, lon: 7.4246, height: 1500 };
-lookAt(start.lat, start.lon, start.height);
+lookAt(start.lat, start.lon, start.height, start.pitch ?? -45);
 
 window.terrastitchGlobe = {
   viewer,

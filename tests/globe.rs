@@ -161,3 +161,70 @@ async fn three_d_tiles_renderer_js_loads_the_tileset_and_finds_the_building_in_p
     );
     server.stop().await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_globe_shows_the_data_from_far_and_near_on_its_own_terrain() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    // The data's box: from 15 km, straight down on the middle of its northern half (the lower
+    // half of the view then lies on the data, a strip 7 km deep); from 2 km, at 45° on Monaco.
+    let description: serde_json::Value = reqwest::get(server.url("/tiles.json"))
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let b: Vec<f64> = description["bounds"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let (lon, lat) = building_centre(&server).await;
+    let far = format!(
+        "{},{},15000,-90",
+        (b[1] + b[3]) / 2.0 + (b[3] - b[1]) / 4.0,
+        (b[0] + b[2]) / 2.0
+    );
+    let near = format!("{lat},{lon},2000,-45");
+    let artifacts = repo().join("tests/artifacts/globe");
+    let report = browser_check(
+        "globe_far_check.mjs",
+        "globe",
+        vec![server.url("/"), artifacts.display().to_string(), far, near],
+    )
+    .await;
+    let text = serde_json::to_string_pretty(&report).unwrap();
+    std::fs::write(artifacts.join("far.json"), &text).unwrap();
+    assert!(report["error"].is_null(), "{text}");
+    assert_eq!(report["pageErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["consoleErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["failedRequests"], serde_json::json!([]), "{text}");
+    let views = report["views"].as_array().unwrap();
+    assert_eq!(views.len(), 4, "{text}");
+    for view in views {
+        let height = view["height"].as_u64().unwrap();
+        assert_eq!(view["terrain"], "server", "{text}");
+        // Content over at least half of the lower half of the view.
+        let covered = view["pixels"]["contentFraction"].as_f64().unwrap();
+        assert!(covered >= 0.5, "{height} m: {covered}\n{text}");
+        let zooms: Vec<u64> = view["drawnZooms"]
+            .as_object()
+            .unwrap()
+            .keys()
+            .map(|z| z.parse().unwrap())
+            .collect();
+        // From far, the parents alone; near, the zoom-14 content.
+        match height {
+            15000 => assert!(zooms.iter().all(|&z| z < 14), "{zooms:?}\n{text}"),
+            _ => assert!(zooms.contains(&14), "{zooms:?}\n{text}"),
+        }
+        println!(
+            "globe from {height} m ({}): settled in {} ms, content over {:.0} % of the lower half, zooms {zooms:?}",
+            view["pass"].as_str().unwrap(),
+            view["settledMs"],
+            covered * 100.0
+        );
+    }
+    server.stop().await;
+}

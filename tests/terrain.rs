@@ -270,8 +270,8 @@ async fn every_coarser_level_is_served_as_terrain_alone() {
     // The error bound doubles with each coarser level: no level is the dense grid of samples
     // (131,072 triangles).
     assert!(triangles.iter().all(|&t| t < 50_000), "{triangles:?}");
-    // Only terrain is served above zoom 14: glb and finer terrain are not.
-    for path in ["/tiles/13/4264/2986.glb", "/tiles/15/17058/11946.terrain"] {
+    // Above zoom 14, glb only at the zooms of far views (not 11); finer terrain not at all.
+    for path in ["/tiles/11/1066/746.glb", "/tiles/15/17058/11946.terrain"] {
         let response = fetch(&server, path, "").await;
         assert_eq!(response.status(), 404, "{path}");
         let body: serde_json::Value = response.json().await.unwrap();

@@ -45,3 +45,36 @@ export async function addPixelReader(page) {
     };
   });
 }
+
+/**
+ * On the globe page: how many distinct colours the view has, and the fraction of the lower half
+ * of the view the tileset changes (the same view drawn without it, compared pixel by pixel).
+ */
+export async function globeCoverage(page) {
+  return page.evaluate(() => {
+    const { viewer, tileset } = window.terrastitchGlobe;
+    const read = () => {
+      viewer.render();
+      return window.canvasPixels(viewer.scene.canvas);
+    };
+    const withTiles = read();
+    // The same view without the tileset: what the tiles change is what they draw.
+    tileset.show = false;
+    const bare = read();
+    tileset.show = true;
+    viewer.render();
+    const colours = new Set();
+    let changed = 0;
+    let lower = 0;
+    for (let i = 0; i < withTiles.length; i += 4) {
+      colours.add((withTiles[i] >> 3) << 10 | (withTiles[i + 1] >> 3) << 5 | (withTiles[i + 2] >> 3));
+      if (i / 4 >= (256 * 192) / 2) {
+        lower++;
+        const off = Math.abs(withTiles[i] - bare[i]) + Math.abs(withTiles[i + 1] - bare[i + 1])
+          + Math.abs(withTiles[i + 2] - bare[i + 2]);
+        if (off > 30) changed++;
+      }
+    }
+    return { distinctColours: colours.size, contentFraction: changed / lower };
+  });
+}

@@ -4,7 +4,7 @@
 //   BASE_URL  the server, e.g. http://127.0.0.1:8080/
 //   OUT_DIR   where the screenshots go
 //   LAT LON   a building's centre: the camera looks straight down on it and picks what is there
-import { addPixelReader, launch, watch } from './browser.mjs';
+import { addPixelReader, globeCoverage, launch, watch } from './browser.mjs';
 import { join } from 'node:path';
 
 const [base, outDir, lat, lon] = process.argv.slice(2);
@@ -30,32 +30,7 @@ try {
   await page.waitForTimeout(1500);
   await page.screenshot({ path: join(outDir, 'globe-start.png') });
   result.start = await page.evaluate(() => ({ ...window.terrastitchGlobe.stats }));
-  result.pixels = await page.evaluate(() => {
-    const { viewer, tileset } = window.terrastitchGlobe;
-    const read = () => {
-      viewer.render();
-      return window.canvasPixels(viewer.scene.canvas);
-    };
-    const withTiles = read();
-    // The same view without the tileset: what the tiles change is what they draw.
-    tileset.show = false;
-    const bare = read();
-    tileset.show = true;
-    viewer.render();
-    const colours = new Set();
-    let changed = 0;
-    let lower = 0;
-    for (let i = 0; i < withTiles.length; i += 4) {
-      colours.add((withTiles[i] >> 3) << 10 | (withTiles[i + 1] >> 3) << 5 | (withTiles[i + 2] >> 3));
-      if (i / 4 >= (256 * 192) / 2) {
-        lower++;
-        const off = Math.abs(withTiles[i] - bare[i]) + Math.abs(withTiles[i + 1] - bare[i + 1])
-          + Math.abs(withTiles[i + 2] - bare[i + 2]);
-        if (off > 30) changed++;
-      }
-    }
-    return { distinctColours: colours.size, contentFraction: changed / lower };
-  });
+  result.pixels = await globeCoverage(page);
 
   // Straight down on the building: the feature at the centre must be it.
   await page.evaluate(([la, lo]) => window.terrastitchGlobe.lookAt(la, lo, 400, -90),
