@@ -1,5 +1,9 @@
 // The terrastitch viewer: streams the zoom-14 glb tiles around the camera and places each by
-// translation in one shared Web Mercator frame, where neighbours meet exactly.
+// translation in one shared Web Mercator frame, where neighbours meet exactly. Farther away it
+// draws the server's coarser tiles for far views (zooms 13, 12, 10, 8, as `/tiles.json` lists
+// them in `far_zooms`): the tiles drawn are the leaves of a quadtree split wherever a tile is
+// near the camera for its size, and a tile not yet loaded is stood in for by its nearest loaded
+// ancestor, so the view is never empty where data is.
 //
 // World frame: x east and z south in Web Mercator metres from the north-west corner of the
 // origin tile, y up (elevation times the Mercator scale factor, as in the tiles).
@@ -26,8 +30,18 @@ const START = (() => {
   return Number.isFinite(lon) && Number.isFinite(lat) && Math.abs(lat) <= 85
     ? { ...view, lat, lon } : view;
 })();
+/** The zooms drawn, coarsest first: the server's far views, then its tiles. */
+const LEVELS = [
+  ...(Array.isArray(DESCRIPTION?.far_zooms) ? DESCRIPTION.far_zooms : [])
+    .filter((z) => Number.isInteger(z) && z < ZOOM)
+    .sort((a, b) => a - b),
+  ZOOM,
+];
+/** A tile is split into the next level's while the camera's distance to the point looked at,
+ * plus the distance from that point to the tile, is under this many times the tile's size. */
+const SPLIT = 0.8;
 /** Tiles kept loaded; the least recently wanted beyond this are dropped and their GPU memory freed. */
-const MAX_LOADED = 36;
+const MAX_LOADED = 64;
 /** Tile requests in flight at once. */
 const MAX_FETCHES = 4;
 
@@ -78,7 +92,7 @@ container.appendChild(renderer.domElement);
 
 const scene = new THREE.Scene();
 scene.fog = new THREE.Fog(0xc9d6e3, 6000, 16000);
-const camera = new THREE.PerspectiveCamera(45, container.clientWidth / container.clientHeight, 2, 60000);
+const camera = new THREE.PerspectiveCamera(45, container.clientWidth / container.clientHeight, 2, 400000);
 
 const sunDirection = new THREE.Vector3();
 // The sun, with soft shadows over the 3 km around the point looked at (a 4096² map: 0.7 m a
@@ -145,7 +159,8 @@ controls.dampingFactor = 0.12;
 controls.screenSpacePanning = false;
 controls.maxPolarAngle = THREE.MathUtils.degToRad(85);
 controls.minDistance = 30;
-controls.maxDistance = 12000;
+// Far enough to see a whole region where the server draws far views.
+controls.maxDistance = LEVELS.length > 1 ? 150000 : 12000;
 
 function setView(view) {
   const target = worldFromLonLat(view.lon, view.lat, view.elevation ?? 60);
@@ -235,7 +250,8 @@ const COMPRESS = (() => {
 const loader = new GLTFLoader();
 loader.setMeshoptDecoder(MeshoptDecoder);
 
-/** key "x/y" → { x, y, state: 'loading' | 'loaded' | 'failed', group, table, wanted } */
+/** key "z/x/y" → { z, x, y, state: 'queued' | 'loading' | 'loaded' | 'failed', group, table,
+ * wanted } */
 const tiles = new Map();
 let fetching = 0;
 let wantedStamp = 0;
@@ -258,41 +274,129 @@ function showError(message) {
   showError.timer = setTimeout(() => { errorBox.textContent = ''; }, 8000);
 }
 
-/** The tiles around the camera's target, nearest first. */
+/** Zoom-14 tile units per tile of zoom `z`. */
+function span(z) {
+  return 2 ** (ZOOM - z);
+}
+
+function keyOf(tile) {
+  return `${tile.z}/${tile.x}/${tile.y}`;
+}
+
+/** Whether a tile of zoom `z` meets the server's data (far views are made only there). */
+function meetsData(z, x, y) {
+  const bounds = DESCRIPTION?.bounds;
+  if (!Array.isArray(bounds) || bounds.length < 4) return true;
+  const f = span(z);
+  const [west, north] = uvToLonLat(x * f, y * f);
+  const [east, south] = uvToLonLat((x + 1) * f, (y + 1) * f);
+  return west < bounds[2] && east > bounds[0] && south < bounds[3] && north > bounds[1];
+}
+
+/** The tiles to draw, nearest first (`d`: the distance from the point looked at to the tile, in
+ * zoom-14 tiles): the leaves of the quadtree over LEVELS around the camera's target. With no
+ * far views, the zoom-14 tiles within one to three tiles, by the camera's distance. */
 function wantedTiles() {
   const [u, v] = [controls.target.x / TILE_M + origin.x, controls.target.z / TILE_M + origin.y];
   const distance = camera.position.distanceTo(controls.target);
-  const radius = THREE.MathUtils.clamp(Math.ceil(distance / TILE_M), 1, 3);
-  const cx = Math.floor(u);
-  const cy = Math.floor(v);
   const wanted = [];
+  const nearest = (z, x, y) => {
+    const f = span(z);
+    const dx = Math.max(x * f - u, 0, u - (x + 1) * f);
+    const dy = Math.max(y * f - v, 0, v - (y + 1) * f);
+    return Math.hypot(dx, dy);
+  };
+  const visit = (level, x, y) => {
+    const z = LEVELS[level];
+    const limit = 2 ** z;
+    if (x < 0 || y < 0 || x >= limit || y >= limit) return;
+    if (z < ZOOM && !meetsData(z, x, y)) return;
+    const d = nearest(z, x, y);
+    const next = LEVELS[level + 1];
+    if (next !== undefined && d * TILE_M + distance < SPLIT * span(z) * TILE_M) {
+      const k = 2 ** (next - z);
+      for (let dy = 0; dy < k; dy++) {
+        for (let dx = 0; dx < k; dx++) visit(level + 1, x * k + dx, y * k + dy);
+      }
+      return;
+    }
+    wanted.push({ z, x, y, d });
+  };
+  const top = LEVELS[0];
+  const radius = top === ZOOM ? THREE.MathUtils.clamp(Math.ceil(distance / TILE_M), 1, 3) : 1;
+  const cx = Math.floor(u / span(top));
+  const cy = Math.floor(v / span(top));
   for (let y = cy - radius; y <= cy + radius; y++) {
     for (let x = cx - radius; x <= cx + radius; x++) {
-      if (x < 0 || y < 0 || x >= TILES_PER_AXIS || y >= TILES_PER_AXIS) continue;
-      const d = Math.hypot(x + 0.5 - u, y + 0.5 - v);
-      wanted.push({ x, y, d });
+      if (top === ZOOM) {
+        const d = Math.hypot(x + 0.5 - u, y + 0.5 - v);
+        if (x >= 0 && y >= 0 && x < TILES_PER_AXIS && y < TILES_PER_AXIS) wanted.push({ z: ZOOM, x, y, d });
+      } else {
+        visit(0, x, y);
+      }
     }
   }
-  return wanted.sort((a, b) => a.d - b.d);
+  // Nearest first; at one distance (the tiles around the target) the finest first.
+  return wanted.sort((a, b) => a.d - b.d || b.z - a.z);
+}
+
+/** The nearest loaded ancestor of a tile among the levels drawn, or null. */
+function loadedAncestor(tile) {
+  for (let level = LEVELS.indexOf(tile.z) - 1; level >= 0; level--) {
+    const z = LEVELS[level];
+    const f = 2 ** (tile.z - z);
+    const held = tiles.get(`${z}/${Math.floor(tile.x / f)}/${Math.floor(tile.y / f)}`);
+    if (held?.state === 'loaded') return held;
+  }
+  return null;
+}
+
+/** Shows each wanted tile that is loaded, and for one that is not, its nearest loaded ancestor
+ * (kept from eviction); hides every tile under a shown ancestor, and the rest. */
+function updateVisibility(wanted) {
+  const shown = new Set();
+  for (const w of wanted) {
+    const tile = tiles.get(keyOf(w));
+    if (tile?.state === 'loaded') {
+      shown.add(keyOf(tile));
+      continue;
+    }
+    const ancestor = loadedAncestor(w);
+    if (ancestor) {
+      ancestor.wanted = wantedStamp;
+      shown.add(keyOf(ancestor));
+    }
+  }
+  for (const tile of tiles.values()) {
+    if (!tile.group) continue;
+    const covered = loadedAncestor(tile);
+    tile.group.visible = shown.has(keyOf(tile))
+      && !(covered && shown.has(keyOf(covered)));
+  }
+  // Fog recedes as the camera draws back, so far views are not lost in it.
+  const distance = camera.position.distanceTo(controls.target);
+  scene.fog.near = Math.max(6000, distance * 2);
+  scene.fog.far = Math.max(16000, distance * 6);
 }
 
 function scheduleTiles() {
   wantedStamp++;
   const wanted = wantedTiles();
-  for (const { x, y } of wanted) {
-    const key = `${x}/${y}`;
+  for (const w of wanted) {
+    const key = keyOf(w);
     let tile = tiles.get(key);
     if (!tile) {
-      tile = { x, y, state: 'queued', group: null, table: null };
+      tile = { z: w.z, x: w.x, y: w.y, state: 'queued', group: null, table: null };
       tiles.set(key, tile);
     }
     tile.wanted = wantedStamp;
   }
-  for (const { x, y } of wanted) {
+  for (const w of wanted) {
     if (fetching >= MAX_FETCHES) break;
-    const tile = tiles.get(`${x}/${y}`);
+    const tile = tiles.get(keyOf(w));
     if (tile.state === 'queued') loadTile(tile);
   }
+  updateVisibility(wanted);
   evict();
   showStatus();
 }
@@ -300,8 +404,8 @@ function scheduleTiles() {
 async function loadTile(tile) {
   tile.state = 'loading';
   fetching++;
-  const url = `tiles/${ZOOM}/${tile.x}/${tile.y}.glb?compress=${COMPRESS}`;
-  stats.requested.push(`${tile.x}/${tile.y}`);
+  const url = `tiles/${keyOf(tile)}.glb?compress=${COMPRESS}`;
+  stats.requested.push(keyOf(tile));
   showStatus();
   try {
     const response = await fetch(url);
@@ -312,14 +416,16 @@ async function loadTile(tile) {
       } catch (_) {
         // Not JSON: keep the status text.
       }
-      throw new Error(`tile ${ZOOM}/${tile.x}/${tile.y}: ${response.status} ${message}`);
+      throw new Error(`tile ${keyOf(tile)}: ${response.status} ${message}`);
     }
     const gltf = await loader.parseAsync(await response.arrayBuffer(), '');
     const group = gltf.scene;
-    group.position.set((tile.x - origin.x) * TILE_M, 0, (tile.y - origin.y) * TILE_M);
+    const f = span(tile.z);
+    group.position.set((tile.x * f - origin.x) * TILE_M, 0, (tile.y * f - origin.y) * TILE_M);
+    group.visible = false;
     group.userData.tile = tile;
     tile.table = await propertyTable(gltf.parser);
-    if (!tiles.has(`${tile.x}/${tile.y}`)) {
+    if (!tiles.has(keyOf(tile))) {
       dispose(group);
       return;
     }
@@ -328,12 +434,12 @@ async function loadTile(tile) {
     registerClasses(group);
     applyToggles(group);
     scene.add(group);
-    stats.loaded.push(`${tile.x}/${tile.y}`);
-    if (layers.debug) addDebug(tile);
+    stats.loaded.push(keyOf(tile));
+    if (layers.debug && tile.z === ZOOM) addDebug(tile);
     checkFirstView();
   } catch (error) {
     tile.state = 'failed';
-    stats.failed.push({ tile: `${tile.x}/${tile.y}`, error: String(error.message || error) });
+    stats.failed.push({ tile: keyOf(tile), error: String(error.message || error) });
     showError(String(error.message || error));
   } finally {
     fetching--;
@@ -377,8 +483,8 @@ function dispose(object) {
 
 function checkFirstView() {
   if (stats.firstFullView !== null) return;
-  const start = wantedTiles().filter((t) => t.d < 1.6).slice(0, 9);
-  if (start.every(({ x, y }) => tiles.get(`${x}/${y}`)?.state === 'loaded')) {
+  const start = wantedTiles().filter((t) => t.z === ZOOM && t.d < 1.6).slice(0, 9);
+  if (start.every((t) => tiles.get(keyOf(t))?.state === 'loaded')) {
     stats.firstFullView = performance.now() - started;
   }
 }
@@ -442,7 +548,7 @@ function pick(clientX, clientY) {
   const rect = renderer.domElement.getBoundingClientRect();
   pointer.set(((clientX - rect.left) / rect.width) * 2 - 1, -((clientY - rect.top) / rect.height) * 2 + 1);
   raycaster.setFromCamera(pointer, camera);
-  const groups = [...tiles.values()].filter((t) => t.group).map((t) => t.group);
+  const groups = [...tiles.values()].filter((t) => t.group?.visible).map((t) => t.group);
   for (const hit of raycaster.intersectObjects(groups, true)) {
     if (!hit.object.visible || hit.object.isInstancedMesh || !hit.face) continue;
     const ids = hit.object.geometry.getAttribute('_feature_id_0');
@@ -559,7 +665,7 @@ for (const box of document.querySelectorAll('[data-toggle]')) {
       if (!t.group) continue;
       applyToggles(t.group);
       if (box.dataset.toggle === 'debug') {
-        if (box.checked) addDebug(t);
+        if (box.checked && t.z === ZOOM) addDebug(t);
         else if (t.debug) {
           scene.remove(t.debug);
           dispose(t.debug);
@@ -661,7 +767,7 @@ renderer.setAnimationLoop(() => {
 /** Where a feature of the loaded tiles shows on screen, for tests: its first vertex in view. */
 function locate(osmId) {
   for (const tile of tiles.values()) {
-    if (!tile.group || !tile.table) continue;
+    if (!tile.group?.visible || !tile.table) continue;
     const rows = tile.table.rowsOf(osmId);
     if (rows.size === 0) continue;
     let found = null;

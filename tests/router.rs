@@ -62,6 +62,7 @@ impl TileProvider for Fake {
             only: None,
             open_ended: false,
             terrain_cells: None,
+            far_zooms: Vec::new(),
         }
     }
 

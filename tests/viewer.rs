@@ -44,7 +44,7 @@ async fn the_viewer_streams_tiles_and_shows_what_is_clicked() {
     assert!(loaded.len() >= 9, "{text}");
     for x in 8528..=8530 {
         for y in 5972..=5974 {
-            let key = serde_json::json!(format!("{x}/{y}"));
+            let key = serde_json::json!(format!("14/{x}/{y}"));
             assert!(loaded.contains(&key), "{x}/{y} not loaded: {text}");
         }
     }
@@ -82,11 +82,26 @@ async fn the_viewer_streams_tiles_and_shows_what_is_clicked() {
             .starts_with("#43.7"),
         "{text}"
     );
+    // Drawn back to 40 km, the view is made of the far-view tiles, with nothing failed.
+    let shown: Vec<u8> = report["far"]["shownZooms"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(|z| z.parse().unwrap())
+        .collect();
+    assert!(shown.iter().any(|&z| z <= 12), "{text}");
+    assert!(!shown.contains(&14), "{text}");
+    assert!(
+        report["far"]["pixels"]["distinctColours"].as_u64().unwrap() > 50,
+        "{text}"
+    );
     println!(
-        "first full view {} ms, {:.2} frames/s while turning ({})",
+        "first full view {} ms, {:.2} frames/s while turning ({}); from 40 km, zooms {:?} settled in {} ms",
         report["steps"]["firstFullViewMs"],
         report["steps"]["framesPerSecond"],
-        report["glRenderer"]
+        report["glRenderer"],
+        report["far"]["shownZooms"],
+        report["far"]["settledMs"]
     );
     server.stop().await;
 }
@@ -139,7 +154,10 @@ async fn both_viewers_open_on_the_data_of_a_server_of_another_region() {
     assert!(refused.is_empty(), "answered with an error: {refused:?}");
     // The viewer loaded the data's tile, and keeps the place in its URL.
     let loaded = report["viewer"]["loaded"].as_array().unwrap();
-    assert!(loaded.contains(&serde_json::json!("8647/5668")), "{text}");
+    assert!(
+        loaded.contains(&serde_json::json!("14/8647/5668")),
+        "{text}"
+    );
     assert_eq!(report["viewer"]["failed"], serde_json::json!([]), "{text}");
     assert!(
         report["viewer"]["hash"]

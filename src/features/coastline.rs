@@ -166,20 +166,9 @@ pub struct Sea {
     pub coast: Vec<Vec<Point>>,
 }
 
-/// What to make of a tile no coastline crosses where a coastline ends inside it (the extract
-/// cut it open).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CutCoast {
-    /// Decide the tile by the nearest coastline, as if no coastline ended in it.
-    Nearest,
-    /// Leave it without sea: past the end of the data, which side is water is not known.
-    Unknown,
-}
-
 /// The sea inside `rect` (global tile units), from the coastline chains that cross or lie in it;
 /// `all` gives every coastline chain known, to decide a tile no coastline crosses.
-pub fn sea(near: &[Chain], all: &dyn Fn() -> Vec<Chain>, rect: &Rect, cut: CutCoast) -> Sea {
-    let mut cut_open = false;
+pub fn sea(near: &[Chain], all: &dyn Fn() -> Vec<Chain>, rect: &Rect) -> Sea {
     let mut crossing: Vec<(Piece, f64, f64)> = Vec::new();
     let mut rings: Vec<Vec<Point>> = Vec::new();
     let mut coast = Vec::new();
@@ -196,13 +185,10 @@ pub fn sea(near: &[Chain], all: &dyn Fn() -> Vec<Chain>, rect: &Rect, cut: CutCo
                     ring.pop();
                     rings.push(ring);
                 }
-                _ => {
-                    cut_open = true;
-                    tracing::debug!(
-                        at = ?first,
-                        "coastline ends inside the tile (cut by the extract); left out"
-                    )
-                }
+                _ => tracing::debug!(
+                    at = ?first,
+                    "coastline ends inside the tile (cut by the extract); left out"
+                ),
             }
         }
     }
@@ -213,7 +199,7 @@ pub fn sea(near: &[Chain], all: &dyn Fn() -> Vec<Chain>, rect: &Rect, cut: CutCo
     let surrounded_by_sea = if crossing.is_empty() {
         if !islands.is_empty() {
             true
-        } else if !enclosed.is_empty() || (cut_open && cut == CutCoast::Unknown) {
+        } else if !enclosed.is_empty() {
             false
         } else {
             let centre = [
@@ -388,7 +374,6 @@ mod tests {
             std::slice::from_ref(chain),
             &|| vec![chain.clone()],
             &unit(),
-            CutCoast::Nearest,
         )
         .polygons
     }
@@ -454,35 +439,13 @@ mod tests {
             min: [0.0, 0.0],
             max: [1.0, 1.0],
         };
-        assert_eq!(
-            area(&sea(&[], &|| vec![coast.clone()], &far, CutCoast::Nearest).polygons),
-            1.0
-        );
+        assert_eq!(area(&sea(&[], &|| vec![coast.clone()], &far).polygons), 1.0);
         let reversed = open(&[[10.0, -3.0], [-10.0, -3.0]]);
-        assert!(
-            sea(&[], &|| vec![reversed.clone()], &far, CutCoast::Nearest)
-                .polygons
-                .is_empty()
-        );
-        // No coastline anywhere: land.
-        assert!(sea(&[], &Vec::new, &far, CutCoast::Nearest)
+        assert!(sea(&[], &|| vec![reversed.clone()], &far)
             .polygons
             .is_empty());
-    }
-
-    #[test]
-    fn a_tile_where_the_data_cuts_the_coast_open_is_sea_only_when_told_to_guess() {
-        // A coastline entering the tile and ending inside it, the far coast on its sea side.
-        let cut = open(&[[-1.0, 0.2], [0.3, 0.2]]);
-        let far = open(&[[-10.0, -3.0], [10.0, -3.0]]);
-        let all = || vec![cut.clone(), far.clone()];
-        let near = std::slice::from_ref(&cut);
-        let guessed = sea(near, &all, &unit(), CutCoast::Nearest);
-        assert_eq!(area(&guessed.polygons), 1.0);
-        let unknown = sea(near, &all, &unit(), CutCoast::Unknown);
-        assert!(unknown.polygons.is_empty());
-        // The coast drawn is the same either way.
-        assert_eq!(guessed.coast, unknown.coast);
+        // No coastline anywhere: land.
+        assert!(sea(&[], &Vec::new, &far).polygons.is_empty());
     }
 
     #[test]
@@ -549,7 +512,7 @@ mod tests {
                 })
                 .collect();
             let all = chains.clone();
-            let sea = sea(&chains, &|| all.clone(), &unit(), CutCoast::Nearest);
+            let sea = sea(&chains, &|| all.clone(), &unit());
             for polygon in &sea.polygons {
                 proptest::prop_assert!(polygon.outer.len() >= 3);
                 for p in polygon.outer.iter().chain(polygon.holes.iter().flatten()) {

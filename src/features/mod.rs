@@ -495,13 +495,7 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, tile: TileId, projec
         min: [rect.min[0] - SEA_BEYOND, rect.min[1] - SEA_BEYOND],
         max: [rect.max[0] + SEA_BEYOND, rect.max[1] + SEA_BEYOND],
     };
-    add_sea_in(
-        set,
-        selection,
-        projection,
-        &beyond,
-        coastline::CutCoast::Nearest,
-    );
+    add_sea_in(set, selection, projection, &beyond);
 }
 
 /// The sea inside `beyond` from the coastlines, as one water surface.
@@ -510,7 +504,6 @@ fn add_sea_in(
     selection: &Selection<'_>,
     projection: &Projection,
     beyond: &Rect,
-    cut: coastline::CutCoast,
 ) {
     let project = |way: &crate::osm::Way| projection.points(&way.positions);
     let near_ways: Vec<&crate::osm::Way> = selection
@@ -521,7 +514,7 @@ fn add_sea_in(
         .collect();
     let near = coastline::chains(&near_ways, &project);
     let all = || coastline::chains(&selection.coastlines, &project);
-    let sea = coastline::sea(&near, &all, beyond, cut);
+    let sea = coastline::sea(&near, &all, beyond);
     // The whole coast near the tile weighs the terrain error, also just across an edge.
     set.nearby_outlines
         .extend(near.into_iter().map(|chain| chain.points));

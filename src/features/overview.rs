@@ -4,8 +4,9 @@
 //! * every line and ring is simplified to the level's tolerance (a 1,024th of the tile's ground
 //!   size) before the feature families read it, so a way is simplified alike in every tile it
 //!   crosses, and neighbours' edges meet where its outline crosses them;
-//! * land cover and water areas, the sea and rivers, as at the served zoom, without the areas
-//!   smaller than the level can show;
+//! * land cover and water areas and rivers, as at the served zoom, without the areas smaller
+//!   than the level can show; the sea as the union of the seas the served-zoom tiles under the
+//!   tile find, over the part of it the OSM data covers;
 //! * major roads and railways (fewer classes the coarser the level), widened to at least one and
 //!   a half tolerances so they stay visible, draped on the ground;
 //! * buildings merged into blocks: the footprints of one height band are closed (grown by a
@@ -21,8 +22,8 @@ use geo::{Area as _, Buffer, SimplifyVwPreserve};
 
 use super::buildings;
 use super::{
-    areas_of, landcover, railways, roads, tile_rect, water, widened_surface, Area, BuildingShape,
-    FeatureClass, FeatureSet, FeatureSettings, Projection,
+    areas_of, coastline, landcover, railways, roads, tile_rect, water, widened_surface, Area,
+    BuildingShape, FeatureClass, FeatureSet, FeatureSettings, Projection,
 };
 use crate::geometry::{Point, Polygon, Rect};
 use crate::osm::index::Selection;
@@ -184,21 +185,172 @@ pub fn collect(selection: &Selection<'_>, level: Level, settings: &FeatureSettin
         })
         .flat_map(|s| s.outline.iter().cloned())
         .collect();
-    if let Some(rect) = level.sea_rect(&projection) {
-        super::add_sea_in(
-            &mut set,
-            &generalised,
-            &projection,
-            &rect,
-            super::coastline::CutCoast::Unknown,
-        );
-    }
+    add_sea(&mut set, &generalised, level, &projection);
     water::drop_waterways_in_water_areas(&mut set);
     if level.levels_above <= BLOCKS_UP_TO {
         add_blocks(&mut set, &areas_of(selection), &projection, level, settings);
     }
     set.retain_touching(&tile_rect(tile));
     set
+}
+
+/// The sea of the tile: the union of the seas its served-zoom tiles find, each decided as that
+/// tile decides it (so a parent shows the sea its children show, also where the extract cuts a
+/// coastline open), over the part of the tile the data covers. Cells wholly at sea along a row
+/// are joined into one piece; the coast's runs are the outline.
+fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, level: Level, projection: &Projection) {
+    let Some(rect) = level.sea_rect(projection) else {
+        return;
+    };
+    let project = |way: &Way| projection.points(&way.positions);
+    let near_ways: Vec<&Way> = selection
+        .ways
+        .iter()
+        .copied()
+        .filter(|w| coastline::is_coastline(w))
+        .collect();
+    let near = coastline::chains(&near_ways, &project);
+    if near.is_empty() && selection.coastlines.is_empty() {
+        return;
+    }
+    let all = coastline::chains(&selection.coastlines, &project);
+    let near_bounds: Vec<Rect> = near.iter().map(|c| Rect::around(&c.points)).collect();
+    let cells = 1u32 << level.levels_above.min(MAX_SEA_LEVELS);
+    let tile = tile_rect(level.tile);
+    let mut pieces: Vec<Polygon> = Vec::new();
+    let mut coast: Vec<Vec<Point>> = Vec::new();
+    for row in 0..cells {
+        // A run of cells wholly at sea, joined as it grows: (first cell's min u, last's max u).
+        let mut open_run: Option<Rect> = None;
+        for column in 0..cells {
+            let (u0, u1) = cell_span(column, cells, tile.min[0], rect.min[0], rect.max[0]);
+            let (v0, v1) = cell_span(row, cells, tile.min[1], rect.min[1], rect.max[1]);
+            let cell = Rect {
+                min: [u0, v0],
+                max: [u1, v1],
+            };
+            if cell.min[0] >= cell.max[0] || cell.min[1] >= cell.max[1] {
+                continue;
+            }
+            let crossing: Vec<coastline::Chain> = near
+                .iter()
+                .zip(&near_bounds)
+                .filter(|(_, b)| b.intersects(&cell))
+                .map(|(c, _)| c.clone())
+                .collect();
+            let sea = coastline::sea(&crossing, &|| all.clone(), &cell);
+            coast.extend(sea.coast);
+            let whole = sea.polygons.len() == 1
+                && sea.polygons[0].holes.is_empty()
+                && (sea.polygons[0].area() - area_of(&cell)).abs() <= 1e-12 * area_of(&cell);
+            if whole {
+                open_run = Some(match open_run {
+                    Some(run) if run.max[0] == cell.min[0] && run.min[1] == cell.min[1] => Rect {
+                        min: run.min,
+                        max: [cell.max[0], run.max[1].max(cell.max[1])],
+                    },
+                    Some(run) => {
+                        pieces.push(rectangle(&run));
+                        cell
+                    }
+                    None => cell,
+                });
+                continue;
+            }
+            if let Some(run) = open_run.take() {
+                pieces.push(rectangle(&run));
+            }
+            pieces.extend(sea.polygons);
+        }
+        if let Some(run) = open_run.take() {
+            pieces.push(rectangle(&run));
+        }
+    }
+    set.nearby_outlines
+        .extend(near.into_iter().map(|c| c.points));
+    if pieces.is_empty() {
+        return;
+    }
+    // Where the data ends inside the tile, the sea ends along it: the sides of its pieces there.
+    coast.extend(sides_on(&pieces, &data_edges(&rect, &tile)));
+    let tags = Tags::from_pairs([("natural", "sea")]);
+    let feature = set.add_feature(None, FeatureClass::Water, &tags);
+    match super::Surface::from_parts(FeatureClass::Water, feature, pieces, coast) {
+        Some(mut surface) => {
+            surface.water = Some(water::WaterBody::of(&tags));
+            set.surfaces.push(surface);
+        }
+        None => {
+            set.features.pop();
+        }
+    }
+}
+
+/// Sea cells along one axis at most this many levels below the tile (a 64 × 64 grid).
+const MAX_SEA_LEVELS: u8 = 6;
+
+/// Cell `k` of `cells` along one axis of a tile starting at `start` (one unit long), the first
+/// and last reaching out to `low` and `high` (the tile's margin), cut to `low..high`.
+fn cell_span(k: u32, cells: u32, start: f64, low: f64, high: f64) -> (f64, f64) {
+    let step = 1.0 / f64::from(cells);
+    let from = if k == 0 {
+        low
+    } else {
+        start + f64::from(k) * step
+    };
+    let to = if k + 1 == cells {
+        high
+    } else {
+        start + f64::from(k + 1) * step
+    };
+    (from.max(low), to.min(high))
+}
+
+fn area_of(rect: &Rect) -> f64 {
+    (rect.max[0] - rect.min[0]) * (rect.max[1] - rect.min[1])
+}
+
+fn rectangle(rect: &Rect) -> Polygon {
+    Polygon {
+        outer: vec![
+            rect.min,
+            [rect.max[0], rect.min[1]],
+            rect.max,
+            [rect.min[0], rect.max[1]],
+        ],
+        holes: Vec::new(),
+    }
+}
+
+/// Where the data ends inside `tile`: the lines `u = c` (first) and `v = c` (second) of the
+/// sides of `rect` that cross the tile's inside.
+fn data_edges(rect: &Rect, tile: &Rect) -> (Vec<f64>, Vec<f64>) {
+    let inside = |c: f64, axis: usize| tile.min[axis] < c && c < tile.max[axis];
+    let u = [rect.min[0], rect.max[0]]
+        .into_iter()
+        .filter(|&c| inside(c, 0))
+        .collect();
+    let v = [rect.min[1], rect.max[1]]
+        .into_iter()
+        .filter(|&c| inside(c, 1))
+        .collect();
+    (u, v)
+}
+
+/// The sides of the pieces' rings that lie on the lines `edges`, each as a segment.
+fn sides_on(pieces: &[Polygon], (u, v): &(Vec<f64>, Vec<f64>)) -> Vec<Vec<Point>> {
+    let mut sides = Vec::new();
+    for ring in pieces.iter().flat_map(|p| p.rings()) {
+        for (k, &a) in ring.iter().enumerate() {
+            let b = ring[(k + 1) % ring.len()];
+            let on_u = a[0] == b[0] && u.contains(&a[0]);
+            let on_v = a[1] == b[1] && v.contains(&a[1]);
+            if (on_u || on_v) && a != b {
+                sides.push(vec![a, b]);
+            }
+        }
+    }
+    sides
 }
 
 /// The ways with their lines simplified (Ramer–Douglas–Peucker on the projected points, ends

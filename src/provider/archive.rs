@@ -39,6 +39,7 @@ impl TileProvider for Archive {
             only: Some(self.format),
             open_ended: true,
             terrain_cells: None,
+            far_zooms: Vec::new(),
         }
     }
 

@@ -62,6 +62,8 @@ pub struct Offer {
     pub open_ended: bool,
     /// The SRTM cells whose terrain it has at its zoom; `None` when it offers no terrain layer.
     pub terrain_cells: Option<Vec<CellId>>,
+    /// The coarser zooms it makes glb at for far views, finest first (none for an archive).
+    pub far_zooms: Vec<u8>,
 }
 
 /// Whether a tile can be had now.

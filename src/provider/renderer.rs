@@ -119,6 +119,7 @@ impl TileProvider for Renderer {
             only: None,
             open_ended: self.inputs.can_fetch_srtm(),
             terrain_cells: Some(self.inputs.srtm.cells()),
+            far_zooms: crate::features::overview::overview_zooms(self.zoom),
         }
     }
 

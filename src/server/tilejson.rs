@@ -80,6 +80,7 @@ pub async fn tilejson(
             "terrain_layer": format!("{base}/layer.json"),
             "tileset_3d": format!("{base}/tileset.json"),
             "glb_compressions": compressions,
+            "far_zooms": offer.far_zooms,
         })),
     ))
 }

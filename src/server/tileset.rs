@@ -48,7 +48,7 @@ fn plan(provider: &dyn TileProvider, meshopt: bool) -> Result<Plan, ApiError> {
         coverage: offer.coverage,
         query: query(meshopt),
         list_unknown: offer.open_ended,
-        parent_content: offer.only.is_none(),
+        parent_content: !offer.far_zooms.is_empty(),
     })
 }
 

@@ -118,6 +118,35 @@ try {
   };
   await page.waitForTimeout(1000);
   await page.screenshot({ path: join(outDir, 'viewer-moved.png') });
+
+  // Draw back to 40 km: the far-view tiles stand in, and the view settles with nothing loading.
+  await page.evaluate(() => {
+    const v = window.terrastitchViewer.currentView();
+    window.terrastitchViewer.setView({ ...v, distance: 40000, tilt: 40 });
+  });
+  const farStarted = Date.now();
+  await page.waitForFunction(() => {
+    const tiles = [...window.terrastitchViewer.tiles.values()];
+    return tiles.some((t) => t.z < 14 && t.group?.visible)
+      && !tiles.some((t) => t.state === 'loading' || t.state === 'queued');
+  }, null, { timeout: 240000, polling: 200 });
+  await page.waitForTimeout(1000);
+  await page.screenshot({ path: join(outDir, 'viewer-far.png') });
+  result.far = await page.evaluate(() => {
+    const shown = [...window.terrastitchViewer.tiles.values()].filter((t) => t.group?.visible);
+    const zooms = {};
+    for (const t of shown) zooms[t.z] = (zooms[t.z] ?? 0) + 1;
+    return { shownZooms: zooms };
+  });
+  result.far.settledMs = Date.now() - farStarted;
+  result.far.pixels = await page.evaluate(() => {
+    const data = window.canvasPixels(document.querySelector('#map canvas'));
+    const colours = new Set();
+    for (let i = 0; i < data.length; i += 4) {
+      colours.add((data[i] >> 3) << 10 | (data[i + 1] >> 3) << 5 | (data[i + 2] >> 3));
+    }
+    return { distinctColours: colours.size };
+  });
   result.end = await stats();
 } catch (error) {
   result.error = String(error.stack || error);
