@@ -784,6 +784,43 @@ fn export(args: ExportArgs, config: Config) -> Result<()> {
         written.bytes,
         args.output.display()
     );
+    if let export::Target::Directory(directory) = &target {
+        write_directory_tileset(directory, &formats, &bbox, config.server.zoom, &renderer)?;
+    }
+    Ok(())
+}
+
+/// Beside an exported directory of east-north-up glb, `tileset.json`: every tile listed in one
+/// document, its content the files as written, so the folder is a 3D Tiles tileset on any
+/// static host. The first east-north-up variant exported is the content.
+fn write_directory_tileset(
+    directory: &std::path::Path,
+    formats: &[Format],
+    bbox: &LonLatBounds,
+    zoom: u8,
+    provider: &dyn TileProvider,
+) -> Result<()> {
+    use terrastitch::format::Frame;
+    use terrastitch::output::tileset::{Plan, Root};
+    let Some(&enu) = formats
+        .iter()
+        .find(|f| matches!(f, Format::Glb(v) if v.frame == Frame::EastNorthUp))
+    else {
+        return Ok(());
+    };
+    let plan = Plan {
+        content_zoom: zoom,
+        coverage: vec![*bbox],
+        query: String::new(),
+        list_unknown: false,
+        parent_content: false,
+        files: Some(export::file_suffix(enu)),
+    };
+    let heights = |tile: TileId| provider.ground_range(tile);
+    let document = plan.root(&heights, Root::InFolder);
+    let path = directory.join("tileset.json");
+    export::write_whole(&path, document.to_string().as_bytes())?;
+    eprintln!("wrote {}", path.display());
     Ok(())
 }
 

@@ -483,7 +483,13 @@ function dispose(object) {
 
 function checkFirstView() {
   if (stats.firstFullView !== null) return;
-  const start = wantedTiles().filter((t) => t.z === ZOOM && t.d < 1.6).slice(0, 9);
+  // The nine zoom-14 tiles around the one under the point looked at, those of them drawn
+  // (or, in a far view, the nine nearest tiles drawn).
+  const wanted = wantedTiles();
+  const cx = Math.floor(controls.target.x / TILE_M + origin.x);
+  const cy = Math.floor(controls.target.z / TILE_M + origin.y);
+  const around = wanted.filter((t) => t.z === ZOOM && Math.abs(t.x - cx) <= 1 && Math.abs(t.y - cy) <= 1);
+  const start = around.length > 0 ? around : wanted.slice(0, 9);
   if (start.every((t) => tiles.get(keyOf(t))?.state === 'loaded')) {
     stats.firstFullView = performance.now() - started;
   }

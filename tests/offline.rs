@@ -375,6 +375,87 @@ fn an_archive_of_east_north_up_tiles_is_served_as_a_3d_tileset() {
     child.wait().unwrap();
 }
 
+/// An exported directory of east-north-up tiles carries its `tileset.json`: served by a plain
+/// static file server, 3DTilesRendererJS loads it and draws the tiles.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_directory_export_is_a_3d_tileset_on_a_static_host() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache.sqlite");
+    let area = bbox(8528, 8529, 5973, 5974);
+    let out = dir.path().join("site");
+    let target = format!("{}/", out.display());
+    let args = [
+        "export",
+        "--bbox",
+        &area,
+        "--format",
+        "glb-enu-meshopt",
+        "-o",
+        &target,
+    ];
+    let (ok, stderr) = tokio::task::spawn_blocking({
+        let cache = cache.clone();
+        let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        move || run(&args.iter().map(String::as_str).collect::<Vec<_>>(), &cache)
+    })
+    .await
+    .unwrap();
+    assert!(ok, "{stderr}");
+    // The document names every exported file, and only those.
+    let tileset: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("tileset.json")).unwrap()).unwrap();
+    let mut uris = Vec::new();
+    let mut stack = vec![&tileset["root"]];
+    while let Some(tile) = stack.pop() {
+        if let Some(uri) = tile["content"]["uri"].as_str() {
+            assert!(out.join(uri).exists(), "{uri} is not in the folder");
+            uris.push(uri.to_string());
+        }
+        stack.extend(tile["children"].as_array().into_iter().flatten());
+    }
+    uris.sort();
+    assert_eq!(uris.len(), 4, "{uris:?}");
+    assert!(
+        uris.iter().all(|u| u.ends_with(".enu-meshopt.glb")),
+        "{uris:?}"
+    );
+
+    // A static file server, nothing of terrastitch.
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let address = listener.local_addr().unwrap();
+    let site = axum::Router::new().fallback_service(tower_http::services::ServeDir::new(&out));
+    let served = tokio::spawn(async move { axum::serve(listener, site).await });
+    let b: LonLatBounds = area.parse().unwrap();
+    // The middle of the north-western tile (the box's centre is the corner of all four).
+    let (lon, lat) = (
+        b.west + (b.east - b.west) / 4.0,
+        b.north - (b.north - b.south) / 4.0,
+    );
+    let artifacts = common::repo().join("tests/artifacts/export");
+    let report = common::browser_check(
+        "tiles3d_check.mjs",
+        "export",
+        vec![
+            format!("http://{address}/"),
+            artifacts.display().to_string(),
+            lat.to_string(),
+            lon.to_string(),
+            "tileset.json".to_string(),
+        ],
+    )
+    .await;
+    served.abort();
+    let text = serde_json::to_string_pretty(&report).unwrap();
+    assert!(report["error"].is_null(), "{text}");
+    assert_eq!(report["pageErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["failedResponses"], serde_json::json!([]), "{text}");
+    assert_eq!(report["state"]["errors"], serde_json::json!([]), "{text}");
+    let loaded = report["state"]["loaded"].as_array().unwrap();
+    assert!(loaded.len() >= 4, "{text}");
+    // Straight down at the centre the ray meets the drawn ground or what stands on it.
+    assert!(report["probe"].is_object(), "{text}");
+}
+
 /// With JSON logs, every line is one JSON object, and a request's lines carry its id; SIGTERM
 /// stops the server cleanly.
 #[test]

@@ -122,13 +122,6 @@ impl Level {
         TOLERANCE_PER_TILE
     }
 
-    /// The tolerance in ground metres at the tile's centre.
-    pub fn tolerance_m(&self) -> f64 {
-        let bounds = self.tile.bounds();
-        let latitude = (bounds.north + bounds.south) / 2.0;
-        self.tile.size_m() * latitude.to_radians().cos() * TOLERANCE_PER_TILE
-    }
-
     /// The road classes drawn at this level.
     fn draws_road(&self, highway: &str) -> bool {
         let base = highway.strip_suffix("_link").unwrap_or(highway);
@@ -166,7 +159,7 @@ pub fn collect(selection: &Selection<'_>, level: Level, settings: &FeatureSettin
     };
     let min_area = (MIN_AREA_TOLERANCES * level.tolerance_uv()).powi(2);
     for way in &generalised.ways {
-        add_line(&mut set, way, &projection, level);
+        add_line(&mut set, way, &projection, level, settings);
     }
     for area in areas_of(&generalised) {
         water::add_area(&mut set, &area, &projection);
@@ -372,7 +365,13 @@ fn simplify_ways(ways: &[&Way], projection: &Projection, tolerance: f64) -> Vec<
 }
 
 /// A major road, a railway or a river, widened to at least the level's smallest width.
-fn add_line(set: &mut FeatureSet, way: &Way, projection: &Projection, level: Level) {
+fn add_line(
+    set: &mut FeatureSet,
+    way: &Way,
+    projection: &Projection,
+    level: Level,
+    settings: &FeatureSettings,
+) {
     if way.positions.len() < 2 || super::structures::is_off_ground(&way.tags) || is_area(&way.tags)
     {
         return;
@@ -381,8 +380,7 @@ fn add_line(set: &mut FeatureSet, way: &Way, projection: &Projection, level: Lev
         if !level.draws_road(highway) {
             return;
         }
-        let settings = FeatureSettings::default();
-        (FeatureClass::Road, roads::width_m(&way.tags, &settings))
+        (FeatureClass::Road, roads::width_m(&way.tags, settings))
     } else if let Some(railway) = way.tags.get("railway") {
         if !matches!(railway, "rail" | "light_rail" | "narrow_gauge") {
             return;

@@ -173,14 +173,29 @@ fn export_mbtiles(
 /// glb variants `{y}.meshopt.glb`, `{y}.enu.glb`, `{y}.enu-meshopt.glb`, so that several
 /// variants can go to one directory.
 fn file_name(key: &TileKey) -> String {
-    let y = key.tile.y;
-    match key.format {
+    format!("{}{}", key.tile.y, file_suffix(key.format))
+}
+
+/// What follows the row in a directory export's file name for `format` (`.enu-meshopt.glb`).
+pub fn file_suffix(format: Format) -> String {
+    match format {
         Format::Glb(variant) if variant != Variant::default() => {
             let name = variant.name().trim_start_matches("glb-");
-            format!("{y}.{name}.glb")
+            format!(".{name}.glb")
         }
-        format => format!("{y}.{}", format.extension()),
+        format => format!(".{}", format.extension()),
     }
+}
+
+/// Writes a whole file: beside its place first, then moved there.
+pub fn write_whole(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
+    let io = |source| ExportError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let partial = partial_path(path);
+    std::fs::write(&partial, bytes).map_err(io)?;
+    std::fs::rename(&partial, path).map_err(io)
 }
 
 fn export_directory(
@@ -200,9 +215,7 @@ fn export_directory(
             source,
         };
         std::fs::create_dir_all(&directory).map_err(io)?;
-        let partial = partial_path(&path);
-        std::fs::write(&partial, &data).map_err(io)?;
-        std::fs::rename(&partial, &path).map_err(io)?;
+        write_whole(&path, &data)?;
         report.tiles += 1;
         report.bytes += data.len() as u64;
     }

@@ -58,6 +58,10 @@ pub struct Plan {
     /// The parents at the zooms of far views carry content of their own
     /// ([`overview::is_overview_zoom`]); without it (an archive of one zoom), parents are empty.
     pub parent_content: bool,
+    /// For a directory export: the content files are `{z}/{x}/{y}{suffix}` beside one tileset
+    /// document that lists every tile inline. `None`: the served paths, with a tileset file
+    /// every [`LEVEL_STEP`] zooms.
+    pub files: Option<String>,
 }
 
 /// Lowest and highest ground under a tile, metres; `None` where no elevation is known.
@@ -184,6 +188,16 @@ impl Plan {
         tile.z + 1 < self.content_zoom && self.has_content(next)
     }
 
+    /// Where a tile's content is, from the file that lists it (`up` leads from there to
+    /// `3dtiles/`).
+    fn content_uri(&self, tile: TileId, up: &str) -> String {
+        let (z, x, y) = (tile.z, tile.x, tile.y);
+        match &self.files {
+            Some(suffix) => format!("{z}/{x}/{y}{suffix}"),
+            None => format!("{up}{z}/{x}/{y}.glb{}", self.query),
+        }
+    }
+
     /// The tiles one zoom below `tile` that meet the coverage.
     fn quarters(&self, tile: TileId) -> Vec<TileId> {
         (0..2)
@@ -228,13 +242,13 @@ impl Plan {
         if let Some(transform) = relative(parent, world) {
             entry["transform"] = json!(transform);
         }
-        let (z, x, y) = (tile.z, tile.x, tile.y);
-        if self.has_tileset(tile) {
+        if self.files.is_none() && self.has_tileset(tile) {
+            let (z, x, y) = (tile.z, tile.x, tile.y);
             entry["content"] = json!({"uri": format!("{up}{z}/{x}/{y}.json{}", self.query)});
             return Some(entry);
         }
         if self.has_content(tile) {
-            entry["content"] = json!({"uri": format!("{up}{z}/{x}/{y}.glb{}", self.query)});
+            entry["content"] = json!({ "uri": self.content_uri(tile, up) });
         }
         if tile.z < self.content_zoom {
             let children: Vec<Value> = self
@@ -319,10 +333,7 @@ impl Plan {
             .region(tile, heights)
             .unwrap_or_else(|| region_over(tile, UNKNOWN_HEIGHTS));
         let region = enclosing(Some(own), &children).unwrap_or(own);
-        let content = self.has_content(tile).then(|| {
-            let (z, x, y) = (tile.z, tile.x, tile.y);
-            format!("{up}{z}/{x}/{y}.glb{}", self.query)
-        });
+        let content = self.has_content(tile).then(|| self.content_uri(tile, up));
         Self::document(region, error, content, children)
     }
 }
@@ -417,6 +428,7 @@ mod tests {
             query: String::new(),
             list_unknown: false,
             parent_content: false,
+            files: None,
         }
     }
 
@@ -542,6 +554,7 @@ mod tests {
             query: "?compress=meshopt".to_string(),
             list_unknown: false,
             parent_content: false,
+            files: None,
         };
         let top = plan.top_zoom();
         assert!(top < 12 && (14 - top) % LEVEL_STEP == 0, "{top}");
@@ -659,5 +672,27 @@ mod tests {
         let placed = matrix_product(&world10, &transform_of(entry));
         let own = EastNorthUp::new(child).transform();
         assert!(placed.iter().zip(own).all(|(a, b)| (a - b).abs() < 1e-6));
+    }
+
+    #[test]
+    fn a_directory_tileset_lists_every_content_file_in_one_document() {
+        let mut plan = monaco();
+        plan.files = Some(".enu-meshopt.glb".to_string());
+        let root = plan.root(&flat, Root::InFolder);
+        let mut uris = Vec::new();
+        let mut stack = vec![&root["root"]];
+        while let Some(tile) = stack.pop() {
+            if let Some(uri) = tile["content"]["uri"].as_str() {
+                assert!(!uri.ends_with(".json"), "{uri}");
+                uris.push(uri.to_string());
+            }
+            stack.extend(tile["children"].as_array().into_iter().flatten());
+        }
+        let expected = TileRange::covering(14, &plan.coverage[0]);
+        assert_eq!(uris.len() as u64, expected.len());
+        for tile in expected.tiles() {
+            let uri = format!("14/{}/{}.enu-meshopt.glb", tile.x, tile.y);
+            assert!(uris.contains(&uri), "{uri} not in {uris:?}");
+        }
     }
 }

@@ -49,6 +49,7 @@ fn plan(provider: &dyn TileProvider, meshopt: bool) -> Result<Plan, ApiError> {
         query: query(meshopt),
         list_unknown: offer.open_ended,
         parent_content: !offer.far_zooms.is_empty(),
+        files: None,
     })
 }
 

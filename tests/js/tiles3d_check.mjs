@@ -2,16 +2,17 @@
 // Chromium and prints what it saw as one JSON object. The page and the libraries are answered
 // by this script under the server's own origin (paths below /tiles3d-check/, which the server
 // never sees); the tileset and its tiles come from the server.
-// Usage: node tiles3d_check.mjs BASE_URL OUT_DIR LAT LON
+// Usage: node tiles3d_check.mjs BASE_URL OUT_DIR LAT LON [TILESET]
 //   BASE_URL  the server, e.g. http://127.0.0.1:8080/
 //   OUT_DIR   where the screenshot goes
 //   LAT LON   a building's centre: a ray straight down there must hit a building
+//   TILESET   the tileset's path under BASE_URL (default 3dtiles/tileset.json?compress=meshopt)
 import { launch, watch } from './browser.mjs';
 import { readFile } from 'node:fs/promises';
 import { join, dirname, extname } from 'node:path';
 import { fileURLToPath } from 'node:url';
 
-const [base, outDir, lat, lon] = process.argv.slice(2);
+const [base, outDir, lat, lon, tilesetPath] = process.argv.slice(2);
 const here = dirname(fileURLToPath(import.meta.url));
 const prefix = `${base}tiles3d-check`;
 const result = { consoleErrors: [], pageErrors: [] };
@@ -107,7 +108,7 @@ try {
   });
   // In the folder of the files it names: 3DTilesRendererJS cuts a tileset's URL at the last
   // slash and adds one, which at a server's root gives `//`.
-  const tileset = `${base}3dtiles/tileset.json?compress=meshopt`;
+  const tileset = `${base}${tilesetPath ?? '3dtiles/tileset.json?compress=meshopt'}`;
   const started = Date.now();
   await tab.goto(`${prefix}/?tileset=${encodeURIComponent(tileset)}&lat=${lat}&lon=${lon}`);
   await tab.waitForFunction(() => window.check
