@@ -288,6 +288,21 @@ impl FeatureSet {
         }
     }
 
+    /// The outlines of the roads, railways and water, taken before the set is cut to its tile:
+    /// they weigh the terrain error on both sides of a shared edge alike.
+    pub(crate) fn weighing_outlines(&self) -> Vec<Vec<Point>> {
+        self.surfaces
+            .iter()
+            .filter(|s| {
+                matches!(
+                    s.class,
+                    FeatureClass::Road | FeatureClass::Railway | FeatureClass::Water
+                )
+            })
+            .flat_map(|s| s.outline.iter().cloned())
+            .collect()
+    }
+
     pub fn count(&self, class: FeatureClass) -> usize {
         self.features.iter().filter(|f| f.class == class).count()
     }
@@ -458,17 +473,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     buildings::link_building_relations(&mut set, &selection.relations);
     buildings::replace_outlines_by_parts(&mut set);
     buildings::open_passages(&mut set);
-    set.nearby_outlines = set
-        .surfaces
-        .iter()
-        .filter(|s| {
-            matches!(
-                s.class,
-                FeatureClass::Road | FeatureClass::Railway | FeatureClass::Water
-            )
-        })
-        .flat_map(|s| s.outline.iter().cloned())
-        .collect();
+    set.nearby_outlines = set.weighing_outlines();
     add_sea(&mut set, selection, tile, &projection);
     water::drop_waterways_in_water_areas(&mut set);
     set.retain_touching(&tile_rect(tile));

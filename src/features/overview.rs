@@ -167,17 +167,7 @@ pub fn collect(selection: &Selection<'_>, level: Level, settings: &FeatureSettin
     }
     drop_small_pieces(&mut set, min_area);
     // As at the served zoom: outlines just across an edge weigh the terrain error there too.
-    set.nearby_outlines = set
-        .surfaces
-        .iter()
-        .filter(|s| {
-            matches!(
-                s.class,
-                FeatureClass::Road | FeatureClass::Railway | FeatureClass::Water
-            )
-        })
-        .flat_map(|s| s.outline.iter().cloned())
-        .collect();
+    set.nearby_outlines = set.weighing_outlines();
     add_sea(&mut set, &generalised, level, &projection);
     water::drop_waterways_in_water_areas(&mut set);
     if level.levels_above <= BLOCKS_UP_TO {
