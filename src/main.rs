@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 
-use terrastitch::cache::{Cluster, MbtilesStore, PostgresStore, SqliteStore, TileCache, TileStore};
+use terrastitch::cache::{Cluster, PostgresStore, SqliteStore, TileCache, TileStore};
 use terrastitch::config::ServerConfig;
 use terrastitch::config::{Config, LogFormat};
 use terrastitch::format::Format;
@@ -16,7 +16,7 @@ use terrastitch::provider::{Archive, Renderer, TileProvider};
 use terrastitch::render::StageTimings;
 use terrastitch::server::{self, AppState};
 use terrastitch::source::fetch::Fetcher;
-use terrastitch::tile::{LonLatBounds, TileRange};
+use terrastitch::tile::LonLatBounds;
 use terrastitch::TileId;
 
 #[derive(Parser)]
@@ -109,9 +109,10 @@ struct ServeArgs {
     /// SQLite file of the tile cache [default: cache/tiles.sqlite]
     #[arg(long, value_name = "FILE")]
     cache: Option<PathBuf>,
-    /// Serve the tiles of an MBTiles file made by `export`, read-only, without sources
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["cache", "osm", "srtm", "store"])]
-    mbtiles: Option<PathBuf>,
+    /// Serve the tiles of a PMTiles or MBTiles file made by `export`, read-only, without
+    /// sources, with its 3D Tiles tileset or terrain layer
+    #[arg(long, alias = "mbtiles", value_name = "FILE", conflicts_with_all = ["cache", "osm", "srtm", "store"])]
+    archive: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -162,6 +163,10 @@ struct AreaArgs {
     /// Renders at once [default: one per core]
     #[arg(long, value_name = "N")]
     threads: Option<usize>,
+    /// Also the coarser zooms the viewers ask for: glb for far views (13, 12, 10 and 8 under
+    /// 14) and terrain at every zoom from 0 (always, for export)
+    #[arg(long)]
+    all_zooms: bool,
 }
 
 impl AreaArgs {
@@ -348,7 +353,7 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
     if let Some(cache) = args.cache {
         config.cache.path = cache;
     }
-    if let Some(file) = args.mbtiles {
+    if let Some(file) = args.archive {
         return serve_archive(&file, config);
     }
     server::memory::limit_arenas();
@@ -408,15 +413,15 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
     })
 }
 
-/// Serves an exported MBTiles file as it is.
+/// Serves an exported archive as it is.
 fn serve_archive(file: &std::path::Path, config: Config) -> Result<()> {
-    let store = MbtilesStore::open(file)?;
-    let archive = Archive::of(file.to_path_buf(), &store, config.server.zoom);
+    let store = terrastitch::cache::open_archive(file)?;
+    let archive = Archive::of(store.as_ref());
     let server = ServerConfig {
-        zoom: archive.zoom,
+        zoom: archive.contents.max_zoom(),
         ..config.server.clone()
     };
-    let cache = TileCache::new(Arc::new(store), config.cache.memory_mib * 1024 * 1024);
+    let cache = TileCache::new(store, config.cache.memory_mib * 1024 * 1024);
     let state = AppState::new(cache, &server);
     state.provide(Arc::new(archive));
     let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
@@ -613,9 +618,9 @@ fn seed_area(
     cluster: Option<&Arc<Cluster>>,
     shard: seed::Shard,
 ) -> Result<seed::SeedReport> {
-    let range = TileRange::covering(config.server.zoom, &area.bbox()?);
     let formats = formats(&area.formats)?;
-    let plan = seed::plan(provider, store, range, &formats, shard)?;
+    let layers = seed::layers(&provider.offer(), &area.bbox()?, &formats, area.all_zooms);
+    let plan = seed::plan(provider, store, &layers, shard)?;
     eprintln!(
         "{} tiles in the box; this share: {} to make, {} already in the cache, {} outside the data",
         plan.in_box,
@@ -760,67 +765,43 @@ fn seed_status(args: &StatusArgs, config: Config) -> Result<()> {
 }
 
 fn export(args: ExportArgs, config: Config) -> Result<()> {
-    let area = args.area.or_formats(EXPORT_FORMATS);
-    // Whatever the cache lacks is made first; nothing is exported if a tile fails.
-    let (config, renderer, store) = seed_into_store(config, &area, seed::Shard::default())?;
-    let bbox = area.bbox()?;
-    let range = TileRange::covering(config.server.zoom, &bbox);
+    let mut area = args.area.or_formats(EXPORT_FORMATS);
+    area.all_zooms = true;
+    let target = export::Target::from_path(&args.output);
     let formats = formats(&area.formats)?;
-    let keys: Vec<_> = range
-        .tiles()
-        .flat_map(|tile| formats.iter().map(move |&format| (tile, format)))
+    if target.holds_one_format() && formats.len() > 1 {
+        return Err(export::ExportError::SeveralFormats.into());
+    }
+    // Whatever the cache lacks is made first; nothing is exported if a tile fails.
+    let (_, renderer, store) = seed_into_store(config, &area, seed::Shard::default())?;
+    let bbox = area.bbox()?;
+    let layers = seed::layers(&renderer.offer(), &bbox, &formats, true);
+    let keys: Vec<_> = layers
+        .iter()
+        .flat_map(|layer| {
+            layer
+                .range
+                .tiles()
+                .flat_map(|tile| layer.formats.iter().map(move |&format| (tile, format)))
+        })
         .filter_map(|(tile, format)| seed::available(&renderer, tile, format))
         .collect();
-    let target = export::Target::from_path(&args.output);
-    if matches!(target, export::Target::Mbtiles(_)) && formats.len() > 1 {
-        anyhow::bail!(
-            "an MBTiles file holds one format; export to a directory (-o DIR/) for several"
-        );
-    }
-    let written = export::export(store.as_ref(), &keys, &target, &bbox, config.server.zoom)?;
+    let heights = |tile: TileId| renderer.ground_range(tile);
+    let contents = formats
+        .iter()
+        .map(|&format| export::contents_of(format, &layers, &bbox, &heights))
+        .collect();
+    let plan = export::Export { keys, contents };
+    let written = export::export(store.as_ref(), &plan, &target)?;
     eprintln!(
         "exported {} tiles, {} bytes of tile data, to {}",
         written.tiles,
         written.bytes,
         args.output.display()
     );
-    if let export::Target::Directory(directory) = &target {
-        write_directory_tileset(directory, &formats, &bbox, config.server.zoom, &renderer)?;
+    for name in &written.described {
+        eprintln!("wrote {}", args.output.join(name).display());
     }
-    Ok(())
-}
-
-/// Beside an exported directory of east-north-up glb, `tileset.json`: every tile listed in one
-/// document, its content the files as written, so the folder is a 3D Tiles tileset on any
-/// static host. The first east-north-up variant exported is the content.
-fn write_directory_tileset(
-    directory: &std::path::Path,
-    formats: &[Format],
-    bbox: &LonLatBounds,
-    zoom: u8,
-    provider: &dyn TileProvider,
-) -> Result<()> {
-    use terrastitch::format::Frame;
-    use terrastitch::output::tileset::{Plan, Root};
-    let Some(&enu) = formats
-        .iter()
-        .find(|f| matches!(f, Format::Glb(v) if v.frame == Frame::EastNorthUp))
-    else {
-        return Ok(());
-    };
-    let plan = Plan {
-        content_zoom: zoom,
-        coverage: vec![*bbox],
-        query: String::new(),
-        list_unknown: false,
-        parent_content: false,
-        files: Some(export::file_suffix(enu)),
-    };
-    let heights = |tile: TileId| provider.ground_range(tile);
-    let document = plan.root(&heights, Root::InFolder);
-    let path = directory.join("tileset.json");
-    export::write_whole(&path, document.to_string().as_bytes())?;
-    eprintln!("wrote {}", path.display());
     Ok(())
 }
 

@@ -427,8 +427,8 @@ async fn a_changed_local_file_makes_stale_only_the_tiles_it_reaches() {
         0,
         "a file far from the tile stales nothing"
     );
-    let offer = server.state.provider().unwrap().offer();
-    assert_eq!(offer.terrain_cells.map(|cells| cells.len()), Some(2));
+    let layer = server.state.provider().unwrap().terrain_layer().unwrap();
+    assert_eq!(layer.available.last().map(Vec::len), Some(2));
     let fresh = reqwest::get(server.url(TILE)).await.unwrap();
     assert_eq!(fresh.headers()["x-cache"], "hit");
     let _ = fresh.bytes().await;

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use common::process::{http_get, request, spawn_server};
 use common::{bbox, terrastitch};
 use terrastitch::cache::{etag_of, SqliteStore, TileFilter, TileStore};
-use terrastitch::tile::{LonLatBounds, TileRange};
+use terrastitch::tile::{LonLatBounds, TileId, TileRange};
 
 fn run(args: &[&str], cache: &Path) -> (bool, String) {
     let output = terrastitch()
@@ -224,22 +224,38 @@ async fn a_seed_without_formats_makes_what_the_viewer_and_the_globe_ask_for() {
     server.stop().await;
 }
 
+/// The tiles an export of `bounds` holds: at 14, and at the coarser zooms viewers ask for (the
+/// far views' for glb, every zoom for terrain).
+fn exported_tiles(bounds: &LonLatBounds, terrain: bool) -> Vec<TileId> {
+    let zooms: Vec<u8> = match terrain {
+        true => (0..=14).collect(),
+        false => vec![8, 10, 12, 13, 14],
+    };
+    zooms
+        .into_iter()
+        .flat_map(|z| TileRange::covering(z, bounds).tiles().collect::<Vec<_>>())
+        .collect()
+}
+
 #[test]
 fn export_writes_mbtiles_and_a_directory_of_the_tiles() {
     let dir = tempfile::tempdir().unwrap();
     let cache = dir.path().join("cache.sqlite");
     let area = bbox(8527, 8528, 5974, 5974);
+    let bounds: LonLatBounds = area.parse().unwrap();
+    let tiles = exported_tiles(&bounds, false);
     let file = dir.path().join("monaco.mbtiles");
     let (ok, stderr) = run(
         &["export", "--bbox", &area, "-o", file.to_str().unwrap()],
         &cache,
     );
     assert!(ok, "{stderr}");
-    assert!(stderr.contains("exported 2 tiles"), "{stderr}");
+    assert!(
+        stderr.contains(&format!("exported {} tiles", tiles.len())),
+        "{stderr}"
+    );
 
     let store = SqliteStore::open(&cache, None).unwrap();
-    let bounds: LonLatBounds = area.parse().unwrap();
-    let range = TileRange::covering(14, &bounds);
     let mbtiles = rusqlite::Connection::open(&file).unwrap();
     let meta = |name: &str| -> String {
         mbtiles
@@ -250,24 +266,27 @@ fn export_writes_mbtiles_and_a_directory_of_the_tiles() {
     };
     assert_eq!(meta("format"), "glb");
     assert!(meta("attribution").contains("© OpenStreetMap contributors"));
-    assert_eq!(meta("minzoom"), "14");
+    assert_eq!(
+        (meta("minzoom"), meta("maxzoom")),
+        ("8".into(), "14".into())
+    );
     assert_eq!(meta("bounds").split(',').count(), 4);
     let count: i64 = mbtiles
         .query_row("SELECT count(*) FROM tiles", [], |r| r.get(0))
         .unwrap();
-    assert_eq!(count, 2);
-    for tile in range.tiles() {
+    assert_eq!(count as usize, tiles.len());
+    for &tile in &tiles {
         let key = terrastitch::format::TileKey {
             tile,
             format: terrastitch::format::Format::GLB,
         };
         let stored = store.get(&key).unwrap().unwrap();
         // MBTiles rows count from the south.
-        let row = (1i64 << 14) - 1 - i64::from(tile.y);
+        let row = (1i64 << tile.z) - 1 - i64::from(tile.y);
         let data: Vec<u8> = mbtiles
             .query_row(
-                "SELECT tile_data FROM tiles WHERE zoom_level = 14 AND tile_column = ?1 AND tile_row = ?2",
-                [i64::from(tile.x), row],
+                "SELECT tile_data FROM tiles WHERE zoom_level = ?1 AND tile_column = ?2 AND tile_row = ?3",
+                [i64::from(tile.z), i64::from(tile.x), row],
                 |r| r.get(0),
             )
             .unwrap();
@@ -279,26 +298,35 @@ fn export_writes_mbtiles_and_a_directory_of_the_tiles() {
     let (ok, stderr) = run(&["export", "--bbox", &area, "-o", &target], &cache);
     assert!(ok, "{stderr}");
     // Everything was in the cache already.
-    assert_eq!(planned(&stderr), (0, 2));
-    for tile in range.tiles() {
-        let path = out.join(format!("14/{}/{}.glb", tile.x, tile.y));
-        let data = std::fs::read(&path).unwrap();
-        assert_eq!(&data[..4], b"glTF", "{}", path.display());
+    assert_eq!(planned(&stderr), (0, tiles.len()));
+    let file_of = |tile: TileId| out.join(format!("{}/{}/{}.glb", tile.z, tile.x, tile.y));
+    for &tile in &tiles {
+        let data = std::fs::read(file_of(tile)).unwrap();
+        assert_eq!(&data[..4], b"glTF", "{tile}");
     }
+    // Flat glb has no tileset to go with it.
+    assert!(!out.join("tileset.json").exists());
     assert!(!dir.path().join("monaco.mbtiles.partial").exists());
 
     // Another terrastitch serves the file as it is, without any source data.
-    let (mut child, address, _lines) = spawn_server(&["--mbtiles", file.to_str().unwrap()], &[]);
-    for tile in range.tiles() {
-        let (status, body) = http_get(&address, &format!("/tiles/14/{}/{}.glb", tile.x, tile.y));
+    let (mut child, address, _lines) = spawn_server(&["--archive", file.to_str().unwrap()], &[]);
+    for &tile in &tiles {
+        let path = format!("/tiles/{}/{}/{}.glb", tile.z, tile.x, tile.y);
+        let (status, body) = http_get(&address, &path);
         assert_eq!(status, 200, "{tile}");
-        let exported = std::fs::read(out.join(format!("14/{}/{}.glb", tile.x, tile.y))).unwrap();
-        assert_eq!(body, exported, "{tile}");
+        assert_eq!(body, std::fs::read(file_of(tile)).unwrap(), "{tile}");
     }
     let (status, body) = http_get(&address, "/tiles/14/8529/5973.glb");
     assert_eq!(status, 404);
     assert!(
         String::from_utf8_lossy(&body).contains("is not in"),
+        "{}",
+        String::from_utf8_lossy(&body)
+    );
+    let (status, body) = http_get(&address, "/tiles/11/1066/746.glb");
+    assert_eq!(status, 404);
+    assert!(
+        String::from_utf8_lossy(&body).contains("zooms 8, 10, 12, 13, 14"),
         "{}",
         String::from_utf8_lossy(&body)
     );
@@ -309,10 +337,16 @@ fn export_writes_mbtiles_and_a_directory_of_the_tiles() {
     let west = json["bounds"][0].as_f64().unwrap();
     assert!((west - bounds.west).abs() < 1e-9, "{json}");
     // The archive holds plain flat glb: that is the compression offered (the viewer follows
-    // it), and there is no 3D Tiles tileset to serve from it.
+    // it), the far views it holds are offered, and there is no 3D Tiles tileset to serve from
+    // it.
     assert_eq!(
         json["glb_compressions"],
         serde_json::json!(["none"]),
+        "{json}"
+    );
+    assert_eq!(
+        json["far_zooms"],
+        serde_json::json!([13, 12, 10, 8]),
         "{json}"
     );
     let (status, body) = http_get(&address, "/tileset.json");
@@ -322,8 +356,230 @@ fn export_writes_mbtiles_and_a_directory_of_the_tiles() {
         "{}",
         String::from_utf8_lossy(&body)
     );
+    assert_eq!(http_get(&address, "/layer.json").0, 404);
     child.kill().unwrap();
     child.wait().unwrap();
+}
+
+/// What `scripts/pmtiles_dump.py` reads of a PMTiles file with the `pmtiles` package.
+fn pmtiles_dump(file: &Path) -> serde_json::Value {
+    let output = Command::new(common::python())
+        .arg(common::repo().join("scripts/pmtiles_dump.py"))
+        .arg(file)
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    serde_json::from_slice(&output.stdout).unwrap()
+}
+
+/// The tiles a dump lists, with their digests.
+fn dumped_tiles(dump: &serde_json::Value) -> Vec<(TileId, String)> {
+    let mut tiles: Vec<(TileId, String)> = dump["tiles"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| {
+            let n = |k: &str| t[k].as_u64().unwrap();
+            let tile = TileId::new(n("z") as u32, n("x"), n("y")).unwrap();
+            (tile, t["sha256"].as_str().unwrap().to_string())
+        })
+        .collect();
+    tiles.sort_by_key(|(t, _)| (t.z, t.x, t.y));
+    tiles
+}
+
+/// The digests of the cache's tiles of `format` at `tiles`.
+fn stored_tiles(
+    store: &SqliteStore,
+    tiles: &[TileId],
+    format: terrastitch::format::Format,
+) -> Vec<(TileId, String)> {
+    use sha2::Digest;
+    let mut digests: Vec<(TileId, String)> = tiles
+        .iter()
+        .map(|&tile| {
+            let key = terrastitch::format::TileKey { tile, format };
+            let stored = store.get(&key).unwrap().unwrap_or_else(|| panic!("{tile}"));
+            let digest = sha2::Sha256::digest(&stored.bodies.identity);
+            let hex: String = digest.iter().map(|b| format!("{b:02x}")).collect();
+            (tile, hex)
+        })
+        .collect();
+    digests.sort_by_key(|(t, _)| (t.z, t.x, t.y));
+    digests
+}
+
+/// The status, the named headers and the body's digest of a response.
+fn answer(address: &str, path: &str, headers: &[(&str, &str)]) -> (u16, Vec<String>, String) {
+    use sha2::Digest;
+    let (status, head, body) = request(address, path, headers);
+    let digest: String = sha2::Sha256::digest(&body)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    let named = ["etag", "content-encoding", "content-type", "vary"]
+        .iter()
+        .map(|name| {
+            head.lines()
+                .find_map(|line| {
+                    let (key, value) = line.split_once(':')?;
+                    key.trim()
+                        .eq_ignore_ascii_case(name)
+                        .then(|| value.trim().to_string())
+                })
+                .unwrap_or_default()
+        })
+        .collect();
+    (status, named, digest)
+}
+
+/// A PMTiles export holds the cache's bytes, as an independent reader finds them, with the
+/// terrain at every zoom Cesium asks for; `serve --archive` answers with the same codings and
+/// validators as the server that made the tiles, and its `layer.json` and `tileset.json`; a
+/// directory export carries the same `layer.json` naming its files.
+#[test]
+fn a_pmtiles_export_holds_the_caches_bytes_and_is_served_as_the_cache_serves_them() {
+    use terrastitch::format::{Format, Frame, Variant};
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache.sqlite");
+    let area = bbox(8528, 8528, 5974, 5974);
+    let bounds: LonLatBounds = area.parse().unwrap();
+    let terrain = dir.path().join("terrain.pmtiles");
+    let enu = dir.path().join("enu.pmtiles");
+    for (format, file) in [("terrain", &terrain), ("glb-enu-meshopt", &enu)] {
+        let args = ["export", "--bbox", &area, "--format", format, "-o"];
+        let (ok, stderr) = run(&[&args[..], &[file.to_str().unwrap()]].concat(), &cache);
+        assert!(ok, "{stderr}");
+    }
+    let store = SqliteStore::open(&cache, None).unwrap();
+    let terrain_format = Format::Terrain(terrastitch::format::Extensions {
+        normals: true,
+        watermask: true,
+    });
+    let enu_format = Format::Glb(Variant {
+        frame: Frame::EastNorthUp,
+        meshopt: true,
+    });
+    for (file, format, is_terrain) in [(&terrain, terrain_format, true), (&enu, enu_format, false)]
+    {
+        let dump = pmtiles_dump(file);
+        let expected = stored_tiles(&store, &exported_tiles(&bounds, is_terrain), format);
+        assert_eq!(dumped_tiles(&dump), expected, "{}", file.display());
+        assert_eq!(dump["header"]["tile_compression"], 1, "tiles as stored");
+        assert_eq!(dump["header"]["clustered"], true);
+        assert_eq!(dump["header"]["max_zoom"], 14);
+        assert!(dump["metadata"]["attribution"]
+            .as_str()
+            .unwrap()
+            .contains("OpenStreetMap"));
+    }
+
+    // The server that made the tiles, and one of the archive alone.
+    let (mut live, live_address, _live_lines) =
+        spawn_server(&["--cache", cache.to_str().unwrap()], &[]);
+    let (mut archive, address, _lines) =
+        spawn_server(&["--archive", terrain.to_str().unwrap()], &[]);
+    let started = Instant::now();
+    while http_get(&live_address, "/ready").0 != 200 {
+        assert!(
+            started.elapsed() < Duration::from_secs(60),
+            "the sources load"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let accept = "application/vnd.quantized-mesh;extensions=octvertexnormals-watermask";
+    for path in ["/tiles/14/8528/5974.terrain", "/tiles/3/4/2.terrain"] {
+        for coding in ["gzip", "br", "identity"] {
+            let headers = [("Accept", accept), ("Accept-Encoding", coding)];
+            let from_archive = answer(&address, path, &headers);
+            assert_eq!(from_archive.0, 200, "{path} {coding}");
+            assert_eq!(
+                from_archive,
+                answer(&live_address, path, &headers),
+                "{path} {coding}"
+            );
+            let etag = from_archive.1[0].clone();
+            assert!(!etag.is_empty(), "{path}");
+            let again = [
+                ("If-None-Match", etag.as_str()),
+                ("Accept", accept),
+                ("Accept-Encoding", coding),
+            ];
+            assert_eq!(request(&address, path, &again).0, 304, "{path}");
+        }
+    }
+    let (status, layer) = http_get(&address, "/layer.json");
+    assert_eq!(status, 200);
+    let layer: serde_json::Value = serde_json::from_slice(&layer).unwrap();
+    assert_eq!(layer["maxzoom"], 14, "{layer}");
+    assert_eq!(layer["tiles"][0], "tiles/{z}/{x}/{y}.terrain");
+    assert_eq!(layer["available"].as_array().unwrap().len(), 15, "{layer}");
+    // A tile beside the box is not in the file, and not offered.
+    assert_eq!(http_get(&address, "/tiles/14/8529/5974.terrain").0, 404);
+    assert_eq!(layer["available"][14][0]["endX"], 8528, "{layer}");
+    archive.kill().unwrap();
+    archive.wait().unwrap();
+    live.kill().unwrap();
+    live.wait().unwrap();
+
+    // The east-north-up archive is a 3D Tiles tileset with content in its parents.
+    let (mut archive, address, _lines) = spawn_server(&["--archive", enu.to_str().unwrap()], &[]);
+    let (status, root) = http_get(&address, "/tileset.json");
+    assert_eq!(status, 200);
+    let root: serde_json::Value = serde_json::from_slice(&root).unwrap();
+    let file = root["root"]["children"][0]["content"]["uri"]
+        .as_str()
+        .unwrap();
+    let (status, subtree) = http_get(&address, &format!("/{file}"));
+    assert_eq!(status, 200, "{file}");
+    let subtree: serde_json::Value = serde_json::from_slice(&subtree).unwrap();
+    let parent = subtree["root"]["content"]["uri"].as_str().unwrap();
+    let (status, body) = http_get(
+        &address,
+        &format!("/3dtiles/{}", parent.trim_start_matches("../../")),
+    );
+    assert_eq!(status, 200, "{parent}");
+    assert_eq!(&body[..4], b"glTF");
+    archive.kill().unwrap();
+    archive.wait().unwrap();
+
+    // A directory of the same: layer.json names files that are there.
+    let out = dir.path().join("site");
+    let target = format!("{}/", out.display());
+    let args = [
+        "export",
+        "--bbox",
+        &area,
+        "--format",
+        "terrain,glb-enu-meshopt",
+        "-o",
+        &target,
+    ];
+    let (ok, stderr) = run(&args, &cache);
+    assert!(ok, "{stderr}");
+    let written: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("layer.json")).unwrap()).unwrap();
+    assert_eq!(written["available"], layer["available"]);
+    let template = written["tiles"][0].as_str().unwrap();
+    for (z, spans) in written["available"].as_array().unwrap().iter().enumerate() {
+        for span in spans.as_array().unwrap() {
+            let n = |k: &str| span[k].as_u64().unwrap();
+            for x in n("startX")..=n("endX") {
+                for y in n("startY")..=n("endY") {
+                    let name = template
+                        .replace("{z}", &z.to_string())
+                        .replace("{x}", &x.to_string())
+                        .replace("{y}", &y.to_string());
+                    assert!(out.join(&name).exists(), "{name}");
+                }
+            }
+        }
+    }
+    assert!(out.join("tileset.json").exists());
 }
 
 #[test]
@@ -345,7 +601,7 @@ fn an_archive_of_east_north_up_tiles_is_served_as_a_3d_tileset() {
         &cache,
     );
     assert!(ok, "{stderr}");
-    let (mut child, address, _lines) = spawn_server(&["--mbtiles", file.to_str().unwrap()], &[]);
+    let (mut child, address, _lines) = spawn_server(&["--archive", file.to_str().unwrap()], &[]);
     let get_json = |path: &str| {
         let (status, body) = http_get(&address, path);
         assert_eq!(status, 200, "{path}: {}", String::from_utf8_lossy(&body));
@@ -358,11 +614,8 @@ fn an_archive_of_east_north_up_tiles_is_served_as_a_3d_tileset() {
         .unwrap();
     assert!(child_uri.ends_with(".json?compress=meshopt"), "{root}");
     let subtree = get_json(&format!("/{child_uri}"));
-    let leaf = subtree["root"]["children"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c["content"]["uri"].as_str().unwrap().to_string())
+    let leaf = content_uris(&subtree["root"])
+        .into_iter()
         .find(|u| u.contains("14/8527/5975.glb"))
         .expect("the exported tile is listed");
     let (status, body) = http_get(
@@ -373,6 +626,19 @@ fn an_archive_of_east_north_up_tiles_is_served_as_a_3d_tileset() {
     assert_eq!(&body[0..4], b"glTF");
     child.kill().unwrap();
     child.wait().unwrap();
+}
+
+/// The content URIs of a tileset's tile and of every tile under it.
+fn content_uris(tile: &serde_json::Value) -> Vec<String> {
+    let mut uris = Vec::new();
+    let mut stack = vec![tile];
+    while let Some(tile) = stack.pop() {
+        if let Some(uri) = tile["content"]["uri"].as_str() {
+            uris.push(uri.to_string());
+        }
+        stack.extend(tile["children"].as_array().into_iter().flatten());
+    }
+    uris
 }
 
 /// An exported directory of east-north-up tiles carries its `tileset.json`: served by a plain
@@ -404,17 +670,19 @@ async fn a_directory_export_is_a_3d_tileset_on_a_static_host() {
     // The document names every exported file, and only those.
     let tileset: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("tileset.json")).unwrap()).unwrap();
-    let mut uris = Vec::new();
-    let mut stack = vec![&tileset["root"]];
-    while let Some(tile) = stack.pop() {
-        if let Some(uri) = tile["content"]["uri"].as_str() {
-            assert!(out.join(uri).exists(), "{uri} is not in the folder");
-            uris.push(uri.to_string());
-        }
-        stack.extend(tile["children"].as_array().into_iter().flatten());
+    let mut uris = content_uris(&tileset["root"]);
+    for uri in &uris {
+        assert!(out.join(uri).exists(), "{uri} is not in the folder");
     }
     uris.sort();
-    assert_eq!(uris.len(), 4, "{uris:?}");
+    // The tiles of 14, and their parents of 13 and 12 with content of their own (the root
+    // lists the tiles of 12).
+    let b: LonLatBounds = area.parse().unwrap();
+    let listed: u64 = [12, 13, 14]
+        .iter()
+        .map(|&z| TileRange::covering(z, &b).len())
+        .sum();
+    assert_eq!(uris.len() as u64, listed, "{uris:?}");
     assert!(
         uris.iter().all(|u| u.ends_with(".enu-meshopt.glb")),
         "{uris:?}"
@@ -425,7 +693,6 @@ async fn a_directory_export_is_a_3d_tileset_on_a_static_host() {
     let address = listener.local_addr().unwrap();
     let site = axum::Router::new().fallback_service(tower_http::services::ServeDir::new(&out));
     let served = tokio::spawn(async move { axum::serve(listener, site).await });
-    let b: LonLatBounds = area.parse().unwrap();
     // The middle of the north-western tile (the box's centre is the corner of all four).
     let (lon, lat) = (
         b.west + (b.east - b.west) / 4.0,

@@ -61,7 +61,6 @@ impl TileProvider for Fake {
             coverage: Vec::new(),
             only: None,
             open_ended: false,
-            terrain_cells: None,
             far_zooms: Vec::new(),
         }
     }

@@ -1,5 +1,5 @@
 //! An MBTiles file (as `terrastitch export` writes it) as a read-only tile store, so a server
-//! without any source data can serve an exported area: `terrastitch serve --mbtiles FILE`.
+//! without any source data can serve an exported area: `terrastitch serve --archive FILE`.
 //!
 //! A tile enters memory compressed once, like a rendered one; the file is never written.
 
@@ -7,19 +7,18 @@ use std::path::Path;
 
 use rusqlite::{Connection, OpenFlags, OptionalExtension};
 
+use super::archive::{format_named, ArchiveStore, Contents, CONTENTS_KEY};
 use super::encoding::Bodies;
 use super::etag_of;
 use super::sqlite::Database;
 use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
-use crate::format::{Format, TileKey};
+use crate::format::TileKey;
 use crate::tile::{LonLatBounds, TileId};
 
 #[derive(Debug)]
 pub struct MbtilesStore {
     db: Database,
-    format: Format,
-    bounds: Option<LonLatBounds>,
-    zoom: Option<u8>,
+    contents: Contents,
 }
 
 impl MbtilesStore {
@@ -42,43 +41,27 @@ impl MbtilesStore {
                 .optional()
                 .map_err(sqlite)
         };
-        let format = match meta("format")?.as_deref() {
-            Some(name) if crate::format::Variant::from_name(name).is_some() => {
-                Format::from_name(name).unwrap_or(Format::GLB)
-            }
-            Some("terrain") => Format::Terrain(crate::format::Extensions {
-                normals: true,
-                watermask: true,
-            }),
-            other => {
-                return Err(StoreError::Damaged {
+        let named = meta("format")?;
+        let format =
+            named
+                .as_deref()
+                .and_then(format_named)
+                .ok_or_else(|| StoreError::Damaged {
                     path: path.to_path_buf(),
-                    report: format!("its format is {other:?}, not glb or terrain"),
-                })
-            }
-        };
+                    report: format!("its format is {named:?}, not a glb variant or terrain"),
+                })?;
         let bounds = meta("bounds")?.and_then(|b| b.parse::<LonLatBounds>().ok());
-        let zoom = meta("maxzoom")?.and_then(|z| z.parse::<u8>().ok());
+        let zoom = |name: &str| -> Result<Option<u8>, StoreError> {
+            Ok(meta(name)?.and_then(|z| z.trim().parse::<u8>().ok()))
+        };
+        let max = zoom("maxzoom")?.unwrap_or(14);
+        let min = zoom("minzoom")?.unwrap_or(max);
+        let entry = meta(CONTENTS_KEY)?.and_then(|text| serde_json::from_str(&text).ok());
+        let contents = Contents::read(format, bounds, (min, max), entry.as_ref());
         Ok(MbtilesStore {
             db: Database::new(path, connection),
-            format,
-            bounds,
-            zoom,
+            contents,
         })
-    }
-
-    pub fn format(&self) -> Format {
-        self.format
-    }
-
-    /// The area the file says it covers.
-    pub fn bounds(&self) -> Option<LonLatBounds> {
-        self.bounds
-    }
-
-    /// The zoom of its tiles.
-    pub fn zoom(&self) -> Option<u8> {
-        self.zoom
     }
 
     fn connection(&self) -> std::sync::MutexGuard<'_, Connection> {
@@ -109,9 +92,19 @@ fn tms_row(tile: TileId) -> i64 {
     (1i64 << tile.z) - 1 - i64::from(tile.y)
 }
 
+impl ArchiveStore for MbtilesStore {
+    fn contents(&self) -> &Contents {
+        &self.contents
+    }
+
+    fn path(&self) -> &Path {
+        self.db.path()
+    }
+}
+
 impl TileStore for MbtilesStore {
     fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError> {
-        if key.format != self.format {
+        if key.format != self.contents.format {
             return Ok(None);
         }
         let data: Option<Vec<u8>> = self
@@ -176,7 +169,7 @@ impl TileStore for MbtilesStore {
                 entries.push(StoredEntry {
                     key: TileKey {
                         tile,
-                        format: self.format,
+                        format: self.contents.format,
                     },
                     made_by: self.provenance(),
                     size: size.max(0) as u64,

@@ -8,9 +8,11 @@
 //! or from other source versions is *stale*: it is still served, and [`TileCache::remake`]
 //! makes its replacement and swaps it in whole.
 
+pub mod archive;
 pub mod encoding;
 mod flight;
 pub mod mbtiles;
+pub mod pmtiles;
 pub mod postgres;
 pub mod sqlite;
 pub mod store;
@@ -21,8 +23,10 @@ use std::sync::{Arc, Mutex};
 use sha2::Digest;
 
 use crate::format::TileKey;
+pub use archive::{ArchiveStore, Contents};
 use encoding::Bodies;
 pub use mbtiles::MbtilesStore;
+pub use pmtiles::PmtilesStore;
 pub use postgres::cluster::{Cluster, Event};
 pub use postgres::PostgresStore;
 pub use sqlite::SqliteStore;
@@ -32,6 +36,28 @@ pub use store::{
 };
 
 /// Where a response came from.
+/// Opens an MBTiles or a PMTiles file, told apart by their first bytes.
+pub fn open_archive(path: &std::path::Path) -> Result<Arc<dyn ArchiveStore>, StoreError> {
+    let mut magic = [0u8; 16];
+    let read =
+        std::fs::File::open(path).and_then(|mut file| std::io::Read::read(&mut file, &mut magic));
+    let read = read.map_err(|source| StoreError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let magic = &magic[..read];
+    if magic.starts_with(b"PMTiles") {
+        Ok(Arc::new(PmtilesStore::open(path)?))
+    } else if magic.starts_with(b"SQLite format 3\0") {
+        Ok(Arc::new(MbtilesStore::open(path)?))
+    } else {
+        Err(StoreError::Damaged {
+            path: path.to_path_buf(),
+            report: "it is neither a PMTiles nor an MBTiles file".to_string(),
+        })
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Origin {
     Memory,
@@ -557,5 +583,26 @@ fn panic_message(error: tokio::task::JoinError) -> String {
     match error.try_into_panic() {
         Ok(payload) => crate::panics::text(payload.as_ref()),
         Err(error) => error.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_file_of_neither_kind_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("tiles.pmtiles");
+        std::fs::write(&path, b"not an archive").unwrap();
+        let error = open_archive(&path).err().unwrap().to_string();
+        assert!(
+            error.contains("neither a PMTiles nor an MBTiles"),
+            "{error}"
+        );
+        let missing = open_archive(&dir.path().join("absent.pmtiles"))
+            .err()
+            .unwrap();
+        assert!(missing.to_string().contains("absent.pmtiles"), "{missing}");
     }
 }

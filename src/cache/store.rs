@@ -34,6 +34,12 @@ pub enum StoreError {
         found: i64,
         supported: usize,
     },
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("tile cache {path} is damaged: {report}")]
     Damaged { path: PathBuf, report: String },
     #[error(transparent)]

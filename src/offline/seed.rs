@@ -15,8 +15,8 @@ use std::time::{Duration, Instant};
 use crate::cache::encoding::Bodies;
 use crate::cache::{etag_of, unix_now, Provenance, StoreError, StoredTile, TileFilter, TileStore};
 use crate::format::{Format, TileKey};
-use crate::provider::{Availability, Deadline, TileProvider};
-use crate::tile::{TileId, TileRange};
+use crate::provider::{Availability, Deadline, Offer, TileProvider};
+use crate::tile::{LonLatBounds, TileId, TileRange};
 
 /// The `i`-th of `n` shares of a box's tiles (`1 ≤ i ≤ n`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -67,43 +67,86 @@ pub struct Plan {
     pub in_box: u64,
 }
 
-/// Plans a seed of `range` in `formats`: this shard's tiles that the cache lacks, or holds as
-/// `provider` would not make them now.
+/// The tiles of one zoom, in some formats.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Layer {
+    pub range: TileRange,
+    pub formats: Vec<Format>,
+}
+
+/// The layers of `bbox` in `formats`: the served zoom in every format and, with `coarser`, the
+/// coarser zooms the viewers ask for as well — the far views' for glb, every zoom from 0 for
+/// terrain (Cesium's terrain starts from the whole world).
+pub fn layers(offer: &Offer, bbox: &LonLatBounds, formats: &[Format], coarser: bool) -> Vec<Layer> {
+    let held_at = |z: u8, format: &Format| {
+        z == offer.zoom
+            || coarser
+                && match format {
+                    Format::Glb(_) => offer.far_zooms.contains(&z),
+                    Format::Terrain(_) => z < offer.zoom,
+                }
+    };
+    (0..=offer.zoom)
+        .rev()
+        .filter_map(|z| {
+            let formats: Vec<Format> = formats.iter().copied().filter(|f| held_at(z, f)).collect();
+            (!formats.is_empty()).then(|| Layer {
+                range: TileRange::covering(z, bbox),
+                formats,
+            })
+        })
+        .collect()
+}
+
+/// Plans a seed of `layers`: this shard's tiles that the cache lacks, or holds as `provider`
+/// would not make them now. Shards split the tiles in the layers' order, row by row.
 pub fn plan(
     provider: &dyn TileProvider,
     store: &dyn TileStore,
-    range: TileRange,
-    formats: &[Format],
+    layers: &[Layer],
     shard: Shard,
 ) -> Result<Plan, StoreError> {
-    let held: HashMap<TileKey, Provenance> = store
-        .list(&TileFilter::Range(range))?
-        .into_iter()
-        .map(|entry| (entry.key, entry.made_by))
-        .collect();
-    let mut plan = Plan {
-        in_box: range.len() * formats.len() as u64,
-        ..Plan::default()
-    };
-    for (position, tile) in range.tiles().enumerate() {
-        if !shard.takes(position as u64) {
-            continue;
-        }
-        let wanted = provider.provenance(tile);
-        for &format in formats {
-            let Some(key) = available(provider, tile, format) else {
-                plan.uncovered += 1;
+    let mut plan = Plan::default();
+    let mut position = 0u64;
+    for layer in layers {
+        let held: HashMap<TileKey, Provenance> = store
+            .list(&TileFilter::Range(layer.range))?
+            .into_iter()
+            .map(|entry| (entry.key, entry.made_by))
+            .collect();
+        plan.in_box += layer.range.len() * layer.formats.len() as u64;
+        for tile in layer.range.tiles() {
+            position += 1;
+            if !shard.takes(position - 1) {
                 continue;
-            };
-            match (held.get(&key), &wanted) {
-                (Some(made_by), Some(wanted)) if made_by == wanted => plan.already += 1,
-                // A provider that makes nothing keeps what the store holds.
-                (Some(_), None) => plan.already += 1,
-                _ => plan.to_make.push(key),
             }
+            plan_tile(provider, &held, tile, &layer.formats, &mut plan);
         }
     }
     Ok(plan)
+}
+
+/// Puts `tile` in `formats` into `plan`.
+fn plan_tile(
+    provider: &dyn TileProvider,
+    held: &HashMap<TileKey, Provenance>,
+    tile: TileId,
+    formats: &[Format],
+    plan: &mut Plan,
+) {
+    let wanted = provider.provenance(tile);
+    for &format in formats {
+        let Some(key) = available(provider, tile, format) else {
+            plan.uncovered += 1;
+            continue;
+        };
+        match (held.get(&key), &wanted) {
+            (Some(made_by), Some(wanted)) if made_by == wanted => plan.already += 1,
+            // A provider that makes nothing keeps what the store holds.
+            (Some(_), None) => plan.already += 1,
+            _ => plan.to_make.push(key),
+        }
+    }
 }
 
 /// The key of the tile if `provider` can have it, downloading what it lacks if it can.

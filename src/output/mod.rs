@@ -3,5 +3,6 @@
 pub mod debug;
 pub mod enu;
 pub mod glb;
+pub mod layer;
 pub mod quantized_mesh;
 pub mod tileset;

@@ -16,7 +16,6 @@ use std::sync::Arc;
 
 use crate::cache::Provenance;
 use crate::format::{Format, TileKey};
-use crate::terrain::cell::CellId;
 use crate::tile::{LonLatBounds, TileId};
 
 pub use archive::Archive;
@@ -61,7 +60,6 @@ pub struct Offer {
     /// Whether tiles outside the coverage may still be had (downloaded when asked for).
     pub open_ended: bool,
     /// The SRTM cells whose terrain it has at its zoom; `None` when it offers no terrain layer.
-    pub terrain_cells: Option<Vec<CellId>>,
     /// The coarser zooms it makes glb at for far views, finest first (none for an archive).
     pub far_zooms: Vec<u8>,
 }
@@ -127,6 +125,11 @@ pub trait TileProvider: Send + Sync + std::fmt::Debug {
 
     /// Lowest and highest ground under a tile, metres, for a bounding volume: sampled at the
     /// provider's zoom, the whole source files' range at coarser ones.
+    /// The quantized-mesh terrain layer offered, if any.
+    fn terrain_layer(&self) -> Option<crate::output::layer::TerrainLayer> {
+        None
+    }
+
     fn ground_range(&self, tile: TileId) -> Option<(f64, f64)> {
         let _ = tile;
         None

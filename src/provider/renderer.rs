@@ -11,7 +11,7 @@ use crate::format::{Format, TileKey};
 use crate::render::{Deadline, RenderSettings};
 use crate::source::fetch::{FetchStats, Fetcher};
 use crate::source::replication::Replication;
-use crate::tile::TileId;
+use crate::tile::{LonLatBounds, TileId};
 
 /// Samples read per tile for its ground range.
 const HEIGHT_SAMPLES: usize = 40_000;
@@ -118,7 +118,6 @@ impl TileProvider for Renderer {
             coverage: self.inputs.osm.coverage(),
             only: None,
             open_ended: self.inputs.can_fetch_srtm(),
-            terrain_cells: Some(self.inputs.srtm.cells()),
             far_zooms: crate::features::overview::overview_zooms(self.zoom),
         }
     }
@@ -199,6 +198,27 @@ impl TileProvider for Renderer {
 
     fn make(&self, key: TileKey, deadline: Deadline) -> Result<Made, MakeError> {
         super::pipeline::make(&self.inputs, key, &self.settings, self.zoom, deadline)
+    }
+
+    fn terrain_layer(&self) -> Option<crate::output::layer::TerrainLayer> {
+        let cells: Vec<LonLatBounds> = self
+            .inputs
+            .srtm
+            .cells()
+            .iter()
+            .map(|cell| {
+                let (west, south) = (f64::from(cell.lon), f64::from(cell.lat));
+                LonLatBounds {
+                    west,
+                    south,
+                    east: west + 1.0,
+                    north: south + 1.0,
+                }
+            })
+            .collect();
+        Some(crate::output::layer::TerrainLayer::everywhere_above(
+            self.zoom, &cells,
+        ))
     }
 
     fn ground_range(&self, tile: TileId) -> Option<(f64, f64)> {
