@@ -4,9 +4,11 @@
 
 pub mod external_sort;
 pub mod fetch;
+pub mod geotiff;
 pub mod node_locations;
 pub mod osc;
 pub mod osm_pbf;
 pub mod replication;
 pub mod srtm;
 pub mod store;
+pub mod voids;

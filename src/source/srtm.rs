@@ -49,6 +49,8 @@ pub enum SrtmError {
         #[source]
         source: std::io::Error,
     },
+    #[error("elevation file {path} cannot be read as a GeoTIFF DEM: {report}")]
+    GeoTiff { path: PathBuf, report: String },
     #[error("SRTM file {path} holds only voids")]
     AllVoid { path: PathBuf },
     #[error("SRTM file {path} is not elevation data: {percent:.1} % of its samples lie outside {} to {} m", PLAUSIBLE_M.0, PLAUSIBLE_M.1)]
@@ -75,6 +77,15 @@ const IMPLAUSIBLE_SHARE: f64 = 0.01;
 
 /// Decodes the raw big-endian bytes of a `.hgt` file; `path` names the file in errors.
 pub fn decode(cell: CellId, bytes: &[u8], path: &Path) -> Result<SrtmTile, SrtmError> {
+    decode_counting(cell, bytes, path).map(|(tile, _)| tile)
+}
+
+/// [`decode`], with the count of voids filled.
+fn decode_counting(
+    cell: CellId,
+    bytes: &[u8],
+    path: &Path,
+) -> Result<(SrtmTile, usize), SrtmError> {
     let size = side_for_len(bytes.len() as u64).ok_or_else(|| SrtmError::BadSize {
         path: path.to_path_buf(),
         actual: bytes.len() as u64,
@@ -97,17 +108,40 @@ pub fn decode(cell: CellId, bytes: &[u8], path: &Path) -> Result<SrtmTile, SrtmE
     let heights = fill_voids(&raw, size).ok_or_else(|| SrtmError::AllVoid {
         path: path.to_path_buf(),
     })?;
-    Ok(SrtmTile {
-        cell,
-        size,
-        heights,
-    })
+    let voids = raw.iter().filter(|&&h| h == VOID).count();
+    Ok((
+        SrtmTile {
+            cell,
+            size,
+            heights,
+        },
+        voids,
+    ))
 }
 
 /// Reads a `.hgt`, `.hgt.zip` or `.hgt.gz` file.
 pub fn read(cell: CellId, path: &Path) -> Result<SrtmTile, SrtmError> {
+    read_counting(cell, path).map(|(tile, _)| tile)
+}
+
+/// Reads an SRTM file or a GeoTIFF, with the count of voids filled.
+fn read_counting(cell: CellId, path: &Path) -> Result<(SrtmTile, usize), SrtmError> {
+    if is_geotiff(path) {
+        return super::geotiff::read(cell, path).map_err(|e| SrtmError::GeoTiff {
+            path: e.path,
+            report: e.report,
+        });
+    }
     let bytes = read_hgt_bytes(path)?;
-    decode(cell, &bytes, path)
+    decode_counting(cell, &bytes, path)
+}
+
+fn is_geotiff(path: &Path) -> bool {
+    let name = path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or_default();
+    super::geotiff::cell_of_name(name).is_some()
 }
 
 fn side_for_len(len: u64) -> Option<usize> {
@@ -231,67 +265,14 @@ fn gzip_len(path: &Path) -> Result<u64, SrtmError> {
 /// the eight compass directions (a cheap, deterministic stand-in for a full interpolation that
 /// behaves well for the small holes SRTM has). Returns `None` if every sample is void.
 pub fn fill_voids(raw: &[i16], size: usize) -> Option<Vec<f32>> {
-    let mut heights: Vec<f32> = raw.iter().map(|&h| f32::from(h)).collect();
-    let voids: Vec<usize> = (0..raw.len()).filter(|&i| raw[i] == VOID).collect();
-    if voids.is_empty() {
-        return Some(heights);
-    }
-    if voids.len() == raw.len() {
-        return None;
-    }
-    const DIRECTIONS: [(isize, isize); 8] = [
-        (-1, 0),
-        (1, 0),
-        (0, -1),
-        (0, 1),
-        (-1, -1),
-        (-1, 1),
-        (1, -1),
-        (1, 1),
-    ];
-    for &index in &voids {
-        let (row, column) = ((index / size) as isize, (index % size) as isize);
-        let mut weighted = 0.0f64;
-        let mut weights = 0.0f64;
-        for (dr, dc) in DIRECTIONS {
-            let (mut r, mut c, mut steps) = (row + dr, column + dc, 1.0f64);
-            while r >= 0 && c >= 0 && (r as usize) < size && (c as usize) < size {
-                let value = raw[r as usize * size + c as usize];
-                if value != VOID {
-                    let distance = steps * ((dr * dr + dc * dc) as f64).sqrt();
-                    let weight = 1.0 / (distance * distance);
-                    weighted += weight * f64::from(value);
-                    weights += weight;
-                    break;
-                }
-                r += dr;
-                c += dc;
-                steps += 1.0;
-            }
-        }
-        if weights > 0.0 {
-            heights[index] = (weighted / weights) as f32;
-        }
-    }
-    // A void with no valid sample on any of its eight rays (only possible in a nearly empty
-    // file) takes the mean of the valid samples.
-    let still_void: Vec<usize> = voids
+    let heights = raw
         .iter()
-        .copied()
-        .filter(|&i| heights[i] == f32::from(VOID))
+        .map(|&h| match h {
+            VOID => f32::NAN,
+            h => f32::from(h),
+        })
         .collect();
-    if !still_void.is_empty() {
-        let valid: Vec<f64> = raw
-            .iter()
-            .filter(|&&h| h != VOID)
-            .map(|&h| f64::from(h))
-            .collect();
-        let mean = (valid.iter().sum::<f64>() / valid.len() as f64) as f32;
-        for i in still_void {
-            heights[i] = mean;
-        }
-    }
-    Some(heights)
+    super::voids::fill_nan_voids(heights, size)
 }
 
 /// A file's version as its size and modification time (nanoseconds): a file replaced by
@@ -312,36 +293,55 @@ pub fn file_version(path: &Path) -> Result<String, SrtmError> {
 /// A cell's file: its version (size and modification time), cheap to check for changes, and
 /// the digest of its content, what tiles record as their source's version (the same file has
 /// the same digest on every machine, whenever it was copied), read when first asked for.
+/// The elevation files of one cell, in the order they are tried: its SRTM file, then GeoTIFFs
+/// (by name). The first without voids is used, else the first (see [`SrtmDirectory::tile`]).
 #[derive(Debug, Clone, PartialEq, Eq)]
 struct CellFile {
-    path: PathBuf,
+    paths: Vec<PathBuf>,
     version: String,
     content: std::sync::OnceLock<String>,
 }
 
 impl CellFile {
-    fn new(path: PathBuf, version: String) -> CellFile {
-        CellFile {
-            path,
-            version,
+    fn new(paths: Vec<PathBuf>) -> Result<CellFile, SrtmError> {
+        let versions: Vec<String> = paths
+            .iter()
+            .map(|p| file_version(p))
+            .collect::<Result<_, _>>()?;
+        Ok(CellFile {
+            paths,
+            version: versions.join("+"),
             content: std::sync::OnceLock::new(),
-        }
+        })
     }
 
-    /// The digest of the file's bytes (its size and modification time if it cannot be read).
+    /// The digest of the files' bytes (their sizes and modification times if one cannot be
+    /// read).
     fn content_version(&self) -> String {
         self.content
             .get_or_init(|| {
                 use sha2::Digest;
-                match fs::read(&self.path) {
-                    Ok(bytes) => {
-                        let digest = sha2::Sha256::digest(&bytes);
-                        digest[..16].iter().map(|b| format!("{b:02x}")).collect()
+                let mut digests = Vec::new();
+                for path in &self.paths {
+                    match fs::read(path) {
+                        Ok(bytes) => digests.push(sha2::Sha256::digest(&bytes)),
+                        Err(_) => return self.version.clone(),
                     }
-                    Err(_) => self.version.clone(),
                 }
+                let digest = match digests.as_slice() {
+                    [one] => *one,
+                    several => sha2::Sha256::digest(several.concat()),
+                };
+                digest[..16].iter().map(|b| format!("{b:02x}")).collect()
             })
             .clone()
+    }
+
+    /// The same cell with `path` as its SRTM file.
+    fn with_srtm(&self, path: &Path) -> Result<CellFile, SrtmError> {
+        let mut paths = vec![path.to_path_buf()];
+        paths.extend(self.paths.iter().filter(|p| is_geotiff(p)).cloned());
+        CellFile::new(paths)
     }
 }
 
@@ -401,11 +401,13 @@ impl SrtmDirectory {
                 actual: len,
             });
         }
-        let file = CellFile::new(path.to_path_buf(), file_version(path)?);
-        self.files
-            .write()
-            .unwrap_or_else(|p| p.into_inner())
-            .insert(cell, file);
+        let mut files = self.files.write().unwrap_or_else(|p| p.into_inner());
+        let file = match files.get(&cell) {
+            Some(held) => held.with_srtm(path)?,
+            None => CellFile::new(vec![path.to_path_buf()])?,
+        };
+        files.insert(cell, file);
+        drop(files);
         self.decoded.invalidate(&cell);
         self.ranges
             .lock()
@@ -443,13 +445,15 @@ impl SrtmDirectory {
     }
 }
 
-/// The SRTM files of a directory, by cell.
+/// The elevation files of a directory, by cell: per cell one SRTM file (a plain `.hgt` before
+/// a packed one) and any GeoTIFFs.
 fn index_directory(root: &Path) -> Result<BTreeMap<CellId, CellFile>, SrtmError> {
     let entries = fs::read_dir(root).map_err(|source| SrtmError::Directory {
         path: root.to_path_buf(),
         source,
     })?;
-    let mut files: BTreeMap<CellId, CellFile> = BTreeMap::new();
+    let mut srtm: BTreeMap<CellId, PathBuf> = BTreeMap::new();
+    let mut tiffs: BTreeMap<CellId, Vec<PathBuf>> = BTreeMap::new();
     for entry in entries {
         let entry = entry.map_err(|source| SrtmError::Directory {
             path: root.to_path_buf(),
@@ -459,6 +463,10 @@ fn index_directory(root: &Path) -> Result<BTreeMap<CellId, CellFile>, SrtmError>
         let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
             continue;
         };
+        if let Some(cell) = super::geotiff::cell_of_name(name) {
+            tiffs.entry(cell).or_default().push(path);
+            continue;
+        }
         let lower = name.to_ascii_lowercase();
         let stem = lower
             .strip_suffix(".hgt.zip")
@@ -471,11 +479,20 @@ fn index_directory(root: &Path) -> Result<BTreeMap<CellId, CellFile>, SrtmError>
         if side_for_len(len).is_none() {
             return Err(SrtmError::BadSize { path, actual: len });
         }
-        let plain_exists = files.get(&cell).is_some_and(|f| !is_packed(&f.path));
+        let plain_exists = srtm.get(&cell).is_some_and(|p| !is_packed(p));
         if !plain_exists {
-            let version = file_version(&path)?;
-            files.insert(cell, CellFile::new(path, version));
+            srtm.insert(cell, path);
         }
+    }
+    let cells: std::collections::BTreeSet<CellId> =
+        srtm.keys().chain(tiffs.keys()).copied().collect();
+    let mut files = BTreeMap::new();
+    for cell in cells {
+        let mut paths: Vec<PathBuf> = srtm.remove(&cell).into_iter().collect();
+        let mut more = tiffs.remove(&cell).unwrap_or_default();
+        more.sort();
+        paths.extend(more);
+        files.insert(cell, CellFile::new(paths)?);
     }
     Ok(files)
 }
@@ -526,22 +543,40 @@ impl SrtmDirectory {
         self.read().contains_key(&cell)
     }
 
-    /// The decoded file of a cell, `None` if the directory has no file for it.
+    /// The decoded file of a cell, `None` if the directory has no file for it. Of several files,
+    /// the first without voids is taken (a void-free DEM over SRTM with its holes filled), else
+    /// the first.
     pub fn tile(&self, cell: CellId) -> Result<Option<Arc<SrtmTile>>, SrtmError> {
-        let Some(path) = self.read().get(&cell).map(|f| f.path.clone()) else {
+        let Some(paths) = self.read().get(&cell).map(|f| f.paths.clone()) else {
             return Ok(None);
         };
         self.decoded
-            .try_get_with(cell, || read(cell, &path).map(Arc::new))
+            .try_get_with(cell, || decode_first_whole(cell, &paths).map(Arc::new))
             .map(Some)
             .map_err(|error| match Arc::try_unwrap(error) {
                 Ok(error) => error,
                 Err(shared) => SrtmError::Io {
-                    path: path.clone(),
+                    path: paths.first().cloned().unwrap_or_default(),
                     source: std::io::Error::other(shared.to_string()),
                 },
             })
     }
+}
+
+/// The first of `paths` that decodes without voids, else the first.
+fn decode_first_whole(cell: CellId, paths: &[PathBuf]) -> Result<SrtmTile, SrtmError> {
+    let mut first = None;
+    for path in paths {
+        let (tile, voids) = read_counting(cell, path)?;
+        if voids == 0 {
+            return Ok(tile);
+        }
+        first.get_or_insert(tile);
+    }
+    first.ok_or_else(|| SrtmError::Io {
+        path: PathBuf::new(),
+        source: std::io::Error::other(format!("no elevation file for cell {cell:?}")),
+    })
 }
 
 #[cfg(test)]
