@@ -10,11 +10,11 @@
 //!
 //! The `pmtiles` crate writes these files and numbers tiles along the Hilbert curve here too;
 //! its reader is asynchronous over HTTP and object-store backends, while stores are read from
-//! blocking threads, so the file is read here by offset. The root directory is kept in memory,
-//! and leaf directories as they are met.
+//! blocking threads, so the file is read here by offset (positioned reads: requests read it
+//! at once). The root directory is kept in memory, and leaf directories as they are met.
 
 use std::collections::HashMap;
-use std::io::{Read, Seek, SeekFrom};
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -58,7 +58,9 @@ struct Entry {
 #[derive(Debug)]
 pub struct PmtilesStore {
     path: PathBuf,
-    file: Mutex<std::fs::File>,
+    file: std::fs::File,
+    /// The file's length in bytes.
+    len: u64,
     header: Header,
     root: Vec<Entry>,
     leaves: Mutex<HashMap<u64, Arc<Vec<Entry>>>>,
@@ -73,9 +75,17 @@ impl PmtilesStore {
             path: path.to_path_buf(),
             source,
         })?;
+        let len = file
+            .metadata()
+            .map(|m| m.len())
+            .map_err(|source| StoreError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?;
         let mut store = PmtilesStore {
             path: path.to_path_buf(),
-            file: Mutex::new(file),
+            file,
+            len,
             header: Header::empty(),
             root: Vec::new(),
             leaves: Mutex::new(HashMap::new()),
@@ -96,22 +106,23 @@ impl PmtilesStore {
         }
     }
 
-    fn file(&self) -> MutexGuard<'_, std::fs::File> {
-        self.file
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner())
-    }
-
     fn read_at(&self, offset: u64, length: u64) -> Result<Vec<u8>, StoreError> {
         let io = |source| StoreError::Io {
             path: self.path.clone(),
             source,
         };
+        // A damaged header must not make us allocate what the file cannot hold.
+        let end = offset.checked_add(length);
+        if end.is_none_or(|end| end > self.len) {
+            return Err(self.damaged(format!(
+                "it points at bytes {offset} to {} of its {}",
+                offset.saturating_add(length),
+                self.len
+            )));
+        }
         let length = usize::try_from(length).map_err(|_| self.damaged("a length overflows"))?;
-        let mut file = self.file();
-        file.seek(SeekFrom::Start(offset)).map_err(io)?;
         let mut bytes = vec![0u8; length];
-        file.read_exact(&mut bytes).map_err(|e| match e.kind() {
+        read_exact_at(&self.file, &mut bytes, offset).map_err(|e| match e.kind() {
             std::io::ErrorKind::UnexpectedEof => self.damaged(format!(
                 "it ends before byte {} that it points at",
                 offset + length as u64
@@ -293,6 +304,26 @@ impl Header {
             ],
         })
     }
+}
+
+/// Reads `buffer.len()` bytes at `offset` without moving a shared cursor, so requests read
+/// the file at once.
+#[cfg(unix)]
+fn read_exact_at(file: &std::fs::File, buffer: &mut [u8], offset: u64) -> std::io::Result<()> {
+    std::os::unix::fs::FileExt::read_exact_at(file, buffer, offset)
+}
+
+#[cfg(windows)]
+fn read_exact_at(file: &std::fs::File, buffer: &mut [u8], offset: u64) -> std::io::Result<()> {
+    let mut done = 0;
+    while done < buffer.len() {
+        let offset = offset + done as u64;
+        match std::os::windows::fs::FileExt::seek_read(file, &mut buffer[done..], offset)? {
+            0 => return Err(std::io::ErrorKind::UnexpectedEof.into()),
+            read => done += read,
+        }
+    }
+    Ok(())
 }
 
 fn gunzip(bytes: &[u8]) -> std::io::Result<Vec<u8>> {
@@ -514,6 +545,59 @@ mod tests {
     }
 
     #[test]
+    fn an_archive_with_leaf_directories_reads_back_every_tile() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("many.pmtiles");
+        let file = std::fs::File::create(&path).unwrap();
+        let mut writer = pmtiles::PmTilesWriter::new(pmtiles::TileType::Unknown)
+            .metadata(r#"{"format": "glb"}"#)
+            .create(std::io::BufWriter::new(file))
+            .unwrap();
+        let side = 250u32;
+        let tiles: Vec<TileId> = (0..side)
+            .flat_map(|y| {
+                (0..side).map(move |x| TileId {
+                    z: 14,
+                    x: 8000 + x,
+                    y: 5000 + y,
+                })
+            })
+            .collect();
+        let mut ordered: Vec<(u64, TileId)> =
+            tiles.iter().map(|&t| (hilbert_id(t).unwrap(), t)).collect();
+        ordered.sort();
+        let body = |t: TileId| format!("tile {}/{}", t.x, t.y).into_bytes();
+        for &(_, t) in &ordered {
+            let coord = pmtiles::TileCoord::new(t.z, t.x, t.y).unwrap();
+            writer.add_tile(coord, &body(t)).unwrap();
+        }
+        writer.finalize().unwrap();
+
+        let store = PmtilesStore::open(&path).unwrap();
+        assert!(store.header.leaves.1 > 0, "the writer split the directory");
+        for &t in tiles.iter().step_by(97) {
+            let key = TileKey {
+                tile: t,
+                format: crate::format::Format::GLB,
+            };
+            let tile = store.get(&key).unwrap().unwrap();
+            assert_eq!(tile.bodies.identity.to_vec(), body(t), "{t}");
+        }
+        let beside = TileId {
+            z: 14,
+            x: 7999,
+            y: 5000,
+        };
+        let key = TileKey {
+            tile: beside,
+            format: crate::format::Format::GLB,
+        };
+        assert!(store.get(&key).unwrap().is_none());
+        assert_eq!(store.usage().unwrap().tiles, tiles.len() as u64);
+        assert_eq!(store.list(&TileFilter::All).unwrap().len(), tiles.len());
+    }
+
+    #[test]
     fn a_truncated_file_is_a_named_error() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("cut.pmtiles");
@@ -527,9 +611,15 @@ mod tests {
         std::fs::write(&path, &header).unwrap();
         let error = PmtilesStore::open(&path).err().unwrap().to_string();
         assert!(
-            error.contains("cut.pmtiles") && error.contains("ends before"),
+            error.contains("cut.pmtiles")
+                && error.contains("points at bytes 127 to 167 of its 127"),
             "{error}"
         );
+        // A length no file holds is refused before anything is read.
+        header[23] = 0x40;
+        std::fs::write(&path, &header).unwrap();
+        let error = PmtilesStore::open(&path).err().unwrap().to_string();
+        assert!(error.contains("points at bytes"), "{error}");
         header[7] = 2;
         std::fs::write(&path, &header).unwrap();
         let error = PmtilesStore::open(&path).err().unwrap().to_string();
