@@ -28,7 +28,7 @@ try {
   }, null, { timeout: 300000, polling: 250 });
   result.steps.firstAllLoadedMs = Date.now() - loadStarted;
   await page.waitForTimeout(1500);
-  await page.screenshot({ path: join(outDir, 'globe-start.png') });
+  await page.screenshot({ path: join(outDir, 'globe-start.png'), timeout: 120000 });
   result.start = await page.evaluate(() => ({ ...window.terrastitchGlobe.stats }));
   result.pixels = await globeCoverage(page);
 
@@ -45,7 +45,7 @@ try {
     const id = panel.querySelector('.osm-id');
     return { visible: !panel.hidden, osmId: id?.dataset.osmId ?? null };
   });
-  await page.screenshot({ path: join(outDir, 'globe-picked.png') });
+  await page.screenshot({ path: join(outDir, 'globe-picked.png'), timeout: 120000 });
   result.end = await page.evaluate(() => ({ ...window.terrastitchGlobe.stats }));
   result.requests = {
     tilesets: requested.filter((u) => /\/tileset\.json|\/3dtiles\/.*\.json/.test(u)).length,

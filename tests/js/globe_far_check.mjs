@@ -35,7 +35,8 @@ try {
       const settledMs = Date.now() - started;
       await page.waitForTimeout(1000);
       const name = `globe-${pass}-${height}.png`;
-      await page.screenshot({ path: join(outDir, name) });
+      // A frame of the software-rendered globe can take long on a busy machine.
+      await page.screenshot({ path: join(outDir, name), timeout: 120000 });
       const stats = await page.evaluate(() => ({ ...window.terrastitchGlobe.stats }));
       // The zooms of the content drawn now: the tiles selected in the last frame.
       const drawn = await page.evaluate(() => {

@@ -45,7 +45,7 @@ try {
       looksAt: at && [Cesium.Math.toDegrees(at.longitude), Cesium.Math.toDegrees(at.latitude)],
     };
   });
-  await page.screenshot({ path: join(outDir, 'globe-open.png') });
+  await page.screenshot({ path: join(outDir, 'globe-open.png'), timeout: 120000 });
   result.answers = answers;
 } catch (error) {
   result.error = String(error.stack ?? error);
