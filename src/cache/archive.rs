@@ -10,7 +10,8 @@ use std::path::Path;
 
 use serde_json::{json, Value};
 
-use super::store::TileStore;
+use super::encoding::Bodies;
+use super::store::{Provenance, StoreError, StoredTile, TileStore};
 use crate::format::{Extensions, Format, Variant};
 use crate::tile::{LonLatBounds, TileId};
 
@@ -120,6 +121,16 @@ pub fn format_name(format: Format) -> &'static str {
         Format::Glb(variant) => variant.name(),
         Format::Terrain(_) => "terrain",
     }
+}
+
+/// A tile read from an archive, as a store holds it: its codings made once, its validator.
+pub(super) fn archived_tile(data: Vec<u8>, made_by: Provenance) -> Result<StoredTile, StoreError> {
+    Ok(StoredTile {
+        etag: super::etag_of(&data),
+        bodies: Bodies::compress(data)?,
+        made_by,
+        created_at: 0,
+    })
 }
 
 /// A read-only store of an exported file.

@@ -7,9 +7,7 @@ use std::path::Path;
 
 use rusqlite::{Connection, OpenFlags, OptionalExtension};
 
-use super::archive::{format_named, ArchiveStore, Contents, CONTENTS_KEY};
-use super::encoding::Bodies;
-use super::etag_of;
+use super::archive::{archived_tile, format_named, ArchiveStore, Contents, CONTENTS_KEY};
 use super::sqlite::Database;
 use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
 use crate::format::TileKey;
@@ -120,12 +118,7 @@ impl TileStore for MbtilesStore {
         let Some(data) = data else {
             return Ok(None);
         };
-        Ok(Some(StoredTile {
-            etag: etag_of(&data),
-            bodies: Bodies::compress(data)?,
-            made_by: self.provenance(),
-            created_at: 0,
-        }))
+        archived_tile(data, self.provenance()).map(Some)
     }
 
     fn put(&self, _key: &TileKey, _tile: &StoredTile) -> Result<(), StoreError> {

@@ -18,9 +18,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard};
 
-use super::archive::{ArchiveStore, Contents, CONTENTS_KEY};
-use super::encoding::Bodies;
-use super::etag_of;
+use super::archive::{archived_tile, ArchiveStore, Contents, CONTENTS_KEY};
 use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
 use crate::format::TileKey;
 use crate::tile::{LonLatBounds, TileId};
@@ -442,12 +440,7 @@ impl TileStore for PmtilesStore {
                 .map_err(|e| self.damaged(format!("tile {} does not inflate: {e}", key.tile)))?,
             false => bytes,
         };
-        Ok(Some(StoredTile {
-            etag: etag_of(&data),
-            bodies: Bodies::compress(data)?,
-            made_by: self.provenance(),
-            created_at: 0,
-        }))
+        archived_tile(data, self.provenance()).map(Some)
     }
 
     fn put(&self, _key: &TileKey, _tile: &StoredTile) -> Result<(), StoreError> {

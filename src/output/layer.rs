@@ -134,8 +134,9 @@ fn span_inside(zoom: u8, b: &LonLatBounds) -> Option<Span> {
     Some([nw.x, nw.y, se.x, se.y])
 }
 
-/// The box around `boxes`, the whole Web Mercator world when there are none.
-fn enclosing(boxes: &[LonLatBounds]) -> [f64; 4] {
+/// The box around `boxes` (west, south, east, north), the whole Web Mercator world when there
+/// are none.
+pub fn enclosing(boxes: &[LonLatBounds]) -> [f64; 4] {
     boxes
         .iter()
         .map(|b| [b.west, b.south, b.east, b.north])

@@ -38,19 +38,7 @@ pub async fn tilejson(
         None => String::new(),
     };
     let offer = state.provider()?.offer();
-    let bounds = offer
-        .coverage
-        .iter()
-        .map(|b| [b.west, b.south, b.east, b.north])
-        .reduce(|a, b| {
-            [
-                a[0].min(b[0]),
-                a[1].min(b[1]),
-                a[2].max(b[2]),
-                a[3].max(b[3]),
-            ]
-        })
-        .unwrap_or([-180.0, -85.051_128_78, 180.0, 85.051_128_78]);
+    let bounds = crate::output::layer::enclosing(&offer.coverage);
     // The compressions of glb asked for with `?compress=`: a provider of one format has that.
     let compressions: Vec<&str> = match offer.only {
         Some(Format::Glb(v)) if v.frame == Frame::WebMercator => {
