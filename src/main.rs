@@ -225,8 +225,13 @@ struct ExportArgs {
     area: AreaArgs,
     #[command(flatten)]
     sources: SourceArgs,
-    /// Output: an MBTiles file, or a directory when the path ends in / (DIR/z/x/y.glb)
-    #[arg(short = 'o', long = "output", value_name = "FILE|DIR/")]
+    /// Output: a PMTiles file (FILE.pmtiles), an MBTiles file (any other name), or a directory
+    /// when the path ends in / (DIR/z/x/y.glb, with tileset.json or layer.json)
+    #[arg(
+        short = 'o',
+        long = "output",
+        value_name = "FILE.pmtiles|FILE.mbtiles|DIR/"
+    )]
     output: PathBuf,
 }
 

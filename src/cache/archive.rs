@@ -1,6 +1,6 @@
 //! An exported archive — an MBTiles file or a PMTiles file, as `terrastitch export` writes them
-//! — opened as a read-only tile store, whichever kind it is, with what it holds beside its
-//! tiles: the zooms, the ground's heights under the tiles (the bounding volumes of a 3D Tiles
+//! — as a read-only tile store ([`ArchiveStore`]; [`super::open_archive`] opens either kind),
+//! with what it holds beside its tiles: the zooms, the ground's heights under the tiles (the bounding volumes of a 3D Tiles
 //! tileset over them) and, for terrain, the `layer.json` that describes it. These go into the
 //! archive's metadata as one JSON object under [`CONTENTS_KEY`]; an archive without it (written
 //! elsewhere, or by an older export) holds what its zoom range says, without heights.
