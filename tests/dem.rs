@@ -64,6 +64,14 @@ fn write_copernicus(heights: &[f32], size: usize, path: &Path) {
     image.write_data(&pixels).unwrap();
 }
 
+/// The bundled cell written as Copernicus's file of it into `dir`, with its heights and size.
+fn copernicus_of_the_sample(dir: &Path) -> (PathBuf, Vec<f32>, usize) {
+    let (heights, size) = srtm_heights();
+    let tif = dir.join("Copernicus_DSM_COG_10_N43_00_E007_00_DEM.tif");
+    write_copernicus(&heights, size, &tif);
+    (tif, heights, size)
+}
+
 /// A directory holding copies of `files` (from the test's temporary folder or the repository).
 fn directory_of(root: &Path, name: &str, files: &[&Path]) -> PathBuf {
     let dir = root.join(name);
@@ -89,11 +97,7 @@ fn render_from(srtm: &Path, out: &Path) -> Vec<u8> {
 #[test]
 fn a_copernicus_geotiff_of_the_same_heights_makes_the_same_tile() {
     let dir = tempfile::tempdir().unwrap();
-    let (heights, size) = srtm_heights();
-    let tif = dir
-        .path()
-        .join("Copernicus_DSM_COG_10_N43_00_E007_00_DEM.tif");
-    write_copernicus(&heights, size, &tif);
+    let (tif, heights, size) = copernicus_of_the_sample(dir.path());
     let only_tif = directory_of(dir.path(), "tif", &[&tif]);
     let read = SrtmDirectory::open(&only_tif).unwrap();
     assert_eq!(read.cells(), vec![CELL]);
@@ -118,11 +122,7 @@ fn a_copernicus_geotiff_of_the_same_heights_makes_the_same_tile() {
 #[test]
 fn a_void_free_geotiff_takes_precedence_over_an_srtm_file_with_voids() {
     let dir = tempfile::tempdir().unwrap();
-    let (heights, size) = srtm_heights();
-    let tif = dir
-        .path()
-        .join("Copernicus_DSM_COG_10_N43_00_E007_00_DEM.tif");
-    write_copernicus(&heights, size, &tif);
+    let (tif, heights, size) = copernicus_of_the_sample(dir.path());
     // The SRTM file with a hole punched where the tile is (Monaco's hills).
     let mut bytes = std::fs::read(repo().join("data/N43E007.hgt")).unwrap();
     let (lon, lat) = (7.416, 43.731);
