@@ -435,3 +435,33 @@ fn seed_workers_share_one_queue_and_finish_a_killed_workers_tiles() {
         .get(0);
     assert_eq!(left, 0, "the queue is empty");
 }
+
+#[test]
+fn a_server_on_postgresql_stops_cleanly_on_sigterm_and_sigint() {
+    let cluster = Cluster::start();
+    for (signal, name) in [(libc::SIGTERM, "sigterm"), (libc::SIGINT, "sigint")] {
+        let url = cluster.database(name);
+        let mut replica = Replica::start(&url, 15, 1);
+        // A tile made and stored, so connections are open and pooled when it stops.
+        let (status, _, _) = replica.get(&path(8529, 5973));
+        assert_eq!(status, 200);
+        let pid = libc::pid_t::try_from(replica.process.0.id()).unwrap();
+        // SAFETY: kill sends a signal to the child this test started.
+        assert_eq!(unsafe { libc::kill(pid, signal) }, 0);
+        let started = Instant::now();
+        let status = loop {
+            if let Some(status) = replica.process.0.try_wait().unwrap() {
+                break status;
+            }
+            assert!(
+                started.elapsed() < Duration::from_secs(120),
+                "the server did not stop on {name}"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        std::thread::sleep(Duration::from_millis(200));
+        let log = replica.log.lock().unwrap().join("\n");
+        assert_eq!(status.code(), Some(0), "{name}: {status}\n{log}");
+        assert!(!log.contains("panic"), "{name}:\n{log}");
+    }
+}

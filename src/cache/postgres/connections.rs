@@ -51,12 +51,45 @@ impl std::ops::DerefMut for Pooled<'_> {
 
 impl Drop for Pooled<'_> {
     fn drop(&mut self) {
-        if let Some(client) = self.client.take().filter(|c| !c.is_closed()) {
+        let Some(client) = self.client.take() else {
+            return;
+        };
+        if !client.is_closed() {
             let mut idle = self.connections.lock();
             if idle.len() < IDLE_CONNECTIONS {
                 idle.push(client);
+                return;
             }
         }
+        close(vec![client]);
+    }
+}
+
+impl Drop for Connections {
+    fn drop(&mut self) {
+        close(std::mem::take(&mut *self.lock()));
+    }
+}
+
+/// Closes blocking clients wherever they are dropped. Each client drives its connection on a
+/// runtime of its own, which cannot run on a thread that drives async tasks (it panics, and a
+/// panic there while the server stops aborts the process): there the clients are closed on a
+/// thread of their own.
+pub fn close(clients: Vec<Client>) {
+    if clients.is_empty() {
+        return;
+    }
+    if tokio::runtime::Handle::try_current().is_err() {
+        drop(clients);
+        return;
+    }
+    // Should no thread start, the clients are left to the operating system, not dropped here.
+    let clients = std::mem::ManuallyDrop::new(clients);
+    let closing = std::thread::Builder::new()
+        .name("postgres-close".into())
+        .spawn(move || drop(std::mem::ManuallyDrop::into_inner(clients)));
+    if let Ok(thread) = closing {
+        let _ = thread.join();
     }
 }
 
