@@ -171,6 +171,16 @@ pub struct CacheConfig {
     /// With `url`: how long a process's claim on a tile it renders, or on queued work it took,
     /// lasts unrenewed, seconds; a process that dies lets its claims lapse after this long.
     pub lease_s: u64,
+    /// Largest tile, uncompressed, MiB, that a store or an archive may give: one that would
+    /// inflate past it is damaged and is not decompressed further.
+    pub max_tile_mib: u64,
+}
+
+impl CacheConfig {
+    /// [`CacheConfig::max_tile_mib`] in bytes.
+    pub fn max_tile_bytes(&self) -> u64 {
+        self.max_tile_mib.saturating_mul(1 << 20)
+    }
 }
 
 impl Default for CacheConfig {
@@ -181,6 +191,7 @@ impl Default for CacheConfig {
             memory_mib: 256,
             max_size_mib: 10240,
             lease_s: 15,
+            max_tile_mib: 64,
         }
     }
 }
@@ -266,7 +277,7 @@ impl Config {
     /// Checks the values a typo or a slip can make meaningless.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let (server, mesh, features) = (&self.server, &self.render.mesh, &self.render.features);
-        let checks: [(&'static str, String, bool, &'static str); 12] = [
+        let checks: [(&'static str, String, bool, &'static str); 13] = [
             (
                 "server.zoom",
                 server.zoom.to_string(),
@@ -290,6 +301,12 @@ impl Config {
                 server.body_timeout_s.to_string(),
                 server.body_timeout_s >= 1,
                 "at least one second",
+            ),
+            (
+                "cache.max_tile_mib",
+                self.cache.max_tile_mib.to_string(),
+                self.cache.max_tile_mib >= 1,
+                "at least one MiB",
             ),
             (
                 "render.mesh.sample_cells",

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -333,10 +333,11 @@ fn open_store(config: &Config) -> Result<(Arc<dyn TileStore>, Option<SharedBy>)>
     let cap = (config.cache.max_size_mib > 0).then(|| config.cache.max_size_mib * 1024 * 1024);
     let url = config.cache.url.trim();
     if url.is_empty() {
-        let store = SqliteStore::open_or_set_aside(&config.cache.path, cap)?;
+        let store = SqliteStore::open_or_set_aside(&config.cache.path, cap)?
+            .with_max_tile(config.cache.max_tile_bytes());
         return Ok((Arc::new(store), None));
     }
-    let store = open_postgres(url, cap)?;
+    let store = open_postgres(url, cap)?.with_max_tile(config.cache.max_tile_bytes());
     let cluster = store.cluster(std::time::Duration::from_secs(config.cache.lease_s));
     tracing::info!(place = store.place(), "tiles kept in PostgreSQL");
     Ok((Arc::new(store), Some(Arc::new(cluster))))
@@ -370,8 +371,8 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
     };
     let state = AppState::new(cache, &config.server);
     let fetcher = Arc::new(Fetcher::new(config.sources.fetch_settings()));
-    let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
-    runtime.block_on(async move {
+    let grace = Duration::from_secs(config.server.shutdown_grace_s);
+    run_server(grace, async move {
         let listener = tokio::net::TcpListener::bind(&config.server.listen)
             .await
             .with_context(|| format!("cannot listen on {}", config.server.listen))?;
@@ -420,7 +421,7 @@ fn serve(args: ServeArgs, mut config: Config) -> Result<()> {
 
 /// Serves an exported archive as it is.
 fn serve_archive(file: &std::path::Path, config: Config) -> Result<()> {
-    let store = terrastitch::cache::open_archive(file)?;
+    let store = terrastitch::cache::open_archive(file, config.cache.max_tile_bytes())?;
     let archive = Archive::of(store.as_ref());
     let server = ServerConfig {
         zoom: archive.contents.max_zoom(),
@@ -429,8 +430,7 @@ fn serve_archive(file: &std::path::Path, config: Config) -> Result<()> {
     let cache = TileCache::new(store, config.cache.memory_mib * 1024 * 1024);
     let state = AppState::new(cache, &server);
     state.provide(Arc::new(archive));
-    let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
-    runtime.block_on(async move {
+    run_server(Duration::from_secs(server.shutdown_grace_s), async move {
         let listener = tokio::net::TcpListener::bind(&server.listen)
             .await
             .with_context(|| format!("cannot listen on {}", server.listen))?;
@@ -440,6 +440,19 @@ fn serve_archive(file: &std::path::Path, config: Config) -> Result<()> {
         server::serve(listener, state, shutdown_signal()).await?;
         Ok(())
     })
+}
+
+/// Runs a server on a runtime of its own until it stops. Blocking work still running then (a
+/// render, a read of a file that hangs) gets `grace` more and is left behind: a stop always
+/// ends the process.
+fn run_server(
+    grace: Duration,
+    server: impl std::future::Future<Output = Result<()>>,
+) -> Result<()> {
+    let runtime = tokio::runtime::Runtime::new().context("starting the async runtime")?;
+    let result = runtime.block_on(server);
+    runtime.shutdown_timeout(grace);
+    result
 }
 
 async fn shutdown_signal() {

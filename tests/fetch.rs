@@ -21,8 +21,9 @@ const TILE: &str = "/tiles/14/8529/5973.glb";
 
 /// An HTTP server on 127.0.0.1 serving the files of `root` under `/MODE/NAME`, where MODE is
 /// `ok`, `missing` (404), `error` (500), `flaky` (500 twice per path, then the file),
-/// `truncated` (the announced length, half the body, then the connection closes) or `slow`
-/// (the answer after three seconds). It counts the requests per path.
+/// `truncated` (the announced length, half the body, then the connection closes), `slow`
+/// (the answer after three seconds) or `unannounced` (the file without its length). It counts
+/// the requests per path.
 struct Upstream {
     base: String,
     hits: Arc<Mutex<HashMap<String, usize>>>,
@@ -109,11 +110,13 @@ async fn answer(
                 format!("HTTP/1.1 304 Not Modified\r\nETag: {etag}\r\nConnection: close\r\n\r\n")
                     .into_bytes()
             } else {
-                let mut reply = format!(
-                    "HTTP/1.1 200 OK\r\nContent-Length: {}\r\nETag: {etag}\r\nConnection: close\r\n\r\n",
-                    body.len()
-                )
-                .into_bytes();
+                let length = match mode {
+                    "unannounced" => String::new(),
+                    _ => format!("Content-Length: {}\r\n", body.len()),
+                };
+                let mut reply =
+                    format!("HTTP/1.1 200 OK\r\n{length}ETag: {etag}\r\nConnection: close\r\n\r\n")
+                        .into_bytes();
                 let sent = if mode == "truncated" {
                     &body[..body.len() / 2]
                 } else {
@@ -453,4 +456,41 @@ async fn a_changed_local_file_makes_stale_only_the_tiles_it_reaches() {
     assert_eq!(stale.headers()["x-cache"], "stale");
     let _ = stale.bytes().await;
     server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_download_longer_than_its_kind_allows_is_refused_and_not_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let served = dir.path().join("served");
+    std::fs::create_dir_all(&served).unwrap();
+    std::fs::write(served.join("N43E007.hgt"), vec![0u8; 100_000]).unwrap();
+    let upstream = Upstream::start(served).await;
+    let downloads = dir.path().join("downloads");
+    let fetcher = Arc::new(Fetcher::new(
+        config(dir.path(), String::new()).fetch_settings(),
+    ));
+    // The length announced, and a body that only ends.
+    for mode in ["ok", "unannounced"] {
+        let url = upstream.url(mode, "N43E007.hgt");
+        let fetching = fetcher.clone();
+        let fetched = tokio::task::spawn_blocking(move || {
+            let name = format!("{mode}.hgt");
+            fetching.fetch(&terrastitch::source::fetch::Download {
+                url: &url,
+                name: &name,
+                source_name: "SRTM",
+                max_bytes: Some(50_000),
+            })
+        });
+        let error = fetched.await.unwrap().unwrap_err().to_string();
+        assert!(
+            error.contains("is longer than the 50000 bytes such a file may have"),
+            "{mode}: {error}"
+        );
+        assert!(
+            names(&downloads).is_empty(),
+            "{mode}: {:?}",
+            names(&downloads)
+        );
+    }
 }

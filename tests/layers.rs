@@ -14,6 +14,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ("geoid", &[]),
     ("panics", &[]),
     ("parallel", &[]),
+    ("inflate", &[]),
     ("geometry", &["tile"]),
     ("format", &["tile"]),
     ("osm", &["tile", "geometry"]),
@@ -68,8 +69,8 @@ const ALLOWED: &[(&str, &[&str])] = &[
             "tile",
         ],
     ),
-    ("source", &["osm", "terrain", "geometry", "tile"]),
-    ("cache", &["format", "panics", "tile"]),
+    ("source", &["osm", "terrain", "geometry", "inflate", "tile"]),
+    ("cache", &["format", "inflate", "panics", "tile"]),
     ("config", &["source", "render", "geoid", "format", "tile"]),
     (
         "provider",

@@ -2,7 +2,7 @@
 //! smaller, and each request gets the best form its `Accept-Encoding` allows, without
 //! compressing anything per request.
 
-use std::io::{Read, Write};
+use std::io::Write;
 
 use axum::body::Bytes;
 
@@ -56,7 +56,7 @@ pub enum CodingError {
     Corrupt {
         coding: &'static str,
         #[source]
-        source: std::io::Error,
+        source: crate::inflate::InflateError,
     },
     #[error("compressing a tile failed: {0}")]
     Compress(#[source] std::io::Error),
@@ -80,16 +80,18 @@ impl Bodies {
     }
 
     /// Rebuilds the bodies from their stored forms: the primary body in its coding (gzip or
-    /// identity) and the brotli form if any; the identity form is decoded once, here.
+    /// identity) and the brotli form if any; the identity form is decoded once, here, and is
+    /// damaged if it would be longer than `max_tile` bytes.
     pub fn from_stored(
         primary: Vec<u8>,
         coding: Encoding,
         brotli: Option<Vec<u8>>,
+        max_tile: u64,
     ) -> Result<Bodies, CodingError> {
         let (identity, gzip) = match coding {
             Encoding::Identity => (primary, None),
-            Encoding::Gzip => (gunzip(&primary)?, Some(Bytes::from(primary))),
-            Encoding::Brotli => (unbrotli(&primary)?, None),
+            Encoding::Gzip => (gunzip(&primary, max_tile)?, Some(Bytes::from(primary))),
+            Encoding::Brotli => (unbrotli(&primary, max_tile)?, None),
         };
         Ok(Bodies {
             identity: Bytes::from(identity),
@@ -106,7 +108,8 @@ impl Bodies {
         }
         // The gzip form was decoded to make the identity one; brotli is decoded here.
         if let Some(brotli) = &self.brotli {
-            if unbrotli(brotli)? != self.identity {
+            // It decodes to the identity body or it is damaged: no longer.
+            if unbrotli(brotli, self.identity.len() as u64)? != self.identity {
                 return Err(CodingError::Mismatch { coding: "br" });
             }
         }
@@ -213,26 +216,18 @@ fn brotli(data: &[u8]) -> std::io::Result<Vec<u8>> {
     Ok(out)
 }
 
-fn gunzip(data: &[u8]) -> Result<Vec<u8>, CodingError> {
-    let mut out = Vec::new();
-    flate2::read::GzDecoder::new(data)
-        .read_to_end(&mut out)
-        .map_err(|source| CodingError::Corrupt {
-            coding: "gzip",
-            source,
-        })?;
-    Ok(out)
+fn gunzip(data: &[u8], limit: u64) -> Result<Vec<u8>, CodingError> {
+    crate::inflate::gunzip(data, limit).map_err(|source| CodingError::Corrupt {
+        coding: "gzip",
+        source,
+    })
 }
 
-fn unbrotli(data: &[u8]) -> Result<Vec<u8>, CodingError> {
-    let mut out = Vec::new();
-    brotli::Decompressor::new(data, 1 << 16)
-        .read_to_end(&mut out)
-        .map_err(|source| CodingError::Corrupt {
-            coding: "br",
-            source,
-        })?;
-    Ok(out)
+fn unbrotli(data: &[u8], limit: u64) -> Result<Vec<u8>, CodingError> {
+    crate::inflate::unbrotli(data, limit).map_err(|source| CodingError::Corrupt {
+        coding: "br",
+        source,
+    })
 }
 
 #[cfg(test)]
@@ -267,10 +262,14 @@ mod tests {
             primary.to_vec(),
             coding,
             bodies.brotli.as_ref().map(|b| b.to_vec()),
+            1 << 20,
         )
         .unwrap();
         assert_eq!(back, bodies);
-        assert_eq!(unbrotli(bodies.brotli.as_ref().unwrap()).unwrap(), original);
+        assert_eq!(
+            unbrotli(bodies.brotli.as_ref().unwrap(), 1 << 20).unwrap(),
+            original
+        );
         let (coding, body) = bodies.choose(&Accepted::parse(["gzip, br"]));
         assert_ne!(coding, Encoding::Identity);
         assert!(body.len() < original.len());
@@ -299,7 +298,26 @@ mod tests {
 
     #[test]
     fn a_corrupt_stored_body_is_an_error_not_a_panic() {
-        let error = Bodies::from_stored(vec![0x1f, 0x8b, 1, 2, 3], Encoding::Gzip, None);
+        let error = Bodies::from_stored(vec![0x1f, 0x8b, 1, 2, 3], Encoding::Gzip, None, 1000);
         assert!(matches!(error, Err(CodingError::Corrupt { .. })));
+    }
+
+    #[test]
+    fn a_stored_body_longer_than_a_tile_may_be_is_damaged() {
+        let bodies = Bodies::compress(vec![0u8; 100_000]).unwrap();
+        let (coding, primary) = bodies.primary();
+        let error = Bodies::from_stored(primary.to_vec(), coding, None, 50_000).unwrap_err();
+        assert!(
+            error.to_string().contains("more than 50000 bytes"),
+            "{error}"
+        );
+        // A brotli form that decodes past the identity body is damaged, not decoded whole.
+        let mut longer = bodies.clone();
+        longer.identity = Bytes::from(vec![0u8; 10]);
+        let error = longer.verify(&crate::cache::etag_of(&longer.identity));
+        assert!(matches!(
+            error,
+            Err(CodingError::Corrupt { coding: "br", .. })
+        ));
     }
 }

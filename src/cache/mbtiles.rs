@@ -2,8 +2,17 @@
 //! without any source data can serve an exported area: `terrastitch serve --archive FILE`.
 //!
 //! A tile enters memory compressed once, like a rendered one; the file is never written.
+//!
+//! The file is not trusted: it is opened read-only, its `tiles` must be a table or view with
+//! the MBTiles columns that answers a first lookup in time, every statement on it is stopped
+//! past [`QUERY_LIMIT`] (SQLite's progress handler: a `tiles` view that never ends cannot hold a
+//! thread, nor a server that is stopping), and a tile longer than the largest a tile may be is
+//! damaged before it is read.
 
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use rusqlite::{Connection, OpenFlags, OptionalExtension};
 
@@ -13,22 +22,49 @@ use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, 
 use crate::format::TileKey;
 use crate::tile::{LonLatBounds, TileId};
 
+/// Longest a statement on the file may run. A lookup takes microseconds and a list of a
+/// country's million tiles about a second.
+const QUERY_LIMIT: Duration = Duration::from_secs(10);
+/// SQLite virtual-machine steps between two looks at the clock.
+const STEPS_PER_CHECK: i32 = 10_000;
+
+/// The columns an MBTiles `tiles` table has.
+const TILE_COLUMNS: [&str; 4] = ["zoom_level", "tile_column", "tile_row", "tile_data"];
+
 #[derive(Debug)]
 pub struct MbtilesStore {
     db: Database,
     contents: Contents,
+    /// When the running statement must stop: milliseconds after `epoch`.
+    stop_at: Arc<AtomicU64>,
+    epoch: Instant,
+    /// Largest tile it may give.
+    max_tile: u64,
 }
 
 impl MbtilesStore {
-    /// Opens the file read-only and reads its metadata; a file without the MBTiles tables, or
-    /// of a format other than glb or terrain, is an error naming it.
-    pub fn open(path: &Path) -> Result<MbtilesStore, StoreError> {
+    /// Opens the file read-only and reads its metadata; a file without the MBTiles tables
+    /// (or whose `tiles` does not answer in time), or of a format other than glb or terrain, is
+    /// an error naming it. A tile longer than `max_tile` bytes is damaged.
+    pub fn open(path: &Path, max_tile: u64) -> Result<MbtilesStore, StoreError> {
         let sqlite = |source| StoreError::Sqlite {
             path: path.to_path_buf(),
             source,
         };
         let connection =
             Connection::open_with_flags(path, OpenFlags::SQLITE_OPEN_READ_ONLY).map_err(sqlite)?;
+        let epoch = Instant::now();
+        let stop_at = Arc::new(AtomicU64::new(limit_from(epoch)));
+        let watched = stop_at.clone();
+        connection.progress_handler(
+            STEPS_PER_CHECK,
+            Some(move || millis_since(epoch) > watched.load(Ordering::Relaxed)),
+        );
+        let damaged = |report: String| StoreError::Damaged {
+            path: path.to_path_buf(),
+            report,
+        };
+        check_tiles_table(&connection).map_err(damaged)?;
         let meta = |name: &str| -> Result<Option<String>, StoreError> {
             connection
                 .query_row(
@@ -59,18 +95,34 @@ impl MbtilesStore {
         Ok(MbtilesStore {
             db: Database::new(path, connection),
             contents,
+            stop_at,
+            epoch,
+            max_tile,
         })
     }
 
+    /// The connection, its next statement given [`QUERY_LIMIT`] from now.
     fn connection(&self) -> std::sync::MutexGuard<'_, Connection> {
-        self.db.lock()
+        let connection = self.db.lock();
+        self.stop_at
+            .store(limit_from(self.epoch), Ordering::Relaxed);
+        connection
     }
 
     fn error(&self, source: rusqlite::Error) -> StoreError {
+        if source.sqlite_error_code() == Some(rusqlite::ErrorCode::OperationInterrupted) {
+            return StoreError::Damaged {
+                path: self.db.path().to_path_buf(),
+                report: format!(
+                    "a query on it ran past {} s and was stopped",
+                    QUERY_LIMIT.as_secs()
+                ),
+            };
+        }
         self.db.error(source)
     }
 
-    fn read_only(&self) -> StoreError {
+    fn read_only_error(&self) -> StoreError {
         StoreError::ReadOnly {
             path: self.db.path().to_path_buf(),
         }
@@ -83,6 +135,62 @@ impl MbtilesStore {
             sources: self.db.path().display().to_string(),
         }
     }
+}
+
+fn millis_since(epoch: Instant) -> u64 {
+    u64::try_from(epoch.elapsed().as_millis()).unwrap_or(u64::MAX)
+}
+
+/// [`QUERY_LIMIT`] from now, in milliseconds after `epoch`.
+fn limit_from(epoch: Instant) -> u64 {
+    millis_since(epoch).saturating_add(QUERY_LIMIT.as_millis() as u64)
+}
+
+/// `tiles` is a table or a view with the MBTiles columns, and a lookup in it answers (within
+/// the connection's limit), and `metadata` is there.
+fn check_tiles_table(connection: &Connection) -> Result<(), String> {
+    let kind: Option<String> = connection
+        .query_row(
+            "SELECT type FROM sqlite_master WHERE name = 'tiles'",
+            [],
+            |row| row.get(0),
+        )
+        .optional()
+        .map_err(|e| format!("its schema cannot be read: {e}"))?;
+    match kind.as_deref() {
+        Some("table" | "view") => {}
+        Some(other) => return Err(format!("its tiles is a {other}, not a table")),
+        None => return Err("it has no tiles table".to_string()),
+    }
+    let columns: Vec<String> = connection
+        .prepare("SELECT name FROM pragma_table_info('tiles')")
+        .and_then(|mut s| s.query_map([], |row| row.get(0))?.collect())
+        .map_err(|e| format!("its tiles table cannot be read: {e}"))?;
+    if let Some(missing) = TILE_COLUMNS
+        .iter()
+        .find(|c| !columns.iter().any(|n| n == *c))
+    {
+        return Err(format!("its tiles table has no {missing} column"));
+    }
+    connection
+        .query_row(
+            "SELECT count(*) FROM sqlite_master WHERE name = 'metadata'",
+            [],
+            |row| row.get::<_, i64>(0),
+        )
+        .ok()
+        .filter(|&n| n > 0)
+        .ok_or("it has no metadata table")?;
+    connection
+        .query_row(
+            "SELECT length(tile_data) FROM tiles
+             WHERE zoom_level = 0 AND tile_column = 0 AND tile_row = 0",
+            [],
+            |_| Ok(()),
+        )
+        .optional()
+        .map_err(|e| format!("a lookup in its tiles failed: {e}"))?;
+    Ok(())
 }
 
 /// MBTiles rows count from the south.
@@ -105,24 +213,44 @@ impl TileStore for MbtilesStore {
         if key.format != self.contents.format {
             return Ok(None);
         }
-        let data: Option<Vec<u8>> = self
+        // The blob is read only when it is no longer than a tile may be.
+        let row: Option<(Option<Vec<u8>>, Option<i64>)> = self
             .connection()
             .query_row(
-                "SELECT tile_data FROM tiles
-                 WHERE zoom_level = ?1 AND tile_column = ?2 AND tile_row = ?3",
-                rusqlite::params![key.tile.z, key.tile.x, tms_row(key.tile)],
-                |row| row.get(0),
+                "SELECT CASE WHEN length(tile_data) <= ?4 THEN tile_data END, length(tile_data)
+                 FROM tiles WHERE zoom_level = ?1 AND tile_column = ?2 AND tile_row = ?3",
+                rusqlite::params![
+                    key.tile.z,
+                    key.tile.x,
+                    tms_row(key.tile),
+                    i64::try_from(self.max_tile).unwrap_or(i64::MAX)
+                ],
+                |row| Ok((row.get(0)?, row.get(1)?)),
             )
             .optional()
             .map_err(|e| self.error(e))?;
-        let Some(data) = data else {
-            return Ok(None);
-        };
-        archived_tile(data, self.provenance()).map(Some)
+        match row {
+            None => Ok(None),
+            Some((Some(data), _)) => archived_tile(data, self.provenance()).map(Some),
+            Some((None, length)) => Err(StoreError::Damaged {
+                path: self.db.path().to_path_buf(),
+                report: match length {
+                    Some(length) => format!(
+                        "tile {} holds {length} bytes, more than the {} a tile may hold",
+                        key.tile, self.max_tile
+                    ),
+                    None => format!("tile {} has no data", key.tile),
+                },
+            }),
+        }
     }
 
     fn put(&self, _key: &TileKey, _tile: &StoredTile) -> Result<(), StoreError> {
-        Err(self.read_only())
+        Err(self.read_only_error())
+    }
+
+    fn read_only(&self) -> bool {
+        true
     }
 
     fn touch(&self, _keys: &[TileKey], _at: i64) -> Result<(), StoreError> {
@@ -130,7 +258,7 @@ impl TileStore for MbtilesStore {
     }
 
     fn remove(&self, _filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
-        Err(self.read_only())
+        Err(self.read_only_error())
     }
 
     fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {

@@ -36,8 +36,12 @@ pub use store::{
 };
 
 /// Where a response came from.
-/// Opens an MBTiles or a PMTiles file, told apart by their first bytes.
-pub fn open_archive(path: &std::path::Path) -> Result<Arc<dyn ArchiveStore>, StoreError> {
+/// Opens an MBTiles or a PMTiles file, told apart by their first bytes; a tile in it longer than
+/// `max_tile` bytes, uncompressed, is damaged.
+pub fn open_archive(
+    path: &std::path::Path,
+    max_tile: u64,
+) -> Result<Arc<dyn ArchiveStore>, StoreError> {
     let mut magic = [0u8; 16];
     let read =
         std::fs::File::open(path).and_then(|mut file| std::io::Read::read(&mut file, &mut magic));
@@ -47,9 +51,9 @@ pub fn open_archive(path: &std::path::Path) -> Result<Arc<dyn ArchiveStore>, Sto
     })?;
     let magic = &magic[..read];
     if magic.starts_with(b"PMTiles") {
-        Ok(Arc::new(PmtilesStore::open(path)?))
+        Ok(Arc::new(PmtilesStore::open(path, max_tile)?))
     } else if magic.starts_with(b"SQLite format 3\0") {
-        Ok(Arc::new(MbtilesStore::open(path)?))
+        Ok(Arc::new(MbtilesStore::open(path, max_tile)?))
     } else {
         Err(StoreError::Damaged {
             path: path.to_path_buf(),
@@ -454,8 +458,9 @@ async fn lookup<E>(
 where
     E: std::error::Error + Send + Sync + 'static,
 {
-    let store = store.clone();
+    let reading = store.clone();
     let lookup = tokio::task::spawn_blocking(move || {
+        let store = reading;
         let found = store.get(&key)?;
         if found.is_some() {
             store.touch(&[key], unix_now())?;
@@ -464,10 +469,15 @@ where
     })
     .await
     .map_err(|e| CacheError::Panicked(e.to_string()))?;
-    let found = lookup.unwrap_or_else(|error| {
-        tracing::error!(tile = %key.tile, format = key.format.as_str(), %error, "reading the stored tile failed; making it again");
-        None
-    });
+    let found = match lookup {
+        Ok(found) => found,
+        // An archive is all there is of its tiles: one it cannot read is not made again.
+        Err(error) if store.read_only() => return Err(CacheError::Store(error)),
+        Err(error) => {
+            tracing::error!(tile = %key.tile, format = key.format.as_str(), %error, "reading the stored tile failed; making it again");
+            None
+        }
+    };
     Ok(found.map(|found| CachedTile {
         bodies: found.bodies,
         etag: found.etag,
@@ -595,14 +605,20 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("tiles.pmtiles");
         std::fs::write(&path, b"not an archive").unwrap();
-        let error = open_archive(&path).err().unwrap().to_string();
+        let error = open_archive(&path, store::DEFAULT_MAX_TILE_BYTES)
+            .err()
+            .unwrap()
+            .to_string();
         assert!(
             error.contains("neither a PMTiles nor an MBTiles"),
             "{error}"
         );
-        let missing = open_archive(&dir.path().join("absent.pmtiles"))
-            .err()
-            .unwrap();
+        let missing = open_archive(
+            &dir.path().join("absent.pmtiles"),
+            store::DEFAULT_MAX_TILE_BYTES,
+        )
+        .err()
+        .unwrap();
         assert!(missing.to_string().contains("absent.pmtiles"), "{missing}");
     }
 }

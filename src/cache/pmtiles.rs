@@ -12,9 +12,13 @@
 //! its reader is asynchronous over HTTP and object-store backends, while stores are read from
 //! blocking threads, so the file is read here by offset (positioned reads: requests read it
 //! at once). The root directory is kept in memory, and leaf directories as they are met.
+//!
+//! Nothing the file says is used before it is checked: the header's sections lie inside the
+//! file, every entry's bytes inside its section and every run of tiles inside the zooms the
+//! header names, with checked arithmetic throughout; directories, metadata and tiles inflate
+//! to a bounded size at most; a run of tiles is walked, never expanded into a list.
 
 use std::collections::HashMap;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -29,6 +33,13 @@ const HEADER_LEN: usize = 127;
 const MAX_DEPTH: usize = 4;
 /// Leaf directories kept in memory.
 const LEAVES_KEPT: usize = 256;
+/// The most a directory inflates to. The writers we know keep the leaves of whole-planet
+/// archives under a megabyte (go-pmtiles and planetiler grow a leaf only until the root fits
+/// its 16 KiB); sixteen times that leaves room for any of them.
+const MAX_DIRECTORY_BYTES: u64 = 16 << 20;
+/// The most the JSON metadata inflates to. Ours lists the ground's range under each tile,
+/// about 40 bytes a tile: 64 MiB holds an export of over a million tiles.
+const MAX_METADATA_BYTES: u64 = 64 << 20;
 
 /// The header's numbers this reader uses.
 #[derive(Debug, Clone, Copy)]
@@ -63,12 +74,16 @@ pub struct PmtilesStore {
     root: Vec<Entry>,
     leaves: Mutex<HashMap<u64, Arc<Vec<Entry>>>>,
     contents: Contents,
+    /// Largest tile, uncompressed, it may give.
+    max_tile: u64,
 }
 
 impl PmtilesStore {
     /// Opens the file and reads its header, root directory and metadata; a file that is not a
-    /// PMTiles v3 archive of glb or terrain tiles is an error naming it.
-    pub fn open(path: &Path) -> Result<PmtilesStore, StoreError> {
+    /// PMTiles v3 archive of glb or terrain tiles, or whose header or root directory points
+    /// outside it, is an error naming it. A tile longer than `max_tile` bytes, uncompressed,
+    /// is damaged.
+    pub fn open(path: &Path, max_tile: u64) -> Result<PmtilesStore, StoreError> {
         let file = std::fs::File::open(path).map_err(|source| StoreError::Io {
             path: path.to_path_buf(),
             source,
@@ -88,9 +103,11 @@ impl PmtilesStore {
             root: Vec::new(),
             leaves: Mutex::new(HashMap::new()),
             contents: Contents::read(crate::format::Format::GLB, None, (0, 0), None),
+            max_tile,
         };
         let bytes = store.read_at(0, HEADER_LEN as u64)?;
         store.header = Header::parse(&bytes).map_err(|report| store.damaged(report))?;
+        store.check_sections()?;
         let (offset, length) = store.header.root;
         store.root = store.directory(offset, length)?;
         store.contents = store.read_contents()?;
@@ -102,6 +119,26 @@ impl PmtilesStore {
             path: self.path.clone(),
             report: report.into(),
         }
+    }
+
+    /// Each section the header names lies inside the file.
+    fn check_sections(&self) -> Result<(), StoreError> {
+        let header = &self.header;
+        for (name, (offset, length)) in [
+            ("root directory", header.root),
+            ("metadata", header.metadata),
+            ("leaf directories", header.leaves),
+            ("tile data", header.data),
+        ] {
+            if offset.checked_add(length).is_none_or(|end| end > self.len) {
+                return Err(self.damaged(format!(
+                    "its {name} points at bytes {offset} to {} of its {}",
+                    u128::from(offset) + u128::from(length),
+                    self.len
+                )));
+            }
+        }
+        Ok(())
     }
 
     fn read_at(&self, offset: u64, length: u64) -> Result<Vec<u8>, StoreError> {
@@ -130,18 +167,72 @@ impl PmtilesStore {
         Ok(bytes)
     }
 
-    /// The bytes of a directory or the metadata, uncompressed.
-    fn internal(&self, offset: u64, length: u64) -> Result<Vec<u8>, StoreError> {
-        let bytes = self.read_at(offset, length)?;
-        if !self.header.internal_gzip {
-            return Ok(bytes);
+    /// The bytes of a directory or the metadata (`what`), uncompressed: at most `limit`.
+    fn internal(
+        &self,
+        offset: u64,
+        length: u64,
+        limit: u64,
+        what: &str,
+    ) -> Result<Vec<u8>, StoreError> {
+        self.inflated(
+            self.read_at(offset, length)?,
+            self.header.internal_gzip,
+            limit,
+        )
+        .map_err(|e| self.damaged(format!("{what}: {e}")))
+    }
+
+    /// `bytes` inflated when `gzip`, and at most `limit` bytes either way.
+    fn inflated(
+        &self,
+        bytes: Vec<u8>,
+        gzip: bool,
+        limit: u64,
+    ) -> Result<Vec<u8>, crate::inflate::InflateError> {
+        match gzip {
+            true => crate::inflate::gunzip(&bytes, limit),
+            false if bytes.len() as u64 > limit => {
+                Err(crate::inflate::InflateError::TooLarge { limit })
+            }
+            false => Ok(bytes),
         }
-        gunzip(&bytes).map_err(|e| self.damaged(format!("a directory does not inflate: {e}")))
     }
 
     fn directory(&self, offset: u64, length: u64) -> Result<Vec<Entry>, StoreError> {
-        let bytes = self.internal(offset, length)?;
-        parse_directory(&bytes).map_err(|report| self.damaged(report))
+        let bytes = self.internal(offset, length, MAX_DIRECTORY_BYTES, "a directory")?;
+        let entries = parse_directory(&bytes).map_err(|report| self.damaged(report))?;
+        self.check_entries(&entries)?;
+        Ok(entries)
+    }
+
+    /// Each entry's bytes lie inside its section (a tile's in the tile data, a leaf's among
+    /// the leaf directories) and each run of tiles inside the zooms the header names.
+    fn check_entries(&self, entries: &[Entry]) -> Result<(), StoreError> {
+        let ids = ids_to_zoom(self.header.max_zoom);
+        for entry in entries {
+            let end = entry.offset.checked_add(u64::from(entry.length));
+            let (section, size) = match entry.run_length {
+                0 => ("leaf directories", self.header.leaves.1),
+                _ => ("tile data", self.header.data.1),
+            };
+            if end.is_none_or(|end| end > size) {
+                return Err(self.damaged(format!(
+                    "an entry points at bytes {} to {} of its {section}, which hold {size}",
+                    entry.offset,
+                    u128::from(entry.offset) + u128::from(entry.length)
+                )));
+            }
+            let last = entry.tile_id.checked_add(u64::from(entry.run_length));
+            if last.is_none_or(|last| last > ids) {
+                return Err(self.damaged(format!(
+                    "an entry's run of {} tiles from tile number {} passes zoom {}, its \
+                     finest",
+                    entry.run_length, entry.tile_id, self.header.max_zoom
+                )));
+            }
+        }
+        Ok(())
     }
 
     fn leaf(&self, offset: u64, length: u64) -> Result<Arc<Vec<Entry>>, StoreError> {
@@ -149,7 +240,10 @@ impl PmtilesStore {
             return Ok(leaf.clone());
         }
         let (base, _) = self.header.leaves;
-        let leaf = Arc::new(self.directory(base + offset, length)?);
+        let at = base
+            .checked_add(offset)
+            .ok_or_else(|| self.damaged("a leaf directory's offset overflows"))?;
+        let leaf = Arc::new(self.directory(at, length)?);
         let mut leaves = self.leaves();
         if leaves.len() >= LEAVES_KEPT {
             leaves.clear();
@@ -169,7 +263,7 @@ impl PmtilesStore {
         let metadata: serde_json::Value = if length == 0 {
             serde_json::Value::Null
         } else {
-            let bytes = self.internal(offset, length)?;
+            let bytes = self.internal(offset, length, MAX_METADATA_BYTES, "its metadata")?;
             serde_json::from_slice(&bytes)
                 .map_err(|e| self.damaged(format!("its metadata is not JSON: {e}")))?
         };
@@ -239,7 +333,19 @@ impl PmtilesStore {
         }
     }
 
-    fn read_only(&self) -> StoreError {
+    fn stored_entry(&self, tile: TileId, entry: &Entry) -> StoredEntry {
+        StoredEntry {
+            key: TileKey {
+                tile,
+                format: self.contents.format,
+            },
+            made_by: self.provenance(),
+            size: u64::from(entry.length),
+            accessed_at: 0,
+        }
+    }
+
+    fn read_only_error(&self) -> StoreError {
         StoreError::ReadOnly {
             path: self.path.clone(),
         }
@@ -268,6 +374,13 @@ impl Header {
         if bytes[7] != 3 {
             return Err(format!("it is PMTiles version {}, not 3", bytes[7]));
         }
+        let (min_zoom, max_zoom) = (bytes[100], bytes[101]);
+        if max_zoom > crate::tile::MAX_ZOOM || min_zoom > max_zoom {
+            return Err(format!(
+                "its zooms run from {min_zoom} to {max_zoom}; tiles go from 0 to {}",
+                crate::tile::MAX_ZOOM
+            ));
+        }
         let u64_at = |at: usize| {
             let mut word = [0u8; 8];
             word.copy_from_slice(&bytes[at..at + 8]);
@@ -292,8 +405,8 @@ impl Header {
             data: (u64_at(56), u64_at(64)),
             internal_gzip: gzip(bytes[97], "internal")?,
             tile_gzip: gzip(bytes[98], "tile")?,
-            min_zoom: bytes[100],
-            max_zoom: bytes[101],
+            min_zoom,
+            max_zoom,
             bounds: [
                 degrees_at(102),
                 degrees_at(106),
@@ -324,10 +437,10 @@ fn read_exact_at(file: &std::fs::File, buffer: &mut [u8], offset: u64) -> std::i
     Ok(())
 }
 
-fn gunzip(bytes: &[u8]) -> std::io::Result<Vec<u8>> {
-    let mut out = Vec::new();
-    flate2::read::GzDecoder::new(bytes).read_to_end(&mut out)?;
-    Ok(out)
+/// How many tile numbers the zooms from 0 to `zoom` take: (4^(zoom+1) − 1) / 3.
+fn ids_to_zoom(zoom: u8) -> u64 {
+    let zoom = u32::from(zoom.min(crate::tile::MAX_ZOOM));
+    ((1u64 << (2 * (zoom + 1))) - 1) / 3
 }
 
 /// The tile's position along the PMTiles Hilbert numbering.
@@ -397,7 +510,10 @@ fn parse_directory(mut bytes: &[u8]) -> Result<Vec<Entry>, String> {
     for i in 0..count {
         let coded = varint(&mut bytes)?;
         entries[i].offset = match (coded, i) {
-            (0, i) if i > 0 => entries[i - 1].offset + u64::from(entries[i - 1].length),
+            (0, i) if i > 0 => entries[i - 1]
+                .offset
+                .checked_add(u64::from(entries[i - 1].length))
+                .ok_or("an offset overflows")?,
             (coded, _) => coded.checked_sub(1).ok_or("the first offset is coded 0")?,
         };
     }
@@ -430,21 +546,25 @@ impl TileStore for PmtilesStore {
         let Some(entry) = self.find(key.tile)? else {
             return Ok(None);
         };
-        let (base, size) = self.header.data;
-        if entry.offset + u64::from(entry.length) > size {
-            return Err(self.damaged(format!("tile {} lies beyond its data", key.tile)));
-        }
-        let bytes = self.read_at(base + entry.offset, u64::from(entry.length))?;
-        let data = match self.header.tile_gzip {
-            true => gunzip(&bytes)
-                .map_err(|e| self.damaged(format!("tile {} does not inflate: {e}", key.tile)))?,
-            false => bytes,
-        };
+        // The entry lies inside the tile data, and the tile data inside the file: checked when
+        // the directory was read.
+        let (base, _) = self.header.data;
+        let at = base
+            .checked_add(entry.offset)
+            .ok_or_else(|| self.damaged(format!("tile {}'s offset overflows", key.tile)))?;
+        let bytes = self.read_at(at, u64::from(entry.length))?;
+        let data = self
+            .inflated(bytes, self.header.tile_gzip, self.max_tile)
+            .map_err(|e| self.damaged(format!("tile {}: {e}", key.tile)))?;
         archived_tile(data, self.provenance()).map(Some)
     }
 
     fn put(&self, _key: &TileKey, _tile: &StoredTile) -> Result<(), StoreError> {
-        Err(self.read_only())
+        Err(self.read_only_error())
+    }
+
+    fn read_only(&self) -> bool {
+        true
     }
 
     fn touch(&self, _keys: &[TileKey], _at: i64) -> Result<(), StoreError> {
@@ -452,39 +572,63 @@ impl TileStore for PmtilesStore {
     }
 
     fn remove(&self, _filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
-        Err(self.read_only())
+        Err(self.read_only_error())
     }
 
     fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
         let mut listed = Vec::new();
-        for entry in self.entries()? {
-            for id in entry.tile_id..entry.tile_id + u64::from(entry.run_length) {
-                let Some(tile) = tile_of(id) else { continue };
-                if filter.matches(tile) {
-                    listed.push(StoredEntry {
-                        key: TileKey {
-                            tile,
-                            format: self.contents.format,
-                        },
-                        made_by: self.provenance(),
-                        size: u64::from(entry.length),
-                        accessed_at: 0,
-                    });
-                }
-            }
-        }
+        self.each(filter, &mut |entry| listed.push(entry))?;
         Ok(listed)
     }
 
+    /// Walks the runs of tiles, never listing one whole: named tiles are looked up, and a
+    /// range longer than a run is walked over the range instead.
+    fn each(
+        &self,
+        filter: &TileFilter,
+        visit: &mut dyn FnMut(StoredEntry),
+    ) -> Result<(), StoreError> {
+        if let TileFilter::Tiles(tiles) = filter {
+            for &tile in tiles {
+                if let Some(entry) = self.find(tile)? {
+                    visit(self.stored_entry(tile, &entry));
+                }
+            }
+            return Ok(());
+        }
+        for entry in self.entries()? {
+            // Runs end inside the header's zooms: checked when their directory was read.
+            let run = entry.tile_id..entry.tile_id.saturating_add(u64::from(entry.run_length));
+            match filter {
+                TileFilter::Range(range) if range.len() < u64::from(entry.run_length) => {
+                    for tile in range.tiles() {
+                        if hilbert_id(tile).is_some_and(|id| run.contains(&id)) {
+                            visit(self.stored_entry(tile, &entry));
+                        }
+                    }
+                }
+                _ => {
+                    for tile in run.filter_map(tile_of) {
+                        if filter.matches(tile) {
+                            visit(self.stored_entry(tile, &entry));
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
     fn usage(&self) -> Result<Usage, StoreError> {
-        let entries = self.entries()?;
-        Ok(Usage {
-            tiles: entries.iter().map(|e| u64::from(e.run_length)).sum(),
-            bytes: entries
-                .iter()
-                .map(|e| u64::from(e.run_length) * u64::from(e.length))
-                .sum(),
-        })
+        let mut usage = Usage::default();
+        for entry in self.entries()? {
+            let run = u64::from(entry.run_length);
+            usage.tiles = usage.tiles.saturating_add(run);
+            usage.bytes = usage
+                .bytes
+                .saturating_add(run.saturating_mul(u64::from(entry.length)));
+        }
+        Ok(usage)
     }
 }
 
@@ -566,7 +710,7 @@ mod tests {
         }
         writer.finalize().unwrap();
 
-        let store = PmtilesStore::open(&path).unwrap();
+        let store = PmtilesStore::open(&path, 1 << 20).unwrap();
         assert!(store.header.leaves.1 > 0, "the writer split the directory");
         for &t in tiles.iter().step_by(97) {
             let key = TileKey {
@@ -602,7 +746,10 @@ mod tests {
         header[97] = 1;
         header[98] = 1;
         std::fs::write(&path, &header).unwrap();
-        let error = PmtilesStore::open(&path).err().unwrap().to_string();
+        let error = PmtilesStore::open(&path, 1 << 20)
+            .err()
+            .unwrap()
+            .to_string();
         assert!(
             error.contains("cut.pmtiles")
                 && error.contains("points at bytes 127 to 167 of its 127"),
@@ -611,11 +758,245 @@ mod tests {
         // A length no file holds is refused before anything is read.
         header[23] = 0x40;
         std::fs::write(&path, &header).unwrap();
-        let error = PmtilesStore::open(&path).err().unwrap().to_string();
+        let error = PmtilesStore::open(&path, 1 << 20)
+            .err()
+            .unwrap()
+            .to_string();
         assert!(error.contains("points at bytes"), "{error}");
         header[7] = 2;
         std::fs::write(&path, &header).unwrap();
-        let error = PmtilesStore::open(&path).err().unwrap().to_string();
+        let error = PmtilesStore::open(&path, 1 << 20)
+            .err()
+            .unwrap()
+            .to_string();
         assert!(error.contains("version 2"), "{error}");
+    }
+
+    /// A PMTiles file made by hand, as a hostile writer would: the header's sections as given,
+    /// the root directory, metadata and tile data placed one after the other after it.
+    struct Handmade {
+        root: Vec<u8>,
+        metadata: Vec<u8>,
+        data: Vec<u8>,
+        gzip: bool,
+        max_zoom: u8,
+        /// Replaces the tile data's offset in the header.
+        data_offset: Option<u64>,
+    }
+
+    impl Handmade {
+        /// One tile, 14/8529/5973, of `data`, and metadata naming glb.
+        fn one_tile(data: &[u8]) -> Handmade {
+            let id = hilbert_id(TileId::new(14, 8529, 5973).unwrap()).unwrap();
+            Handmade {
+                root: directory(&[entry(id, 0, data.len() as u32, 1)]),
+                metadata: br#"{"format": "glb"}"#.to_vec(),
+                data: data.to_vec(),
+                gzip: false,
+                max_zoom: 14,
+                data_offset: None,
+            }
+        }
+
+        fn write(&self, dir: &Path) -> PathBuf {
+            let compress = |bytes: &[u8]| match self.gzip {
+                true => gzip(bytes),
+                false => bytes.to_vec(),
+            };
+            let (root, metadata) = (compress(&self.root), compress(&self.metadata));
+            let mut header = vec![0u8; HEADER_LEN];
+            header[..7].copy_from_slice(b"PMTiles");
+            header[7] = 3;
+            let mut at = HEADER_LEN as u64;
+            let mut section = |field: usize, length: usize| {
+                header[field..field + 8].copy_from_slice(&at.to_le_bytes());
+                header[field + 8..field + 16].copy_from_slice(&(length as u64).to_le_bytes());
+                at += length as u64;
+            };
+            section(8, root.len());
+            section(24, metadata.len());
+            section(40, 0);
+            section(56, self.data.len());
+            if let Some(offset) = self.data_offset {
+                header[56..64].copy_from_slice(&offset.to_le_bytes());
+            }
+            let compression = if self.gzip { 2 } else { 1 };
+            header[97] = compression;
+            header[98] = compression;
+            header[101] = self.max_zoom;
+            let path = dir.join("handmade.pmtiles");
+            let file = [header, root, metadata, self.data.clone()].concat();
+            std::fs::write(&path, file).unwrap();
+            path
+        }
+    }
+
+    fn gzip(bytes: &[u8]) -> Vec<u8> {
+        use std::io::Write;
+        let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        encoder.write_all(bytes).unwrap();
+        encoder.finish().unwrap()
+    }
+
+    fn push_varint(out: &mut Vec<u8>, mut value: u64) {
+        while value >= 0x80 {
+            out.push((value as u8) | 0x80);
+            value >>= 7;
+        }
+        out.push(value as u8);
+    }
+
+    /// Entries as a directory codes them (every offset written out, none "just after").
+    fn directory(entries: &[Entry]) -> Vec<u8> {
+        let mut out = Vec::new();
+        push_varint(&mut out, entries.len() as u64);
+        let mut last = 0;
+        for e in entries {
+            push_varint(&mut out, e.tile_id - last);
+            last = e.tile_id;
+        }
+        for e in entries {
+            push_varint(&mut out, u64::from(e.run_length));
+        }
+        for e in entries {
+            push_varint(&mut out, u64::from(e.length));
+        }
+        for e in entries {
+            push_varint(&mut out, e.offset.wrapping_add(1));
+        }
+        out
+    }
+
+    fn glb_key() -> TileKey {
+        TileKey {
+            tile: TileId::new(14, 8529, 5973).unwrap(),
+            format: crate::format::Format::GLB,
+        }
+    }
+
+    #[test]
+    fn a_handmade_archive_serves_its_tile() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = Handmade::one_tile(b"the tile").write(dir.path());
+        let store = PmtilesStore::open(&path, 1 << 20).unwrap();
+        let tile = store.get(&glb_key()).unwrap().unwrap();
+        assert_eq!(tile.bodies.identity.to_vec(), b"the tile");
+    }
+
+    #[test]
+    fn a_data_offset_that_wraps_around_is_refused_not_followed() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut file = Handmade::one_tile(b"the tile");
+        file.data_offset = Some(u64::MAX - 99);
+        let error = PmtilesStore::open(&file.write(dir.path()), 1 << 20)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(error.contains("its tile data points at bytes"), "{error}");
+    }
+
+    #[test]
+    fn an_entry_offset_that_wraps_around_is_refused_not_followed() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut file = Handmade::one_tile(b"the tile");
+        let id = hilbert_id(glb_key().tile).unwrap();
+        // Offset 2^64 - 6 with the tile's 8 bytes wraps to byte 2 of the data.
+        file.root = directory(&[entry(id, u64::MAX - 5, 8, 1)]);
+        let error = PmtilesStore::open(&file.write(dir.path()), 1 << 20)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(error.contains("an entry points at bytes"), "{error}");
+        // Coded "just after" an entry that ends past 2^64: refused as it is read.
+        let mut coded = Vec::new();
+        for value in [2, id, 1, 1, 1, 8, 8, u64::MAX - 4, 0] {
+            push_varint(&mut coded, value);
+        }
+        assert!(parse_directory(&coded).is_err());
+    }
+
+    #[test]
+    fn a_run_past_the_finest_zoom_is_refused_not_listed() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut file = Handmade::one_tile(b"the tile");
+        let id = hilbert_id(glb_key().tile).unwrap();
+        file.root = directory(&[entry(id, 0, 8, u32::MAX)]);
+        let error = PmtilesStore::open(&file.write(dir.path()), 1 << 20)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(error.contains("passes zoom 14"), "{error}");
+    }
+
+    #[test]
+    fn a_long_run_is_walked_over_a_range_without_listing_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut file = Handmade::one_tile(b"the sea");
+        // Every tile of zoom 14 after the first: a run of 268 million.
+        let first = ids_to_zoom(13) + 1;
+        let run = (ids_to_zoom(14) - first) as u32;
+        file.root = directory(&[entry(first, 0, 7, run)]);
+        let store = PmtilesStore::open(&file.write(dir.path()), 1 << 20).unwrap();
+        assert_eq!(store.usage().unwrap().tiles, u64::from(run));
+        let range = crate::tile::TileRange {
+            z: 14,
+            min_x: 8528,
+            max_x: 8530,
+            min_y: 5973,
+            max_y: 5974,
+        };
+        let mut seen = 0;
+        store
+            .each(&TileFilter::Range(range), &mut |_| seen += 1)
+            .unwrap();
+        assert_eq!(seen, 6);
+        let named = TileFilter::tiles(vec![glb_key().tile]);
+        assert_eq!(store.list(&named).unwrap().len(), 1);
+    }
+
+    #[test]
+    fn directories_and_metadata_that_inflate_past_their_bound_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut file = Handmade::one_tile(b"the tile");
+        file.gzip = true;
+        // A directory padded past its bound with zeros (each a varint the parser never reads).
+        file.root.resize(MAX_DIRECTORY_BYTES as usize + 1, 0);
+        let error = PmtilesStore::open(&file.write(dir.path()), 1 << 20)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            error.contains("a directory: it inflates to more than 16777216 bytes"),
+            "{error}"
+        );
+        let mut file = Handmade::one_tile(b"the tile");
+        file.gzip = true;
+        file.metadata.resize(MAX_METADATA_BYTES as usize + 1, b' ');
+        let error = PmtilesStore::open(&file.write(dir.path()), 1 << 20)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            error.contains("its metadata: it inflates to more than"),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn a_tile_that_inflates_past_the_largest_tile_is_damaged() {
+        let dir = tempfile::tempdir().unwrap();
+        let bomb = gzip(&vec![0u8; 2 << 20]);
+        let mut file = Handmade::one_tile(&bomb);
+        file.gzip = true;
+        let store = PmtilesStore::open(&file.write(dir.path()), 1 << 20).unwrap();
+        let error = store.get(&glb_key()).err().unwrap().to_string();
+        assert!(
+            error.contains("tile 14/8529/5973: it inflates to more than 1048576 bytes"),
+            "{error}"
+        );
+        // Uncompressed, a tile longer than the largest is refused before it is read.
+        let file = Handmade::one_tile(&vec![1u8; 2000]);
+        let store = PmtilesStore::open(&file.write(dir.path()), 1000).unwrap();
+        assert!(store.get(&glb_key()).is_err());
     }
 }

@@ -80,6 +80,8 @@ pub struct SqliteStore {
     db: Database,
     /// Largest total of stored bytes, if capped.
     max_bytes: Option<u64>,
+    /// Largest tile, uncompressed, a row may give.
+    max_tile: u64,
 }
 
 impl SqliteStore {
@@ -127,7 +129,15 @@ impl SqliteStore {
         Ok(SqliteStore {
             db: Database::new(path, connection),
             max_bytes,
+            max_tile: super::store::DEFAULT_MAX_TILE_BYTES,
         })
+    }
+
+    /// The store with `bytes` as the largest tile, uncompressed, a row may give: a row that
+    /// would inflate past it is damaged.
+    pub fn with_max_tile(mut self, bytes: u64) -> SqliteStore {
+        self.max_tile = bytes;
+        self
     }
 
     pub fn path(&self) -> &Path {
@@ -346,7 +356,7 @@ impl TileStore for SqliteStore {
             return Ok(None);
         };
         let coding = Encoding::from_name(&encoding).unwrap_or(Encoding::Identity);
-        let bodies = match Bodies::from_stored(data, coding, brotli)
+        let bodies = match Bodies::from_stored(data, coding, brotli, self.max_tile)
             .and_then(|bodies| bodies.verify(&etag).map(|()| bodies))
         {
             Ok(bodies) => bodies,

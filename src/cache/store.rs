@@ -128,6 +128,10 @@ impl TileFilter {
     }
 }
 
+/// The largest tile a store gives unless told otherwise ([`crate::cache`]'s stores take
+/// `cache.max_tile_mib`): 64 MiB, where a zoom-14 tile of a dense city is a few MiB.
+pub const DEFAULT_MAX_TILE_BYTES: u64 = 64 << 20;
+
 /// How much a store holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Usage {
@@ -153,7 +157,24 @@ pub trait TileStore: Send + Sync + std::fmt::Debug {
     fn remove(&self, filter: &TileFilter) -> Result<Vec<TileKey>, StoreError>;
     /// The matching tiles, most recently served first.
     fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError>;
+    /// Each matching tile in turn, in [`TileStore::list`]'s order; a store that holds runs of
+    /// tiles under one entry (an archive) walks them without listing them.
+    fn each(
+        &self,
+        filter: &TileFilter,
+        visit: &mut dyn FnMut(StoredEntry),
+    ) -> Result<(), StoreError> {
+        for entry in self.list(filter)? {
+            visit(entry);
+        }
+        Ok(())
+    }
     fn usage(&self) -> Result<Usage, StoreError>;
+    /// Whether the store is all there is of its tiles (an archive, read-only): a tile it holds
+    /// but cannot read is then an error, not a tile to make again.
+    fn read_only(&self) -> bool {
+        false
+    }
     /// Up to `limit` solved components of the elevation LP kept beside the tiles, newest first,
     /// as (digest, encoded solution): opaque to the store. A store that keeps none has none.
     fn solutions(&self, limit: usize) -> Result<Vec<SolutionEntry>, StoreError> {

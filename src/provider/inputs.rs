@@ -93,6 +93,7 @@ pub fn local_extracts(
                 url: &text,
                 name: &name,
                 source_name: "OSM",
+                max_bytes: None,
             })?;
             osm_urls.push(text.to_string());
             osm_paths.push(path);
@@ -262,6 +263,7 @@ impl Inputs {
                 url: &url,
                 name: &name,
                 source_name: "SRTM",
+                max_bytes: Some(crate::source::srtm::LARGEST_FILE_BYTES),
             })
             .map_err(|e| {
                 if e.is_not_found() {
@@ -309,6 +311,7 @@ impl Inputs {
                     url,
                     name: &name,
                     source_name: "OSM",
+                    max_bytes: None,
                 };
                 // A new version replaces the file; the check below sees that it changed.
                 match fetcher.refresh(&download) {

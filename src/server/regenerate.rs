@@ -15,9 +15,10 @@ use super::metrics::Metrics;
 use super::tiles::{render_job, Priority};
 use super::AppState;
 use crate::cache::postgres::cluster::{Cluster, JobKind, Priority as QueuePriority};
-use crate::cache::{Remade, StoredEntry, TileFilter};
+use crate::cache::{Remade, TileFilter};
 use crate::format::TileKey;
 use crate::provider::Availability;
+use crate::tile::TileId;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Job {
@@ -274,22 +275,25 @@ pub async fn queue_stored(
     filter: TileFilter,
     only_stale: bool,
 ) -> Result<usize, String> {
-    let store = state.cache.store().clone();
-    let entries: Vec<StoredEntry> = tokio::task::spawn_blocking(move || store.list(&filter))
-        .await
-        .map_err(|e| e.to_string())?
-        .map_err(|e| e.to_string())?;
     let provider = state.provider().map_err(|e| e.message)?;
-    let keys: Vec<TileKey> = entries
-        .into_iter()
-        .filter(|entry| {
-            !only_stale
-                || provider
-                    .provenance(entry.key.tile)
-                    .is_some_and(|wanted| entry.made_by != wanted)
-        })
-        .map(|entry| entry.key)
-        .collect();
+    // A provider that makes no tiles (an archive) has none to make again.
+    if provider.provenance(TileId { z: 0, x: 0, y: 0 }).is_none() {
+        return Ok(0);
+    }
+    let store = state.cache.store().clone();
+    let keys: Vec<TileKey> = tokio::task::spawn_blocking(move || {
+        let mut keys = Vec::new();
+        store.each(&filter, &mut |entry| {
+            let remade = provider.provenance(entry.key.tile);
+            if remade.is_some_and(|wanted| !only_stale || entry.made_by != wanted) {
+                keys.push(entry.key);
+            }
+        })?;
+        Ok::<_, crate::cache::StoreError>(keys)
+    })
+    .await
+    .map_err(|e| e.to_string())?
+    .map_err(|e| e.to_string())?;
     let force = !only_stale;
     let Some(cluster) = state.cache.cluster().cloned() else {
         return Ok(state.work.regenerator.enqueue(keys, force));

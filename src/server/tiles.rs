@@ -132,6 +132,7 @@ pub async fn serve(
             if matches!(
                 &*e,
                 CacheError::Render(RenderFailure::TimedOut(_) | RenderFailure::Failed(_))
+                    | CacheError::Store(_)
             ) {
                 state
                     .work
@@ -316,6 +317,10 @@ fn failure_response(state: &AppState, tile: TileId, error: &CacheError<RenderFai
         CacheError::Render(RenderFailure::TimedOut(message)) => {
             tracing::error!(%tile, %message, "render stopped at its time limit");
             ApiError::unavailable(message.clone(), RETRY_AFTER_S)
+        }
+        CacheError::Store(error) => {
+            tracing::error!(%tile, %error, "a held tile cannot be read");
+            ApiError::internal(format!("tile {tile} cannot be read: {error}"))
         }
         other => {
             tracing::error!(%tile, error = %other, "tile failed");

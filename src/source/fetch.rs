@@ -67,6 +67,13 @@ pub enum FetchError {
     },
     #[error("cannot store {path}: {message}")]
     Io { path: PathBuf, message: String },
+    #[error("{name} from the configured {source_name} source ({url}) is longer than the {max_bytes} bytes such a file may have")]
+    TooLarge {
+        name: String,
+        source_name: String,
+        url: String,
+        max_bytes: u64,
+    },
 }
 
 impl FetchError {
@@ -90,6 +97,9 @@ pub struct Download<'a> {
     pub name: &'a str,
     /// Which configured source it is from, for messages: `OSM`, `SRTM`.
     pub source_name: &'a str,
+    /// The most bytes the file may have, when its kind bounds it (an SRTM file, a state file);
+    /// a longer body is refused as it arrives, not stored.
+    pub max_bytes: Option<u64>,
 }
 
 /// Counters of what the fetcher did.
@@ -324,6 +334,18 @@ impl Fetcher {
                 .map(str::to_string)
         };
         let announced: Option<u64> = header("content-length").and_then(|v| v.parse().ok());
+        let too_large = || {
+            Attempt::Fail(FetchError::TooLarge {
+                name: download.name.to_string(),
+                source_name: download.source_name.to_string(),
+                url: download.url.to_string(),
+                max_bytes: download.max_bytes.unwrap_or(u64::MAX),
+            })
+        };
+        let over = |bytes: u64| download.max_bytes.is_some_and(|max| bytes > max);
+        if announced.is_some_and(over) {
+            return too_large();
+        }
         let fresh = Validators {
             etag: header("etag"),
             last_modified: header("last-modified"),
@@ -358,6 +380,10 @@ impl Fetcher {
             };
             digest.update(&buffer[..n]);
             received += n as u64;
+            if over(received) {
+                let _ = std::fs::remove_file(&partial);
+                return too_large();
+            }
             self.stats.bytes.fetch_add(n as u64, Ordering::Relaxed);
             if let Err(e) = file.write_all(&buffer[..n]) {
                 let _ = std::fs::remove_file(&partial);

@@ -8,6 +8,9 @@ use std::path::{Path, PathBuf};
 
 use super::fetch::{Download, FetchError, Fetcher};
 
+/// The most bytes a replication source's `state.txt` may have (it holds two short lines).
+const STATE_FILE_MAX_BYTES: u64 = 64 * 1024;
+
 #[derive(Debug, thiserror::Error)]
 pub enum ReplicationError {
     #[error(transparent)]
@@ -102,6 +105,7 @@ impl Replication {
                     url: &url,
                     name: &name,
                     source_name: "OSM replication",
+                    max_bytes: Some(STATE_FILE_MAX_BYTES),
                 };
                 if fetcher.path_of(&name).exists() {
                     fetcher.refresh(&download)?;
@@ -137,6 +141,7 @@ impl Replication {
                     url: &url,
                     name: &name,
                     source_name: "OSM replication",
+                    max_bytes: None,
                 })?;
                 Ok((path, url))
             }

@@ -26,6 +26,10 @@ pub const SAMPLES_3_ARCSEC: usize = 1201;
 /// Samples per side of a 1-arc-second file.
 pub const SAMPLES_1_ARCSEC: usize = 3601;
 
+/// The most bytes an SRTM file may have: a 1″ tile stored in a zip without compression, with
+/// room for the archive's headers.
+pub const LARGEST_FILE_BYTES: u64 = (SAMPLES_1_ARCSEC * SAMPLES_1_ARCSEC * 2) as u64 + (1 << 20);
+
 /// Decoded files kept in memory at once (a 3″ file takes 5.8 MB as `f32`).
 const DECODED_FILES_CACHED: u64 = 64;
 
@@ -43,6 +47,8 @@ pub enum SrtmError {
     Zip { path: PathBuf, message: String },
     #[error("SRTM archive {path} holds no .hgt file")]
     EmptyZip { path: PathBuf },
+    #[error("SRTM file {path} inflates to more than the {declared} bytes it declares")]
+    TooLarge { path: PathBuf, declared: u64 },
     #[error("SRTM file {path} is not a readable gzip file: {source}")]
     Gzip {
         path: PathBuf,
@@ -155,22 +161,35 @@ fn read_hgt_bytes(path: &Path) -> Result<Vec<u8>, SrtmError> {
         path: path.to_path_buf(),
         source,
     };
+    // A file holds one tile's samples, as many bytes as it declares: a packed file that
+    // inflates past them is refused, not read into memory whole.
+    let declared = hgt_len(path)?;
+    if side_for_len(declared).is_none() {
+        return Err(SrtmError::BadSize {
+            path: path.to_path_buf(),
+            actual: declared,
+        });
+    }
+    let inflated = |result: Result<Vec<u8>, crate::inflate::InflateError>| match result {
+        Ok(bytes) => Ok(bytes),
+        Err(crate::inflate::InflateError::TooLarge { limit }) => Err(SrtmError::TooLarge {
+            path: path.to_path_buf(),
+            declared: limit,
+        }),
+        Err(crate::inflate::InflateError::Corrupt(source)) => match packing(path) {
+            Packing::Gzip => Err(SrtmError::Gzip {
+                path: path.to_path_buf(),
+                source,
+            }),
+            _ => Err(io(source)),
+        },
+    };
     match packing(path) {
         Packing::Plain => return fs::read(path).map_err(io),
         Packing::Gzip => {
-            // No more than the largest tile and a byte: a file that inflates past it is
-            // refused by its size, not read into memory whole.
             let file = fs::File::open(path).map_err(io)?;
-            let limit = (SAMPLES_1_ARCSEC * SAMPLES_1_ARCSEC * 2) as u64 + 1;
-            let mut bytes = Vec::new();
-            flate2::read::GzDecoder::new(file)
-                .take(limit)
-                .read_to_end(&mut bytes)
-                .map_err(|source| SrtmError::Gzip {
-                    path: path.to_path_buf(),
-                    source,
-                })?;
-            return Ok(bytes);
+            let decoder = flate2::read::GzDecoder::new(file);
+            return inflated(crate::inflate::read_at_most(decoder, declared));
         }
         Packing::Zip => {}
     }
@@ -189,10 +208,8 @@ fn read_hgt_bytes(path: &Path) -> Result<Vec<u8>, SrtmError> {
         .ok_or_else(|| SrtmError::EmptyZip {
             path: path.to_path_buf(),
         })?;
-    let mut entry = archive.by_index(index).map_err(zip_error)?;
-    let mut bytes = Vec::with_capacity(entry.size() as usize);
-    entry.read_to_end(&mut bytes).map_err(io)?;
-    Ok(bytes)
+    let entry = archive.by_index(index).map_err(zip_error)?;
+    inflated(crate::inflate::read_at_most(entry, declared))
 }
 
 /// The uncompressed length of the `.hgt` data in a file, read without decoding the samples.
@@ -665,6 +682,42 @@ mod tests {
         );
         assert_eq!(tile.bilinear(7.0, 44.0), Some(100.0));
         assert!(directory.tile(CellId { lat: 0, lon: 0 }).unwrap().is_none());
+    }
+
+    #[test]
+    fn a_zipped_file_that_inflates_past_what_it_declares_is_refused() {
+        use std::io::Write;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("N43E007.hgt.zip");
+        let declared = SAMPLES_3_ARCSEC * SAMPLES_3_ARCSEC * 2;
+        // A megabyte more than a 3″ tile, then the entry's sizes changed to a 3″ tile's.
+        let actual = declared + (1 << 20);
+        let mut zip = zip::ZipWriter::new(fs::File::create(&path).unwrap());
+        zip.start_file("N43E007.hgt", zip::write::SimpleFileOptions::default())
+            .unwrap();
+        zip.write_all(&vec![0u8; actual]).unwrap();
+        zip.finish().unwrap();
+        let mut bytes = fs::read(&path).unwrap();
+        let size = (actual as u32).to_le_bytes();
+        let mut patched = 0;
+        for at in 0..bytes.len() - 4 {
+            let field = match &bytes[at..at + 4] {
+                b"PK\x03\x04" => at + 22,
+                b"PK\x01\x02" => at + 24,
+                _ => continue,
+            };
+            assert_eq!(bytes[field..field + 4], size);
+            bytes[field..field + 4].copy_from_slice(&(declared as u32).to_le_bytes());
+            patched += 1;
+        }
+        assert_eq!(patched, 2, "the local and the central header");
+        fs::write(&path, &bytes).unwrap();
+
+        let error = read_hgt_bytes(&path).unwrap_err().to_string();
+        assert!(
+            error.contains("inflates to more than the 2884802 bytes it declares"),
+            "{error}"
+        );
     }
 
     #[test]

@@ -42,6 +42,8 @@ const TILES_PER_STATEMENT: usize = 1_000;
 pub struct PostgresStore {
     connections: Arc<Connections>,
     max_bytes: Option<u64>,
+    /// Largest tile, uncompressed, a row may give.
+    max_tile: u64,
 }
 
 impl std::fmt::Debug for PostgresStore {
@@ -60,9 +62,17 @@ impl PostgresStore {
         let store = PostgresStore {
             connections: Arc::new(Connections::new(url)),
             max_bytes,
+            max_tile: super::store::DEFAULT_MAX_TILE_BYTES,
         };
         store.migrate()?;
         Ok(store)
+    }
+
+    /// The store with `bytes` as the largest tile, uncompressed, a row may give: a row that
+    /// would inflate past it is damaged.
+    pub fn with_max_tile(mut self, bytes: u64) -> PostgresStore {
+        self.max_tile = bytes;
+        self
     }
 
     /// Where the database is, without its password.
@@ -270,7 +280,7 @@ impl TileStore for PostgresStore {
         };
         let etag: String = row.get(3);
         let coding = Encoding::from_name(row.get(1)).unwrap_or(Encoding::Identity);
-        let bodies = match Bodies::from_stored(row.get(0), coding, row.get(2))
+        let bodies = match Bodies::from_stored(row.get(0), coding, row.get(2), self.max_tile)
             .and_then(|bodies| bodies.verify(&etag).map(|()| bodies))
         {
             Ok(bodies) => bodies,
