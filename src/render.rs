@@ -790,12 +790,25 @@ fn render_glb(
         .flat_map(|s| &s.profiles)
         .filter(|p| p.kind == crate::osm::structures::StructureKind::Bridge)
         .collect();
-    let instanced = mesh::instances::place(
+    let mut instanced = mesh::instances::place(
         (&feature_set.trees, &feature_set.objects),
         feature_set,
         &drawn,
         &decks,
     );
+    // Nothing that is not a finite number reaches the tile, whatever the data made of it.
+    let dropped = parts
+        .values_mut()
+        .map(mesh::MeshBuffers::drop_non_finite)
+        .chain(
+            instanced
+                .values_mut()
+                .map(mesh::instances::Instances::drop_non_finite),
+        )
+        .sum::<usize>();
+    if dropped > 0 {
+        tracing::warn!(%tile, dropped, "triangles and instances placed at numbers that are not finite were left out");
+    }
     timings.shapes = started.elapsed();
 
     let started = Instant::now();

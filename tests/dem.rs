@@ -176,3 +176,35 @@ fn a_geotiff_that_is_not_a_dem_is_a_named_error() {
     assert!(error.contains("N43E007.tif"), "{error}");
     assert!(error.contains("GeoTIFF"), "{error}");
 }
+
+#[test]
+fn a_geotiff_of_heights_no_land_has_is_refused_and_the_srtm_file_used() {
+    let dir = tempfile::tempdir().unwrap();
+    let (heights, size) = srtm_heights();
+    for (name, bad) in [("infinite", f32::INFINITY), ("high", 1e30), ("deep", -1e6)] {
+        let tif = dir.path().join(format!("{name}.tif"));
+        write_copernicus(&vec![bad; heights.len()], size, &tif);
+        let alone = directory_of(dir.path(), &format!("{name}-alone"), &[]);
+        std::fs::copy(&tif, alone.join("N43E007.tif")).unwrap();
+        let error = SrtmDirectory::open(&alone)
+            .unwrap()
+            .tile(CELL)
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("N43E007.tif"), "{name}: {error}");
+        assert!(
+            error.contains("not elevation data") || error.contains("only voids"),
+            "{name}: {error}"
+        );
+        // Beside the SRTM file, the SRTM file is used though it has voids and this has none.
+        let both = directory_of(dir.path(), &format!("{name}-both"), &[]);
+        std::fs::copy(&tif, both.join("N43E007.tif")).unwrap();
+        std::fs::copy(repo().join("data/N43E007.hgt"), both.join("N43E007.hgt")).unwrap();
+        let used = SrtmDirectory::open(&both)
+            .unwrap()
+            .tile(CELL)
+            .unwrap()
+            .unwrap();
+        assert_eq!(used.heights, heights, "{name}");
+    }
+}

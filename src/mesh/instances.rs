@@ -33,6 +33,26 @@ impl Instances {
     pub fn is_empty(&self) -> bool {
         self.translations.is_empty()
     }
+
+    /// Drops every instance placed, turned or scaled by a number that is not finite; returns
+    /// how many went.
+    pub fn drop_non_finite(&mut self) -> usize {
+        let kept: Vec<bool> = (0..self.len())
+            .map(|i| {
+                self.translations[i]
+                    .iter()
+                    .chain(&self.rotations[i])
+                    .chain(&self.scales[i])
+                    .all(|c| c.is_finite())
+            })
+            .collect();
+        let before = self.len();
+        super::retain_marked(&mut self.translations, &kept);
+        super::retain_marked(&mut self.rotations, &kept);
+        super::retain_marked(&mut self.scales, &kept);
+        super::retain_marked(&mut self.feature_ids, &kept);
+        before - self.len()
+    }
 }
 
 /// Depth a foot reaches below the ground, metres.

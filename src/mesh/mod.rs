@@ -166,6 +166,15 @@ impl LocalSpan {
     }
 }
 
+/// Keeps the items whose mark is set (`items` as long as `marks`, or empty).
+pub(crate) fn retain_marked<T>(items: &mut Vec<T>, marks: &[bool]) {
+    let mut at = 0;
+    items.retain(|_| {
+        at += 1;
+        marks[at - 1]
+    });
+}
+
 /// Indexed triangles with per-vertex normals and feature ids, in the tile's local frame.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct MeshBuffers {
@@ -195,6 +204,37 @@ impl MeshBuffers {
             self.colours = vec![[255; 4]; self.positions.len()];
         }
         self.paint = Some(colour);
+    }
+
+    /// Drops every vertex whose position or normal is not a finite number, with the triangles
+    /// that use it, so nothing written of the buffers is NaN or infinite; returns how many
+    /// triangles went. Buffers of finite numbers are left as they are.
+    pub fn drop_non_finite(&mut self) -> usize {
+        let finite = |v: &[f32; 3]| v.iter().all(|c| c.is_finite());
+        let kept: Vec<bool> = (self.positions.iter().zip(&self.normals))
+            .map(|(p, n)| finite(p) && finite(n))
+            .collect();
+        if kept.iter().all(|&k| k) {
+            return 0;
+        }
+        let mut renumbered = vec![u32::MAX; kept.len()];
+        let slots = renumbered.iter_mut().zip(&kept).filter(|(_, &k)| k);
+        for (next, (slot, _)) in slots.enumerate() {
+            *slot = next as u32;
+        }
+        retain_marked(&mut self.positions, &kept);
+        retain_marked(&mut self.normals, &kept);
+        retain_marked(&mut self.feature_ids, &kept);
+        retain_marked(&mut self.colours, &kept);
+        let before = self.triangle_count();
+        self.indices = self
+            .indices
+            .chunks_exact(3)
+            .filter(|t| t.iter().all(|&v| kept[v as usize]))
+            .flatten()
+            .map(|&v| renumbered[v as usize])
+            .collect();
+        before - self.triangle_count()
     }
 
     pub fn push_vertex(&mut self, position: [f64; 3], normal: [f64; 3], feature: u32) -> u32 {
@@ -301,6 +341,25 @@ pub fn normalize(v: [f64; 3]) -> Option<[f64; 3]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn vertices_that_are_not_finite_go_with_their_triangles() {
+        let mut buffers = MeshBuffers::default();
+        for (k, x) in [0.0, 1.0, f64::NAN, 0.0].into_iter().enumerate() {
+            buffers.push_vertex([x, 0.0, k as f64], [0.0, 1.0, 0.0], k as u32);
+        }
+        buffers.indices = vec![0, 1, 3, 1, 2, 3];
+        let unchanged = buffers.clone();
+        let mut finite = unchanged.clone();
+        finite.positions[2][0] = 2.0;
+        let mut kept = finite.clone();
+        assert_eq!(kept.drop_non_finite(), 0);
+        assert_eq!(kept, finite);
+        assert_eq!(buffers.drop_non_finite(), 1);
+        assert_eq!(buffers.indices, vec![0, 1, 2]);
+        assert_eq!(buffers.feature_ids, vec![0, 1, 3]);
+        assert!(buffers.positions.iter().flatten().all(|c| c.is_finite()));
+    }
 
     #[test]
     fn flat_polygons_share_vertices_and_face_the_requested_way() {

@@ -9,7 +9,10 @@
 //! north edge down, without the south edge row (the next tile's first), and 3600 columns up to
 //! 50° of latitude, fewer farther north (2400 to 60°, 1800 to 70°, …). A grid sample between
 //! pixel centres is interpolated bilinearly; one past the last row or column takes the nearest
-//! (the neighbouring file's first row is not read). `GDAL_NODATA`, and NaN, mark voids.
+//! (the neighbouring file's first row is not read). `GDAL_NODATA`, NaN and infinities mark
+//! voids. The plausibility rule of `.hgt` files holds here too: a raster with more than 1 % of
+//! its samples outside −500 to 9000 m is not elevation data and is refused; the few such
+//! samples of one that passes are voids.
 
 use std::path::Path;
 
@@ -57,6 +60,7 @@ pub fn read(cell: CellId, path: &Path) -> Result<(SrtmTile, usize), GeoTiffError
     let image = decoder.read_image().map_err(|e| bad(e.to_string()))?;
     let pixels =
         as_f32(image).ok_or_else(|| bad("its samples are not one band of numbers".into()))?;
+    let pixels = plausible(pixels, nodata).map_err(bad)?;
     let (width, height) = (width as usize, height as usize);
     if pixels.len() != width * height {
         return Err(bad(format!(
@@ -69,7 +73,6 @@ pub fn read(cell: CellId, path: &Path) -> Result<(SrtmTile, usize), GeoTiffError
         width,
         height,
         placement,
-        nodata,
     };
     raster.check_covers(cell).map_err(bad)?;
     let size = match placement.step_y <= 1.5 / 3600.0 {
@@ -141,6 +144,31 @@ fn nodata<R: std::io::Read + std::io::Seek>(decoder: &mut Decoder<R>) -> Option<
     text.trim_matches(char::from(0)).trim().parse::<f32>().ok()
 }
 
+/// The samples with every void as NaN: `nodata`, numbers that are not finite, and heights
+/// outside [`super::srtm::PLAUSIBLE_M`] — unless those are more than
+/// [`super::srtm::IMPLAUSIBLE_SHARE`] of the samples, when the raster is not elevation data.
+fn plausible(mut pixels: Vec<f32>, nodata: Option<f32>) -> Result<Vec<f32>, String> {
+    let (low, high) = super::srtm::PLAUSIBLE_M;
+    let range = f32::from(low)..=f32::from(high);
+    let mut outside = 0usize;
+    for value in pixels.iter_mut() {
+        if Some(*value) == nodata || !value.is_finite() {
+            *value = f32::NAN;
+        } else if !range.contains(value) {
+            outside += 1;
+            *value = f32::NAN;
+        }
+    }
+    let share = outside as f64 / pixels.len().max(1) as f64;
+    match share > super::srtm::IMPLAUSIBLE_SHARE {
+        true => Err(format!(
+            "it is not elevation data: {:.1} % of its samples lie outside {low} to {high} m",
+            share * 100.0
+        )),
+        false => Ok(pixels),
+    }
+}
+
 /// The samples as heights; `None` for a kind that is not one of numbers.
 fn as_f32(image: DecodingResult) -> Option<Vec<f32>> {
     Some(match image {
@@ -160,7 +188,6 @@ struct Raster {
     width: usize,
     height: usize,
     placement: Placement,
-    nodata: Option<f32>,
 }
 
 impl Raster {
@@ -187,11 +214,7 @@ impl Raster {
 
     /// The pixel at (`column`, `row`), NaN for a void.
     fn pixel(&self, column: usize, row: usize) -> f32 {
-        let value = self.pixels[row * self.width + column];
-        match Some(value) == self.nodata {
-            true => f32::NAN,
-            false => value,
-        }
+        self.pixels[row * self.width + column]
     }
 
     /// The grid of `cell` with `size` samples a side, row 0 north; NaN where a void reaches.
@@ -276,11 +299,10 @@ mod tests {
     fn raster(pixels: Vec<f32>, width: usize, placement: Placement) -> Raster {
         let height = pixels.len() / width;
         Raster {
-            pixels,
+            pixels: plausible(pixels, Some(-32767.0)).unwrap(),
             width,
             height,
             placement,
-            nodata: Some(-32767.0),
         }
     }
 
@@ -317,5 +339,31 @@ mod tests {
         let r = raster(vec![1.0; 4], 2, placement);
         let error = r.check_covers(CellId { lat: 43, lon: 7 }).unwrap_err();
         assert!(error.contains("43°N 7°E"), "{error}");
+    }
+
+    #[test]
+    fn numbers_that_are_not_heights_are_voids_and_many_refuse_the_raster() {
+        // A few: voids among heights.
+        let mut pixels = vec![100.0f32; 1000];
+        pixels[1] = f32::INFINITY;
+        pixels[2] = f32::NAN;
+        pixels[3] = 1e30;
+        pixels[4] = -1e6;
+        let settled = plausible(pixels, None).unwrap();
+        assert!(settled[1..5].iter().all(|h| h.is_nan()));
+        assert_eq!(settled[0], 100.0);
+        // More than 1 %: not elevation data.
+        for bad in [1e30f32, -1e6] {
+            let mut pixels = vec![100.0f32; 1000];
+            pixels[..11].fill(bad);
+            let error = plausible(pixels, None).unwrap_err();
+            assert!(
+                error.contains("1.1 % of its samples lie outside -500 to 9000 m"),
+                "{error}"
+            );
+        }
+        // Infinities are voids, however many: a raster of nothing else holds only voids.
+        let settled = plausible(vec![f32::INFINITY; 100], None).unwrap();
+        assert!(settled.iter().all(|h| h.is_nan()));
     }
 }

@@ -71,7 +71,7 @@ pub enum SrtmError {
 
 /// Elevations a sample of the Earth's surface may take, metres (the Dead Sea's shore, Everest,
 /// with room for the data's noise).
-const PLAUSIBLE_M: (i16, i16) = (-500, 9000);
+pub(super) const PLAUSIBLE_M: (i16, i16) = (-500, 9000);
 
 /// Values that mark a sample without data: SRTM's void, and those other elevation files
 /// converted to `.hgt` use.
@@ -79,7 +79,7 @@ const NO_DATA: [i16; 3] = [VOID, -32767, -9999];
 
 /// Share of samples outside [`PLAUSIBLE_M`] past which a file is taken for something else than
 /// elevations (random bytes put ~70 % there; real files a handful of samples at most).
-const IMPLAUSIBLE_SHARE: f64 = 0.01;
+pub(super) const IMPLAUSIBLE_SHARE: f64 = 0.01;
 
 /// Decodes the raw big-endian bytes of a `.hgt` file; `path` names the file in errors.
 pub fn decode(cell: CellId, bytes: &[u8], path: &Path) -> Result<SrtmTile, SrtmError> {
@@ -580,20 +580,32 @@ impl SrtmDirectory {
     }
 }
 
-/// The first of `paths` that decodes without voids, else the first.
+/// The first of `paths` that decodes without voids, else the first that decodes; a file
+/// refused (damaged, or not elevation data) is passed over, with a warning, when another of
+/// the cell is sound.
 fn decode_first_whole(cell: CellId, paths: &[PathBuf]) -> Result<SrtmTile, SrtmError> {
     let mut first = None;
+    let mut refused = None;
     for path in paths {
-        let (tile, voids) = read_counting(cell, path)?;
-        if voids == 0 {
-            return Ok(tile);
+        match read_counting(cell, path) {
+            Ok((tile, 0)) => return Ok(tile),
+            Ok((tile, _)) => {
+                first.get_or_insert(tile);
+            }
+            Err(error) => {
+                tracing::warn!(%error, "an elevation file is refused; the cell's others are used");
+                refused.get_or_insert(error);
+            }
         }
-        first.get_or_insert(tile);
     }
-    first.ok_or_else(|| SrtmError::Io {
-        path: PathBuf::new(),
-        source: std::io::Error::other(format!("no elevation file for cell {cell:?}")),
-    })
+    match (first, refused) {
+        (Some(tile), _) => Ok(tile),
+        (None, Some(error)) => Err(error),
+        (None, None) => Err(SrtmError::Io {
+            path: PathBuf::new(),
+            source: std::io::Error::other(format!("no elevation file for cell {cell:?}")),
+        }),
+    }
 }
 
 #[cfg(test)]
