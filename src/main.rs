@@ -346,7 +346,8 @@ fn open_store(config: &Config) -> Result<(Arc<dyn TileStore>, Option<SharedBy>)>
 fn open_postgres(url: &str, cap: Option<u64>) -> Result<PostgresStore> {
     if !(url.starts_with("postgres://") || url.starts_with("postgresql://")) {
         anyhow::bail!(
-            "cache.url must be a PostgreSQL URL (postgres://user:password@host/database), not {url:?}"
+            "cache.url must be a PostgreSQL URL (postgres://user:password@host/database), not {:?}",
+            terrastitch::cache::postgres::redacted(url)
         );
     }
     Ok(PostgresStore::open(url, cap)?)

@@ -465,3 +465,39 @@ fn a_server_on_postgresql_stops_cleanly_on_sigterm_and_sigint() {
         assert!(!log.contains("panic"), "{name}:\n{log}");
     }
 }
+
+#[test]
+fn a_password_in_the_cache_url_never_reaches_a_log_or_an_answer() {
+    const SECRET: &str = "S3cretXyz";
+    let cluster = Cluster::start();
+    let url = format!("{}?password={SECRET}", cluster.database("secret"));
+    let replica = Replica::start(&url, 15, 1);
+    let (status, _, _) = replica.get(&path(8529, 5973));
+    assert_eq!(status, 200);
+    let log = replica.log.lock().unwrap().join("\n");
+    assert!(log.contains("password=***"), "{log}");
+    assert!(!log.contains(SECRET), "{log}");
+    drop(replica);
+    let status = common::terrastitch()
+        .args(["seed", "status", "--cache-url", &url])
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&status.stdout).to_string()
+        + &String::from_utf8_lossy(&status.stderr);
+    assert!(status.status.success(), "{said}");
+    assert!(!said.contains(SECRET), "{said}");
+    // A mistyped scheme, and the key-value form, are refused without echoing it.
+    for wrong in [
+        format!("postgress://tiles:{SECRET}@127.0.0.1/tiles"),
+        format!("host=127.0.0.1 password={SECRET}"),
+    ] {
+        let refused = common::terrastitch()
+            .args(["seed", "status", "--cache-url", &wrong])
+            .output()
+            .unwrap();
+        let said = String::from_utf8_lossy(&refused.stderr).to_string();
+        assert!(!refused.status.success(), "{said}");
+        assert!(said.contains("must be a PostgreSQL URL"), "{said}");
+        assert!(!said.contains(SECRET), "{said}");
+    }
+}

@@ -139,34 +139,64 @@ impl Connections {
     }
 }
 
-/// `url` without the password it may hold.
+/// `url` without the password it may hold, in every form PostgreSQL takes one: `user:password@`
+/// in a URL, a `password=` parameter of its query, a `password=` setting of the key–value form
+/// (quoted or not, spaces around `=` or not); and in a URL whose scheme is mistyped, whatever
+/// stands between its first `:` and its last `@`. Hiding too much is harmless; too little
+/// is not.
 pub fn redacted(url: &str) -> String {
-    if !url.contains("://") {
-        // key=value settings: any password's value hidden.
-        return url
-            .split_whitespace()
-            .map(|part| match part.split_once('=') {
-                Some(("password", _)) => "password=***".to_string(),
-                _ => part.to_string(),
-            })
-            .collect::<Vec<_>>()
-            .join(" ");
-    }
-    match (url.find("://"), url.rfind('@')) {
+    let hidden = match (url.find("://"), url.rfind('@')) {
         (Some(scheme), Some(at)) if at > scheme => {
             let credentials = &url[scheme + 3..at];
-            match credentials.find(':') {
-                Some(colon) => format!(
-                    "{}{}:***{}",
-                    &url[..scheme + 3],
-                    &credentials[..colon],
-                    &url[at..]
-                ),
+            match credentials.split_once(':') {
+                Some((user, _)) => format!("{}{user}:***{}", &url[..scheme + 3], &url[at..]),
                 None => url.to_string(),
             }
         }
+        (None, Some(at)) => match url[..at].find(':') {
+            Some(colon) => format!("{}:***{}", &url[..colon], &url[at..]),
+            None => url.to_string(),
+        },
         _ => url.to_string(),
+    };
+    hide_password_settings(&hidden)
+}
+
+/// Every `password=VALUE` (any case, `sslpassword` too) with its value hidden: a value runs to
+/// the next space or `&`, or is quoted with `'` (a quote inside escaped with `\`).
+fn hide_password_settings(text: &str) -> String {
+    let lower = text.to_ascii_lowercase();
+    let mut out = String::with_capacity(text.len());
+    let mut from = 0;
+    while let Some(found) = lower[from..].find("password") {
+        let key_end = from + found + "password".len();
+        let Some(value_and_more) = text[key_end..].trim_start().strip_prefix('=') else {
+            out.push_str(&text[from..key_end]);
+            from = key_end;
+            continue;
+        };
+        let value_start = text.len() - value_and_more.trim_start().len();
+        let value = &text[value_start..];
+        let value_len = match value.strip_prefix('\'') {
+            Some(quoted) => {
+                let mut escaped = false;
+                let close = quoted.char_indices().find(|&(_, c)| {
+                    let closes = c == '\'' && !escaped;
+                    escaped = c == '\\' && !escaped;
+                    closes
+                });
+                close.map_or(value.len(), |(i, _)| i + 2)
+            }
+            None => value
+                .find(|c: char| c.is_whitespace() || c == '&')
+                .unwrap_or(value.len()),
+        };
+        out.push_str(&text[from..value_start]);
+        out.push_str("***");
+        from = value_start + value_len;
     }
+    out.push_str(&text[from..]);
+    out
 }
 
 #[cfg(test)]
@@ -187,5 +217,39 @@ mod tests {
             redacted("host=/run/postgresql dbname=tiles password=secret"),
             "host=/run/postgresql dbname=tiles password=***"
         );
+    }
+
+    #[test]
+    fn every_form_of_a_password_is_hidden() {
+        let forms = [
+            (
+                "postgres://tiles@host/db?password=S3cret",
+                "postgres://tiles@host/db?password=***",
+            ),
+            (
+                "postgres://tiles@host/db?sslmode=disable&PASSWORD=S3cret&x=1",
+                "postgres://tiles@host/db?sslmode=disable&PASSWORD=***&x=1",
+            ),
+            (
+                "postgresql://tiles:S3c/r@t@host/db",
+                "postgresql://tiles:***@host/db",
+            ),
+            (
+                "host=db password = 'S3 cr\\'et' dbname=tiles",
+                "host=db password = *** dbname=tiles",
+            ),
+            ("password=S3cret", "password=***"),
+            (
+                "postgress://tiles:S3cret@host/db",
+                "postgress://tiles:***@host/db",
+            ),
+            ("postgres:/tiles:S3cret@host/db", "postgres:***@host/db"),
+            ("host=db sslpassword=S3cret", "host=db sslpassword=***"),
+        ];
+        for (url, shown) in forms {
+            let hidden = redacted(url);
+            assert_eq!(hidden, shown, "{url}");
+            assert!(!hidden.contains("S3"), "{url}");
+        }
     }
 }

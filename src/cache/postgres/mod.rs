@@ -19,6 +19,7 @@ use super::store::{
 use crate::format::{Format, TileKey};
 use crate::tile::TileId;
 pub use cluster::Cluster;
+pub use connections::redacted;
 use connections::Connections;
 
 /// The schema's migrations, in order; the database records how many it has applied.
