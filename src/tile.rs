@@ -49,6 +49,12 @@ pub enum TileIdError {
     Syntax(String),
     #[error("{name} = '{text}' is not a non-negative integer")]
     NotANumber { name: &'static str, text: String },
+    #[error("{name} = '{text}' is not written as tiles are named: write {name} = {canonical}")]
+    NotCanonical {
+        name: &'static str,
+        text: String,
+        canonical: u64,
+    },
 }
 
 impl TileId {
@@ -117,11 +123,20 @@ impl TileId {
     /// Reads a tile from the three numbers of a path (`z`, `x`, `y` as written), checked as
     /// [`TileId::new`] checks them: the one parser of tile paths, for URLs and the command line.
     pub fn from_parts(z: &str, x: &str, y: &str) -> Result<TileId, TileIdError> {
+        // Digits only, without leading zeros: one tile, one name (a cache holds no copies).
         let number = |name: &'static str, text: &str| {
-            text.parse::<u64>().map_err(|_| TileIdError::NotANumber {
+            let value = text.parse::<u64>().map_err(|_| TileIdError::NotANumber {
                 name,
                 text: text.to_string(),
-            })
+            })?;
+            match value.to_string() == text {
+                true => Ok(value),
+                false => Err(TileIdError::NotCanonical {
+                    name,
+                    text: text.to_string(),
+                    canonical: value,
+                }),
+            }
         };
         let zoom = number("z", z)?;
         let zoom = u32::try_from(zoom).map_err(|_| TileIdError::ZoomTooHigh(zoom))?;
@@ -381,6 +396,20 @@ mod tests {
             TileId::from_parts("14", "16384", "0"),
             Err(TileIdError::XOutOfRange { .. })
         ));
+    }
+
+    #[test]
+    fn a_tile_has_one_name_only() {
+        for (x, y) in [("08529", "5973"), ("+8529", "5973"), ("8529", "05973")] {
+            let error = TileId::from_parts("14", x, y).unwrap_err();
+            assert!(matches!(error, TileIdError::NotCanonical { .. }), "{x}/{y}");
+            assert!(error.to_string().contains("write"), "{error}");
+        }
+        assert!(TileId::from_parts("014", "8529", "5973").is_err());
+        assert_eq!(
+            TileId::from_parts("0", "0", "0"),
+            Ok(TileId { z: 0, x: 0, y: 0 })
+        );
     }
 
     #[test]

@@ -405,8 +405,27 @@ async fn every_error_is_json_with_its_right_code() {
             format!("POST /admin/purge HTTP/1.1\r\n{close}authorization: Bearer secret\r\ncontent-length: 3000000\r\n\r\n"),
             "413",
         ),
+        // What hyper refuses before any route sees it.
+        (format!("GET /{} HTTP/1.1\r\n{close}\r\n", "a".repeat(70_000)), "414"),
+        (
+            format!(
+                "GET /health HTTP/1.1\r\n{close}{}\r\n",
+                (0..120).map(|i| format!("x-h{i}: v\r\n")).collect::<String>()
+            ),
+            "431",
+        ),
+        (format!("GET /tiles/\u{ff}\u{fe} HTTP/1.1\r\n{close}\r\n"), "400"),
+        (format!("GET /tiles/14/8529/5973.glb?compress= HTTP/1.1\r\n{close}\r\n"), "400"),
+        (format!("GET /tiles/14/08529/5973.glb HTTP/1.1\r\n{close}\r\n"), "400"),
+        (format!("GET /tiles/14/+8529/5973.glb HTTP/1.1\r\n{close}\r\n"), "400"),
     ] {
-        let (line, headers, body) = raw(&server, request.as_bytes()).await;
+        // Characters below 256 as bytes: a request line that is not UTF-8.
+        let bytes: Vec<u8> = match request.chars().all(|c| u32::from(c) < 256) {
+            true => request.chars().map(|c| c as u8).collect(),
+            false => request.clone().into_bytes(),
+        };
+        let (line, headers, body) = raw(&server, &bytes).await;
+        let request: String = request.chars().take(200).collect();
         assert!(line.starts_with(&format!("HTTP/1.1 {status}")), "{request}: {line}");
         assert!(headers.contains("content-type: application/json"), "{request}: {headers}");
         let parsed: serde_json::Value = serde_json::from_str(&body).expect(&body);

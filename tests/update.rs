@@ -404,6 +404,63 @@ fn a_missing_diff_stops_replication_by_name_after_those_before_it() {
     assert_eq!(sequence_of(&store), Some(1));
 }
 
+/// `update --replication` run to its end.
+fn catch_up_said(store: &Path, source: &Path) -> Output {
+    terrastitch()
+        .arg("update")
+        .arg("--store")
+        .arg(store)
+        .arg("--replication")
+        .arg(source)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn a_replication_source_gone_back_in_time_or_behind_is_refused_or_told() {
+    let dir = tempfile::tempdir().unwrap();
+    let source = replication_source(dir.path(), 2);
+    let store = dir.path().join("osm.sqlite");
+    import(&store, &sample_osm());
+    assert!(catch_up(&store, &source).wait().unwrap().success());
+    // Sequence 2 holds changes a year older than sequence 1's.
+    let second = source.join("000/000/002.osc.gz");
+    let gz = std::fs::read(&second).unwrap();
+    let mut text = String::new();
+    std::io::Read::read_to_string(&mut flate2::read::GzDecoder::new(gz.as_slice()), &mut text)
+        .unwrap();
+    assert!(text.contains("2030-01-01"));
+    let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    std::io::Write::write_all(
+        &mut encoder,
+        text.replace("2030-01-01", "2029-01-01").as_bytes(),
+    )
+    .unwrap();
+    std::fs::write(&second, encoder.finish().unwrap()).unwrap();
+    set_state(&source, 2);
+    let refused = catch_up_said(&store, &source);
+    let message = stderr(&refused);
+    assert!(!refused.status.success(), "{message}");
+    assert!(
+        message.contains("002.osc.gz") && message.contains("is older than one applied before"),
+        "{message}"
+    );
+    assert_eq!(sequence_of(&store), Some(1));
+    // A state file whose sequence is not a number is named for what it says.
+    std::fs::write(source.join("state.txt"), "sequenceNumber=abc\n").unwrap();
+    let refused = catch_up_said(&store, &source);
+    let message = stderr(&refused);
+    assert!(!refused.status.success(), "{message}");
+    assert!(message.contains("says sequenceNumber=abc"), "{message}");
+    // A source behind the store applies nothing, and says so.
+    set_state(&source, 0);
+    let behind = catch_up_said(&store, &source);
+    let message = stderr(&behind);
+    assert!(behind.status.success(), "{message}");
+    assert!(message.contains("behind the OSM store"), "{message}");
+    assert_eq!(sequence_of(&store), Some(1));
+}
+
 #[test]
 fn a_server_applies_its_replication_diffs_and_remakes_exactly_the_expired_tiles() {
     use common::process::{request, spawn_server};

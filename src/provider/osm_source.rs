@@ -224,6 +224,16 @@ pub fn catch_up(
         update::start_replication_at(path, state.sequence)?;
         return Ok(caught);
     };
+    if state.sequence < last {
+        tracing::warn!(
+            store = %path.display(),
+            source = replication.base(),
+            source_sequence = state.sequence,
+            store_sequence = last,
+            behind = last - state.sequence,
+            "the replication source is behind the OSM store: nothing to apply (is it the source the store follows?)"
+        );
+    }
     for sequence in (last + 1..=state.sequence).take(limit) {
         let (file, name) = replication.diff(fetcher, sequence)?;
         let change = match osc::read_osc(&file) {

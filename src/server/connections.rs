@@ -3,15 +3,22 @@
 //! connections are open at once (past that, one more is answered `503` and closed at once, never
 //! left hanging), and after the shutdown signal the connections get a grace period to finish
 //! before whatever is left is closed.
+//!
+//! A request hyper cannot read (a URI past its 64 KiB, too many or too large header fields, a
+//! request line that is not ASCII) never reaches the routes: hyper answers it itself, with a
+//! status and an empty body, and closes. [`JsonErrors`] gives those answers a JSON body like
+//! every other error's.
 
 use std::future::Future;
+use std::pin::Pin;
 use std::sync::Arc;
+use std::task::{Context, Poll};
 use std::time::Duration;
 
 use axum::Router;
 use hyper_util::rt::{TokioIo, TokioTimer};
 use hyper_util::service::TowerToHyperService;
-use tokio::io::AsyncWriteExt;
+use tokio::io::{AsyncRead, AsyncWrite, AsyncWriteExt, ReadBuf};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 
@@ -107,7 +114,8 @@ async fn connection(
         .timer(TokioTimer::new())
         .header_read_timeout(limits.head)
         .keep_alive(true);
-    let mut served = std::pin::pin!(builder.serve_connection(TokioIo::new(stream), service));
+    let io = TokioIo::new(JsonErrors::new(stream));
+    let mut served = std::pin::pin!(builder.serve_connection(io, service));
     let mut shutting_down = false;
     loop {
         tokio::select! {
@@ -149,6 +157,117 @@ async fn refuse(mut stream: TcpStream, limit: usize) {
     tracing::warn!(limit, "connection refused: too many open");
 }
 
+/// A connection whose answers to requests hyper could not read carry a JSON body.
+///
+/// hyper writes such an answer as a head alone (`HTTP/1.1 431 …`, `connection: close`,
+/// `content-length: 0`) in one write, and then closes; every answer of the routes to a client
+/// error has a body. A write that is such a head is replaced by the same status with a JSON
+/// body saying what was wrong.
+pub struct JsonErrors<T> {
+    inner: T,
+    /// A replacement being written, how much of it is written, and the length of the write it
+    /// stands for.
+    replacing: Option<(Vec<u8>, usize, usize)>,
+}
+
+impl<T> JsonErrors<T> {
+    pub fn new(inner: T) -> JsonErrors<T> {
+        JsonErrors {
+            inner,
+            replacing: None,
+        }
+    }
+}
+
+/// The answer with a JSON body for `written`, when it is hyper's bodiless answer to a request
+/// it could not read.
+fn with_json_body(written: &[u8]) -> Option<Vec<u8>> {
+    let head = std::str::from_utf8(written)
+        .ok()?
+        .strip_suffix("\r\n\r\n")?;
+    let status = head.strip_prefix("HTTP/1.1 ")?.get(..3)?;
+    let lines: Vec<&str> = head.lines().map(str::trim).collect();
+    let bodiless = lines.contains(&"content-length: 0") && lines.contains(&"connection: close");
+    if !(status.starts_with('4') || status.starts_with('5'))
+        || !bodiless
+        || head.contains("\r\n\r\n")
+    {
+        return None;
+    }
+    let why = match status {
+        "414" => "the request's URI is longer than the server reads (64 KiB)",
+        "431" => "the request's header fields are too many (at most 100) or too large",
+        "400" => {
+            "the request is not HTTP/1.1 the server can read: a request line or header field \
+             is malformed (a URI must be ASCII, with other bytes percent-encoded)"
+        }
+        _ => "the request is not HTTP/1.1 the server can read",
+    };
+    let body = serde_json::json!({ "error": why }).to_string();
+    let status_line = head.lines().next()?;
+    let kept: String = lines[1..]
+        .iter()
+        .filter(|l| !l.starts_with("content-length:"))
+        .map(|l| format!("{l}\r\n"))
+        .collect();
+    Some(
+        format!(
+            "{status_line}\r\n{kept}content-type: application/json\r\ncontent-length: {}\r\n\r\n{body}",
+            body.len()
+        )
+        .into_bytes(),
+    )
+}
+
+impl<T: AsyncRead + Unpin> AsyncRead for JsonErrors<T> {
+    fn poll_read(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &mut ReadBuf<'_>,
+    ) -> Poll<std::io::Result<()>> {
+        Pin::new(&mut self.inner).poll_read(cx, buf)
+    }
+}
+
+impl<T: AsyncWrite + Unpin> AsyncWrite for JsonErrors<T> {
+    fn poll_write(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        buf: &[u8],
+    ) -> Poll<std::io::Result<usize>> {
+        if self.replacing.is_none() {
+            match with_json_body(buf) {
+                Some(answer) => self.replacing = Some((answer, 0, buf.len())),
+                None => return Pin::new(&mut self.inner).poll_write(cx, buf),
+            }
+        }
+        let this = &mut *self;
+        while let Some((answer, written, stands_for)) = &mut this.replacing {
+            if *written == answer.len() {
+                let stands_for = *stands_for;
+                this.replacing = None;
+                return Poll::Ready(Ok(stands_for));
+            }
+            match Pin::new(&mut this.inner).poll_write(cx, &answer[*written..]) {
+                Poll::Ready(Ok(0)) => {
+                    return Poll::Ready(Err(std::io::ErrorKind::WriteZero.into()))
+                }
+                Poll::Ready(Ok(n)) => *written += n,
+                other => return other,
+            }
+        }
+        Poll::Ready(Ok(buf.len()))
+    }
+
+    fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<std::io::Result<()>> {
+        Pin::new(&mut self.inner).poll_flush(cx)
+    }
+
+    fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<std::io::Result<()>> {
+        Pin::new(&mut self.inner).poll_shutdown(cx)
+    }
+}
+
 /// Raises this process's soft limit of open files to its hard limit (so connections are not
 /// bounded by a low default), and returns the connections to allow: at most `wanted`, and at most
 /// three quarters of the open-file limit, leaving the rest to the store, caches and data files.
@@ -173,4 +292,38 @@ pub fn connections_to_allow(wanted: usize) -> usize {
     }
     let files = usize::try_from(limit.rlim_cur).unwrap_or(usize::MAX);
     wanted.min(files / 4 * 3).max(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hypers_bodiless_refusals_get_a_json_body() {
+        let head = "HTTP/1.1 431 Request Header Fields Too Large\r\nconnection: close\r\n\
+                    content-length: 0\r\ndate: Fri, 27 Nov 2026 15:21:57 GMT\r\n\r\n";
+        let answer = String::from_utf8(with_json_body(head.as_bytes()).unwrap()).unwrap();
+        let (head, body) = answer.split_once("\r\n\r\n").unwrap();
+        assert!(head.starts_with("HTTP/1.1 431 Request Header Fields Too Large\r\n"));
+        assert!(head.contains("content-type: application/json"), "{head}");
+        assert!(
+            head.contains(&format!("content-length: {}", body.len())),
+            "{head}"
+        );
+        assert!(!head.contains("content-length: 0"), "{head}");
+        let parsed: serde_json::Value = serde_json::from_str(body).unwrap();
+        assert!(parsed["error"].as_str().unwrap().contains("too many"));
+    }
+
+    #[test]
+    fn answers_with_bodies_and_answers_that_go_on_are_left_alone() {
+        let with_body = "HTTP/1.1 404 Not Found\r\ncontent-type: application/json\r\n\
+                         content-length: 12\r\n\r\n{\"error\":\"\"}";
+        assert_eq!(with_json_body(with_body.as_bytes()), None);
+        let kept_alive = "HTTP/1.1 400 Bad Request\r\ncontent-length: 0\r\n\r\n";
+        assert_eq!(with_json_body(kept_alive.as_bytes()), None);
+        let success = "HTTP/1.1 200 OK\r\nconnection: close\r\ncontent-length: 0\r\n\r\n";
+        assert_eq!(with_json_body(success.as_bytes()), None);
+        assert_eq!(with_json_body(&[0xff, 0xfe]), None);
+    }
 }

@@ -31,7 +31,7 @@ pub fn wants_meshopt(query: Option<&str>) -> Result<bool, ApiError> {
         if key == "compress" {
             meshopt = match value {
                 "meshopt" => true,
-                "none" | "" => false,
+                "none" => false,
                 other => {
                     return Err(ApiError::bad_request(format!(
                         "compress={other} is not offered; use compress=meshopt or compress=none"
@@ -445,6 +445,8 @@ mod tests {
         assert!(wants_meshopt(Some("compress=meshopt")).unwrap());
         assert!(wants_meshopt(Some("v=3&compress=meshopt")).unwrap());
         assert!(!wants_meshopt(Some("compress=none&x")).unwrap());
+        assert!(wants_meshopt(Some("compress=")).is_err());
+        assert!(wants_meshopt(Some("compress")).is_err());
         let error = wants_meshopt(Some("compress=draco")).unwrap_err();
         assert_eq!(error.status, StatusCode::BAD_REQUEST);
         assert!(error.message.contains("draco"), "{}", error.message);

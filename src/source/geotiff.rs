@@ -145,10 +145,10 @@ fn nodata<R: std::io::Read + std::io::Seek>(decoder: &mut Decoder<R>) -> Option<
 }
 
 /// The samples with every void as NaN: `nodata`, numbers that are not finite, and heights
-/// outside [`super::srtm::PLAUSIBLE_M`] — unless those are more than
-/// [`super::srtm::IMPLAUSIBLE_SHARE`] of the samples, when the raster is not elevation data.
+/// outside [`super::voids::PLAUSIBLE_M`] — unless those are more than
+/// [`super::voids::IMPLAUSIBLE_SHARE`] of the samples, when the raster is not elevation data.
 fn plausible(mut pixels: Vec<f32>, nodata: Option<f32>) -> Result<Vec<f32>, String> {
-    let (low, high) = super::srtm::PLAUSIBLE_M;
+    let (low, high) = super::voids::PLAUSIBLE_M;
     let range = f32::from(low)..=f32::from(high);
     let mut outside = 0usize;
     for value in pixels.iter_mut() {
@@ -160,7 +160,7 @@ fn plausible(mut pixels: Vec<f32>, nodata: Option<f32>) -> Result<Vec<f32>, Stri
         }
     }
     let share = outside as f64 / pixels.len().max(1) as f64;
-    match share > super::srtm::IMPLAUSIBLE_SHARE {
+    match share > super::voids::IMPLAUSIBLE_SHARE {
         true => Err(format!(
             "it is not elevation data: {:.1} % of its samples lie outside {low} to {high} m",
             share * 100.0

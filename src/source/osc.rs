@@ -107,6 +107,27 @@ impl OsmChange {
     }
 }
 
+/// Seconds since 1970 of an OSM timestamp (`2024-01-02T03:04:05Z`), if it is one.
+pub fn seconds_of(timestamp: &str) -> Option<i64> {
+    let t = timestamp.trim().strip_suffix('Z')?;
+    let (date, time) = t.split_once('T')?;
+    let mut date = date.split('-').map(|p| p.parse::<i64>().ok());
+    let (year, month, day) = (date.next()??, date.next()??, date.next()??);
+    let mut time = time.split(':').map(|p| p.parse::<i64>().ok());
+    let (hour, minute, second) = (time.next()??, time.next()??, time.next()??);
+    if !(1..=12).contains(&month) || !(1..=31).contains(&day) {
+        return None;
+    }
+    // Days from the civil calendar (Howard Hinnant's algorithm).
+    let y = if month <= 2 { year - 1 } else { year };
+    let era = y.div_euclid(400);
+    let year_of_era = y - era * 400;
+    let day_of_year = (153 * ((month + 9) % 12) + 2) / 5 + day - 1;
+    let day_of_era = year_of_era * 365 + year_of_era / 4 - year_of_era / 100 + day_of_year;
+    let days = era * 146_097 + day_of_era - 719_468;
+    Some(days * 86_400 + hour * 3600 + minute * 60 + second)
+}
+
 /// Reads a change file, gzip-compressed when its name ends in `.gz`.
 pub fn read_osc(path: &Path) -> Result<OsmChange, OscError> {
     let file = std::fs::File::open(path).map_err(|source| OscError::Io {
@@ -458,6 +479,15 @@ fn decimicro(text: &str) -> Option<i32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn timestamps_count_seconds_from_1970() {
+        assert_eq!(seconds_of("1970-01-01T00:00:00Z"), Some(0));
+        assert_eq!(seconds_of("2024-01-02T03:04:05Z"), Some(1_704_164_645));
+        assert_eq!(seconds_of("2000-03-01T00:00:00Z"), Some(951_868_800));
+        assert_eq!(seconds_of("2024-13-02T03:04:05Z"), None);
+        assert_eq!(seconds_of("yesterday"), None);
+    }
 
     fn read(text: &str) -> Result<OsmChange, OscError> {
         parse(text.as_bytes(), Path::new("test.osc"))

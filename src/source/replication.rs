@@ -21,8 +21,8 @@ pub enum ReplicationError {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("replication source {base}: its state.txt has no sequenceNumber")]
-    State { base: String },
+    #[error("replication source {base}: its state.txt {why}")]
+    State { base: String, why: String },
 }
 
 /// Where a replication source stands.
@@ -32,20 +32,25 @@ pub struct State {
     pub timestamp: Option<String>,
 }
 
-/// Reads a `state.txt`; its timestamp's escaped colons (`\:`) are unescaped.
-pub fn parse_state(text: &str) -> Option<State> {
+/// Reads a `state.txt`; its timestamp's escaped colons (`\:`) are unescaped. What is wrong
+/// with one that gives no sequence, said after "its state.txt".
+pub fn parse_state(text: &str) -> Result<State, String> {
     let mut sequence = None;
     let mut timestamp = None;
     for line in text.lines() {
         let line = line.trim();
         if let Some(value) = line.strip_prefix("sequenceNumber=") {
-            sequence = value.trim().parse().ok();
+            let value = value.trim();
+            let number = value
+                .parse()
+                .map_err(|_| format!("says sequenceNumber={value}, which is not a whole number"))?;
+            sequence = Some(number);
         } else if let Some(value) = line.strip_prefix("timestamp=") {
             timestamp = Some(value.trim().replace("\\:", ":"));
         }
     }
-    Some(State {
-        sequence: sequence?,
+    Ok(State {
+        sequence: sequence.ok_or("has no sequenceNumber")?,
         timestamp,
     })
 }
@@ -116,8 +121,9 @@ impl Replication {
             }
         };
         let text = self.read(&path)?;
-        parse_state(&String::from_utf8_lossy(&text)).ok_or_else(|| ReplicationError::State {
+        parse_state(&String::from_utf8_lossy(&text)).map_err(|why| ReplicationError::State {
             base: self.base.clone(),
+            why,
         })
     }
 
@@ -169,7 +175,15 @@ mod tests {
         .unwrap();
         assert_eq!(state.sequence, 4321);
         assert_eq!(state.timestamp.as_deref(), Some("2030-01-01T00:00:00Z"));
-        assert_eq!(parse_state("timestamp=2030-01-01T00\\:00\\:00Z"), None);
+        assert_eq!(
+            parse_state("timestamp=2030-01-01T00\\:00\\:00Z"),
+            Err("has no sequenceNumber".to_string())
+        );
+        let error = parse_state("sequenceNumber=abc\n").unwrap_err();
+        assert_eq!(
+            error,
+            "says sequenceNumber=abc, which is not a whole number"
+        );
     }
 
     #[test]

@@ -16,6 +16,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use super::voids::{IMPLAUSIBLE_SHARE, PLAUSIBLE_M};
 use crate::terrain::cell::{CellId, SrtmTile};
 
 /// The value SRTM uses for a sample without data.
@@ -69,17 +70,9 @@ pub enum SrtmError {
     },
 }
 
-/// Elevations a sample of the Earth's surface may take, metres (the Dead Sea's shore, Everest,
-/// with room for the data's noise).
-pub(super) const PLAUSIBLE_M: (i16, i16) = (-500, 9000);
-
 /// Values that mark a sample without data: SRTM's void, and those other elevation files
 /// converted to `.hgt` use.
 const NO_DATA: [i16; 3] = [VOID, -32767, -9999];
-
-/// Share of samples outside [`PLAUSIBLE_M`] past which a file is taken for something else than
-/// elevations (random bytes put ~70 % there; real files a handful of samples at most).
-pub(super) const IMPLAUSIBLE_SHARE: f64 = 0.01;
 
 /// Decodes the raw big-endian bytes of a `.hgt` file; `path` names the file in errors.
 pub fn decode(cell: CellId, bytes: &[u8], path: &Path) -> Result<SrtmTile, SrtmError> {

@@ -1,4 +1,12 @@
-//! Filling the voids of an elevation grid.
+//! Filling the voids of an elevation grid, and what is no elevation at all.
+
+/// Elevations a sample of the Earth's surface may take, metres (the Dead Sea's shore, Everest,
+/// with room for the data's noise).
+pub const PLAUSIBLE_M: (i16, i16) = (-500, 9000);
+
+/// Share of samples outside [`PLAUSIBLE_M`] past which a file is taken for something else than
+/// elevations (random bytes put ~70 % there; real files a handful of samples at most).
+pub const IMPLAUSIBLE_SHARE: f64 = 0.01;
 
 /// Fills the voids (NaN) of a square grid of `size` samples a side: each takes the
 /// inverse-distance blend of the nearest valid sample in each of the eight compass directions

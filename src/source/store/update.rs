@@ -44,6 +44,11 @@ pub enum UpdateError {
     },
 }
 
+/// How much older than the newest change applied before a diff of a replication sequence may
+/// be, seconds: an upload that takes long is published after quicker ones made later, but
+/// not an hour later.
+const SEQUENCE_TIME_SLACK_S: i64 = 3600;
+
 /// A diff with its place in a replication sequence, when it has one.
 #[derive(Debug, Clone)]
 pub struct DiffOrigin {
@@ -206,14 +211,21 @@ impl Meta {
                 )));
             }
         }
-        // Without a sequence, time orders diffs: one whose changes all predate a diff applied
-        // before is out of order. (In a sequence, a diff may hold only an upload that took
-        // long and is older than the last one's.)
-        if origin.sequence.is_some() {
-            return Ok(());
-        }
+        // Time orders diffs: one whose changes all predate a diff applied before is out of
+        // order. In a sequence, a diff may hold only an upload that took long and is a little
+        // older than the last one's newest change, but not older by more than an upload
+        // takes: that is a source that went back in time.
+        let slack = match origin.sequence {
+            Some(_) => SEQUENCE_TIME_SLACK_S,
+            None => 0,
+        };
         if let (Some(newest), Some(applied)) = (&change.newest, &self.newest_change) {
-            if newest < applied {
+            let seconds = |t: &str| crate::source::osc::seconds_of(t);
+            let older = match (seconds(newest), seconds(applied)) {
+                (Some(newest), Some(applied)) => newest + slack < applied,
+                _ => slack == 0 && newest < applied,
+            };
+            if older {
                 return Err(refuse(format!(
                     "its newest change ({newest}) is older than one applied before ({applied})"
                 )));
