@@ -69,6 +69,10 @@ struct SourceArgs {
 struct ImportArgs {
     #[command(flatten)]
     sources: SourceArgs,
+    /// Replace the store even when the extracts hold fewer than half of a kind of element it
+    /// holds (an extract cut short reads as a smaller one)
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args)]
@@ -306,7 +310,7 @@ fn main() -> Result<()> {
         Command::Render(args) => render(args, config),
         Command::Seed(args) => seed(args, config),
         Command::Export(args) => export(args, config),
-        Command::Import(_) => import(config),
+        Command::Import(args) => import(args.force, config),
         Command::Update(args) => update(args, config),
     }
 }
@@ -827,7 +831,7 @@ fn export(args: ExportArgs, config: Config) -> Result<()> {
 /// The store `import` writes: the configured one, else `cache/osm.sqlite`.
 const DEFAULT_STORE: &str = "cache/osm.sqlite";
 
-fn import(config: Config) -> Result<()> {
+fn import(force: bool, config: Config) -> Result<()> {
     let store = config
         .sources
         .store
@@ -856,9 +860,24 @@ fn import(config: Config) -> Result<()> {
         &store,
         &extracts,
         config.server.zoom,
+        force,
         &progress,
     )?;
     bar.finish_and_clear();
+    for read in &imported.read {
+        eprintln!(
+            "read {}: {} blocks of data, {} nodes, {} ways, {} relations{}",
+            read.path.display(),
+            read.blocks,
+            read.nodes,
+            read.ways,
+            read.relations,
+            match read.sorted {
+                true => ", sorted by type then id",
+                false => "",
+            }
+        );
+    }
     let seconds = started.elapsed().as_secs_f64();
     let bytes: u64 = extracts
         .iter()

@@ -129,7 +129,12 @@ fn a_store_older_than_its_extract_is_imported_again() {
     let dir = tempfile::tempdir().unwrap();
     let store = dir.path().join("osm.sqlite");
     let extract = dir.path().join("region.osm.pbf");
-    std::fs::copy(sample_osm(), &extract).unwrap();
+    // The newer extract holds more than the older: the store may be replaced without --force.
+    std::fs::copy(
+        common::repo().join("tests/data/monaco-planetiler-2021.osm.pbf"),
+        &extract,
+    )
+    .unwrap();
     let render = |name: &str| {
         let out = dir.path().join(name);
         let output = terrastitch()
@@ -149,11 +154,7 @@ fn a_store_older_than_its_extract_is_imported_again() {
     assert_eq!(render("again.glb"), first);
     assert_eq!(digest(&store), imported, "a current store is read as it is");
 
-    std::fs::copy(
-        common::repo().join("tests/data/monaco-planetiler-2021.osm.pbf"),
-        &extract,
-    )
-    .unwrap();
+    std::fs::copy(sample_osm(), &extract).unwrap();
     let changed = render("changed.glb");
     assert_ne!(digest(&store), imported, "the new extract was imported");
     assert_ne!(changed, first, "the tile is made from the new extract");
@@ -278,7 +279,7 @@ fn every_tile_of_the_sample_selects_from_the_store_what_it_selects_from_memory()
     use terrastitch::source::store::{import::import, OsmStore};
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("osm.sqlite");
-    import(&[sample_osm()], &path, 14, &rules(), &|_| {}).unwrap();
+    import(&[sample_osm()], &path, 14, &rules(), false, &|_| {}).unwrap();
     let store = OsmStore::open(&path).unwrap();
     let memory =
         terrastitch::provider::Inputs::open(&[sample_osm()], &common::sample_srtm(), 14).unwrap();
@@ -460,4 +461,128 @@ fn two_extracts_holding_the_same_elements_make_the_store_one_of_them_makes() {
     assert!(count(&a, "ways") > 0);
     assert_eq!(a.len(), b.len());
     assert!(a == b, "the stores differ");
+}
+
+/// Elements of each kind in one blob of a PBF file: nodes, ways, relations.
+fn kinds(blob: &[u8]) -> [u64; 3] {
+    let mut found = [0; 3];
+    for blob in osmpbf::BlobReader::new(blob) {
+        if let osmpbf::BlobDecode::OsmData(block) = blob.unwrap().decode().unwrap() {
+            for element in block.elements() {
+                let kind = match element {
+                    osmpbf::Element::Node(_) | osmpbf::Element::DenseNode(_) => 0,
+                    osmpbf::Element::Way(_) => 1,
+                    osmpbf::Element::Relation(_) => 2,
+                };
+                found[kind] += 1;
+            }
+        }
+    }
+    found
+}
+
+/// The sample's bytes up to the first blob holding elements of `kind` (0 nodes, 1 ways, 2
+/// relations): cut cleanly at a block boundary.
+fn cut_before(kind: usize, dir: &Path) -> PathBuf {
+    let bytes = std::fs::read(sample_osm()).unwrap();
+    let mut length = 0;
+    for blob in blobs(&bytes) {
+        if kinds(blob)[kind] > 0 {
+            break;
+        }
+        length += blob.len();
+    }
+    assert!(length < bytes.len());
+    let cut = dir.join(format!("cut-{kind}.osm.pbf"));
+    std::fs::write(&cut, &bytes[..length]).unwrap();
+    cut
+}
+
+#[test]
+fn an_extract_cut_at_a_block_boundary_does_not_replace_a_whole_store() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("osm.sqlite");
+    let good = import(&store, &[sample_osm()]);
+    assert!(good.status.success(), "{}", stderr(&good));
+    let before = digest(&store);
+    // The header alone, the nodes alone, all but the relations.
+    for (kind, said) in [
+        (
+            0,
+            "holds no OSM elements (0 blocks of data after its header)",
+        ),
+        (1, "it ends in its nodes"),
+        (2, "and 0 relations: an extract cut short would do that"),
+    ] {
+        let cut = cut_before(kind, dir.path());
+        let refused = import(&store, &[cut.clone()]);
+        let message = stderr(&refused);
+        assert!(!refused.status.success(), "{message}");
+        assert!(message.contains(said), "{kind}: {message}");
+        assert_eq!(digest(&store), before, "the store is unchanged");
+        assert_eq!(
+            others(dir.path(), &store)
+                .iter()
+                .filter(|p| { p.to_string_lossy().contains(".partial") })
+                .count(),
+            0
+        );
+    }
+    let losing = import(&store, &[cut_before(2, dir.path())]);
+    let message = stderr(&losing);
+    assert!(
+        message.contains("replace the 3090 tagged nodes, 27357 ways and 57 relations"),
+        "{message}"
+    );
+    assert!(message.contains("--force"), "{message}");
+    // Forced, the store is replaced, and the summary says what was read.
+    let mut command = terrastitch();
+    command
+        .arg("import")
+        .arg("--force")
+        .arg("--store")
+        .arg(&store);
+    let forced = command
+        .arg("--osm")
+        .arg(cut_before(2, dir.path()))
+        .output()
+        .unwrap();
+    let message = stderr(&forced);
+    assert!(forced.status.success(), "{message}");
+    assert!(
+        message.contains("0 relations, sorted by type then id"),
+        "{message}"
+    );
+    assert_ne!(digest(&store), before);
+}
+
+#[test]
+fn a_node_outside_the_world_is_refused_by_both_readers() {
+    let dir = tempfile::tempdir().unwrap();
+    for (lon, lat) in [(7.42, 91.0), (200.0, 43.73)] {
+        let extract = dir.path().join("outside.osm.pbf");
+        let ways = serde_json::json!([
+            {"tags": {"highway": "residential"}, "nodes": [[7.42, 43.73], [lon, lat], [7.43, 43.74]]}
+        ]);
+        common::write_extract(&ways, &extract);
+        let store = dir.path().join("osm.sqlite");
+        let refused = import(&store, &[extract.clone()]);
+        let message = stderr(&refused);
+        assert!(!refused.status.success(), "{message}");
+        assert!(
+            message.contains("node 2 lies at") && message.contains("outside the world"),
+            "{message}"
+        );
+        assert!(!store.exists());
+        let rendered = terrastitch()
+            .args(["render", "14/8529/5973", "--osm"])
+            .arg(&extract)
+            .arg("-o")
+            .arg(dir.path().join("tile.glb"))
+            .output()
+            .unwrap();
+        let message = stderr(&rendered);
+        assert!(!rendered.status.success(), "{message}");
+        assert!(message.contains("outside the world"), "{message}");
+    }
 }

@@ -129,20 +129,30 @@ pub fn open_store(
         return Ok((store, None));
     }
     tracing::info!(store = %path.display(), "the OSM store is missing or older than its extracts; importing them");
-    let imported = import::import(extracts, path, zoom, &rules(), progress)?;
+    let imported = import::import(extracts, path, zoom, &rules(), false, progress)?;
     drop(lock);
     Ok((OsmStore::open(path)?, Some(imported)))
 }
 
 /// Imports `extracts` into the store at `path`, one import of that store at a time.
+/// With `force`, it replaces a store though it would lose most of a kind of element (see
+/// [`import::import`]).
 pub fn import_locked(
     path: &Path,
     extracts: &[PathBuf],
     zoom: u8,
+    force: bool,
     progress: &dyn Fn(&Progress),
 ) -> Result<Imported, StoreOpenError> {
     let _lock = lock_file(path)?;
-    Ok(import::import(extracts, path, zoom, &rules(), progress)?)
+    Ok(import::import(
+        extracts,
+        path,
+        zoom,
+        &rules(),
+        force,
+        progress,
+    )?)
 }
 
 /// Applies OSM change files, in the order given, to the store at `path` in one transaction

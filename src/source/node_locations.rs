@@ -44,6 +44,16 @@ pub enum NodeStoreError {
         nano_lon: i64,
         nano_lat: i64,
     },
+    #[error(
+        "node {id} lies at longitude {lon}, latitude {lat}: outside the world (longitudes run \
+         from -180 to 180, latitudes from -90 to 90)"
+    )]
+    OutsideTheWorld { id: i64, lon: f64, lat: f64 },
+}
+
+/// Whether a position lies on the Earth: longitude −180…180, latitude −90…90, degrees.
+pub fn on_the_earth(lon: f64, lat: f64) -> bool {
+    (-180.0..=180.0).contains(&lon) && (-90.0..=90.0).contains(&lat)
 }
 
 /// A position as kept: 10⁻⁷ degrees.
@@ -65,10 +75,15 @@ impl Decimicro {
                 nano_lat,
             });
         }
-        Ok(Decimicro {
+        let at = Decimicro {
             lon: (nano_lon / 100) as i32,
             lat: (nano_lat / 100) as i32,
-        })
+        };
+        let (lon, lat) = at.lon_lat();
+        match on_the_earth(lon, lat) {
+            true => Ok(at),
+            false => Err(NodeStoreError::OutsideTheWorld { id, lon, lat }),
+        }
     }
 
     /// Degrees, exactly as a PBF reader computes them from nanodegrees.

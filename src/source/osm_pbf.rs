@@ -21,6 +21,47 @@ pub enum OsmReadError {
     Pbf { path: PathBuf, message: String },
     #[error("OSM extract {path} holds no nodes")]
     Empty { path: PathBuf },
+    #[error("OSM extract {path} {why}")]
+    CutShort { path: PathBuf, why: String },
+}
+
+/// What a PBF header lists among its optional features when the blocks hold nodes, then ways,
+/// then relations, each by id.
+pub const SORTED_BY_TYPE: &str = "Sort.Type_then_ID";
+
+/// What one extract held, as read: a summary to tell a whole extract from a cut one.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ExtractRead {
+    pub path: PathBuf,
+    /// Blocks of data after the header.
+    pub blocks: u64,
+    pub nodes: u64,
+    pub ways: u64,
+    /// Every relation read, kept or not.
+    pub relations: u64,
+    /// Whether its header says it is sorted by type, then id.
+    pub sorted: bool,
+}
+
+impl ExtractRead {
+    /// Why the extract must have been cut short, when what it lacks says so: PBF has no end
+    /// marker, so a file cut at a block boundary reads cleanly. One that holds no element, and
+    /// one sorted by type that ends in its nodes, are cut (or were never whole).
+    pub fn cut_short(&self) -> Option<String> {
+        if self.nodes + self.ways + self.relations == 0 {
+            return Some(format!(
+                "holds no OSM elements ({} blocks of data after its header): it is cut short or empty",
+                self.blocks
+            ));
+        }
+        (self.sorted && self.ways == 0 && self.relations == 0).then(|| {
+            format!(
+                "is cut short: its header says it is sorted by type, and it ends in its nodes ({} \
+                 of them) with no way after them",
+                self.nodes
+            )
+        })
+    }
 }
 
 /// A digest of an extract's bytes: its version (the same data downloaded again or touched
@@ -121,6 +162,7 @@ fn read_one(path: &Path, acc: &mut Accumulator) -> Result<Bounds, OsmReadError> 
     let reader = BlobReader::from_path(path).map_err(|e| error(e.to_string()))?;
     let mut header_bounds: Option<Bounds> = None;
     let mut extent: Option<Bounds> = None;
+    let mut read = ExtractRead::default();
     for blob in reader {
         let blob = blob.map_err(|e| error(e.to_string()))?;
         match blob.decode().map_err(|e| error(e.to_string()))? {
@@ -128,15 +170,26 @@ fn read_one(path: &Path, acc: &mut Accumulator) -> Result<Bounds, OsmReadError> 
                 if let Some(b) = bounds_in(&header) {
                     header_bounds = Some(b);
                 }
+                read.sorted |= header
+                    .optional_features()
+                    .iter()
+                    .any(|f| f == SORTED_BY_TYPE);
             }
             BlobDecode::OsmData(block) => {
+                read.blocks += 1;
                 for element in block.elements() {
+                    match &element {
+                        Element::Node(_) | Element::DenseNode(_) => read.nodes += 1,
+                        Element::Way(_) => read.ways += 1,
+                        Element::Relation(_) => read.relations += 1,
+                    }
                     match element {
                         Element::Node(node) => {
                             let position = LonLat {
                                 lon: node.lon(),
                                 lat: node.lat(),
                             };
+                            on_the_earth(node.id(), position).map_err(error)?;
                             grow(&mut extent, position);
                             add_node(acc, node.id(), position, node.tags());
                         }
@@ -145,6 +198,7 @@ fn read_one(path: &Path, acc: &mut Accumulator) -> Result<Bounds, OsmReadError> 
                                 lon: node.lon(),
                                 lat: node.lat(),
                             };
+                            on_the_earth(node.id(), position).map_err(error)?;
                             grow(&mut extent, position);
                             add_node(acc, node.id(), position, node.tags());
                         }
@@ -167,9 +221,30 @@ fn read_one(path: &Path, acc: &mut Accumulator) -> Result<Bounds, OsmReadError> 
             }
         }
     }
+    if let Some(why) = read.cut_short() {
+        return Err(OsmReadError::CutShort {
+            path: path.to_path_buf(),
+            why,
+        });
+    }
     header_bounds.or(extent).ok_or_else(|| OsmReadError::Empty {
         path: path.to_path_buf(),
     })
+}
+
+/// A node lies on the Earth, or its error says where it lies instead.
+fn on_the_earth(id: i64, p: LonLat) -> Result<(), String> {
+    match crate::source::node_locations::on_the_earth(p.lon, p.lat) {
+        true => Ok(()),
+        false => Err(
+            crate::source::node_locations::NodeStoreError::OutsideTheWorld {
+                id,
+                lon: p.lon,
+                lat: p.lat,
+            }
+            .to_string(),
+        ),
+    }
 }
 
 /// The box a header declares.

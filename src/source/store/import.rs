@@ -40,6 +40,7 @@ use crate::osm::structures::Classify;
 use crate::osm::{bounds_of, Bounds, LonLat, OsmData, OsmIndex, Tags, Way};
 use crate::source::external_sort::{ExternalSort, RUN_RECORDS};
 use crate::source::node_locations::{Decimicro, NodeLocations, NodeStoreError, NodeWriter};
+pub use crate::source::osm_pbf::ExtractRead;
 
 /// The feature rules the store's extract-wide facts need (given by the layer that knows
 /// tags' meanings).
@@ -93,6 +94,8 @@ pub struct Progress {
 /// What an import wrote.
 #[derive(Debug, Clone, Default)]
 pub struct Imported {
+    /// What each extract held, in the order read.
+    pub read: Vec<ExtractRead>,
     pub nodes: u64,
     pub tagged_nodes: u64,
     pub ways: u64,
@@ -102,6 +105,28 @@ pub struct Imported {
     /// Bytes of the store file.
     pub store_bytes: u64,
 }
+
+/// Elements of each kind a store holds: tagged nodes, ways, relations.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Held {
+    pub tagged_nodes: u64,
+    pub ways: u64,
+    pub relations: u64,
+}
+
+impl std::fmt::Display for Held {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} tagged nodes, {} ways and {} relations",
+            self.tagged_nodes, self.ways, self.relations
+        )
+    }
+}
+
+/// A kind of element the store held at least this many of is guarded: an import that would
+/// keep fewer than half of them is refused unless forced.
+const GUARDED_AT_LEAST: u64 = 10;
 
 #[derive(Debug, thiserror::Error)]
 pub enum ImportError {
@@ -120,6 +145,14 @@ pub enum ImportError {
     Changed { path: PathBuf },
     #[error("OSM extract {path} holds no nodes")]
     Empty { path: PathBuf },
+    #[error("OSM extract {path} {why}")]
+    CutShort { path: PathBuf, why: String },
+    #[error("importing would replace the {before} of the OSM store {store} with {after}: an extract cut short would do that. The store is unchanged; import with --force to replace it all the same")]
+    WouldLose {
+        store: PathBuf,
+        before: Held,
+        after: Held,
+    },
     #[error("OSM extract {path} is not sorted by type then id")]
     Unsorted { path: PathBuf },
     #[error("OSM extract {path}: {source}")]
@@ -188,11 +221,16 @@ impl Partial {
 
 /// Imports `extracts` into a store at `store` for tiles of zoom `zoom`, replacing the store
 /// there when done. `progress` is told how far it is, often.
+///
+/// A store there that held at least ten of a kind of element (tagged nodes, ways, relations) is
+/// not replaced by one holding fewer than half of them unless `force`: an extract cut at a
+/// block boundary reads as a shorter one, and would otherwise empty the store.
 pub fn import(
     extracts: &[PathBuf],
     store: &Path,
     zoom: u8,
     rules: &Rules,
+    force: bool,
     progress: &dyn Fn(&Progress),
 ) -> Result<Imported, ImportError> {
     let partial_path = with_suffix(store, ".partial");
@@ -245,6 +283,14 @@ pub fn import(
         .db
         .execute_batch("PRAGMA analysis_limit = 4000; ANALYZE;")
         .map_err(sqlite)?;
+    if !force {
+        if let Err(error) = keeps_most_of(store, &partial) {
+            drop(partial);
+            let _ = std::fs::remove_file(&partial_path);
+            let _ = std::fs::remove_file(&nodes_path);
+            return Err(error);
+        }
+    }
     drop(partial);
     // Durable before it replaces the store.
     std::fs::File::open(&partial_path)
@@ -255,6 +301,47 @@ pub fn import(
     imported.store_bytes = std::fs::metadata(store).map_or(0, |m| m.len())
         + std::fs::metadata(&nodes_path).map_or(0, |m| m.len());
     Ok(imported)
+}
+
+/// What a store's database holds.
+fn held(db: &Connection) -> rusqlite::Result<Held> {
+    let count = |table: &str| {
+        db.query_row(&format!("SELECT count(*) FROM {table}"), [], |row| {
+            row.get::<_, i64>(0)
+        })
+        .map(|n| n.max(0) as u64)
+    };
+    Ok(Held {
+        tagged_nodes: count("nodes")?,
+        ways: count("ways")?,
+        relations: count("relations")?,
+    })
+}
+
+/// The new store keeps at least half of each kind of element the store at `store` holds, for
+/// each kind it held [`GUARDED_AT_LEAST`] of; a store that cannot be read is not guarded.
+fn keeps_most_of(store: &Path, partial: &Partial) -> Result<(), ImportError> {
+    let flags = rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY;
+    let Ok(before) = Connection::open_with_flags(store, flags).and_then(|db| held(&db)) else {
+        return Ok(());
+    };
+    let after = held(&partial.db).map_err(partial.sqlite())?;
+    let pairs = [
+        (before.tagged_nodes, after.tagged_nodes),
+        (before.ways, after.ways),
+        (before.relations, after.relations),
+    ];
+    let loses = pairs
+        .iter()
+        .any(|&(before, after)| before >= GUARDED_AT_LEAST && after * 2 < before);
+    match loses {
+        true => Err(ImportError::WouldLose {
+            store: store.to_path_buf(),
+            before,
+            after,
+        }),
+        false => Ok(()),
+    }
 }
 
 /// A new store begun at `path`, with the tables the import works in.
@@ -362,6 +449,7 @@ fn write_all(
     let mut nodes = Nodes::Writing(NodeWriter::create(nodes_path)?);
     let mut ways = ResolvedWriter::new(partial)?;
     let mut records = Vec::new();
+    let mut read = Vec::new();
     let mut clock = PhaseClock::start();
     for path in extracts {
         let mut reading = Reading {
@@ -373,10 +461,13 @@ fn write_all(
                 one_pass,
             },
         };
-        records.push(reading.extract(&mut nodes, &mut ways, &mut state, progress)?);
+        let (record, held) = reading.extract(&mut nodes, &mut ways, &mut state, progress)?;
+        records.push(record);
+        read.push(held);
     }
     let mut resolver = nodes.into_resolver()?;
     let mut imported = Imported {
+        read,
         nodes: resolver.locations().len(),
         ..Imported::default()
     };
@@ -467,6 +558,12 @@ impl Nodes {
 #[derive(Default)]
 struct Rows {
     header: Option<Bounds>,
+    /// Whether the header says the extract is sorted by type, then id.
+    sorted: bool,
+    /// A block of data (not the header).
+    data: bool,
+    /// Relations read, kept or not.
+    relations_read: u64,
     /// The replication sequence the extract is current to, when its header says.
     sequence: Option<u64>,
     nodes: Vec<NodeRow>,
@@ -498,11 +595,16 @@ fn rows_of(blob: &osmpbf::Blob, rules: &Rules) -> Result<Rows, RowsError> {
     match blob.decode().map_err(|e| RowsError::Pbf(e.to_string()))? {
         BlobDecode::OsmHeader(header) => {
             rows.header = crate::source::osm_pbf::bounds_in(&header);
+            rows.sorted = header
+                .optional_features()
+                .iter()
+                .any(|f| f == crate::source::osm_pbf::SORTED_BY_TYPE);
             rows.sequence = header
                 .osmosis_replication_sequence_number()
                 .and_then(|s| u64::try_from(s).ok());
         }
         BlobDecode::OsmData(block) => {
+            rows.data = true;
             for element in block.elements() {
                 let (id, nano, position, tags) = match &element {
                     Element::Node(n) => (
@@ -531,6 +633,7 @@ fn rows_of(blob: &osmpbf::Blob, rules: &Rules) -> Result<Rows, RowsError> {
                         continue;
                     }
                     Element::Relation(relation) => {
+                        rows.relations_read += 1;
                         let relation = crate::source::osm_pbf::relation_of(relation);
                         if !(rules.relation)(&relation.tags) {
                             continue;
@@ -616,6 +719,7 @@ struct Decoding {
     header: Option<Bounds>,
     extent: Option<Bounds>,
     sequence: Option<u64>,
+    read: ExtractRead,
 }
 
 /// Reads and decodes one extract's blocks.
@@ -682,6 +786,11 @@ impl Decoder<'_> {
                 let mut rows = rows.map_err(|(offset, e)| self.failed(offset, e))?;
                 found.header = rows.header.or(found.header);
                 found.sequence = rows.sequence.or(found.sequence);
+                found.read.sorted |= rows.sorted;
+                found.read.blocks += u64::from(rows.data);
+                found.read.nodes += rows.nodes.len() as u64;
+                found.read.ways += rows.ways.len() as u64;
+                found.read.relations += rows.relations_read;
                 if self.one_pass && last_way.is_some() && !rows.nodes.is_empty() {
                     return Err(self.unsorted());
                 }
@@ -728,7 +837,7 @@ impl Reading<'_> {
         ways: &mut ResolvedWriter,
         state: &mut Progress,
         progress: &dyn Fn(&Progress),
-    ) -> Result<ExtractRecord, ImportError> {
+    ) -> Result<(ExtractRecord, ExtractRead), ImportError> {
         use sha2::Digest;
         let path = self.decoder.path;
         let file = std::fs::File::open(path).map_err(|source| ImportError::Open {
@@ -768,6 +877,16 @@ impl Reading<'_> {
             .iter()
             .map(|b| format!("{b:02x}"))
             .collect();
+        let read = ExtractRead {
+            path: path.to_path_buf(),
+            ..found.read
+        };
+        if let Some(why) = read.cut_short() {
+            return Err(ImportError::CutShort {
+                path: path.to_path_buf(),
+                why,
+            });
+        }
         let bounds = found
             .header
             .or(found.extent)
@@ -779,7 +898,7 @@ impl Reading<'_> {
                 path: path.to_path_buf(),
             });
         }
-        Ok(ExtractRecord {
+        let record = ExtractRecord {
             // Absolute, so the store is found current whichever directory a later command
             // runs in (a relative path would name another file there, and the store would be
             // imported again, losing the diffs applied to it).
@@ -788,7 +907,8 @@ impl Reading<'_> {
             file_version,
             bounds: [bounds.west, bounds.south, bounds.east, bounds.north],
             replication_sequence: found.sequence,
-        })
+        };
+        Ok((record, read))
     }
 
     /// Writes what the decoder sends, as it comes; returns at its first error (dropping
