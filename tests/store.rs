@@ -515,7 +515,7 @@ fn an_extract_cut_at_a_block_boundary_does_not_replace_a_whole_store() {
         (2, "and 0 relations: an extract cut short would do that"),
     ] {
         let cut = cut_before(kind, dir.path());
-        let refused = import(&store, &[cut.clone()]);
+        let refused = import(&store, std::slice::from_ref(&cut));
         let message = stderr(&refused);
         assert!(!refused.status.success(), "{message}");
         assert!(message.contains(said), "{kind}: {message}");
@@ -566,7 +566,7 @@ fn a_node_outside_the_world_is_refused_by_both_readers() {
         ]);
         common::write_extract(&ways, &extract);
         let store = dir.path().join("osm.sqlite");
-        let refused = import(&store, &[extract.clone()]);
+        let refused = import(&store, std::slice::from_ref(&extract));
         let message = stderr(&refused);
         assert!(!refused.status.success(), "{message}");
         assert!(
