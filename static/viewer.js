@@ -490,7 +490,7 @@ function checkFirstView() {
   const cy = Math.floor(controls.target.z / TILE_M + origin.y);
   const around = wanted.filter((t) => t.z === ZOOM && Math.abs(t.x - cx) <= 1 && Math.abs(t.y - cy) <= 1);
   const start = around.length > 0 ? around : wanted.slice(0, 9);
-  if (start.every((t) => tiles.get(keyOf(t))?.state === 'loaded')) {
+  if (start.length > 0 && start.every((t) => tiles.get(keyOf(t))?.state === 'loaded')) {
     stats.firstFullView = performance.now() - started;
   }
 }

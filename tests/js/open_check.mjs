@@ -17,7 +17,9 @@ try {
   page.on('response', (response) => answers.push([response.status(), response.url().replace(base, '/')]));
 
   await page.goto(base, { waitUntil: 'load' });
-  await page.waitForFunction(() => window.terrastitchViewer?.stats.firstFullView !== null,
+  // `terrastitchViewer` appears once the viewer has read tiles.json: wait for it, and then for
+  // its first full view.
+  await page.waitForFunction(() => (window.terrastitchViewer?.stats.firstFullView ?? null) !== null,
     null, { timeout: 240000, polling: 200 });
   result.viewer = await page.evaluate(() => ({
     loaded: [...window.terrastitchViewer.stats.loaded],

@@ -15,9 +15,15 @@ const result = {
   steps: {},
 };
 
+// Every wait is on the page's own signals (its first full view, the frames it has drawn, the
+// tiles it has loaded); the bound on each means "it hung", never "it was slow": software WebGL
+// on a busy machine can take most of a minute for a frame.
+const HUNG_MS = 240000;
+
 const browser = await launch();
 try {
   const page = await browser.newPage({ viewport: { width: 1024, height: 768 } });
+  page.setDefaultTimeout(HUNG_MS);
   watch(page, result);
   await addPixelReader(page);
   const stats = () => page.evaluate(() => {
@@ -25,11 +31,19 @@ try {
     return { requested: [...s.requested], loaded: [...s.loaded], failed: [...s.failed],
       frames: s.frames, firstFullView: s.firstFullView };
   });
+  // Waits until the page has drawn `count` frames more than it has now.
+  const frames = async (count) => {
+    const now = (await stats()).frames;
+    await page.waitForFunction((until) => window.terrastitchViewer.stats.frames >= until,
+      now + count, { timeout: HUNG_MS, polling: 100 });
+  };
 
   const loadStarted = Date.now();
   await page.goto(base, { waitUntil: 'load' });
-  await page.waitForFunction(() => window.terrastitchViewer?.stats.firstFullView !== null,
-    null, { timeout: 240000, polling: 200 });
+  // The viewer sets `terrastitchViewer` once it has read tiles.json: until then there is no
+  // first view to wait for (and `undefined !== null` would end the wait at once).
+  await page.waitForFunction(() => (window.terrastitchViewer?.stats.firstFullView ?? null) !== null,
+    null, { timeout: HUNG_MS, polling: 200 });
   result.steps.firstFullViewMs = Date.now() - loadStarted;
   result.steps.firstFullViewInPageMs = (await stats()).firstFullView;
   result.start = await stats();
@@ -39,7 +53,7 @@ try {
     return info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : null;
   });
   // A few frames more, so what loaded is drawn.
-  await page.waitForTimeout(1500);
+  await frames(3);
   await page.screenshot({ path: join(outDir, 'viewer-start.png') });
 
   // Is anything drawn? Pixels of the canvas, read through a 2D canvas.
@@ -64,18 +78,19 @@ try {
   result.shadows = { defaultOn: await page.isChecked('[data-toggle="shadows"]') };
   result.shadows.brightnessWithout = await brightness();
   await page.click('[data-toggle="shadows"]');
-  await page.waitForTimeout(4000);
+  await frames(3);
   result.shadows.brightnessWith = await brightness();
   await page.screenshot({ path: join(outDir, 'viewer-shadows.png') });
   await page.click('[data-toggle="shadows"]');
-  await page.waitForTimeout(1500);
+  await frames(3);
 
   // Click on a known building and read the panel.
   const spot = await page.evaluate((id) => window.terrastitchViewer.locate(id), osmId);
   result.click = { spot };
   if (spot) {
     await page.mouse.click(spot.x, spot.y);
-    await page.waitForTimeout(300);
+    await page.waitForFunction(() => !document.getElementById('feature').hidden, null,
+      { timeout: HUNG_MS, polling: 100 }).catch(() => {});
     result.click.panelVisible = await page.evaluate(() => !document.getElementById('feature').hidden);
     result.click.osmIds = await page.evaluate(() => [...document.querySelectorAll('#feature [data-osm-id]')]
       .map((a) => a.dataset.osmId));
@@ -109,14 +124,14 @@ try {
     const s = window.terrastitchViewer.stats;
     const fresh = s.loaded.filter((t) => !asked.includes(t));
     return fresh.length >= 3;
-  }, [...before], { timeout: 240000, polling: 200 });
+  }, [...before], { timeout: HUNG_MS, polling: 200 });
   const after = await stats();
   result.moved = {
     newlyRequested: after.requested.filter((t) => !before.has(t)),
     newlyLoaded: after.loaded.filter((t) => !before.has(t)),
     hash: await page.evaluate(() => location.hash),
   };
-  await page.waitForTimeout(1000);
+  await frames(2);
   await page.screenshot({ path: join(outDir, 'viewer-moved.png') });
 
   // Draw back to 40 km: the far-view tiles stand in, and the view settles with nothing loading.
@@ -129,8 +144,8 @@ try {
     const tiles = [...window.terrastitchViewer.tiles.values()];
     return tiles.some((t) => t.z < 14 && t.group?.visible)
       && !tiles.some((t) => t.state === 'loading' || t.state === 'queued');
-  }, null, { timeout: 240000, polling: 200 });
-  await page.waitForTimeout(1000);
+  }, null, { timeout: HUNG_MS, polling: 200 });
+  await frames(2);
   await page.screenshot({ path: join(outDir, 'viewer-far.png') });
   result.far = await page.evaluate(() => {
     const shown = [...window.terrastitchViewer.tiles.values()].filter((t) => t.group?.visible);
