@@ -27,8 +27,9 @@ CREATE TABLE relations (
     data BLOB NOT NULL
 );
 
--- Each element in every cell its bounding box meets. kind: 0 node, 1 way, 2 relation,
--- 3 structure group.
+-- Each element in every cell it reaches: a node its own, a way those its segments pass through
+-- (and for a closed way those inside it), a relation and a group those their box meets.
+-- kind: 0 node, 1 way, 2 relation, 3 structure group.
 CREATE TABLE cells (
     x INTEGER NOT NULL,
     y INTEGER NOT NULL,

@@ -15,6 +15,8 @@ EDIT is one of:
   cut-ways           deletes every way of the largest multipolygon of at most three ways, none
                      of them a coastline (the relation still names them)
   bring-ways         creates those ways again
+  far-node:DEG       moves the middle node of the longest road on the ground DEG degrees north
+                     and DEG east (to the pole at most; `far-node:pole` puts it there)
 
 The chosen elements are printed to stderr (`way 123`), one a line. With OUT.osm.pbf the
 extract with the change applied is written too (pyosmium's MergeInputReader, as `osmium
@@ -157,6 +159,15 @@ def edit(extract, what):
         refs = extract.ways[way][0]
         node = refs[len(refs) // 2]
         return [move(extract, node)], [], [f"way {way}", f"node {node}"]
+    if what.startswith("far-node:"):
+        way, node = road_node(extract)
+        lon, lat, _, _ = extract.nodes[node]
+        far = what.split(":")[1]
+        if far == "pole":
+            lat = 90.0
+        else:
+            lat, lon = min(90.0, lat + float(far)), min(180.0, lon + float(far))
+        return [node_xml(extract, node, lon, lat)], [], [f"way {way}", f"node {node}"]
     if what == "delete-building":
         way = max(buildings(extract), key=lambda w: (len(extract.ways[w][0]), -w))
         return [], [way_xml(extract, way, deleted=True)], [f"way {way}"]

@@ -43,6 +43,9 @@ pub struct ServerConfig {
     pub render_queue: usize,
     /// Longest a render may take, milliseconds (0: no limit).
     pub render_timeout_ms: u64,
+    /// Most memory one render may take, MiB (0: no limit): past it the render stops at its
+    /// next stage, and the tile is answered `503`.
+    pub render_memory_mib: u64,
     /// Bearer token for `/admin/*`; empty turns those routes off.
     pub admin_token: String,
     /// Render slots background work (stale tiles, regeneration) may hold at once.
@@ -76,6 +79,7 @@ impl Default for ServerConfig {
             cache_control: "public, max-age=86400".to_string(),
             render_queue: 64,
             render_timeout_ms: 120_000,
+            render_memory_mib: 1024,
             admin_token: String::new(),
             background_renders: 1,
             check_interval_s: 300,
@@ -277,7 +281,7 @@ impl Config {
     /// Checks the values a typo or a slip can make meaningless.
     pub fn validate(&self) -> Result<(), ConfigError> {
         let (server, mesh, features) = (&self.server, &self.render.mesh, &self.render.features);
-        let checks: [(&'static str, String, bool, &'static str); 13] = [
+        let checks: [(&'static str, String, bool, &'static str); 14] = [
             (
                 "server.zoom",
                 server.zoom.to_string(),
@@ -349,6 +353,12 @@ impl Config {
                 features.default_building_height_m.to_string(),
                 positive(features.default_building_height_m),
                 "a finite number of metres above 0",
+            ),
+            (
+                "render.features.longest_way_km",
+                features.longest_way_km.to_string(),
+                positive(features.longest_way_km),
+                "a finite number of kilometres above 0",
             ),
             (
                 "render.features.vegetation.forest_spacing_m",

@@ -1,8 +1,8 @@
 //! terrastitch turns OpenStreetMap extracts and SRTM elevation tiles into seamless 3D map tiles.
 //!
 //! The layers, lowest first (each imports only those below it; ARCHITECTURE.md draws them):
-//! [`tile`], [`geometry`], [`geodesy`], [`mod@format`], [`panics`], [`inflate`] (value types,
-//! small mathematics, bounded decompression) → [`osm`] (the OSM model and its index) → [`features`] (the only reader of tags:
+//! [`tile`], [`geometry`], [`geodesy`], [`mod@format`], [`panics`], [`inflate`], [`budget`]
+//! (value types, small mathematics, bounded decompression, memory budgets) → [`osm`] (the OSM model and its index) → [`features`] (the only reader of tags:
 //! roads, water, buildings, bridges and tunnels as typed values) → [`terrain`] (SRTM rasters and
 //! the approximations between samples) → [`elevation`] (the LP that settles structures and
 //! roads) → [`mesh`] (the ground with features stitched in, buildings, structures) → [`output`]
@@ -11,6 +11,7 @@
 //! configuration, [`provider`] opens the inputs and makes a tile from them
 //! ([`provider::pipeline::make`]), and [`server`] and [`offline`] (`seed`, `export`) use it.
 
+pub mod budget;
 pub mod cache;
 pub mod config;
 pub mod elevation;

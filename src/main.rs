@@ -8,6 +8,11 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 
 use terrastitch::cache::{Cluster, PostgresStore, SqliteStore, TileCache, TileStore};
+
+/// The system allocator, counting what a render allocates against its memory budget
+/// (`server.render_memory_mib`).
+#[global_allocator]
+static ALLOCATOR: terrastitch::budget::Counting = terrastitch::budget::Counting;
 use terrastitch::config::ServerConfig;
 use terrastitch::config::{Config, LogFormat};
 use terrastitch::format::Format;
@@ -495,7 +500,7 @@ fn render_one(
         // A tile for far views: sea level where no SRTM file covers it.
         let osm = sources.osm_for(tile)?;
         let selection = osm.selection(tile);
-        let mosaic = sources.mosaic_for(tile, &selection)?;
+        let mosaic = sources.mosaic_for(tile, &selection, settings.features.longest_way_m())?;
         let load = started.elapsed();
         let rendered = terrastitch::render::render_overview(
             tile,
@@ -516,7 +521,7 @@ fn render_one(
     }
     let osm = sources.osm_for(tile)?;
     let selection = osm.selection(tile);
-    let mosaic = sources.mosaic_for(tile, &selection)?;
+    let mosaic = sources.mosaic_for(tile, &selection, settings.features.longest_way_m())?;
     let load = started.elapsed();
     let rendered = terrastitch::render::render_within(
         tile,

@@ -10,10 +10,12 @@ pub fn map_chunks<T: Sync, R: Send>(
     f: &(dyn Fn(&[T]) -> Vec<R> + Sync),
 ) -> Vec<R> {
     let share = items.len().div_ceil(threads.max(1)).max(1);
+    // The threads charge their memory to the work that started them.
+    let budget = crate::budget::Inherited::here();
     std::thread::scope(|scope| {
         let handles: Vec<_> = items
             .chunks(share)
-            .map(|chunk| scope.spawn(move || f(chunk)))
+            .map(|chunk| scope.spawn(move || budget.run(|| f(chunk))))
             .collect();
         handles
             .into_iter()

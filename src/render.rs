@@ -26,6 +26,11 @@ use crate::output::{glb, quantized_mesh};
 use crate::terrain::{Elevation, Interpolation, Mosaic, TerrainModel};
 use crate::tile::{TileFrame, TileId};
 
+/// How far beyond a tile a line cut to the tile is kept, degrees (about 2 km): ten times as far
+/// as a tile's query reaches, so that where the line bends near the tile, the segments on
+/// either side are long enough that the bend is drawn as in the whole way.
+const LONG_WAY_MARGIN_DEG: f64 = 0.02;
+
 /// Settings that change what a tile looks like (and so belong in the cache key).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default)]
@@ -65,9 +70,16 @@ pub enum RenderError {
         limit: Duration,
         stage: &'static str,
     },
+    #[error("rendering tile {tile} took more memory than its limit of {limit_mib} MiB (stopped after {stage})")]
+    OverBudget {
+        tile: TileId,
+        limit_mib: usize,
+        stage: &'static str,
+    },
 }
 
-/// When a render must give up: checked between its stages.
+/// When a render must give up: checked between its stages. It gives up past its time, and
+/// when the memory budget its thread runs under ([`crate::budget`]) is exceeded.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Deadline {
     at: Option<(Instant, Duration)>,
@@ -87,6 +99,13 @@ impl Deadline {
     }
 
     fn check(&self, tile: TileId, stage: &'static str) -> Result<(), RenderError> {
+        if let Some(limit) = crate::budget::exceeded() {
+            return Err(RenderError::OverBudget {
+                tile,
+                limit_mib: limit >> 20,
+                stage,
+            });
+        }
         match self.at {
             Some((at, limit)) if Instant::now() > at => {
                 Err(RenderError::TimedOut { tile, limit, stage })
@@ -306,6 +325,9 @@ fn prepare<'a>(
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
 
     let started = Instant::now();
+    let all_ways = selection.all_ways;
+    let (cut, draped) = long_ways_cut(tile, selection, settings);
+    let selection = &selection.with_cut_ways(&cut);
     let mut feature_set = features::collect(selection, tile, &settings.features);
     timings.features = started.elapsed();
     deadline.check(tile, "features")?;
@@ -339,7 +361,7 @@ fn prepare<'a>(
     deadline.check(tile, "structures")?;
 
     let started = Instant::now();
-    let road_profiles = settle_roads(tile, selection, &feature_set, &terrain, settings);
+    let road_profiles = settle_roads(tile, selection, &feature_set, &terrain, settings, &draped);
     timings.roads = started.elapsed();
     deadline.check(tile, "roads")?;
 
@@ -375,7 +397,7 @@ fn prepare<'a>(
         roads,
         steps,
         road_profiles,
-        all_ways: selection.all_ways,
+        all_ways,
         feature_settings: settings.features.clone(),
         surface_margin_m: margin,
         feature_set,
@@ -584,12 +606,14 @@ fn settle_groups(
 
 /// Settles the profiles of the ground roads drawn in `set`; violated soft constraints are
 /// logged at debug level.
+/// The profiles of the ground roads the tile draws, `draped` aside (they follow the terrain).
 fn settle_roads(
     tile: TileId,
     selection: &Selection<'_>,
     set: &FeatureSet,
     terrain: &dyn Elevation,
     settings: &RenderSettings,
+    draped: &std::collections::BTreeSet<i64>,
 ) -> elevation::road_profiles::RoadProfiles {
     let Some(graph) = selection.roads else {
         return Default::default();
@@ -606,7 +630,7 @@ fn settle_roads(
         .ways
         .iter()
         .copied()
-        .filter(|w| drawn.contains(&w.id))
+        .filter(|w| drawn.contains(&w.id) && !draped.contains(&w.id))
         .collect();
     // The tile and a little around it: what the tile draws of a stretch reaches no farther.
     let reach = 0.05;
@@ -669,8 +693,26 @@ pub fn settle_road_profiles(
     settings: &RenderSettings,
 ) -> elevation::road_profiles::RoadProfiles {
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
+    let (cut, draped) = long_ways_cut(tile, selection, settings);
+    let selection = &selection.with_cut_ways(&cut);
     let set = features::collect(selection, tile, &settings.features);
-    settle_roads(tile, selection, &set, &terrain, settings)
+    settle_roads(tile, selection, &set, &terrain, settings, &draped)
+}
+
+/// The lines of `selection` too long to settle whole, cut to the part near the tile, and
+/// their ids: they are drawn on the terrain.
+fn long_ways_cut(
+    tile: TileId,
+    selection: &Selection<'_>,
+    settings: &RenderSettings,
+) -> (Vec<crate::osm::Way>, std::collections::BTreeSet<i64>) {
+    let near = tile.bounds().expanded(LONG_WAY_MARGIN_DEG);
+    let cut = selection.cut_long_ways(&near, settings.features.longest_way_m());
+    let draped: std::collections::BTreeSet<i64> = cut.iter().map(|w| w.id).collect();
+    if !draped.is_empty() {
+        tracing::debug!(%tile, ways = ?draped, "lines too long to settle whole drawn from the part near the tile");
+    }
+    (cut, draped)
 }
 
 /// The bridges and tunnels that reach a tile, settled as its glb settles them.
@@ -715,7 +757,9 @@ pub fn render_within(
         let mut timings = StageTimings::default();
         let prepared = prepare(tile, selection, mosaic, settings, &mut timings, deadline)?;
         let datum = settings.vertical_datum;
-        Ok(render_glb(tile, &prepared, variant, datum, timings))
+        let rendered = render_glb(tile, &prepared, variant, datum, timings);
+        deadline.check(tile, "encode")?;
+        Ok(rendered)
     })
 }
 

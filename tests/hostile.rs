@@ -165,3 +165,33 @@ fn a_tile_an_archive_holds_but_cannot_read_is_a_json_500_not_a_404() {
     let (status, _, _) = request(&address, "/tiles/14/8530/5973.glb", &[]);
     assert_eq!(status, 404);
 }
+
+#[test]
+fn a_render_past_its_memory_budget_fails_its_tile_and_the_server_lives() {
+    let (child, address, lines) = spawn_server(
+        &[],
+        &[
+            ("TERRASTITCH_SERVER__RENDER_MEMORY_MIB", "1"),
+            ("TERRASTITCH_SERVER__CHECK_INTERVAL_S", "0"),
+        ],
+    );
+    let _child = Running(child);
+    let started = Instant::now();
+    while request(&address, "/ready", &[]).0 != 200 {
+        assert!(started.elapsed() < Duration::from_secs(120), "never ready");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let (status, head, body) = request(&address, "/tiles/14/8529/5973.glb", &[]);
+    let body = String::from_utf8_lossy(&body).to_string();
+    assert_eq!(status, 503, "{body}");
+    assert!(head.contains("application/json"), "{head}");
+    assert!(
+        body.contains("more memory than its limit of 1 MiB"),
+        "{body}"
+    );
+    // The server lives, and says why in its log.
+    assert_eq!(request(&address, "/health", &[]).0, 200);
+    let logged = std::iter::from_fn(|| lines.recv_timeout(Duration::from_secs(10)).ok())
+        .any(|line| line.contains("render stopped at its memory limit"));
+    assert!(logged, "the failure is logged");
+}

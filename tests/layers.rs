@@ -13,7 +13,8 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ("geodesy", &[]),
     ("geoid", &[]),
     ("panics", &[]),
-    ("parallel", &[]),
+    ("budget", &[]),
+    ("parallel", &["budget"]),
     ("inflate", &[]),
     ("geometry", &["tile"]),
     ("format", &["tile"]),
@@ -27,6 +28,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
     (
         "mesh",
         &[
+            "budget",
             "elevation",
             "features",
             "terrain",
@@ -55,6 +57,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
     (
         "render",
         &[
+            "budget",
             "output",
             "mesh",
             "elevation",
@@ -82,7 +85,7 @@ const ALLOWED: &[(&str, &[&str])] = &[
     (
         "server",
         &[
-            "config", "provider", "cache", "output", "format", "panics", "tile",
+            "config", "provider", "cache", "output", "budget", "format", "panics", "tile",
         ],
     ),
     (

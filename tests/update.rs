@@ -404,6 +404,59 @@ fn a_missing_diff_stops_replication_by_name_after_those_before_it() {
     assert_eq!(sequence_of(&store), Some(1));
 }
 
+/// The variables of the elevation LP the render of `tile` from `store` solves.
+fn lp_variables(store: &Path, extract: &Path, tile: &str, out: &Path) -> u64 {
+    let output = run(terrastitch()
+        .args(["render", tile, "--timings", "--store"])
+        .arg(store)
+        .arg("--osm")
+        .arg(extract)
+        .arg("-o")
+        .arg(out));
+    let said = String::from_utf8_lossy(&output.stdout).to_string() + &stderr(&output);
+    said.lines()
+        .find_map(|l| l.strip_prefix("elevation LP: "))
+        .and_then(|l| l.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no LP figures in {said}"))
+}
+
+#[test]
+fn a_node_moved_far_away_expires_the_tiles_its_road_crosses_and_its_tile_stays_cheap() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("osm.sqlite");
+    import(&store, &sample_osm());
+    // The road runs through 14/8527/5973 (its middle node is there).
+    let tile = "14/8527/5973";
+    let before = lp_variables(&store, &sample_osm(), tile, &dir.path().join("before.glb"));
+    for (far, most) in [("1", 600), ("10", 6000)] {
+        let osc = dir.path().join(format!("far-{far}.osc"));
+        let changed = dir.path().join(format!("far-{far}.osm.pbf"));
+        write_diff(&format!("far-node:{far}"), &osc, &changed);
+        let moved = dir.path().join(format!("moved-{far}.sqlite"));
+        import(&moved, &sample_osm());
+        let output = update(&moved, &osc);
+        assert!(output.status.success(), "{}", stderr(&output));
+        let expired = String::from_utf8_lossy(&output.stdout).lines().count();
+        // A band along the road's new segments, not the box they span (about 2,900 tiles for
+        // a degree north and east).
+        assert!(expired <= most, "{far}°: {expired} tiles expired");
+        let fresh = dir.path().join(format!("fresh-{far}.sqlite"));
+        import(&fresh, &changed);
+        let tables = |store: &Path| common::table_rows(store, &common::STORE_TABLES);
+        assert!(
+            tables(&moved) == tables(&fresh),
+            "{far}°: the updated store holds what an import of the changed extract holds"
+        );
+        // The road, now hundreds of kilometres long, is drawn from its part near the tile.
+        let after = lp_variables(&moved, &sample_osm(), tile, &dir.path().join("after.glb"));
+        assert!(
+            after * 10 <= before * 11,
+            "{far}°: the tile's LP grew from {before} to {after} variables"
+        );
+    }
+}
+
 /// `update --replication` run to its end.
 fn catch_up_said(store: &Path, source: &Path) -> Output {
     terrastitch()

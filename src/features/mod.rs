@@ -383,6 +383,17 @@ pub struct FeatureSettings {
     /// Height of a building with no height tags, metres (seed 001 §4.2).
     pub default_building_height_m: f64,
     pub vegetation: vegetation::VegetationSettings,
+    /// A line longer than this, kilometres, is drawn from the part of it near each tile, on
+    /// the terrain: no road profile is settled along the whole of it. What one way can cost a
+    /// render stays bounded, however far its nodes lie.
+    pub longest_way_km: f64,
+}
+
+impl FeatureSettings {
+    /// [`FeatureSettings::longest_way_km`] in metres.
+    pub fn longest_way_m(&self) -> f64 {
+        self.longest_way_km * 1000.0
+    }
 }
 
 impl Default for FeatureSettings {
@@ -392,6 +403,7 @@ impl Default for FeatureSettings {
             level_height_m: 3.0,
             default_building_height_m: 6.0,
             vegetation: vegetation::VegetationSettings::default(),
+            longest_way_km: 100.0,
         }
     }
 }

@@ -504,6 +504,36 @@ pub fn offset_polyline(line: &[Point], half_width: f64) -> Option<(Vec<Point>, V
     Some((left, right))
 }
 
+/// The cell of a grid of `n` cells a side that a coordinate `t` (in cells) falls in, clamped
+/// to the grid.
+pub fn grid_index(t: f64, n: f64) -> u32 {
+    t.floor().clamp(0.0, n - 1.0) as u32
+}
+
+/// The cells the segment `a`–`b` passes through or touches: column by column, the rows its
+/// stretch in that column spans (a cell it only grazes at a corner included). Two segments
+/// that meet have a cell in common.
+pub fn segment_cells(a: [f64; 2], b: [f64; 2], n: f64, cells: &mut Vec<(u32, u32)>) {
+    let (first, last) = (grid_index(a[0].min(b[0]), n), grid_index(a[0].max(b[0]), n));
+    let v_at = |u: f64| match b[0] == a[0] {
+        true => a[1],
+        false => a[1] + (b[1] - a[1]) * ((u - a[0]) / (b[0] - a[0])).clamp(0.0, 1.0),
+    };
+    for x in first..=last {
+        let (left, right) = (f64::from(x), f64::from(x) + 1.0);
+        let (v0, v1) = match b[0] == a[0] {
+            true => (a[1], b[1]),
+            false => (
+                v_at(left.max(a[0].min(b[0]))),
+                v_at(right.min(a[0].max(b[0]))),
+            ),
+        };
+        for y in grid_index(v0.min(v1), n)..=grid_index(v0.max(v1), n) {
+            cells.push((x, y));
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -457,23 +457,26 @@ fn feature_weights(
             .collect();
         // Bands of rows on threads of their own: each sample's nearest distance is its own.
         let rows_per_band = (n + 1).div_ceil(weight_threads(segments.len()));
+        let budget = crate::budget::Inherited::here();
         std::thread::scope(|scope| {
             for (band, slots) in nearest.chunks_mut(rows_per_band * (n + 1)).enumerate() {
                 let first_row = band * rows_per_band;
                 let (segments, row_scale) = (&segments, &row_scale);
                 scope.spawn(move || {
-                    let rows = first_row..first_row + slots.len() / (n + 1);
-                    for &(a, b) in segments {
-                        nearest_in_rows(
-                            slots,
-                            rows.clone(),
-                            (a, b),
-                            origin,
-                            n,
-                            reach_uv,
-                            row_scale,
-                        );
-                    }
+                    budget.run(|| {
+                        let rows = first_row..first_row + slots.len() / (n + 1);
+                        for &(a, b) in segments {
+                            nearest_in_rows(
+                                slots,
+                                rows.clone(),
+                                (a, b),
+                                origin,
+                                n,
+                                reach_uv,
+                                row_scale,
+                            );
+                        }
+                    })
                 });
             }
         });

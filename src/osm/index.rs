@@ -1,8 +1,9 @@
 //! A spatial index over the OSM data, built once at start in memory.
 //!
-//! Every way, tagged node and relation is registered in each cell of a regular grid of
-//! slippy-map tiles (at [`OsmIndex::zoom`]) that its bounding box touches. A tile query then
-//! reads only the cells around the tile: no extract is reread per request. An in-memory grid
+//! Every way, tagged node and relation is registered in cells of a regular grid of slippy-map
+//! tiles (at [`OsmIndex::zoom`]): a node in its own, a way in those its line passes through (and
+//! a closed way in those inside it), a relation in those its bounding box touches. A tile query
+//! then reads only the cells around the tile: no extract is reread per request. An in-memory grid
 //! is the right size for city and region extracts (Monaco: 27k ways, under 100 MB); a country
 //! would call for the same cells kept in SQLite instead.
 
@@ -11,6 +12,7 @@ use std::collections::HashMap;
 use super::coast::{self, CoastBox};
 use super::structures::{self, Classify, Group, StructureKind};
 use super::{bounds_of, Bounds, LonLat, Node, OsmData, Relation, Way};
+use crate::geometry::{grid_index, segment_cells};
 use crate::tile::{lon_lat_to_uv, TileId};
 
 /// The OSM data and its grid.
@@ -296,6 +298,104 @@ impl OsmIndex {
     }
 }
 
+impl<'a> Selection<'a> {
+    /// The open ways of the selection longer than `longest_m` (coastlines aside: the side of
+    /// the coast is read from whole ways), each cut to what lies within `box_` (the line,
+    /// straight in Web Mercator as it is drawn, clipped where it leaves the box, at new points
+    /// of their own): what a tile can draw of it, whatever its length. Inside the box each
+    /// piece is the way's own line; a way that leaves the box and comes back gives a piece for
+    /// each pass, all with its id. A point made by the cut has a node id below every OSM id
+    /// (`i64::MIN` counted up), so it joins nothing. Ascending by id, in order along each way.
+    pub fn cut_long_ways(&self, box_: &Bounds, longest_m: f64) -> Vec<Way> {
+        let uv = |p: LonLat| {
+            let (u, v) = lon_lat_to_uv(p.lon, p.lat, 1.0);
+            [u, v]
+        };
+        let (low, high) = (
+            uv(LonLat {
+                lon: box_.west,
+                lat: box_.north,
+            }),
+            uv(LonLat {
+                lon: box_.east,
+                lat: box_.south,
+            }),
+        );
+        let back = |p: [f64; 2]| LonLat {
+            lon: crate::tile::u_to_lon(p[0], 1.0),
+            lat: crate::tile::v_to_lat(p[1], 1.0),
+        };
+        let mut made = i64::MIN;
+        let mut cut = Vec::new();
+        for way in &self.ways {
+            let long = super::length_m(&way.positions) > longest_m;
+            if !long || way.is_closed() || is_coastline(&way.tags) {
+                continue;
+            }
+            let mut piece: Option<Way> = None;
+            for k in 0..way.positions.len().saturating_sub(1) {
+                let (a, b) = (uv(way.positions[k]), uv(way.positions[k + 1]));
+                let Some((t0, t1)) = clip_segment(a, b, low, high) else {
+                    cut.extend(piece.take());
+                    continue;
+                };
+                let at = |t: f64| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+                let current = piece.get_or_insert_with(|| Way {
+                    id: way.id,
+                    tags: way.tags.clone(),
+                    nodes: Vec::new(),
+                    positions: Vec::new(),
+                });
+                if current.positions.is_empty() {
+                    let (node, position) = match t0 > 0.0 {
+                        true => (post_inc(&mut made), back(at(t0))),
+                        false => (way.nodes[k], way.positions[k]),
+                    };
+                    current.nodes.push(node);
+                    current.positions.push(position);
+                }
+                let (node, position) = match t1 < 1.0 {
+                    true => (post_inc(&mut made), back(at(t1))),
+                    false => (way.nodes[k + 1], way.positions[k + 1]),
+                };
+                current.nodes.push(node);
+                current.positions.push(position);
+                if t1 < 1.0 {
+                    cut.extend(piece.take());
+                }
+            }
+            cut.extend(piece.take());
+        }
+        cut
+    }
+
+    /// The selection with the ways of `cut` (see [`Selection::cut_long_ways`]) in place of the
+    /// whole ways of their ids.
+    pub fn with_cut_ways<'b>(&self, cut: &'b [Way]) -> Selection<'b>
+    where
+        'a: 'b,
+    {
+        let cut_ids: std::collections::BTreeSet<i64> = cut.iter().map(|w| w.id).collect();
+        let mut ways: Vec<&'b Way> = self
+            .ways
+            .iter()
+            .copied()
+            .filter(|w| !cut_ids.contains(&w.id))
+            .collect();
+        ways.extend(cut);
+        ways.sort_by_key(|w| w.id);
+        Selection {
+            nodes: self.nodes.clone(),
+            ways,
+            relations: self.relations.clone(),
+            coastlines: self.coastlines.clone(),
+            structures: self.structures.clone(),
+            all_ways: self.all_ways,
+            roads: self.roads,
+        }
+    }
+}
+
 impl OsmIndex {
     /// The coastline ways that may hold the point of the coast nearest to the tile's centre,
     /// in index order.
@@ -326,20 +426,23 @@ pub fn is_coastline(tags: &super::Tags) -> bool {
     tags.get("natural") == Some("coastline")
 }
 
-/// Every element of `data` in each cell of a grid of `n` × `n` tiles that its bounding box
-/// meets (a relation's box is its member ways', and theirs of its member relations).
+/// Every element of `data` in each cell of a grid of `n` × `n` tiles it reaches: a way in
+/// the cells of [`cells_of_way`], a node in its own, a relation in each its bounding box meets
+/// (a relation's box is its member ways', and theirs of its member relations).
 fn grid(data: &OsmData, n: f64) -> HashMap<(u32, u32), CellContent> {
     let mut cells: HashMap<(u32, u32), CellContent> = HashMap::new();
+    for (i, way) in data.ways.iter().enumerate() {
+        let reached = cells_of_way(way, n);
+        warn_if_unbounded(way.id, &way.positions, reached.len());
+        for cell in reached {
+            cells.entry(cell).or_default().ways.push(i as u32);
+        }
+    }
     let mut register = |bounds: Bounds, push: &mut dyn FnMut(&mut CellContent)| {
         for cell in cells_of(&bounds, n) {
             push(cells.entry(cell).or_default());
         }
     };
-    for (i, way) in data.ways.iter().enumerate() {
-        if let Some(bounds) = bounds_of(&way.positions) {
-            register(bounds, &mut |c| c.ways.push(i as u32));
-        }
-    }
     for (i, node) in data.nodes.iter().enumerate() {
         let bounds = bounds_of(&[node.position]).expect("one position has bounds");
         register(bounds, &mut |c| c.nodes.push(i as u32));
@@ -412,6 +515,33 @@ pub fn under_bridges(ways: &[Way], groups: &[Group]) -> HashMap<i64, Vec<LonLat>
 /// reach down over it: about 40 m, a wide tunnel's half width and a building's size.
 pub const ABOVE_TUNNEL_DEG: f64 = 0.0004;
 
+/// The share of `a`–`b` (from `t0` to `t1` along it) inside the box `low`–`high`
+/// (Liang–Barsky), if any of it is.
+fn clip_segment(a: [f64; 2], b: [f64; 2], low: [f64; 2], high: [f64; 2]) -> Option<(f64, f64)> {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for axis in 0..2 {
+        let d = b[axis] - a[axis];
+        for (p, q) in [(-d, a[axis] - low[axis]), (d, high[axis] - a[axis])] {
+            if p == 0.0 {
+                if q < 0.0 {
+                    return None;
+                }
+            } else if p < 0.0 {
+                t0 = t0.max(q / p);
+            } else {
+                t1 = t1.min(q / p);
+            }
+        }
+    }
+    (t0 <= t1).then_some((t0, t1))
+}
+
+/// `counter`, then counts it up.
+fn post_inc(counter: &mut i64) -> i64 {
+    *counter += 1;
+    *counter - 1
+}
+
 /// True when `p` lies in the box (on its border too).
 fn holds(bounds: &Bounds, p: LonLat) -> bool {
     (bounds.west..=bounds.east).contains(&p.lon) && (bounds.south..=bounds.north).contains(&p.lat)
@@ -438,7 +568,109 @@ pub fn meets(a: &Bounds, b: &Bounds) -> bool {
     a.west <= b.east && b.west <= a.east && a.south <= b.north && b.south <= a.north
 }
 
-/// The grid cells a box touches at `n` cells per axis.
+/// Warns of a way whose work is bounded rather than done whole: one longer than any bridge or
+/// tunnel (so taken for neither), or one registered along only part of its line.
+pub fn warn_if_unbounded(id: i64, positions: &[LonLat], cells: usize) {
+    let length_km = super::length_m(positions) / 1000.0;
+    if cells as u64 >= MAX_LINE_CELLS {
+        tracing::warn!(
+            way = id,
+            length_km,
+            cells,
+            "a way reaches so many tiles that it is found only along the first part of its line"
+        );
+    } else if length_km * 1000.0 > super::structures::LONGEST_STRUCTURE_WAY_M {
+        tracing::warn!(
+            way = id,
+            length_km,
+            "a way longer than any bridge or tunnel: it is drawn as a line on the ground, tile by tile"
+        );
+    }
+}
+
+/// A closed way is registered in the cells inside it when its box holds at most this many
+/// (256 × 256: some 600 km a side at the equator at zoom 14, more than any one way encloses);
+/// past it, only along its outline, so that no single way can fill the index.
+pub const MAX_FILLED_CELLS: u64 = 1 << 16;
+
+/// A way is registered along its line until it has passed this many cells (a line four times
+/// around the world at zoom 14); what lies beyond is not found from the tiles there. No way
+/// mapped on the Earth comes near it: it bounds what one hostile way can cost.
+pub const MAX_LINE_CELLS: u64 = 1 << 17;
+
+/// The cells of a grid of `n` × `n` tiles a way reaches: every cell one of its segments (a
+/// straight line in Web Mercator, as it is drawn) passes through or touches, and for a closed
+/// way every cell whose centre lies inside it (when its box holds at most
+/// [`MAX_FILLED_CELLS`]). A tile's query reads the cells around it: a way is found where its
+/// line or its inside reaches, and what it costs to register a way grows with its length,
+/// never with its box. Ascending, each once.
+pub fn cells_of_way(way: &Way, n: f64) -> Vec<(u32, u32)> {
+    cells_of_line(&way.positions, way.is_closed(), n)
+}
+
+/// [`cells_of_way`] of a way at `positions`, closed or not.
+pub fn cells_of_line(positions: &[LonLat], closed: bool, n: f64) -> Vec<(u32, u32)> {
+    let uv: Vec<[f64; 2]> = positions
+        .iter()
+        .map(|p| {
+            let (u, v) = lon_lat_to_uv(p.lon, p.lat, n);
+            [u, v]
+        })
+        .collect();
+    let mut cells = Vec::new();
+    for pair in uv.windows(2) {
+        if cells.len() as u64 >= MAX_LINE_CELLS {
+            break;
+        }
+        segment_cells(pair[0], pair[1], n, &mut cells);
+    }
+    if let [only] = uv.as_slice() {
+        segment_cells(*only, *only, n, &mut cells);
+    }
+    if closed {
+        inside_cells(&uv, n, &mut cells);
+    }
+    cells.sort_unstable();
+    cells.dedup();
+    cells
+}
+
+/// The cells whose centre lies inside the ring `uv` (even–odd), row by row, when its box
+/// holds at most [`MAX_FILLED_CELLS`].
+fn inside_cells(uv: &[[f64; 2]], n: f64, cells: &mut Vec<(u32, u32)>) {
+    let (mut low, mut high) = ([f64::MAX; 2], [f64::MIN; 2]);
+    for p in uv {
+        for axis in 0..2 {
+            low[axis] = low[axis].min(p[axis]);
+            high[axis] = high[axis].max(p[axis]);
+        }
+    }
+    let columns = u64::from(grid_index(high[0], n) - grid_index(low[0], n)) + 1;
+    let rows = u64::from(grid_index(high[1], n) - grid_index(low[1], n)) + 1;
+    if columns * rows > MAX_FILLED_CELLS {
+        return;
+    }
+    for y in grid_index(low[1], n)..=grid_index(high[1], n) {
+        let centre = f64::from(y) + 0.5;
+        let mut crossings: Vec<f64> = uv
+            .windows(2)
+            .filter(|e| (e[0][1] > centre) != (e[1][1] > centre))
+            .map(|e| e[0][0] + (centre - e[0][1]) / (e[1][1] - e[0][1]) * (e[1][0] - e[0][0]))
+            .collect();
+        crossings.sort_by(f64::total_cmp);
+        for pair in crossings.chunks_exact(2) {
+            // Columns whose centre lies between the two crossings.
+            let from = (pair[0] - 0.5).ceil().max(0.0);
+            let to = (pair[1] - 0.5).floor().min(n - 1.0);
+            let mut x = from;
+            while x <= to {
+                cells.push((x as u32, y));
+                x += 1.0;
+            }
+        }
+    }
+}
+
 /// The cells of a grid of `n` × `n` tiles that a box meets.
 pub fn cells_of(bounds: &Bounds, n: f64) -> impl Iterator<Item = (u32, u32)> {
     let max = n - 1.0;
@@ -483,5 +715,108 @@ mod tests {
         );
         let ids: Vec<i64> = selection.ways.iter().map(|w| w.id).collect();
         assert_eq!(ids, [1, 3]);
+    }
+
+    #[test]
+    fn a_long_way_is_cut_to_what_lies_near_the_tile_and_a_short_one_is_not() {
+        let tile = TileId {
+            z: 14,
+            x: 8529,
+            y: 5973,
+        };
+        let near = tile.bounds().expanded(0.02);
+        let ways = [
+            // To the pole and back into the tile: two passes.
+            way(1, &[(7.415, 43.745), (7.415, 90.0), (7.416, 43.746)]),
+            // Short: kept whole.
+            way(2, &[(7.41, 43.745), (7.42, 43.746)]),
+        ];
+        let selection = Selection {
+            ways: ways.iter().collect(),
+            ..Selection::default()
+        };
+        let cut = selection.cut_long_ways(&near, 100_000.0);
+        assert_eq!(cut.len(), 2, "a piece for each pass");
+        for piece in &cut {
+            assert_eq!(piece.id, 1);
+            assert_eq!(piece.positions.len(), 2);
+            assert!(super::super::length_m(&piece.positions) < 5_000.0);
+            for p in &piece.positions {
+                assert!(holds(&near.expanded(1e-9), *p), "{p:?}");
+            }
+        }
+        assert_eq!(cut[0].positions[0], ways[0].positions[0]);
+        assert_eq!(cut[0].nodes[0], ways[0].nodes[0]);
+        assert!(cut[0].nodes[1] < 0, "a point of the cut joins nothing");
+        assert_eq!(cut[1].positions[1], ways[0].positions[2]);
+        let drawn = selection.with_cut_ways(&cut);
+        let ids: Vec<i64> = drawn.ways.iter().map(|w| w.id).collect();
+        assert_eq!(ids, [1, 1, 2]);
+    }
+
+    #[test]
+    fn a_way_is_registered_where_its_line_passes_not_over_its_box() {
+        let n = 16.0;
+        let at = |u: f64, v: f64| LonLat {
+            lon: crate::tile::u_to_lon(u, n),
+            lat: crate::tile::v_to_lat(v, n),
+        };
+        // A diagonal across the grid: the cells along it, not the 256 of its box.
+        let diagonal = way(1, &[]);
+        let diagonal = Way {
+            positions: vec![at(0.5, 0.5), at(15.5, 15.5)],
+            nodes: vec![1, 2],
+            ..diagonal
+        };
+        let cells = cells_of_way(&diagonal, n);
+        assert!(cells.len() <= 16 * 3, "{}", cells.len());
+        for k in 0..16 {
+            assert!(cells.contains(&(k, k)));
+        }
+        assert!(!cells.contains(&(15, 0)) && !cells.contains(&(0, 15)));
+    }
+
+    #[test]
+    fn a_closed_way_is_registered_inside_too_unless_its_box_is_huge() {
+        let n = 64.0;
+        let at = |u: f64, v: f64| LonLat {
+            lon: crate::tile::u_to_lon(u, n),
+            lat: crate::tile::v_to_lat(v, n),
+        };
+        let ring = |corners: [(f64, f64); 4]| Way {
+            id: 1,
+            tags: Default::default(),
+            nodes: vec![1, 2, 3, 4, 1],
+            positions: corners
+                .iter()
+                .chain(&corners[..1])
+                .map(|&(u, v)| at(u, v))
+                .collect(),
+        };
+        let square = ring([(10.2, 10.2), (20.8, 10.2), (20.8, 20.8), (10.2, 20.8)]);
+        let cells = cells_of_way(&square, n);
+        assert_eq!(cells.len(), 11 * 11, "outline and inside");
+        assert!(cells.contains(&(15, 15)));
+        // A square a whole world wide: its inside is too large to fill; its outline is kept.
+        let n = 16384.0;
+        let world = Way {
+            positions: [
+                (1.0, 1.0),
+                (16383.0, 1.0),
+                (16383.0, 16383.0),
+                (1.0, 16383.0),
+                (1.0, 1.0),
+            ]
+            .iter()
+            .map(|&(u, v)| LonLat {
+                lon: crate::tile::u_to_lon(u, n),
+                lat: crate::tile::v_to_lat(v, n),
+            })
+            .collect(),
+            ..square
+        };
+        let cells = cells_of_way(&world, n);
+        assert!(cells.len() < 4 * 16384 + 8, "{}", cells.len());
+        assert!(!cells.contains(&(8192, 8192)));
     }
 }

@@ -129,6 +129,25 @@ pub struct Relation {
 /// A rectangle in degrees.
 pub use crate::tile::LonLatBounds as Bounds;
 
+/// Mean radius of the Earth, metres (IUGG).
+const EARTH_RADIUS_M: f64 = 6_371_008.8;
+
+/// The length of a line through `positions` on the sphere, metres (great-circle distances
+/// between consecutive positions).
+pub fn length_m(positions: &[LonLat]) -> f64 {
+    positions
+        .windows(2)
+        .map(|pair| {
+            let (a, b) = (pair[0], pair[1]);
+            let (lat_a, lat_b) = (a.lat.to_radians(), b.lat.to_radians());
+            let half_lat = (lat_b - lat_a) / 2.0;
+            let half_lon = (b.lon - a.lon).to_radians() / 2.0;
+            let h = half_lat.sin().powi(2) + lat_a.cos() * lat_b.cos() * half_lon.sin().powi(2);
+            2.0 * EARTH_RADIUS_M * h.sqrt().min(1.0).asin()
+        })
+        .sum()
+}
+
 /// The bounding box of some positions.
 pub fn bounds_of(positions: &[LonLat]) -> Option<Bounds> {
     let first = positions.first()?;

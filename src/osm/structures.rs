@@ -236,6 +236,20 @@ fn chain_segment(
     })
 }
 
+/// A way longer than this is no bridge or tunnel, whatever its tags say: the longest built is
+/// about 165 km, and OSM maps it as many ways. One so tagged is drawn as a road on the ground,
+/// so that no single way can make a group's LP as long as the data is wide.
+pub const LONGEST_STRUCTURE_WAY_M: f64 = 200_000.0;
+
+/// What `classify` makes of a way at `positions` tagged `tags`, if it may be a structure at all.
+pub fn structure_of(
+    classify: Classify,
+    tags: &Tags,
+    positions: &[LonLat],
+) -> Option<(StructureKind, i32)> {
+    classify(tags).filter(|_| super::length_m(positions) <= LONGEST_STRUCTURE_WAY_M)
+}
+
 /// Joins the structure ways into chains.
 fn chains(ways: &[Way], classify: Classify) -> Vec<Chain> {
     type Key = (StructureKind, i32);
@@ -243,7 +257,9 @@ fn chains(ways: &[Way], classify: Classify) -> Vec<Chain> {
         .iter()
         .enumerate()
         .filter(|(_, w)| w.nodes.len() >= 2)
-        .filter_map(|(i, w)| classify(&w.tags).map(|key| (i as u32, key)))
+        .filter_map(|(i, w)| {
+            structure_of(classify, &w.tags, &w.positions).map(|key| (i as u32, key))
+        })
         .collect();
     let mut ends: HashMap<(Key, i64), Vec<u32>> = HashMap::new();
     for &(i, key) in &members {
@@ -384,7 +400,7 @@ impl SegmentGrid {
         SegmentGrid { cells }
     }
 
-    /// Segments in the cells that the box of `a`–`b` touches, each once.
+    /// Segments in the cells that `a`–`b` passes through, each once: every segment it meets.
     fn near(&self, a: [f64; 2], b: [f64; 2]) -> Vec<(u32, u32)> {
         let mut found: Vec<(u32, u32)> = grid_cells(a, b)
             .filter_map(|cell| self.cells.get(&cell))
@@ -397,11 +413,14 @@ impl SegmentGrid {
     }
 }
 
+/// The cells of the fine grid the segment `a`–`b` (global units of one tile) passes through
+/// or touches: as many as its length crosses, never its box (a segment a degree long across
+/// the grid's diagonal would otherwise fill millions).
 fn grid_cells(a: [f64; 2], b: [f64; 2]) -> impl Iterator<Item = (u32, u32)> {
-    let cell = |t: f64| (t * GRID_CELLS).floor().clamp(0.0, GRID_CELLS - 1.0) as u32;
-    let (x0, x1) = (cell(a[0].min(b[0])), cell(a[0].max(b[0])));
-    let (y0, y1) = (cell(a[1].min(b[1])), cell(a[1].max(b[1])));
-    (x0..=x1).flat_map(move |x| (y0..=y1).map(move |y| (x, y)))
+    let scaled = |p: [f64; 2]| [p[0] * GRID_CELLS, p[1] * GRID_CELLS];
+    let mut cells = Vec::new();
+    crate::geometry::segment_cells(scaled(a), scaled(b), GRID_CELLS, &mut cells);
+    cells.into_iter()
 }
 
 fn bounds_of_chain(chain: &Chain) -> Bounds {

@@ -477,14 +477,17 @@ impl Inputs {
     /// way (a river's fall, a lake's level, a group's or a road stretch's profile) reads the
     /// terrain along all of it, so every tile that shows part of it reads the same files and
     /// finds the same. Files along the ways that are missing are fetched when they can be;
-    /// where none can be had, the terrain there is unknown.
+    /// where none can be had, the terrain there is unknown. A way longer than `longest_m` is
+    /// drawn from its part near the tile (see [`crate::features::FeatureSettings::longest_way_km`]):
+    /// the files along the rest are not read.
     pub fn mosaic_for(
         &self,
         tile: TileId,
         selection: &crate::osm::index::Selection<'_>,
+        longest_m: f64,
     ) -> Result<Mosaic, SrtmError> {
         let mut cells: std::collections::BTreeSet<CellId> = Self::mosaic_cells(tile).collect();
-        cells.extend(reach_cells(selection));
+        cells.extend(reach_cells(selection, longest_m));
         for &cell in &cells {
             if let Err(error) = self.fetch_cell(tile, cell) {
                 tracing::debug!(%tile, %error, "an SRTM file along the tile's ways is not available");
@@ -512,7 +515,10 @@ impl Inputs {
 /// The SRTM cells within [`MOSAIC_MARGIN_DEG`] of the ways of a selection (and of its
 /// relations' member ways) and of its bridge and tunnel groups' chains. A segment longer than
 /// [`LONGEST_SEGMENT_DEG`] (a ferry line, an error) adds the cells of its ends only.
-fn reach_cells(selection: &crate::osm::index::Selection<'_>) -> std::collections::BTreeSet<CellId> {
+fn reach_cells(
+    selection: &crate::osm::index::Selection<'_>,
+    longest_m: f64,
+) -> std::collections::BTreeSet<CellId> {
     use crate::osm::{ElementType, LonLat};
     let mut cells = std::collections::BTreeSet::new();
     let mut along = |positions: &[LonLat]| {
@@ -528,7 +534,9 @@ fn reach_cells(selection: &crate::osm::index::Selection<'_>) -> std::collections
         }
     };
     for way in &selection.ways {
-        along(&way.positions);
+        if crate::osm::length_m(&way.positions) <= longest_m {
+            along(&way.positions);
+        }
     }
     let all = selection.all_ways;
     for relation in &selection.relations {

@@ -38,6 +38,11 @@ impl MakeError {
     pub fn timed_out(&self) -> bool {
         matches!(self, MakeError::Render(RenderError::TimedOut { .. }))
     }
+
+    /// The render took more memory than its budget.
+    pub fn over_budget(&self) -> bool {
+        matches!(self, MakeError::Render(RenderError::OverBudget { .. }))
+    }
 }
 
 /// Makes `key` from `sources`. Tiles above `served_zoom` are overviews: terrain alone, or glb
@@ -54,7 +59,7 @@ pub fn make(
         Format::Glb(variant) => {
             let osm = sources.osm_for(tile)?;
             let selection = osm.selection(tile);
-            let mosaic = sources.mosaic_for(tile, &selection)?;
+            let mosaic = sources.mosaic_for(tile, &selection, settings.features.longest_way_m())?;
             let rendered = if tile.z < served_zoom {
                 crate::render::render_overview(
                     tile,
@@ -96,7 +101,7 @@ pub fn make(
                 crate::render::render_terrain(
                     tile,
                     &selection,
-                    &sources.mosaic_for(tile, &selection)?,
+                    &sources.mosaic_for(tile, &selection, settings.features.longest_way_m())?,
                     settings,
                     extensions,
                     deadline,

@@ -243,7 +243,9 @@ impl TileProvider for Renderer {
     fn explain(&self, tile: TileId) -> Result<Vec<u8>, MakeError> {
         let osm = self.inputs.osm_for(tile)?;
         let selection = osm.selection(tile);
-        let mosaic = self.inputs.mosaic_for(tile, &selection)?;
+        let mosaic =
+            self.inputs
+                .mosaic_for(tile, &selection, self.settings.features.longest_way_m())?;
         let settled = crate::render::settle_structures(tile, &selection, &mosaic, &self.settings);
         let roads = crate::render::settle_road_profiles(tile, &selection, &mosaic, &self.settings);
         let margin = self.settings.mesh.max_error_m;

@@ -60,6 +60,8 @@ pub struct Work {
     pub pool: RenderPool,
     /// Longest a render may take.
     pub render_limit: Option<Duration>,
+    /// Most memory one render may take, bytes.
+    pub render_memory: Option<usize>,
     /// Requests that may wait at once for a download on a blocking thread; the others wait
     /// for a turn without holding one.
     pub download_waits: Arc<tokio::sync::Semaphore>,
@@ -115,6 +117,8 @@ impl Work {
             pool: RenderPool::new(threads, server.render_queue, server.background_renders),
             render_limit: (server.render_timeout_ms > 0)
                 .then(|| Duration::from_millis(server.render_timeout_ms)),
+            render_memory: (server.render_memory_mib > 0)
+                .then(|| usize::try_from(server.render_memory_mib << 20).unwrap_or(usize::MAX)),
             download_waits: Arc::new(tokio::sync::Semaphore::new(DOWNLOAD_WAITS)),
             failed_renders: moka::sync::Cache::builder()
                 .max_capacity(100_000)

@@ -131,8 +131,11 @@ pub async fn serve(
             let error = failure_response(&state, tile, &e);
             if matches!(
                 &*e,
-                CacheError::Render(RenderFailure::TimedOut(_) | RenderFailure::Failed(_))
-                    | CacheError::Store(_)
+                CacheError::Render(
+                    RenderFailure::TimedOut(_)
+                        | RenderFailure::OverBudget(_)
+                        | RenderFailure::Failed(_)
+                ) | CacheError::Store(_)
             ) {
                 state
                     .work
@@ -295,6 +298,9 @@ pub enum RenderFailure {
     Refused(#[from] Refused),
     #[error("{0}")]
     TimedOut(String),
+    /// It would take more memory than a render may.
+    #[error("{0}")]
+    OverBudget(String),
     #[error("{0}")]
     Failed(String),
     /// The provider does not hold the tile and cannot make it.
@@ -316,6 +322,10 @@ fn failure_response(state: &AppState, tile: TileId, error: &CacheError<RenderFai
         CacheError::Render(RenderFailure::NotHeld(message)) => ApiError::not_found(message.clone()),
         CacheError::Render(RenderFailure::TimedOut(message)) => {
             tracing::error!(%tile, %message, "render stopped at its time limit");
+            ApiError::unavailable(message.clone(), RETRY_AFTER_S)
+        }
+        CacheError::Render(RenderFailure::OverBudget(message)) => {
+            tracing::error!(%tile, %message, "render stopped at its memory limit");
             ApiError::unavailable(message.clone(), RETRY_AFTER_S)
         }
         CacheError::Store(error) => {
@@ -348,7 +358,13 @@ pub fn render_job(
             Priority::Background => work.pool.acquire_background()?,
         };
         let deadline = work.render_limit.map_or(Deadline::none(), Deadline::after);
-        let result = make(&*provider, &metrics, key, deadline);
+        let result = match work.render_memory {
+            Some(bytes) => {
+                let budget = crate::budget::Budget::new(bytes);
+                crate::budget::within(&budget, || make(&*provider, &metrics, key, deadline))
+            }
+            None => make(&*provider, &metrics, key, deadline),
+        };
         crate::server::memory::give_back();
         match &result {
             Ok(_) => Metrics::count(&metrics.renders),
@@ -378,6 +394,7 @@ fn make(
     let made = provider.make(key, deadline).map_err(|e| match e {
         MakeError::NotHeld(message) => RenderFailure::NotHeld(message),
         e if e.timed_out() => RenderFailure::TimedOut(e.to_string()),
+        e if e.over_budget() => RenderFailure::OverBudget(e.to_string()),
         e => RenderFailure::Failed(e.to_string()),
     })?;
     Metrics::add(&metrics.lp_components, made.lp_components as u64);

@@ -32,7 +32,7 @@ use codec::DecodeError;
 /// The schema of a store.
 pub const SCHEMA: &str = include_str!("../../../migrations/osm_store.sql");
 /// The store's format: a store of another is imported again.
-pub const FORMAT: u32 = 4;
+pub const FORMAT: u32 = 5;
 
 /// One extract as imported.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]

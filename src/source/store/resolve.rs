@@ -10,8 +10,8 @@ use rusqlite::{params, Statement};
 use super::batch_insert::BatchInsert;
 use super::codec;
 use super::import::{CellRows, ImportError, Partial, Rules};
-use crate::osm::index::{cells_of, is_coastline};
-use crate::osm::structures::may_be_crossed;
+use crate::osm::index::{cells_of_line, is_coastline, warn_if_unbounded};
+use crate::osm::structures::{may_be_crossed, structure_of};
 use crate::osm::{bounds_of, Bounds, LonLat};
 use crate::source::external_sort::{ExternalSort, RUN_RECORDS};
 use crate::source::node_locations::{NodeLocations, NodeStoreError, CACHED_BLOCKS};
@@ -165,9 +165,10 @@ impl Resolved {
             .collect();
         let bounds = bounds_of(&positions);
         let cells_from = self.cells.len();
-        if let Some(b) = bounds {
-            self.cells.extend(cells_of(&b, n));
-        }
+        let closed = nodes.len() >= 4 && nodes.first() == nodes.last();
+        let reached = cells_of_line(&positions, closed, n);
+        warn_if_unbounded(id, &positions, reached.len());
+        self.cells.extend(reached);
         let joints_from = self.nodes.len();
         if (rules.joins)(&tags) {
             self.nodes.extend(
@@ -178,7 +179,7 @@ impl Resolved {
                     .map(|(_, &node)| node),
             );
         }
-        let structure = (rules.classify)(&tags).is_some();
+        let structure = structure_of(rules.classify, &tags, &positions).is_some();
         let part = if structure || may_be_crossed(&tags) {
             Some(Part::Always)
         } else {

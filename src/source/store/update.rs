@@ -15,7 +15,8 @@ use rusqlite::{params, Connection, OpenFlags, OptionalExtension};
 
 use super::import::{cluster_data, clusters, Candidates, FoundGroup, ImportError, Rules};
 use super::{codec, StoreError, FORMAT};
-use crate::osm::index::{cells_of, is_coastline, meets, ABOVE_TUNNEL_DEG};
+use crate::osm::index::{cells_of, cells_of_way, is_coastline, meets, ABOVE_TUNNEL_DEG};
+use crate::osm::structures::structure_of;
 use crate::osm::{bounds_of, Bounds, ElementType, LonLat, Relation, Way};
 use crate::source::node_locations::{Decimicro, NodeLocations, NodeStoreError, RunIndex};
 use crate::source::osc::{Action, Changed, OsmChange};
@@ -111,7 +112,7 @@ pub fn apply(
         cells_after: HashMap::new(),
     };
     let plan = update.plan(change)?;
-    let mut reach = Reach::default();
+    let mut reach = Reach::new(meta.zoom);
     plan.reach(&mut reach);
     update.write(&plan, &mut reach)?;
     update.settle_joints(&plan, &mut reach)?;
@@ -398,29 +399,40 @@ impl Plan {
     }
 }
 
-/// Where a diff reached: boxes whose tiles may read something changed.
-#[derive(Default)]
+/// Where a diff reached: the cells of the nodes and ways it changed (where they are
+/// registered), and the boxes of the relations and groups (registered over their box), whose
+/// tiles may read something changed.
 struct Reach {
+    n: f64,
+    cells: BTreeSet<(u32, u32)>,
     boxes: Vec<Bounds>,
 }
 
 impl Reach {
+    fn new(zoom: u8) -> Reach {
+        Reach {
+            n: f64::from(1u32 << zoom),
+            cells: BTreeSet::new(),
+            boxes: Vec::new(),
+        }
+    }
+
     fn point(&mut self, p: Option<LonLat>) {
         if let Some(b) = p.and_then(|p| bounds_of(&[p])) {
-            self.boxes.push(b);
+            self.cells.extend(cells_of(&b, self.n));
         }
     }
 
     fn way(&mut self, way: Option<&Way>) {
-        if let Some(b) = way.and_then(|w| bounds_of(&w.positions)) {
-            self.boxes.push(b);
+        if let Some(way) = way {
+            self.cells.extend(cells_of_way(way, self.n));
         }
     }
 
-    /// The tiles whose query reads a cell a box meets.
+    /// The tiles whose query reads a cell reached: those cells and their neighbours.
     fn tiles(&self, zoom: u8, margin_deg: f64) -> BTreeSet<TileId> {
         let n = f64::from(1u32 << zoom);
-        let mut cells = BTreeSet::new();
+        let mut cells = self.cells.clone();
         for b in &self.boxes {
             cells.extend(cells_of(b, n));
         }
@@ -790,24 +802,22 @@ impl Update<'_> {
                     edit.old = old;
                 }
             }
-            let mut boxes: Vec<Bounds> = Vec::new();
+            // A relation is registered over its box, which holds each of its ways' cells.
+            let mut cells = BTreeSet::new();
             for edit in plan.ways.values() {
                 for way in [edit.old.as_ref(), edit.new.as_ref().map(|(w, _)| w)]
                     .into_iter()
                     .flatten()
                 {
-                    boxes.extend(bounds_of(&way.positions));
+                    cells.extend(cells_of_way(way, self.n));
                 }
             }
             for edit in plan.relations.values() {
                 if let Some((_, Some(b))) = &edit.old {
-                    boxes.push(*b);
+                    cells.extend(cells_of(b, self.n));
                 }
             }
-            let mut cells = BTreeSet::new();
-            for b in &boxes {
-                cells.extend(cells_of(b, self.n).filter(|c| !looked.contains(c)));
-            }
+            cells.retain(|c| !looked.contains(c));
             if cells.is_empty() {
                 return Ok(());
             }
@@ -908,8 +918,8 @@ impl Update<'_> {
             }
         }
         for (&id, edit) in &plan.ways {
-            if let Some(b) = edit.old.as_ref().and_then(|w| bounds_of(&w.positions)) {
-                self.uncell(1, id, &b)?;
+            if let Some(old) = &edit.old {
+                self.uncell(1, id, &cells_of_way(old, n))?;
             }
             db.execute("DELETE FROM ways WHERE id = ?1", [id])
                 .map_err(&sqlite)?;
@@ -939,9 +949,9 @@ impl Update<'_> {
                     params![id, row],
                 )
                 .map_err(&sqlite)?;
-                if let Some(b) = bounds_of(&way.positions) {
-                    self.encell(1, id, &b)?;
-                }
+                let reached = cells_of_way(way, n);
+                crate::osm::index::warn_if_unbounded(id, &way.positions, reached.len());
+                self.encell(1, id, &reached)?;
                 if is_coastline(&way.tags) {
                     db.execute("INSERT INTO coastlines (way) VALUES (?1)", [id])
                         .map_err(&sqlite)?;
@@ -958,7 +968,7 @@ impl Update<'_> {
         let sqlite = self.sqlite();
         for (&id, edit) in &plan.relations {
             if let Some((_, Some(b))) = &edit.old {
-                self.uncell(2, id, b)?;
+                self.uncell(2, id, &cells_of(b, self.n).collect::<Vec<_>>())?;
             }
             self.db
                 .execute("DELETE FROM relations WHERE id = ?1", [id])
@@ -990,7 +1000,7 @@ impl Update<'_> {
                     }
                 }
                 if let Some(b) = relation_bounds(self.db, relation).map_err(self.decode())? {
-                    self.encell(2, id, &b)?;
+                    self.encell(2, id, &cells_of(&b, self.n).collect::<Vec<_>>())?;
                     reach.boxes.push(b);
                 }
             }
@@ -998,25 +1008,31 @@ impl Update<'_> {
         Ok(())
     }
 
-    /// Registers an element of `kind` in the cells of its box.
-    fn encell(&self, kind: i64, id: i64, b: &Bounds) -> Result<(), UpdateError> {
+    /// Registers an element of `kind` in `cells`.
+    fn encell(&self, kind: i64, id: i64, cells: &[(u32, u32)]) -> Result<(), UpdateError> {
         self.each_cell(
             "INSERT OR IGNORE INTO cells (x, y, kind, id) VALUES (?1, ?2, ?3, ?4)",
             kind,
             id,
-            b,
+            cells,
         )
     }
 
-    /// Takes an element of `kind` out of the cells of the box it was registered with.
-    fn uncell(&self, kind: i64, id: i64, b: &Bounds) -> Result<(), UpdateError> {
+    /// Takes an element of `kind` out of the cells it was registered in.
+    fn uncell(&self, kind: i64, id: i64, cells: &[(u32, u32)]) -> Result<(), UpdateError> {
         let sql = "DELETE FROM cells WHERE x = ?1 AND y = ?2 AND kind = ?3 AND id = ?4";
-        self.each_cell(sql, kind, id, b)
+        self.each_cell(sql, kind, id, cells)
     }
 
-    fn each_cell(&self, sql: &str, kind: i64, id: i64, b: &Bounds) -> Result<(), UpdateError> {
+    fn each_cell(
+        &self,
+        sql: &str,
+        kind: i64,
+        id: i64,
+        cells: &[(u32, u32)],
+    ) -> Result<(), UpdateError> {
         let mut s = self.db.prepare_cached(sql).map_err(self.sqlite())?;
-        for (x, y) in cells_of(b, self.n) {
+        for &(x, y) in cells {
             s.execute(params![x, y, kind, id]).map_err(self.sqlite())?;
         }
         Ok(())
@@ -1168,17 +1184,15 @@ impl Update<'_> {
         let mut seeds = BTreeSet::new();
         let mut look = BTreeSet::new();
         // Relations take no part in groups: the nodes and ways changed are what counts.
-        let mut changed = Reach::default();
+        let mut changed = Reach::new(self.zoom);
         plan.elements(&mut changed);
-        for b in &changed.boxes {
-            for (x, y) in cells_of(b, self.n) {
-                let cell = TileId { z: self.zoom, x, y }.bounds();
-                look.extend(cells_of(&cell.expanded(ABOVE_TUNNEL_DEG), self.n));
-            }
+        for &(x, y) in &changed.cells {
+            let cell = TileId { z: self.zoom, x, y }.bounds();
+            look.extend(cells_of(&cell.expanded(ABOVE_TUNNEL_DEG), self.n));
         }
         for edit in plan.ways.values() {
             if let Some(w) = &edit.old {
-                if (self.rules.classify)(&w.tags).is_some() {
+                if structure_of(self.rules.classify, &w.tags, &w.positions).is_some() {
                     seeds.insert(w.id);
                 }
             }
@@ -1186,7 +1200,7 @@ impl Update<'_> {
         let classify = self.rules.classify;
         for &cell in &look {
             for way in self.ways_after(cell)? {
-                if classify(&way.tags).is_some() {
+                if structure_of(classify, &way.tags, &way.positions).is_some() {
                     seeds.insert(way.id);
                 }
             }
@@ -1197,19 +1211,16 @@ impl Update<'_> {
         // all their ways (a group's box holds its ways, so it is in their cells).
         let mut cells: BTreeSet<(u32, u32)> = BTreeSet::new();
         for edit in plan.ways.values() {
-            if let Some(b) = edit.old.as_ref().and_then(|w| bounds_of(&w.positions)) {
-                cells.extend(cells_of(&b, self.n));
+            if let Some(old) = &edit.old {
+                cells.extend(cells_of_way(old, self.n));
             }
         }
         loop {
             let before = members.clone();
             self.grow_cluster(&mut seeds, &mut members)?;
             for id in members.difference(&before) {
-                if let Some(b) = super::way(self.db, *id)
-                    .map_err(self.decode())?
-                    .and_then(|w| bounds_of(&w.positions))
-                {
-                    cells.extend(cells_of(&b, self.n));
+                if let Some(way) = super::way(self.db, *id).map_err(self.decode())? {
+                    cells.extend(cells_of_way(&way, self.n));
                 }
             }
             let mut more = BTreeSet::new();
@@ -1262,7 +1273,7 @@ impl Update<'_> {
             let Some(way) = super::way(self.db, id).map_err(self.decode())? else {
                 continue;
             };
-            if classify(&way.tags).is_none() {
+            if structure_of(classify, &way.tags, &way.positions).is_none() {
                 continue;
             }
             members.insert(id);
@@ -1274,7 +1285,8 @@ impl Update<'_> {
                 cells_of(&grown.expanded(ABOVE_TUNNEL_DEG), self.n).collect();
             for cell in near {
                 for other in self.ways_after(cell)? {
-                    if members.contains(&other.id) || classify(&other.tags).is_none() {
+                    let structure = structure_of(classify, &other.tags, &other.positions);
+                    if members.contains(&other.id) || structure.is_none() {
                         continue;
                     }
                     if grow(other).is_some_and(|o| meets(&o, &grown)) {
@@ -1321,7 +1333,7 @@ impl Update<'_> {
             if new.get(&id).is_some_and(|g| g.row == *row) {
                 continue;
             }
-            self.uncell(3, id, &bounds)?;
+            self.uncell(3, id, &cells_of(&bounds, self.n).collect::<Vec<_>>())?;
             self.db
                 .execute("DELETE FROM groups WHERE id = ?1", [id])
                 .map_err(&sqlite)?;
@@ -1345,7 +1357,7 @@ impl Update<'_> {
                     params![id, group.row],
                 )
                 .map_err(&sqlite)?;
-            self.encell(3, id, &group.bounds)?;
+            self.encell(3, id, &cells_of(&group.bounds, self.n).collect::<Vec<_>>())?;
             for (way, positions) in &group.under {
                 self.db
                     .execute(
@@ -1390,11 +1402,8 @@ impl Update<'_> {
     fn reach_holders(&self, ways: &BTreeSet<i64>, reach: &mut Reach) -> Result<(), UpdateError> {
         let mut cells = BTreeSet::new();
         for &id in ways {
-            if let Some(b) = super::way(self.db, id)
-                .map_err(self.decode())?
-                .and_then(|w| bounds_of(&w.positions))
-            {
-                cells.extend(cells_of(&b, self.n));
+            if let Some(way) = super::way(self.db, id).map_err(self.decode())? {
+                cells.extend(cells_of_way(&way, self.n));
             }
         }
         for id in self.in_cells(2, &cells)? {
