@@ -80,10 +80,11 @@ bench-terrain: tests/py/.venv/.installed
 # Country scale: import, serve and render on extracts of 1, 100 and 400 copies of Monaco
 # (COPIES="1 25" for others); the extracts are made once into target/scale/.
 # A hostile client's figures: concurrent debug views, dropped requests, half-sent requests and
-# shutdown (loopback, the bundled sample).
-bench-hardening:
+# shutdown (loopback, the bundled sample); then one road node moved far away by a diff: the
+# time and memory of `update` and of the next render, at each distance.
+bench-hardening: tests/py/.venv/.installed
 	$(CARGO) build --release
-	python3 scripts/bench_hardening.py
+	tests/py/.venv/bin/python scripts/bench_hardening.py
 
 bench-scale: tests/py/.venv/.installed
 	$(CARGO) build --release

@@ -4,9 +4,16 @@ default configuration): 100 concurrent debug views of the densest tile with a co
 meanwhile (answers, the cold tile's latency, the server's peak and held memory, views made);
 80 requests for a cold tile opened and dropped, then one whole request (renders made); how long
 a half-sent request stays open; how long SIGTERM takes with five half-sent requests open.
-Usage: scripts/bench_hardening.py   (from the repository root, after a release build)"""
+Then hostile data: one road node of the bundled extract moved 1, 2, 10 degrees north and east
+and to the pole by a diff (scripts/osm_diff.py far-node:D), each applied to a fresh store:
+`update`'s time, peak memory and tiles expired, and the next render of the road's tile.
+Usage: scripts/bench_hardening.py   (from the repository root, after a release build, with a
+Python that has pyosmium, tests/py/.venv/bin/python, and GNU time at /usr/bin/time)"""
+import os
+import shutil
 import socket
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -64,3 +71,37 @@ socks=[]
 for i in range(5):
     s=socket.create_connection(('127.0.0.1',port)); s.sendall(b'POST /admin/purge HTTP/1.1\r\nHost: x'); socks.append(s)
 t0=time.time(); srv.terminate(); srv.wait(); print('stopped %.1f s after SIGTERM with 5 half-sent requests open'%(time.time()-t0))
+
+# 5. One node moved far away, by a diff, on a fresh store each time.
+EXTRACT = 'data/monaco-osrm-2016.osm.pbf'
+ROAD_TILE = '14/8527/5973'  # where the moved node lies before the move
+
+def measured(args):
+    """Runs a command to its end under GNU time (a child's own peak memory: the rusage of a
+    child of this process would count the memory it had before exec): (seconds, peak memory in
+    MiB, stdout)."""
+    report = f'{d}/time.txt'
+    started = time.time()
+    done = subprocess.run(['/usr/bin/time', '-f', '%M', '-o', report, *args],
+                          stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    if done.returncode != 0:
+        raise SystemExit(f'{args[1]} failed: {done.returncode}')
+    peak_kib = int(open(report).read().split()[-1])
+    return time.time() - started, peak_kib / 1024, done.stdout
+
+base = f'{d}/base'
+os.makedirs(base)
+measured([BIN, 'import', '--store', f'{base}/osm.sqlite', '--osm', EXTRACT])
+for far in ['1', '2', '10', 'pole']:
+    osc = f'{d}/far-{far}.osc'
+    subprocess.run([sys.executable, 'scripts/osm_diff.py', EXTRACT, f'far-node:{far}', osc],
+                   check=True, stderr=subprocess.DEVNULL)
+    store = f'{d}/far-{far}'
+    shutil.copytree(base, store)
+    s_up, m_up, out = measured([BIN, 'update', '--store', f'{store}/osm.sqlite', '--osc', osc,
+                                '--expired', '-'])
+    expired = len(out.splitlines())
+    s_r, m_r, _ = measured([BIN, 'render', ROAD_TILE, '--store', f'{store}/osm.sqlite', '--osm',
+                            EXTRACT, '-o', f'{store}/tile.glb'])
+    print(f'node moved {far if far == "pole" else far + "°"}: update {s_up:.2f} s, {m_up:.0f} MiB, {expired} tiles expired; '
+          f'then {ROAD_TILE}: {s_r:.2f} s, {m_r:.0f} MiB')
