@@ -157,6 +157,9 @@ async fn refuse(mut stream: TcpStream, limit: usize) {
     tracing::warn!(limit, "connection refused: too many open");
 }
 
+/// hyper's refusals are a status line and three short headers.
+const MAX_REFUSAL_HEAD: usize = 512;
+
 /// A connection whose answers to requests hyper could not read carry a JSON body.
 ///
 /// hyper writes such an answer as a head alone (`HTTP/1.1 431 …`, `connection: close`,
@@ -182,6 +185,13 @@ impl<T> JsonErrors<T> {
 /// The answer with a JSON body for `written`, when it is hyper's bodiless answer to a request
 /// it could not read.
 fn with_json_body(written: &[u8]) -> Option<Vec<u8>> {
+    // Cheap tests first: this sees every write of every answer.
+    let error_head = written.len() <= MAX_REFUSAL_HEAD
+        && (written.starts_with(b"HTTP/1.1 4") || written.starts_with(b"HTTP/1.1 5"))
+        && written.ends_with(b"\r\n\r\n");
+    if !error_head {
+        return None;
+    }
     let head = std::str::from_utf8(written)
         .ok()?
         .strip_suffix("\r\n\r\n")?;
@@ -241,22 +251,32 @@ impl<T: AsyncWrite + Unpin> AsyncWrite for JsonErrors<T> {
                 None => return Pin::new(&mut self.inner).poll_write(cx, buf),
             }
         }
-        let this = &mut *self;
-        while let Some((answer, written, stands_for)) = &mut this.replacing {
-            if *written == answer.len() {
-                let stands_for = *stands_for;
-                this.replacing = None;
-                return Poll::Ready(Ok(stands_for));
-            }
-            match Pin::new(&mut this.inner).poll_write(cx, &answer[*written..]) {
-                Poll::Ready(Ok(0)) => {
-                    return Poll::Ready(Err(std::io::ErrorKind::WriteZero.into()))
-                }
-                Poll::Ready(Ok(n)) => *written += n,
-                other => return other,
+        self.write_replacement(cx)
+    }
+
+    /// Vectored writes go on as they are (answers with bodies are written as head and body
+    /// slices, without a copy); a lone slice that is a refusal is replaced.
+    fn poll_write_vectored(
+        mut self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+        bufs: &[std::io::IoSlice<'_>],
+    ) -> Poll<std::io::Result<usize>> {
+        let mut slices = bufs.iter().filter(|b| !b.is_empty());
+        let lone = match (slices.next(), slices.next()) {
+            (Some(only), None) => Some(&only[..]),
+            _ => None,
+        };
+        if self.replacing.is_none() {
+            match lone.and_then(with_json_body) {
+                Some(answer) => self.replacing = Some((answer, 0, lone.map_or(0, <[u8]>::len))),
+                None => return Pin::new(&mut self.inner).poll_write_vectored(cx, bufs),
             }
         }
-        Poll::Ready(Ok(buf.len()))
+        self.write_replacement(cx)
+    }
+
+    fn is_write_vectored(&self) -> bool {
+        self.inner.is_write_vectored()
     }
 
     fn poll_flush(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<std::io::Result<()>> {
@@ -265,6 +285,29 @@ impl<T: AsyncWrite + Unpin> AsyncWrite for JsonErrors<T> {
 
     fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<std::io::Result<()>> {
         Pin::new(&mut self.inner).poll_shutdown(cx)
+    }
+}
+
+impl<T: AsyncWrite + Unpin> JsonErrors<T> {
+    /// Writes the replacement under way; once it is out, the bytes it stands for are said to
+    /// have gone.
+    fn write_replacement(&mut self, cx: &mut Context<'_>) -> Poll<std::io::Result<usize>> {
+        let this = self;
+        while let Some((answer, done, stands_for)) = &mut this.replacing {
+            if *done == answer.len() {
+                let stands_for = *stands_for;
+                this.replacing = None;
+                return Poll::Ready(Ok(stands_for));
+            }
+            match Pin::new(&mut this.inner).poll_write(cx, &answer[*done..]) {
+                Poll::Ready(Ok(0)) => {
+                    return Poll::Ready(Err(std::io::ErrorKind::WriteZero.into()))
+                }
+                Poll::Ready(Ok(n)) => *done += n,
+                other => return other,
+            }
+        }
+        Poll::Ready(Ok(0))
     }
 }
 
