@@ -5,10 +5,11 @@
 
 use std::path::{Path, PathBuf};
 
-use figment::providers::{Env, Format, Serialized, Toml};
+use figment::providers::{Env, Format as _, Serialized, Toml};
 use figment::Figment;
 use serde::{Deserialize, Serialize};
 
+use crate::format::{Format, Frame, Variant};
 use crate::render::RenderSettings;
 
 /// The configuration file read when none is named.
@@ -145,7 +146,36 @@ impl Default for SourcesConfig {
     }
 }
 
+/// The store `import` and `update` write when `sources.store` names none.
+pub const DEFAULT_STORE: &str = "cache/osm.sqlite";
+
+/// What `seed` makes when no format is named: the variants the bundled viewer
+/// (`glb-meshopt`) and globe (`glb-enu-meshopt`) ask for, so a seeded region opens warm.
+pub const SEED_FORMATS: [Format; 2] = [
+    Format::Glb(Variant {
+        frame: Frame::WebMercator,
+        meshopt: true,
+    }),
+    Format::Glb(Variant {
+        frame: Frame::EastNorthUp,
+        meshopt: true,
+    }),
+];
+
+/// What `export` writes when no format is named (an MBTiles file holds one).
+pub const EXPORT_FORMATS: [Format; 1] = [Format::Glb(Variant {
+    frame: Frame::WebMercator,
+    meshopt: false,
+})];
+
 impl SourcesConfig {
+    /// The store `import` and `update` write: the configured one, else [`DEFAULT_STORE`].
+    pub fn store_to_write(&self) -> PathBuf {
+        self.store
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(DEFAULT_STORE))
+    }
+
     /// The download settings.
     pub fn fetch_settings(&self) -> crate::source::fetch::FetchSettings {
         crate::source::fetch::FetchSettings {

@@ -9,10 +9,12 @@
 //! (glb, quantized-mesh, 3D Tiles) → [`render`] (the pure core of one tile). Beside the core:
 //! [`source`] reads files and downloads, [`cache`] stores keys and bytes, [`config`] is the
 //! configuration, [`provider`] opens the inputs and makes a tile from them
-//! ([`provider::pipeline::make`]), and [`server`] and [`offline`] (`seed`, `export`) use it.
+//! ([`provider::pipeline::make`]), [`server`] and [`offline`] (`seed`, `export`) use it, and
+//! [`cli`] is the command line over them all.
 
 pub mod budget;
 pub mod cache;
+pub mod cli;
 pub mod config;
 pub mod elevation;
 pub mod features;

@@ -92,6 +92,12 @@ const ALLOWED: &[(&str, &[&str])] = &[
         "offline",
         &["provider", "cache", "output", "format", "tile"],
     ),
+    (
+        "cli",
+        &[
+            "server", "offline", "provider", "config", "source", "cache", "format", "tile",
+        ],
+    ),
 ];
 
 /// Modules the library declares that no layer above may skip: `lib.rs` and `main.rs` wire

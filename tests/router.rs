@@ -102,6 +102,7 @@ impl TileProvider for Fake {
             triangles: 0,
             lp_components: 0,
             lp_violations: 0,
+            stats: None,
         })
     }
 

@@ -4,7 +4,7 @@
 
 use super::Inputs;
 use crate::format::{Format, TileKey};
-use crate::render::{Deadline, RenderError, RenderSettings, StageTimings};
+use crate::render::{Deadline, RenderError, RenderSettings, RenderStats, StageTimings};
 use crate::source::srtm::SrtmError;
 
 /// A tile made.
@@ -17,6 +17,8 @@ pub struct Made {
     /// Components of the elevation LP solved, and soft constraints they violated (glb only).
     pub lp_components: usize,
     pub lp_violations: usize,
+    /// Everything the render counted (glb only).
+    pub stats: Option<RenderStats>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -83,6 +85,7 @@ pub fn make(
                 lp_violations: rendered.stats.lp_violations,
                 timings: rendered.timings,
                 bytes: rendered.glb,
+                stats: Some(rendered.stats),
             })
         }
         Format::Terrain(extensions) => {
@@ -113,6 +116,7 @@ pub fn make(
                 lp_violations: 0,
                 timings: rendered.timings,
                 bytes: rendered.bytes,
+                stats: None,
             })
         }
     }
