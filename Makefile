@@ -4,6 +4,9 @@
 
 CARGO ?= cargo
 NPM ?= npm
+# Tests at once: many of them wait on a server, a browser or a database process, so more than
+# the cores keeps the cores busy.
+TEST_THREADS ?= 4
 
 .PHONY: run test check lint bench bench-hardening bench-terrain bench-roofs bench-elevation bench-scale bench-cluster clean-cache
 
@@ -39,11 +42,12 @@ tests/.postgresql:
 	touch $@
 
 test: tests/js/node_modules/.installed tests/py/.venv/.installed static/vendor/.installed tests/.chromium tests/.postgresql lint
-	TERRASTITCH_PYTHON=$(CURDIR)/tests/py/.venv/bin/python $(CARGO) test --release
+	TERRASTITCH_PYTHON=$(CURDIR)/tests/py/.venv/bin/python $(CARGO) test --release -- --test-threads=$(TEST_THREADS)
 
 # The fast tier: no extract read, no browser, no server process.
 check: lint
-	$(CARGO) test --release --lib --test layers --test spec --test router
+	$(CARGO) test --release --lib
+	$(CARGO) test --release --test integration -- layers:: spec:: router::
 
 lint:
 	$(CARGO) fmt --all -- --check

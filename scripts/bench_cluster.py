@@ -26,7 +26,7 @@ import time
 BIN = os.path.abspath('target/release/terrastitch')
 PG_USER = 'terrastitch-pg'
 TILES = [(x, y) for y in range(5972, 5976) for x in range(8527, 8532)]
-# The box of those tiles (W,S,E,N), as tests/common/mod.rs computes it.
+# The box of those tiles (W,S,E,N), as tests/integration/common/mod.rs computes it.
 BBOX = '7.36085,43.70760,7.47069,43.77108'
 
 

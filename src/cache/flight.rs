@@ -98,7 +98,6 @@ mod tests {
     use crate::cache::encoding::Bodies;
     use crate::cache::{Origin, Provenance};
     use std::sync::atomic::{AtomicUsize, Ordering};
-    use std::time::Duration;
 
     fn tile() -> Arc<CachedTile> {
         Arc::new(CachedTile {
@@ -118,18 +117,30 @@ mod tests {
             format: crate::format::Format::GLB,
         };
         let started = Arc::new(AtomicUsize::new(0));
-        let work = |started: Arc<AtomicUsize>| async move {
-            started.fetch_add(1, Ordering::SeqCst);
-            tokio::time::sleep(Duration::from_millis(100)).await;
-            Ok::<_, CacheError<std::io::Error>>(tile())
+        // The work waits at a gate the test opens.
+        let (open, gate) = tokio::sync::watch::channel(false);
+        let work = |started: Arc<AtomicUsize>| {
+            let mut gate = gate.clone();
+            async move {
+                started.fetch_add(1, Ordering::SeqCst);
+                let _ = gate.wait_for(|open| *open).await;
+                Ok::<_, CacheError<std::io::Error>>(tile())
+            }
         };
-        // The first waiter is dropped at once; the second and third join its flight.
+        // The first waiter is dropped once its work has begun; the second and third join its
+        // flight before the gate opens.
         let first = tokio::spawn(flights.clone().join_or_start(key, work(started.clone())));
-        tokio::time::sleep(Duration::from_millis(10)).await;
+        while started.load(Ordering::SeqCst) == 0 {
+            tokio::task::yield_now().await;
+        }
         first.abort();
+        assert!(first.await.is_err(), "the first waiter was dropped");
         let second = flights.clone().join_or_start(key, work(started.clone()));
         let third = flights.clone().join_or_start(key, work(started.clone()));
-        let (second, third) = tokio::join!(second, third);
+        let opening = async {
+            open.send_replace(true);
+        };
+        let (second, third, ()) = tokio::join!(second, third, opening);
         assert!(second.is_ok() && third.is_ok());
         assert_eq!(started.load(Ordering::SeqCst), 1, "one flight for the key");
         assert_eq!(flights.len(), 0, "a landed flight is gone from the list");

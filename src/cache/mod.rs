@@ -18,6 +18,7 @@ pub mod sqlite;
 pub mod store;
 
 use std::collections::HashSet;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use sha2::Digest;
@@ -131,6 +132,8 @@ pub struct TileCache {
     touched: Arc<Mutex<HashSet<TileKey>>>,
     /// Lookups and renders under way, by key.
     flights: Arc<flight::Flights>,
+    /// Requests waiting for a tile to be looked up or made.
+    waiting: Arc<AtomicUsize>,
     /// Purges lately made, so a tile made again from before one is not stored after it.
     purges: Arc<Mutex<Purges>>,
     /// The other processes sharing the store, when it is shared: a tile is claimed there
@@ -176,6 +179,22 @@ impl std::fmt::Debug for TileCache {
     }
 }
 
+/// One request counted as waiting for as long as it waits, even when it is dropped.
+struct Waiting<'a>(&'a AtomicUsize);
+
+impl<'a> Waiting<'a> {
+    fn on(count: &'a AtomicUsize) -> Waiting<'a> {
+        count.fetch_add(1, Ordering::SeqCst);
+        Waiting(count)
+    }
+}
+
+impl Drop for Waiting<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
 /// Makes a tile's body, identity-coded.
 type Render<E> = Box<dyn FnOnce() -> Result<Vec<u8>, E> + Send>;
 
@@ -192,9 +211,16 @@ impl TileCache {
             store,
             touched: Arc::default(),
             flights: Arc::default(),
+            waiting: Arc::default(),
             purges: Arc::default(),
             cluster: None,
         }
+    }
+
+    /// Requests waiting now for a tile to be looked up or made: each request for a tile under
+    /// way waits here, and one make serves them all.
+    pub fn waiting(&self) -> usize {
+        self.waiting.load(Ordering::SeqCst)
     }
 
     /// The same cache, coordinating its renders, purges and new versions with the other
@@ -274,12 +300,14 @@ impl TileCache {
         // rather than starting another.
         let flights = self.flights.clone();
         let init = async move { flights.join_or_start(key, lookup_or_render).await };
+        let waiting = Waiting::on(&self.waiting);
         let entry = self
             .memory
             .entry(key)
             .or_try_insert_with(init)
             .await
             .map_err(|shared| (*shared).clone())?;
+        drop(waiting);
         let origin = if entry.is_fresh() {
             entry.value().loaded_from
         } else {

@@ -11,6 +11,7 @@
 
 use std::future::Future;
 use std::pin::Pin;
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::task::{Context, Poll};
 use std::time::Duration;
@@ -21,6 +22,8 @@ use hyper_util::service::TowerToHyperService;
 use tokio::io::{AsyncRead, AsyncWrite, AsyncWriteExt, ReadBuf};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
+
+use super::metrics::Metrics;
 
 /// The bounds on connections.
 #[derive(Debug, Clone, Copy)]
@@ -43,6 +46,7 @@ pub async fn serve(
     listener: TcpListener,
     router: Router,
     limits: Limits,
+    metrics: Arc<Metrics>,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
     let permits = Arc::new(Semaphore::new(limits.connections.max(1)));
@@ -67,11 +71,12 @@ pub async fn serve(
         };
         match permits.clone().try_acquire_owned() {
             Ok(permit) => {
+                let counted = Open::on(metrics.clone());
                 open.spawn(connection(
                     stream,
                     router.clone(),
                     limits,
-                    permit,
+                    (permit, counted),
                     closed.clone(),
                 ));
             }
@@ -98,13 +103,29 @@ pub async fn serve(
     Ok(())
 }
 
+/// A connection counted in the metrics' open connections for as long as it lives.
+struct Open(Arc<Metrics>);
+
+impl Open {
+    fn on(metrics: Arc<Metrics>) -> Open {
+        metrics.connections_open.fetch_add(1, Ordering::Relaxed);
+        Open(metrics)
+    }
+}
+
+impl Drop for Open {
+    fn drop(&mut self) {
+        self.0.connections_open.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
 /// Serves one connection (HTTP/1.1 with keep-alive) until it closes, the head timeout passes,
 /// or the server shuts down.
 async fn connection(
     stream: TcpStream,
     router: Router,
     limits: Limits,
-    _permit: OwnedSemaphorePermit,
+    _held: (OwnedSemaphorePermit, Open),
     mut closed: watch::Receiver<()>,
 ) {
     let _ = stream.set_nodelay(true);

@@ -112,6 +112,8 @@ pub struct Metrics {
     /// Tiles made again in the background (stale, regenerated), and those that failed.
     pub regenerations: AtomicU64,
     pub regeneration_failures: AtomicU64,
+    /// Connections open now (a gauge).
+    pub connections_open: AtomicU64,
     /// Render time per stage (index as [`STAGES`]).
     stage_seconds: Vec<Histogram>,
     /// Responses by route template and status.
@@ -137,6 +139,7 @@ impl Default for Metrics {
             lp_violations: AtomicU64::new(0),
             regenerations: AtomicU64::new(0),
             regeneration_failures: AtomicU64::new(0),
+            connections_open: AtomicU64::new(0),
             stage_seconds: STAGES
                 .iter()
                 .map(|_| Histogram::new(SECONDS_BUCKETS))
@@ -155,6 +158,8 @@ pub struct PoolGauges {
     pub background_waiting: usize,
     /// Tiles queued to be made again, or being made.
     pub regenerating: usize,
+    /// Requests waiting for a tile to be looked up or made (many on one tile share its make).
+    pub for_tiles: usize,
 }
 
 impl Metrics {
@@ -195,6 +200,11 @@ impl Metrics {
         }
         self.write_cache(&mut out);
         write_queue(&mut out, pool);
+        let _ = writeln!(
+            out,
+            "# HELP terrastitch_connections_open Connections open now.\n# TYPE terrastitch_connections_open gauge\nterrastitch_connections_open {}",
+            self.connections_open.load(Ordering::Relaxed)
+        );
         self.write_stages(&mut out);
         self.write_http(&mut out);
         out
@@ -355,6 +365,11 @@ fn write_queue(out: &mut String, pool: PoolGauges) {
         out,
         "# HELP terrastitch_render_queue Renders by state: running, waiting (requests waiting for a slot), background (remakes waiting for a slot), regenerating (tiles queued to be made again, or being made).\n# TYPE terrastitch_render_queue gauge\nterrastitch_render_queue{{state=\"running\"}} {}\nterrastitch_render_queue{{state=\"waiting\"}} {}\nterrastitch_render_queue{{state=\"background\"}} {}\nterrastitch_render_queue{{state=\"regenerating\"}} {}",
         pool.running, pool.waiting, pool.background_waiting, pool.regenerating
+    );
+    let _ = writeln!(
+        out,
+        "# HELP terrastitch_tile_requests_waiting Requests waiting for a tile to be looked up or made; those for one tile share one make.\n# TYPE terrastitch_tile_requests_waiting gauge\nterrastitch_tile_requests_waiting {}",
+        pool.for_tiles
     );
 }
 

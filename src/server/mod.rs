@@ -215,6 +215,7 @@ impl AppState {
             waiting,
             background_waiting,
             regenerating: self.work.regenerator.len(),
+            for_tiles: self.cache.waiting(),
         }
     }
 }
@@ -445,8 +446,14 @@ pub async fn serve(
             interval,
         )));
     }
-    let result =
-        connections::serve(listener, router(state.clone()), state.http.limits, shutdown).await;
+    let result = connections::serve(
+        listener,
+        router(state.clone()),
+        state.http.limits,
+        state.metrics.clone(),
+        shutdown,
+    )
+    .await;
     for task in background {
         task.abort();
     }

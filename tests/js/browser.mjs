@@ -78,3 +78,14 @@ export async function globeCoverage(page) {
     return { distinctColours: colours.size, contentFraction: changed / lower };
   });
 }
+
+/**
+ * Waits for `count` animation frames of the page: whatever it loaded before is drawn by then.
+ * A signal of the page, not a clock; a busy machine only makes it come later.
+ */
+export async function animationFrames(page, count = 3) {
+  await page.evaluate((n) => new Promise((done) => {
+    const step = (left) => (left === 0 ? done() : requestAnimationFrame(() => step(left - 1)));
+    step(n);
+  }), count);
+}

@@ -4,7 +4,9 @@
 //   BASE_URL  the server, e.g. http://127.0.0.1:8080/
 //   OUT_DIR   where the screenshots go
 //   LAT LON   a building's centre: the camera looks straight down on it and picks what is there
-import { addPixelReader, globeCoverage, launch, watch } from './browser.mjs';
+import {
+  addPixelReader, animationFrames, globeCoverage, launch, watch,
+} from './browser.mjs';
 import { join } from 'node:path';
 
 const [base, outDir, lat, lon] = process.argv.slice(2);
@@ -27,7 +29,7 @@ try {
       && globe.stats.loaded.filter((u) => u.includes('.glb')).length >= 4;
   }, null, { timeout: 300000, polling: 250 });
   result.steps.firstAllLoadedMs = Date.now() - loadStarted;
-  await page.waitForTimeout(1500);
+  await animationFrames(page);
   await page.screenshot({ path: join(outDir, 'globe-start.png'), timeout: 120000 });
   result.start = await page.evaluate(() => ({ ...window.terrastitchGlobe.stats }));
   result.pixels = await globeCoverage(page);
@@ -35,10 +37,10 @@ try {
   // Straight down on the building: the feature at the centre must be it.
   await page.evaluate(([la, lo]) => window.terrastitchGlobe.lookAt(la, lo, 400, -90),
     [Number(lat), Number(lon)]);
-  await page.waitForTimeout(500);
+  await animationFrames(page);
   await page.waitForFunction(() => window.terrastitchGlobe.tileset.tilesLoaded,
     null, { timeout: 300000, polling: 250 });
-  await page.waitForTimeout(1500);
+  await animationFrames(page);
   result.picked = await page.evaluate(() => window.terrastitchGlobe.pickCentre());
   result.panel = await page.evaluate(() => {
     const panel = document.getElementById('feature');

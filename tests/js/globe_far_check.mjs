@@ -5,7 +5,9 @@
 // Usage: node globe_far_check.mjs BASE_URL OUT_DIR VIEW…
 //   VIEW  `lat,lon,height,pitch`: the globe page's hash, a point looked at from `height` metres
 //         up at `pitch` degrees (from the south; -90 straight down)
-import { addPixelReader, globeCoverage, launch, watch } from './browser.mjs';
+import {
+  addPixelReader, animationFrames, globeCoverage, launch, watch,
+} from './browser.mjs';
 import { join } from 'node:path';
 
 const [base, outDir, ...views] = process.argv.slice(2);
@@ -33,7 +35,7 @@ try {
           && globe.stats.loaded.some((u) => u.includes('.glb'));
       }, null, { timeout: 300000, polling: 250 });
       const settledMs = Date.now() - started;
-      await page.waitForTimeout(1000);
+      await animationFrames(page);
       const name = `globe-${pass}-${height}.png`;
       // A frame of the software-rendered globe can take long on a busy machine.
       await page.screenshot({ path: join(outDir, name), timeout: 120000 });

@@ -3,7 +3,7 @@
 // Usage: node open_check.mjs BASE_URL OUT_DIR
 //   BASE_URL  the server, e.g. http://127.0.0.1:8080/
 //   OUT_DIR   where the screenshots go
-import { launch, watch } from './browser.mjs';
+import { animationFrames, launch, watch } from './browser.mjs';
 import { join } from 'node:path';
 
 const [base, outDir] = process.argv.slice(2);
@@ -25,7 +25,9 @@ try {
     loaded: [...window.terrastitchViewer.stats.loaded],
     failed: [...window.terrastitchViewer.stats.failed],
   }));
-  await page.waitForTimeout(1000);
+  // The viewer keeps its place in the URL (written a moment after the view settles).
+  await page.waitForFunction(() => location.hash.length > 1, null, { timeout: 240000 });
+  await animationFrames(page);
   result.viewer.hash = await page.evaluate(() => location.hash);
   await page.screenshot({ path: join(outDir, 'viewer-open.png') });
 

@@ -7,7 +7,7 @@
 //   OUT_DIR   where the screenshot goes
 //   LAT LON   a building's centre: a ray straight down there must hit a building
 //   TILESET   the tileset's path under BASE_URL (default 3dtiles/tileset.json?compress=meshopt)
-import { launch, watch } from './browser.mjs';
+import { animationFrames, launch, watch } from './browser.mjs';
 import { readFile } from 'node:fs/promises';
 import { join, dirname, extname } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -115,7 +115,7 @@ try {
     && window.check.state.loaded.filter((u) => u.includes('.glb')).length >= 4
     && window.check.busy() === 0, null, { timeout: 240000, polling: 250 });
   result.settledMs = Date.now() - started;
-  await tab.waitForTimeout(1000);
+  await animationFrames(tab);
   result.state = await tab.evaluate(() => window.check.state);
   result.probe = await tab.evaluate(() => window.check.probe());
   await tab.screenshot({ path: join(outDir, 'tiles3d-renderer.png') });

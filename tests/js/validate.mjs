@@ -1,7 +1,8 @@
 #!/usr/bin/env node
 // Validates glb files with the Khronos glTF validator and prints one JSON report per file
 // (errors, warnings, infos, the first messages, draw calls, triangles).
-// Usage: node validate.mjs FILE.glb...   Exit code 1 if any file has errors or warnings.
+// Usage: node validate.mjs FILE.glb...   Exit code 3 if any file has errors or warnings, 0 if
+// none has; any other code means the validator itself failed.
 import { createRequire } from 'module';
 import fs from 'fs';
 import path from 'path';
@@ -27,4 +28,4 @@ for (const file of process.argv.slice(2)) {
     vertices: report.info?.totalVertexCount,
   }));
 }
-process.exit(failed ? 1 : 0);
+process.exit(failed ? 3 : 0);

@@ -125,6 +125,12 @@ try {
     const fresh = s.loaded.filter((t) => !asked.includes(t));
     return fresh.length >= 3;
   }, [...before], { timeout: HUNG_MS, polling: 200 });
+  // The moved view reaches the URL (written a moment after the view settles).
+  await page.waitForFunction(() => {
+    const v = window.terrastitchViewer.currentView();
+    const lon = Number(location.hash.replace(/^#/, '').split(',')[1]);
+    return Math.abs(lon - v.lon) < 1e-4;
+  }, null, { timeout: HUNG_MS, polling: 100 });
   const after = await stats();
   result.moved = {
     newlyRequested: after.requested.filter((t) => !before.has(t)),

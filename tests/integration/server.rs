@@ -3,13 +3,14 @@
 //! rules on a provider that renders nothing (the queue, single flight, validators) are in
 //! `tests/router.rs`.
 
-mod common;
+use crate::common;
 
 use std::io::Read;
+use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use common::{sample_osm, sample_srtm, TestServer};
+use common::{sample_osm, sample_srtm, wait_until, TestServer};
 use terrastitch::cache::encoding::Bodies;
 use terrastitch::cache::{etag_of, Provenance, SqliteStore, StoredTile, TileFilter, TileStore};
 use terrastitch::config::{Config, ServerConfig};
@@ -33,7 +34,7 @@ fn two_threads() -> ServerConfig {
 }
 
 async fn wait_for_metric(server: &TestServer, name: &str, at_least: f64) {
-    let deadline = Instant::now() + Duration::from_secs(60);
+    let deadline = Instant::now() + common::HUNG;
     while server.metric(name).await < at_least {
         assert!(Instant::now() < deadline, "{name} never reached {at_least}");
         tokio::time::sleep(Duration::from_millis(50)).await;
@@ -371,7 +372,12 @@ async fn shutdown_finishes_the_renders_in_flight() {
             response.bytes().await.unwrap().len(),
         )
     });
-    tokio::time::sleep(Duration::from_millis(300)).await;
+    // Stopped once the render is under way.
+    let state = server.state.clone();
+    wait_until("the render to begin", || {
+        state.pool_gauges().running > 0 || state.metrics.renders.load(Ordering::Relaxed) > 0
+    })
+    .await;
     let store: Arc<dyn TileStore> = server.state.cache.store().clone();
     server.stop().await;
     let (status, len) = request.await.unwrap();

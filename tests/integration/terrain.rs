@@ -2,7 +2,7 @@
 //! `../shared/tools/qmesh_check.py` and decoded a second time by the `quantized-mesh-tile` reader;
 //! the layer description; shared edges between neighbouring `.terrain` tiles.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::io::Read;

@@ -2,11 +2,10 @@
 //! shutdown as a process: a seed split into shards, resumed after it was killed, and exported
 //! to MBTiles and to a directory.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
 use common::process::{http_get, request, spawn_server};
 use common::{bbox, terrastitch};
@@ -163,24 +162,19 @@ fn a_seed_killed_midway_leaves_a_sound_cache_and_resumes() {
         .spawn()
         .unwrap();
     // Kill it once it has stored a tile or two.
-    let deadline = Instant::now() + Duration::from_secs(120);
-    loop {
+    common::wait_for("the seed to store a tile", || {
         let stored = rusqlite::Connection::open_with_flags(
             &cache,
             rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY,
         )
         .and_then(|c| c.query_row("SELECT count(*) FROM tiles", [], |r| r.get::<_, i64>(0)))
         .unwrap_or(0);
-        if stored >= 1 {
-            break;
-        }
-        assert!(Instant::now() < deadline, "the seed stored nothing");
         assert!(
             child.try_wait().unwrap().is_none(),
             "the seed ended before it was killed"
         );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+        (stored >= 1).then_some(())
+    });
     child.kill().unwrap();
     child.wait().unwrap();
     let before = check_cache(&cache);
@@ -483,14 +477,9 @@ fn a_pmtiles_export_holds_the_caches_bytes_and_is_served_as_the_cache_serves_the
         spawn_server(&["--cache", cache.to_str().unwrap()], &[]);
     let (mut archive, address, _lines) =
         spawn_server(&["--archive", terrain.to_str().unwrap()], &[]);
-    let started = Instant::now();
-    while http_get(&live_address, "/ready").0 != 200 {
-        assert!(
-            started.elapsed() < Duration::from_secs(60),
-            "the sources load"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    common::wait_for("the sources to load", || {
+        (http_get(&live_address, "/ready").0 == 200).then_some(())
+    });
     let accept = "application/vnd.quantized-mesh;extensions=octvertexnormals-watermask";
     for path in ["/tiles/14/8528/5974.terrain", "/tiles/3/4/2.terrain"] {
         for coding in ["gzip", "br", "identity"] {
@@ -699,6 +688,7 @@ async fn a_directory_export_is_a_3d_tileset_on_a_static_host() {
         b.north - (b.north - b.south) / 4.0,
     );
     let artifacts = common::repo().join("tests/artifacts/export");
+    let _turn = common::browser_turn().await;
     let report = common::browser_check(
         "tiles3d_check.mjs",
         "export",
@@ -715,6 +705,8 @@ async fn a_directory_export_is_a_3d_tileset_on_a_static_host() {
     let text = serde_json::to_string_pretty(&report).unwrap();
     assert!(report["error"].is_null(), "{text}");
     assert_eq!(report["pageErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["consoleErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["failedRequests"], serde_json::json!([]), "{text}");
     assert_eq!(report["failedResponses"], serde_json::json!([]), "{text}");
     assert_eq!(report["state"]["errors"], serde_json::json!([]), "{text}");
     let loaded = report["state"]["loaded"].as_array().unwrap();

@@ -1,12 +1,14 @@
 //! Seamless tile edges: neighbouring tiles, each rendered in its own process, share exactly the
 //! same edge vertices (bit-identical after translation by the tile size, no T-junctions).
 
-mod common;
+use crate::common;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-use common::{along_side, decode, ground_edge as edge, render_in_process, repo, DecodedTile};
+use common::{
+    along_side, decode, ground_edge as edge, render_afresh, render_in_process, repo, DecodedTile,
+};
 
 /// The ten Monaco tiles inside both the extract and N43E007, and the Ulm tile across the
 /// N48E009/N48E010 seam with its neighbours.
@@ -26,9 +28,14 @@ fn ulm_tiles() -> Vec<(u32, u32)> {
     ]
 }
 
-fn render(tile: (u32, u32), srtm: &Path, out: &Path) -> Vec<u8> {
+/// A tile rendered with `srtm`: as first made in this run, or (`afresh`) in a new process.
+fn render(tile: (u32, u32), srtm: &Path, out: &Path, afresh: bool) -> Vec<u8> {
     let tile = format!("14/{}/{}", tile.0, tile.1);
-    render_in_process(&tile, &["--srtm".as_ref(), srtm.as_os_str()], out)
+    let args = ["--srtm".as_ref(), srtm.as_os_str()];
+    match afresh {
+        true => render_afresh(&tile, &args, out),
+        false => render_in_process(&tile, &args, out),
+    }
 }
 
 /// Vertices of bridges and tunnels on one side of a tile, as bit patterns of (y, along):
@@ -48,7 +55,9 @@ fn structure_edge(tile: &DecodedTile, side: &str) -> BTreeSet<(u32, u32)> {
     vertices
 }
 
-fn check_pairs(tiles: &BTreeMap<(u32, u32), DecodedTile>) -> usize {
+/// Checks every pair of neighbours; returns how many pairs there were and how many bridge
+/// and tunnel vertices their shared edges hold.
+fn check_pairs(tiles: &BTreeMap<(u32, u32), DecodedTile>) -> (usize, usize) {
     let mut pairs = 0;
     let mut structure_vertices = 0;
     for (&(x, y), tile) in tiles {
@@ -93,7 +102,7 @@ fn check_pairs(tiles: &BTreeMap<(u32, u32), DecodedTile>) -> usize {
         }
     }
     eprintln!("{structure_vertices} bridge and tunnel vertices on shared edges");
-    pairs
+    (pairs, structure_vertices)
 }
 
 /// Decoded tiles and their bytes, by tile.
@@ -102,29 +111,39 @@ type Rendered = (
     BTreeMap<(u32, u32), Vec<u8>>,
 );
 
-fn render_all(tiles: &[(u32, u32)], srtm: &Path) -> Rendered {
+fn render_all(tiles: &[(u32, u32)], srtm: &Path, afresh: bool) -> Rendered {
     let dir = tempfile::tempdir().unwrap();
     let mut decoded = BTreeMap::new();
     let mut bytes = BTreeMap::new();
     for &tile in tiles {
-        let glb = render(tile, srtm, dir.path());
+        let glb = render(tile, srtm, dir.path(), afresh);
         decoded.insert(tile, decode(&glb));
         bytes.insert(tile, glb);
     }
     (decoded, bytes)
 }
 
-fn check_region(tiles: Vec<(u32, u32)>, srtm: PathBuf, expected_pairs: usize) {
-    let (forward, forward_bytes) = render_all(&tiles, &srtm);
+/// Renders the tiles in both orders and checks their shared edges; returns the bridge and
+/// tunnel vertices on them.
+fn check_region(tiles: Vec<(u32, u32)>, srtm: PathBuf, expected_pairs: usize) -> usize {
+    let (forward, forward_bytes) = render_all(&tiles, &srtm, false);
+    // Made again in other processes, in the other order: the same bytes.
     let reversed: Vec<_> = tiles.iter().rev().copied().collect();
-    let (_, reverse_bytes) = render_all(&reversed, &srtm);
+    let (_, reverse_bytes) = render_all(&reversed, &srtm, true);
     assert_eq!(forward_bytes, reverse_bytes, "render order changed a tile");
-    assert_eq!(check_pairs(&forward), expected_pairs);
+    let (pairs, structure_vertices) = check_pairs(&forward);
+    assert_eq!(pairs, expected_pairs);
+    structure_vertices
 }
 
 #[test]
 fn monaco_neighbours_share_their_edges_exactly() {
-    check_region(monaco_tiles(), repo().join("data"), 13);
+    let structure_vertices = check_region(monaco_tiles(), repo().join("data"), 13);
+    // Monaco's tunnels and bridges cross these tiles' edges: the structures' seams are tested.
+    assert!(
+        structure_vertices > 0,
+        "no bridge or tunnel crosses an edge"
+    );
 }
 
 #[test]
@@ -179,7 +198,7 @@ fn a_river_across_two_srtm_files_runs_at_the_same_level_in_tiles_that_read_one_o
     );
     let srtm = repo().join("tests/data");
     let tiles = render_with(&extract, &[(8647, 5668), (8648, 5668)], dir.path());
-    assert_eq!(check_pairs(&tiles), 1);
+    assert_eq!(check_pairs(&tiles).0, 1);
     // No vertex of the river's water below the lowest ground along it (SRTM samples every
     // 20 m of the line; the terrain between samples may dip a little below them).
     let files = [
@@ -245,7 +264,7 @@ fn a_river_area_runs_down_along_its_river_and_lies_level_across_it() {
         &[(8646, 5668), (8647, 5668), (8648, 5668)],
         dir.path(),
     );
-    assert_eq!(check_pairs(&tiles), 2);
+    assert_eq!(check_pairs(&tiles).0, 2);
     // Each vertex of the water at its station along the river (global tile units).
     let projection = terrastitch::features::Projection::new(14);
     let line: Vec<[f64; 2]> = river

@@ -3,7 +3,7 @@
 //! every level stays within its size budget; a parent holds fewer, coarser things than its
 //! children together.
 
-mod common;
+use crate::common;
 
 use common::{decode, ground_edge, render_in_process, repo, DecodedTile};
 

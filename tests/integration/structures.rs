@@ -1,7 +1,7 @@
 //! Bridges and tunnels of Monaco (83 bridges, 181 tunnels in the OSRM extract) settled whole
 //! and drawn: checked from the decoded glb against its own ground.
 
-mod common;
+use crate::common;
 
 use std::collections::{BTreeMap, HashMap};
 

@@ -1,7 +1,7 @@
 //! OSM features on the real Monaco extract, as the served tiles show them: the sea from the
 //! coastline.
 
-mod common;
+use crate::common;
 
 use common::{corners, decode, DecodedTile, GroundLocator, TestServer, GROUND_NODES};
 
@@ -345,9 +345,10 @@ async fn power_lines_hang_above_the_ground() {
         .filter(|p| p.material == "power_line")
         .collect();
     assert!(!lines.is_empty(), "no power line drawn");
-    let (mut above, mut total) = (0, 0);
+    let (mut above, mut total, mut vertices) = (0, 0, 0);
     for primitive in lines {
         for (p, &id) in primitive.positions.iter().zip(&primitive.feature_ids) {
+            vertices += 1;
             let feature = &monaco.features[id as usize];
             assert_eq!(
                 (feature.osm_type.as_str(), feature.class.as_str()),
@@ -367,6 +368,11 @@ async fn power_lines_hang_above_the_ground() {
             }
         }
     }
+    // Most conductors are over the tile's ground: the measure is taken on them.
+    assert!(
+        total * 2 >= vertices && total > 0,
+        "only {total} of {vertices} conductor vertices over the ground"
+    );
     assert!(
         above * 10 >= total * 9,
         "{above} of {total} conductor vertices well above the ground"
@@ -678,6 +684,10 @@ async fn steps_are_drawn_as_level_treads_over_their_ramp() {
          steps within a tread), at most {highest:.2} m"
     );
     assert!(treads > 1000, "only {treads} tread triangles");
+    assert!(
+        over_ground * 2 >= treads,
+        "only {over_ground} of {treads} treads over the ground"
+    );
     assert!(
         sunk * 100 <= over_ground,
         "{sunk} of {over_ground} treads sunk"

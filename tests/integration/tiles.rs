@@ -1,7 +1,7 @@
 //! The served tile, end to end, on the bundled Monaco sample: validity, frame, feature table,
 //! stitching of roads and buildings into the ground, caching, and errors.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 

@@ -1,7 +1,7 @@
 //! The imported OSM store: `import` makes it whole or not at all, a bad extract leaves the store
 //! in use as it was, and the commands that read it import again when the extract changed.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::Output;

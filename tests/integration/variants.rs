@@ -3,7 +3,7 @@
 //! exactly; east-north-up tiles put every vertex where its longitude, latitude and height say
 //! on the WGS 84 globe.
 
-mod common;
+use crate::common;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;

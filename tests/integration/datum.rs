@@ -2,7 +2,7 @@
 //! heights above the WGS 84 ellipsoid (SRTM's plus the EGM96 geoid's undulation), so tiles sit
 //! on a terrain in ellipsoid heights; the flat frame keeps SRTM's heights.
 
-mod common;
+use crate::common;
 
 use common::{decode, sample_osm, sample_srtm};
 use terrastitch::config::Config;

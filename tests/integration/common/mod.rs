@@ -25,8 +25,33 @@ pub fn terrastitch() -> Command {
 }
 
 /// Renders tile `z/x/y` with the command line, in a process of its own, with extra arguments;
-/// returns the glb it wrote into `out_dir`.
+/// returns the glb it wrote into `out_dir`. A tile rendered with the same arguments before in
+/// this run is not rendered again (the same inputs give the same bytes, which the golden
+/// digests and [`render_afresh`] hold to): its bytes are written into `out_dir` as they were.
 pub fn render_in_process(tile: &str, args: &[&std::ffi::OsStr], out_dir: &Path) -> Vec<u8> {
+    type Made = std::sync::Mutex<BTreeMap<(String, Vec<std::ffi::OsString>), Vec<u8>>>;
+    static MADE: std::sync::OnceLock<Made> = std::sync::OnceLock::new();
+    let key = (
+        tile.to_string(),
+        args.iter().map(|a| a.to_os_string()).collect::<Vec<_>>(),
+    );
+    let made = MADE.get_or_init(Default::default);
+    let known = made.lock().unwrap().get(&key).cloned();
+    let bytes = match known {
+        Some(bytes) => bytes,
+        None => {
+            let bytes = render_afresh(tile, args, out_dir);
+            made.lock().unwrap().insert(key, bytes.clone());
+            bytes
+        }
+    };
+    let file = out_dir.join(format!("{}.glb", tile.replace('/', "_")));
+    std::fs::write(&file, &bytes).expect("tile written");
+    bytes
+}
+
+/// As [`render_in_process`], always in a new process.
+pub fn render_afresh(tile: &str, args: &[&std::ffi::OsStr], out_dir: &Path) -> Vec<u8> {
     let file = out_dir.join(format!("{}.glb", tile.replace('/', "_")));
     let output = terrastitch()
         .args(["render", tile])
@@ -487,10 +512,31 @@ pub fn validate(files: &[&Path]) -> Vec<Validation> {
         .args(files)
         .output()
         .expect("node runs");
-    String::from_utf8_lossy(&output.stdout)
+    let reports: Vec<Validation> = String::from_utf8_lossy(&output.stdout)
         .lines()
         .map(|line| serde_json::from_str(line).expect("validator report"))
-        .collect()
+        .collect();
+    check_validator_run(output.status.code(), files, &reports);
+    reports
+}
+
+/// Fails the test unless the validator ran to its end: one report per file, in order, and
+/// the exit code its reports call for (0 when clean, 3 when a file has errors or warnings);
+/// a validator that crashed or stopped early passes nothing.
+pub fn check_validator_run(code: Option<i32>, files: &[&Path], reports: &[Validation]) {
+    let named: Vec<String> = reports.iter().map(|r| r.file.clone()).collect();
+    let asked: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    assert_eq!(
+        named, asked,
+        "the validator reported on other files than asked"
+    );
+    let dirty = reports.iter().any(|r| r.errors > 0 || r.warnings > 0);
+    let expected = if dirty { 3 } else { 0 };
+    assert_eq!(
+        code,
+        Some(expected),
+        "the validator exited with {code:?} for reports {reports:?}"
+    );
 }
 
 /// Finds the ground triangles under a point (in the x/z plane) and interpolates their height.
@@ -670,4 +716,54 @@ pub fn write_extract(ways: &serde_json::Value, out: &Path) {
         .write_all(ways.to_string().as_bytes())
         .unwrap();
     assert!(child.wait().unwrap().success(), "ways_extract.py failed");
+}
+
+/// How long a test waits for something that must happen before it calls it hung.
+pub const HUNG: std::time::Duration = std::time::Duration::from_secs(240);
+
+/// Waits until `condition` holds, looking every few milliseconds; fails the test, naming
+/// `what`, only when it never does within [`HUNG`] (a bound that means it hung, never a
+/// measure of speed).
+pub async fn wait_until(what: &str, mut condition: impl FnMut() -> bool) {
+    let bound = std::time::Instant::now() + HUNG;
+    while !condition() {
+        assert!(std::time::Instant::now() < bound, "it hung: {what}");
+        tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+    }
+}
+
+/// Looks every few milliseconds until `probe` gives a value, blocking the thread; fails the
+/// test, naming `what`, only when it never does within [`HUNG`].
+pub fn wait_for<T>(what: &str, mut probe: impl FnMut() -> Option<T>) -> T {
+    let bound = std::time::Instant::now() + HUNG;
+    loop {
+        if let Some(value) = probe() {
+            return value;
+        }
+        assert!(std::time::Instant::now() < bound, "it hung: {what}");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+}
+
+/// Browser checks at once: each drives a software-rendered WebGL page, which keeps about one
+/// core busy; more at once would only slow each other.
+static BROWSERS: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(2);
+
+/// The turn of one browser check; hold it while the page runs.
+pub async fn browser_turn() -> tokio::sync::SemaphorePermit<'static> {
+    BROWSERS.acquire().await.expect("the browsers' turns are never closed")
+}
+
+/// A server on the bundled sample whose tile cache the browser checks of this run share (a
+/// tile one page made is in the store for the next), with the browser's turn.
+pub async fn browser_server() -> (TestServer, tokio::sync::SemaphorePermit<'static>) {
+    static CACHE: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    let turn = browser_turn().await;
+    let cache = CACHE.get_or_init(|| {
+        let dir = repo().join("tests/artifacts/browser-cache");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join("cache.sqlite")
+    });
+    (TestServer::start(cache).await, turn)
 }

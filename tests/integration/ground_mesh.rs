@@ -3,7 +3,7 @@
 //! triangles (independently of the refinement's own bookkeeping); and the ground covers the tile
 //! exactly once.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 

@@ -1,6 +1,6 @@
 //! Elevations settled on real tiles: checked from the decoded glb and its feature table.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 

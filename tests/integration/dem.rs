@@ -3,7 +3,7 @@
 //! deflate), written here from the bundled SRTM file: the same heights give the same tiles, and a
 //! void-free file takes precedence over an SRTM file with voids in the same cell.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -2,7 +2,7 @@
 //! in a temporary directory for these tests (see `common/pg_cluster.rs`): what the SQLite store
 //! does, and two stores on one database seeing each other's tiles.
 
-mod common;
+use crate::common;
 
 use common::pg_cluster::Cluster;
 use terrastitch::cache::encoding::Bodies;

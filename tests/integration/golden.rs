@@ -4,9 +4,10 @@
 //!
 //! A change that leaves the output alone leaves these digests alone. A change meant to alter the
 //! bytes records the new digests in a commit of its own that says why:
-//! `TERRASTITCH_GOLDEN_WRITE=1 cargo test --release --test golden` rewrites the file.
+//! `TERRASTITCH_GOLDEN_WRITE=1 cargo test --release --test integration golden::` rewrites the
+//! file.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::Path;

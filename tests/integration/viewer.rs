@@ -3,7 +3,7 @@
 //! without console errors, draw something, show a clicked building's OSM id, and load new tiles
 //! when the camera moves. Screenshots and the report go to `tests/artifacts/viewer/`.
 
-mod common;
+use crate::common;
 
 use common::{browser_check, repo, write_extract, TestServer};
 use terrastitch::config::Config;
@@ -20,8 +20,7 @@ async fn the_viewer_streams_tiles_and_shows_what_is_clicked() {
             .exists(),
         "three.js is not in static/vendor: run `make test` (it copies it from viewer/)"
     );
-    let dir = tempfile::tempdir().unwrap();
-    let server = TestServer::start(&dir.path().join("cache.sqlite")).await;
+    let (server, _turn) = common::browser_server().await;
     let artifacts = repo().join("tests/artifacts/viewer");
     let report = browser_check(
         "viewer_check.mjs",
@@ -38,6 +37,7 @@ async fn the_viewer_streams_tiles_and_shows_what_is_clicked() {
     assert!(report["error"].is_null(), "{text}");
     assert_eq!(report["consoleErrors"], serde_json::json!([]), "{text}");
     assert_eq!(report["pageErrors"], serde_json::json!([]), "{text}");
+    assert_eq!(report["failedRequests"], serde_json::json!([]), "{text}");
 
     // The nine tiles around the start, loaded, none failed.
     let loaded = report["start"]["loaded"].as_array().unwrap();
@@ -75,13 +75,11 @@ async fn the_viewer_streams_tiles_and_shows_what_is_clicked() {
         report["moved"]["newlyLoaded"].as_array().unwrap().len() >= 3,
         "{text}"
     );
-    assert!(
-        report["moved"]["hash"]
-            .as_str()
-            .unwrap()
-            .starts_with("#43.7"),
-        "{text}"
-    );
+    // The URL holds the moved view: 0.03° east of the start's 7.4255.
+    let hash = report["moved"]["hash"].as_str().unwrap();
+    let lon: f64 = hash.split(',').nth(1).unwrap().parse().unwrap();
+    assert!(hash.starts_with("#43.7"), "{text}");
+    assert!((lon - 7.4555).abs() < 1e-3, "{hash}");
     // Drawn back to 40 km, the view is made of the far-view tiles, with nothing failed.
     let shown: Vec<u8> = report["far"]["shownZooms"]
         .as_object()
@@ -129,6 +127,7 @@ async fn both_viewers_open_on_the_data_of_a_server_of_another_region() {
         render_threads: 2,
         ..Config::default().server
     };
+    let _turn = common::browser_turn().await;
     let server =
         TestServer::start_with(&dir.path().join("cache.sqlite"), sources, &server_config).await;
     let report = browser_check(

@@ -1,7 +1,7 @@
 //! Roofs on real tiles: the straight skeleton of every building footprint, and pitched roofs
 //! where the tags (or the kind of building) ask for them.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 use std::path::PathBuf;

@@ -5,7 +5,7 @@
 //!
 //! The diffs are written by `scripts/osm_diff.py` (pyosmium), with the changed extract.
 
-mod common;
+use crate::common;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -13,6 +13,7 @@ use std::process::Output;
 
 use common::{sample_osm, terrastitch};
 use sha2::{Digest, Sha256};
+use terrastitch::cache::{SqliteStore, TileFilter, TileStore};
 
 /// Monaco's tiles: every tile the bundled extract reaches.
 const AREA: &str = "7.37,43.72,7.45,43.76";
@@ -65,35 +66,42 @@ fn update(store: &Path, osc: &Path) -> Output {
         .unwrap()
 }
 
-/// The digest of each of the area's tiles made from `store` (imported from `extract`).
+/// The digest of each of the area's tiles made from `store` (imported from `extract`), by
+/// `seed` into a cache of its own in `dir`.
 fn tiles(store: &Path, extract: &Path, dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    let out = dir.join("tiles");
+    std::fs::create_dir_all(dir).unwrap();
+    let cache = dir.join("cache.sqlite");
     run(terrastitch()
-        .arg("export")
-        .arg("--bbox")
-        .arg(AREA)
-        .arg("--store")
+        .args(["seed", "--bbox", AREA, "--format", "glb", "--store"])
         .arg(store)
         .arg("--osm")
         .arg(extract)
         .arg("--cache")
-        .arg(dir.join("cache.sqlite"))
-        .arg("-o")
-        .arg(format!("{}/", out.display())));
-    let mut found = BTreeMap::new();
-    for x in std::fs::read_dir(out.join("14")).unwrap() {
-        let x = x.unwrap();
-        for y in std::fs::read_dir(x.path()).unwrap() {
-            let y = y.unwrap().path();
-            let name = format!(
-                "14/{}/{}",
-                x.file_name().to_string_lossy(),
-                y.file_stem().unwrap().to_string_lossy()
-            );
-            found.insert(name, Sha256::digest(std::fs::read(&y).unwrap()).to_vec());
-        }
-    }
-    found
+        .arg(&cache));
+    let made = SqliteStore::open(&cache, None).unwrap();
+    let entries = made.list(&TileFilter::All).unwrap();
+    assert!(!entries.is_empty(), "the area has tiles");
+    entries
+        .into_iter()
+        .map(|entry| {
+            let tile = made.get(&entry.key).unwrap().expect("a listed tile is stored");
+            // The stored tile's strong validator is the digest of its bytes.
+            (entry.key.tile.to_string(), tile.etag.into_bytes())
+        })
+        .collect()
+}
+
+/// The area's tiles from a store imported from the bundled extract: made once a run, as every
+/// diff of it starts from them.
+fn tiles_of_the_sample() -> BTreeMap<String, Vec<u8>> {
+    static MADE: std::sync::OnceLock<BTreeMap<String, Vec<u8>>> = std::sync::OnceLock::new();
+    MADE.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let store = dir.path().join("osm.sqlite");
+        import(&store, &sample_osm());
+        tiles(&store, &sample_osm(), &dir.path().join("tiles"))
+    })
+    .clone()
 }
 
 fn file_digest(path: &Path) -> Vec<u8> {
@@ -134,7 +142,10 @@ fn restore(cut: &str, bring: &str) -> Outcome {
 fn check(dir: &Path, base: &Path, osc: &Path, changed: &Path) -> Outcome {
     let store = dir.join("osm.sqlite");
     import(&store, base);
-    let before = tiles(&store, base, &dir.join("before"));
+    let before = match base == sample_osm() {
+        true => tiles_of_the_sample(),
+        false => tiles(&store, base, &dir.join("before")),
+    };
 
     let output = update(&store, osc);
     assert!(output.status.success(), "{}", stderr(&output));
@@ -229,6 +240,11 @@ fn a_relation_whose_ways_were_missing_is_found_when_a_diff_brings_them() {
 #[test]
 fn many_changes_expire_every_tile_they_change() {
     let outcome = apply("many:300");
+    assert!(
+        outcome.changed.len() > 1,
+        "300 changes changed {:?}",
+        outcome.changed
+    );
     assert!(
         outcome.changed.is_subset(&outcome.expired),
         "changed {:?}, expired {:?}",
@@ -362,16 +378,27 @@ fn replication_killed_midway_resumes_after_the_last_diff_applied() {
     assert!(catch_up(&whole, &source).wait().unwrap().success());
     assert_eq!(sequence_of(&whole), Some(4));
 
+    // The second diff is a pipe no one writes to: the run applies the first, then waits on
+    // the second until it is killed.
+    let second = source.join("000/000/002.osc.gz");
+    let kept = source.join("002.osc.gz.kept");
+    std::fs::rename(&second, &kept).unwrap();
+    let fifo = std::ffi::CString::new(second.to_str().unwrap()).unwrap();
+    // SAFETY: mkfifo reads a NUL-terminated path and creates a file.
+    assert_eq!(unsafe { libc::mkfifo(fifo.as_ptr(), 0o600) }, 0);
     let mut child = catch_up(&store, &source);
-    let started = std::time::Instant::now();
-    while sequence_of(&store).unwrap_or(0) < 1 {
-        assert!(started.elapsed().as_secs() < 120, "no diff applied");
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
+    common::wait_for("the first diff to be applied", || {
+        (sequence_of(&store).unwrap_or(0) >= 1).then_some(())
+    });
     child.kill().unwrap();
     child.wait().unwrap();
-    let reached = sequence_of(&store).unwrap();
-    assert!(reached < 4, "the run was cut short (it reached {reached})");
+    assert_eq!(
+        sequence_of(&store),
+        Some(1),
+        "the run was cut after the first diff"
+    );
+    std::fs::remove_file(&second).unwrap();
+    std::fs::rename(&kept, &second).unwrap();
 
     assert!(catch_up(&store, &source).wait().unwrap().success());
     assert_eq!(sequence_of(&store), Some(4));
@@ -554,14 +581,9 @@ fn a_server_applies_its_replication_diffs_and_remakes_exactly_the_expired_tiles(
         }
     }
     let child = Stop(child);
-    let started = std::time::Instant::now();
-    while request(&address, "/ready", &[]).0 != 200 {
-        assert!(
-            started.elapsed().as_secs() < 120,
-            "the server never got ready"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(100));
-    }
+    common::wait_for("the server to become ready", || {
+        (request(&address, "/ready", &[]).0 == 200).then_some(())
+    });
     let get = |tile: &str| {
         let (status, head, body) = request(&address, &format!("/tiles/{tile}.glb"), &[]);
         assert_eq!(status, 200, "{head}");
@@ -573,18 +595,10 @@ fn a_server_applies_its_replication_diffs_and_remakes_exactly_the_expired_tiles(
     let (_, far_before) = get(far);
 
     set_state(&source, 1);
-    let started = std::time::Instant::now();
-    loop {
+    common::wait_for("the bridge's tile to be made again", || {
         let (_, body) = get(near);
-        if body != near_before {
-            break;
-        }
-        assert!(
-            started.elapsed().as_secs() < 120,
-            "the bridge's tile was never made again"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(250));
-    }
+        (body != near_before).then_some(())
+    });
     assert_eq!(sequence_of(&store), Some(1));
     let (head, body) = get(far);
     assert_eq!(body, far_before, "a far tile keeps its bytes");

@@ -1,7 +1,7 @@
 //! The `terrastitch` binary: corrupt data files stop it with a named error, and `render`
 //! writes a tile.
 
-mod common;
+use crate::common;
 
 use common::terrastitch;
 

@@ -2,7 +2,7 @@
 //! answers, whatever makes the tiles. No render runs, and nothing depends on how long anything
 //! takes: a tile whose making must last is held at a gate the test opens.
 
-mod common;
+use crate::common;
 
 use std::collections::HashSet;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
@@ -234,6 +234,24 @@ async fn a_304_only_for_the_coding_asked() {
     server.stop().await;
 }
 
+/// Waits until the server's metrics say `count` requests wait for tiles; a bound that means
+/// it hung.
+async fn waiting_requests_reach(server: &TestServer, count: usize) {
+    let line = format!("terrastitch_tile_requests_waiting {count}\n");
+    let bound = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    loop {
+        let metrics = server.get("/metrics", &[]).await.text().await.unwrap();
+        if metrics.contains(&line) {
+            return;
+        }
+        assert!(
+            std::time::Instant::now() < bound,
+            "never {count} requests waiting:\n{metrics}"
+        );
+        tokio::time::sleep(std::time::Duration::from_millis(10)).await;
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn requests_for_one_cold_tile_share_one_make() {
     let fake = Arc::new(Fake::default());
@@ -243,6 +261,9 @@ async fn requests_for_one_cold_tile_share_one_make() {
         .map(|_| tokio::spawn(reqwest::get(server.url(&path(tile(1))))))
         .collect();
     started.recv().await;
+    // Every request is in before the make may end: without one flight, each would start its
+    // own make, all held at the gate.
+    waiting_requests_reach(&server, 20).await;
     fake.open();
     for request in requests {
         let response = request.await.unwrap().unwrap();

@@ -1,7 +1,7 @@
 //! The road network of a real tile: ways cut back where they meet and joined by junction
 //! polygons, so road surfaces do not overlap.
 
-mod common;
+use crate::common;
 
 use common::{sample_osm, sample_srtm};
 use terrastitch::features::{self, roads, FeatureClass, FeatureSet, Surface};
