@@ -4,7 +4,7 @@
 
 use std::io::Write;
 
-use axum::body::Bytes;
+use bytes::Bytes;
 
 /// A content coding of a response body.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

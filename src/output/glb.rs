@@ -25,7 +25,6 @@ use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
 use serde_json::{json as value, Value};
 
-use crate::features::vegetation::TreeKind;
 use crate::features::{FeatureClass, FeatureInfo};
 use crate::format::{Frame, Variant};
 use crate::geoid::VerticalDatum;
@@ -34,6 +33,9 @@ use crate::mesh::models::Model;
 use crate::mesh::{MeshBuffers, Part};
 use crate::output::enu::EastNorthUp;
 use crate::tile::{LonLatBounds, TileId};
+use materials::{material_of, metallic_of};
+
+mod materials;
 
 /// Credit shown wherever tiles are shown.
 pub const ATTRIBUTION: &str = "© OpenStreetMap contributors, SRTM: NASA/USGS";
@@ -274,15 +276,6 @@ impl BinaryBuilder {
     }
 }
 
-/// The metallic factor, set on every material (glTF's default is 1): only metal and glass
-/// finishes of buildings differ from 0.
-fn metallic_of(part: Part) -> f32 {
-    match part {
-        Part::BuildingWalls(finish) | Part::BuildingRoofs(finish) => finish.metallic_roughness().0,
-        _ => 0.0,
-    }
-}
-
 fn floats_to_bytes(values: impl Iterator<Item = f32>) -> Vec<u8> {
     values.flat_map(f32::to_le_bytes).collect()
 }
@@ -336,37 +329,6 @@ fn reordered(buffers: &MeshBuffers) -> MeshBuffers {
         out.colours = order.iter().map(|&i| buffers.colours[i]).collect();
     }
     out
-}
-
-/// Base colour, roughness per part.
-fn material_of(part: Part) -> ([f32; 4], f32) {
-    match part {
-        Part::Terrain => ([0.42, 0.52, 0.30, 1.0], 0.95),
-        Part::Road(paving) => paving.material(),
-        Part::Railway => ([0.45, 0.40, 0.35, 1.0], 0.95),
-        Part::Water => ([0.16, 0.36, 0.62, 1.0], 0.15),
-        Part::LandCover(cover) => cover.material(),
-        Part::BuildingWalls(finish) => ([0.86, 0.80, 0.70, 1.0], finish.metallic_roughness().1),
-        Part::BuildingRoofs(finish) => ([0.62, 0.36, 0.30, 1.0], finish.metallic_roughness().1),
-        Part::TreeTrunk => ([0.22, 0.15, 0.09, 1.0], 0.95),
-        Part::Barrier(kind) => kind.material(),
-        Part::Object(kind) => kind.material(),
-        Part::PowerLine => ([0.12, 0.12, 0.13, 1.0], 0.5),
-        Part::Stairs => ([0.66, 0.64, 0.60, 1.0], 0.9),
-        Part::BridgeDeck(Some(paving)) | Part::TunnelFloor(Some(paving)) => paving.material(),
-        Part::BridgeDeck(None) | Part::TunnelFloor(None) => material_of(Part::Railway),
-        Part::BridgeStructure => ([0.58, 0.57, 0.55, 1.0], 0.9),
-        Part::TunnelLining => ([0.50, 0.49, 0.47, 1.0], 0.9),
-        Part::TunnelPortal => ([0.02, 0.02, 0.02, 1.0], 1.0),
-        Part::TreeCrown(kind, shade) => {
-            let shade = f32::from(shade.min(2));
-            let rgb = match kind {
-                TreeKind::Broadleaved => [0.12 + 0.04 * shade, 0.30 + 0.05 * shade, 0.08],
-                TreeKind::Needleleaved => [0.06 + 0.02 * shade, 0.20 + 0.04 * shade, 0.10],
-            };
-            ([rgb[0], rgb[1], rgb[2], 1.0], 0.9)
-        }
-    }
 }
 
 /// Writes a tile's parts and feature table as glb bytes, in the frame and with the
@@ -1001,60 +963,4 @@ pub fn container(json_bytes: &[u8], binary: &[u8]) -> Vec<u8> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A corner as the bits of its position and normal, and its feature.
-    type Corner = ([u32; 3], [u32; 3], u32);
-
-    /// Triangles as their corners, from the first corner in order.
-    fn triangles(b: &MeshBuffers) -> Vec<[Corner; 3]> {
-        let mut out: Vec<_> = b
-            .indices
-            .chunks_exact(3)
-            .map(|t| {
-                let mut corners = [0, 1, 2].map(|k| {
-                    let v = t[k] as usize;
-                    (
-                        b.positions[v].map(f32::to_bits),
-                        b.normals[v].map(f32::to_bits),
-                        b.feature_ids[v],
-                    )
-                });
-                let first = (0..3).min_by_key(|&k| corners[k]).unwrap_or(0);
-                corners.rotate_left(first);
-                corners
-            })
-            .collect();
-        out.sort();
-        out
-    }
-
-    fn fan(unused: usize) -> MeshBuffers {
-        let mut b = MeshBuffers::default();
-        for _ in 0..unused {
-            b.push_vertex([9.0, 9.0, 9.0], [0.0, 1.0, 0.0], 7);
-        }
-        let centre = b.push_vertex([0.0, 0.32, 0.0], [0.0, -1.0, 0.0], 1);
-        let ring: Vec<u32> = (0..12)
-            .map(|i| {
-                let a = f64::from(i) * std::f64::consts::TAU / 12.0;
-                b.push_vertex([a.cos(), 0.4, a.sin()], [a.cos(), -0.5, a.sin()], i % 3)
-            })
-            .collect();
-        for i in 0..12 {
-            b.indices.extend([centre, ring[i], ring[(i + 1) % 12]]);
-        }
-        b
-    }
-
-    #[test]
-    fn reordering_keeps_every_triangle_and_drops_unused_vertices() {
-        for unused in [0, 3] {
-            let b = fan(unused);
-            let r = reordered(&b);
-            assert_eq!(triangles(&b), triangles(&r));
-            assert_eq!(r.positions.len(), 13);
-        }
-    }
-}
+mod tests;

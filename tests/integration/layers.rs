@@ -100,6 +100,74 @@ const ALLOWED: &[(&str, &[&str])] = &[
     ),
 ];
 
+/// External crates only some places may use, and those places (a file, or a folder ending
+/// in `/`, under `src/`). The web stack stays in the server, the command line's crates in
+/// `cli`, each database client in its store, each file format's reader in its reader, and the
+/// pure core (`tile` … `render`) uses no crate that does I/O. Crates not named here (serde,
+/// thiserror, tracing, sha2, …) may be used anywhere.
+const CRATES: &[(&str, &[&str])] = &[
+    ("axum", &["server/"]),
+    ("hyper", &["server/"]),
+    ("hyper_util", &["server/"]),
+    ("http_body_util", &["server/"]),
+    ("tower", &["server/"]),
+    ("tower_http", &["server/"]),
+    ("clap", &["cli/"]),
+    ("indicatif", &["cli/"]),
+    ("tracing_subscriber", &["cli/"]),
+    ("anyhow", &["cli/", "main.rs"]),
+    ("figment", &["config.rs"]),
+    (
+        "tokio",
+        &[
+            "server/",
+            "cli/serve.rs",
+            "cache/mod.rs",
+            "cache/flight.rs",
+            "cache/postgres/",
+        ],
+    ),
+    ("postgres", &["cache/postgres/", "cache/store.rs"]),
+    (
+        "rusqlite",
+        &[
+            "cache/sqlite.rs",
+            "cache/mbtiles.rs",
+            "cache/store.rs",
+            "source/store/",
+            "offline/export.rs",
+        ],
+    ),
+    ("pmtiles", &["cache/pmtiles.rs", "offline/export.rs"]),
+    ("ureq", &["source/fetch.rs", "cli/update.rs"]),
+    ("osmpbf", &["source/osm_pbf.rs", "source/store/"]),
+    ("quick_xml", &["source/osc.rs"]),
+    ("zip", &["source/srtm.rs"]),
+    ("tiff", &["source/geotiff.rs"]),
+    ("flate2", &["inflate.rs", "cache/", "source/"]),
+    ("brotli", &["inflate.rs", "cache/"]),
+    (
+        "moka",
+        &[
+            "cache/",
+            "server/",
+            "source/srtm.rs",
+            "elevation/solutions.rs",
+        ],
+    ),
+    ("good_lp", &["elevation/lp.rs"]),
+    ("gltf_json", &["output/glb.rs"]),
+    ("meshopt", &["output/glb.rs"]),
+    (
+        "libc",
+        &[
+            "server/memory.rs",
+            "server/connections.rs",
+            "provider/osm_source.rs",
+        ],
+    ),
+];
+
 /// Modules the library declares that no layer above may skip: `lib.rs` and `main.rs` wire
 /// everything and are not checked.
 const ROOTS: &[&str] = &["lib", "main"];
@@ -119,20 +187,87 @@ fn rust_files(dir: &Path, found: &mut Vec<PathBuf>) {
     }
 }
 
-/// The code of a file without its line comments and without the tests beside it.
+/// The code of a file without its line comments and without the tests beside it: each item
+/// under `#[cfg(test)]` (a `mod tests { … }`, a helper) is left out, and everything after it
+/// is read.
 fn code_of(text: &str) -> String {
-    let without_tests = match text.find("#[cfg(test)]") {
-        Some(at) => &text[..at],
-        None => text,
-    };
-    without_tests
-        .lines()
+    let mut kept = String::new();
+    let mut rest = text;
+    while let Some(at) = rest.find("#[cfg(test)]") {
+        kept.push_str(&rest[..at]);
+        rest = &rest[at + "#[cfg(test)]".len()..];
+        rest = &rest[item_end(rest)..];
+    }
+    kept.push_str(rest);
+    kept.lines()
         .map(|line| match line.find("//") {
             Some(at) => &line[..at],
             None => line,
         })
         .collect::<Vec<_>>()
         .join("\n")
+}
+
+/// Where the item at the start of `code` ends (a byte offset): after its `;` if it has no
+/// body, else after the brace that closes its body. Braces in comments and in string and
+/// character literals do not count.
+fn item_end(code: &str) -> usize {
+    let chars: Vec<(usize, char)> = code.char_indices().collect();
+    let at = |i: usize| chars.get(i).map(|&(_, c)| c);
+    let mut depth = 0usize;
+    let mut i = 0;
+    while let Some(c) = at(i) {
+        match c {
+            ';' if depth == 0 => return chars[i].0 + 1,
+            '{' => depth += 1,
+            '}' => {
+                depth = depth.saturating_sub(1);
+                if depth == 0 {
+                    return chars[i].0 + 1;
+                }
+            }
+            '/' if at(i + 1) == Some('/') => {
+                while at(i).is_some_and(|c| c != '\n') {
+                    i += 1;
+                }
+            }
+            '/' if at(i + 1) == Some('*') => {
+                i += 2;
+                while at(i).is_some() && !(at(i) == Some('*') && at(i + 1) == Some('/')) {
+                    i += 1;
+                }
+                i += 1;
+            }
+            'r' if matches!(at(i + 1), Some('#' | '"')) => {
+                let hashes = (i + 1..).take_while(|&j| at(j) == Some('#')).count();
+                if at(i + 1 + hashes) == Some('"') {
+                    i += 2 + hashes;
+                    while at(i).is_some()
+                        && !(at(i) == Some('"') && (1..=hashes).all(|h| at(i + h) == Some('#')))
+                    {
+                        i += 1;
+                    }
+                    i += hashes;
+                }
+            }
+            '"' => {
+                i += 1;
+                while at(i).is_some_and(|c| c != '"') {
+                    i += if at(i) == Some('\\') { 2 } else { 1 };
+                }
+            }
+            '\'' if at(i + 1) == Some('\\') => {
+                i += 2;
+                while at(i).is_some_and(|c| c != '\'') {
+                    i += 1;
+                }
+            }
+            '\'' if at(i + 2) == Some('\'') => i += 2,
+            _ => {}
+        }
+        i += 1;
+    }
+    code.len()
 }
 
 /// The first names after each `prefix` (`crate::` or `super::`), brace groups opened:
@@ -205,10 +340,12 @@ struct Imports {
     within: BTreeMap<String, BTreeMap<String, BTreeSet<String>>>,
 }
 
-/// Every `.rs` file under `src/`, by its path relative to `src/`, with its text.
+/// Every `.rs` file under `src/`, by its path relative to `src/`, with its text; the files of
+/// tests beside the code (`tests.rs`, declared under `#[cfg(test)]`) are left out.
 fn sources() -> Vec<(String, String)> {
     let mut files = Vec::new();
     rust_files(&src(), &mut files);
+    files.retain(|path| path.file_name().is_none_or(|name| name != "tests.rs"));
     files.sort();
     files
         .iter()
@@ -298,6 +435,23 @@ fn allowed(module: &str) -> Option<&'static [&'static str]> {
 }
 
 #[test]
+fn files_named_tests_are_tests_beside_the_code() {
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    for path in files.iter().filter(|p| p.ends_with("tests.rs")) {
+        let parent = path.parent().unwrap().with_extension("rs");
+        let text = std::fs::read_to_string(&parent).unwrap_or_default();
+        assert!(
+            text.contains("#[cfg(test)]\nmod tests;")
+                || text.contains("#[cfg(test)]\npub(crate) mod tests;"),
+            "{} is not declared under #[cfg(test)] in {}",
+            path.display(),
+            parent.display()
+        );
+    }
+}
+
+#[test]
 fn every_module_imports_only_the_layers_below_it() {
     let back_edges = back_edges(&imports(&sources()));
     assert!(
@@ -334,6 +488,88 @@ fn a_module_outside_the_layers_is_named() {
     assert_eq!(
         back_edges(&imports(&files)),
         ["shortcuts has no place in the layers of tests/layers.rs"]
+    );
+}
+
+/// The uses of the crates of [`CRATES`] outside their places, one line each.
+fn crate_uses(files: &[(String, String)]) -> Vec<String> {
+    let mut found = Vec::new();
+    for (path, text) in files {
+        let code = code_of(text);
+        for (name, places) in CRATES {
+            let allowed = places.iter().any(|place| match place.strip_suffix('/') {
+                Some(folder) => path.starts_with(&format!("{folder}/")),
+                None => path == place,
+            });
+            if !allowed && names_crate(&code, name) {
+                found.push(format!("{path} uses {name}"));
+            }
+        }
+    }
+    found.sort();
+    found
+}
+
+/// Whether `code` names the external crate `name`: `name::…`, `use name;` or `use name as …`,
+/// not as part of a longer path (`super::name::`) and not where a module of the file has
+/// that name.
+fn names_crate(code: &str, name: &str) -> bool {
+    if code.contains(&format!("mod {name};")) || code.contains(&format!("mod {name} {{")) {
+        return false;
+    }
+    let whole = |at: usize| {
+        let before = code[..at].chars().next_back();
+        !before.is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':')
+    };
+    let path = format!("{name}::");
+    code.match_indices(&path).any(|(at, _)| whole(at))
+        || [format!("use {name};"), format!("use {name} as")]
+            .iter()
+            .any(|form| code.match_indices(form.as_str()).any(|(at, _)| whole(at)))
+}
+
+#[test]
+fn external_crates_are_used_only_where_their_layer_allows() {
+    let uses = crate_uses(&sources());
+    assert!(
+        uses.is_empty(),
+        "crates used outside their places (tests/layers.rs, CRATES):\n{}",
+        uses.join("\n")
+    );
+}
+
+#[test]
+fn a_web_crate_in_the_core_and_a_database_client_beside_its_store_are_found() {
+    let mut files = sources();
+    files.push((
+        "elevation/remote.rs".into(),
+        "use tokio::net::TcpStream;\nfn f() -> axum::body::Bytes { todo!() }\n".into(),
+    ));
+    files.push((
+        "cache/quota.rs".into(),
+        "use postgres as pg;\nfn f(x: super::postgres::Store) {}\n".into(),
+    ));
+    assert_eq!(
+        crate_uses(&files),
+        [
+            "cache/quota.rs uses postgres",
+            "elevation/remote.rs uses axum",
+            "elevation/remote.rs uses tokio",
+        ]
+    );
+}
+
+#[test]
+fn code_after_the_tests_beside_it_is_still_read() {
+    let text = "fn a() {}\n#[cfg(test)]\nmod tests {\n    fn t() { let s = \"}\"; let c = '{'; }\n    // }\n}\nuse crate::mesh::Part;\n";
+    let code = code_of(text);
+    assert!(code.contains("use crate::mesh::Part;"), "{code}");
+    assert!(!code.contains("fn t()"), "{code}");
+    let mut files = sources();
+    files.push(("features/shapes.rs".into(), text.into()));
+    assert_eq!(
+        back_edges(&imports(&files)),
+        [r#"features → mesh (in {"features/shapes.rs"})"#]
     );
 }
 
