@@ -165,10 +165,15 @@ pub struct RoadProfiles {
     pub failed: usize,
 }
 
+/// The whole data's ways and the joints between them: what a way's junctions are drawn from.
+struct Network<'a> {
+    all_ways: &'a [Way],
+    joints: &'a Joints,
+}
+
 /// One way's stations before settling.
 struct Draft<'a> {
     way: &'a Way,
-    line: RoadLine,
     profile: WayProfile,
     stretches: Vec<Stretch>,
 }
@@ -193,8 +198,9 @@ pub fn settle(
     let mut drafts: Vec<Draft> = Vec::new();
 
     let joints = &graph.joints;
+    let network = Network { all_ways, joints };
     for &way in ways {
-        let Some(mut draft) = draft(way, joints, terrain, projection, settings) else {
+        let Some(mut draft) = draft(way, &network, terrain, projection, settings) else {
             continue;
         };
         let bridges = graph
@@ -202,15 +208,12 @@ pub fn settle(
             .get(&way.id)
             .map_or(&[][..], Vec::as_slice);
         let under = under_bridges(&draft.profile, bridges, terrain, projection);
-        let cuts = junction_cuts(&draft, all_ways, joints, projection, settings);
-        let metre = draft.line.metre;
         for stretch in std::mem::take(&mut draft.stretches) {
             let near = Rect::around(&draft.profile.points[stretch.stations.clone()]);
             if !near.intersects(&area) {
                 continue;
             }
             out.stretches += 1;
-            let (start, end) = stretch.nodes;
             let stations = stretch.stations.clone();
             let stretch = Stretch {
                 under: under
@@ -220,11 +223,6 @@ pub fn settle(
                     })
                     .copied()
                     .collect(),
-                fixed: [start, end].map(|i| joints.contains_key(&draft.line.nodes[i])),
-                level: [
-                    level_length(&cuts, start, true, metre),
-                    level_length(&cuts, end, false, metre),
-                ],
                 ..stretch
             };
             if let Some(first) = add_stretch(&mut builder, &mut draft, &stretch) {
@@ -265,12 +263,14 @@ pub fn settle(
 /// them at most [`STATION_SPACING_M`] apart.
 fn draft<'a>(
     way: &'a Way,
-    joints: &Joints,
+    network: &Network,
     terrain: &dyn Elevation,
     projection: &Projection,
     settings: &FeatureSettings,
 ) -> Option<Draft<'a>> {
+    let joints = network.joints;
     let line = road_line(way, projection, settings)?;
+    let cuts = junction_cuts(way, &line, network.all_ways, joints, projection, settings);
     let step = STATION_SPACING_M * line.metre;
     let node_along = distances_along(&line.points);
     // The point at a distance along the line.
@@ -290,8 +290,22 @@ fn draft<'a>(
         }
         let drawn = road_network::stretch_line(&line.points[start..=k], line.half_width);
         let origin = node_along[start];
+        let length = node_along[k] - origin;
+        let fixed = [start, k].map(|i| joints.contains_key(&line.nodes[i]));
+        // The level parts at the joints, each ending at a station of its own (no further than
+        // halfway): the road leaves the level part where the junction's polygon ends.
+        let level = [
+            level_length(&cuts, start, true, line.metre),
+            level_length(&cuts, k, false, line.metre),
+        ]
+        .map(|l| l.min(length / 2.0));
         let mut breaks: Vec<f64> = node_along[start..=k].iter().map(|a| a - origin).collect();
         breaks.extend(drawn.bends.iter().flat_map(|&(a, b)| [a, b]));
+        for (end, at) in [(0, level[0]), (1, length - level[1])] {
+            if fixed[end] && level[end] > 0.0 {
+                breaks.push(at);
+            }
+        }
         breaks.sort_by(f64::total_cmp);
         breaks.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
         let first = points.len().saturating_sub(1);
@@ -310,11 +324,10 @@ fn draft<'a>(
             along.push(origin + s);
         }
         stretches.push(Stretch {
-            nodes: (start, k),
             stations: first..points.len(),
             runs_m: drawn_runs(&drawn, &relative, line.metre),
-            fixed: [false; 2],
-            level: [0.0; 2],
+            fixed,
+            level,
             under: Vec::new(),
         });
         start = k;
@@ -329,7 +342,6 @@ fn draft<'a>(
             points,
             along,
         },
-        line,
         stretches,
     })
 }
@@ -337,14 +349,14 @@ fn draft<'a>(
 /// How far the network cuts the way back at each of its junctions, drawn from the way and
 /// every ground road through its joints.
 fn junction_cuts(
-    draft: &Draft,
+    way: &Way,
+    line: &RoadLine,
     all_ways: &[Way],
     joints: &Joints,
     projection: &Projection,
     settings: &FeatureSettings,
 ) -> Vec<Cut> {
-    let mut others: Vec<u32> = draft
-        .line
+    let mut others: Vec<u32> = line
         .nodes
         .iter()
         .filter_map(|node| joints.get(node))
@@ -353,12 +365,12 @@ fn junction_cuts(
         .collect();
     others.sort_unstable();
     others.dedup();
-    let mut lines = vec![draft.line.clone()];
+    let mut lines = vec![line.clone()];
     lines.extend(
         others
             .into_iter()
             .filter_map(|i| all_ways.get(i as usize))
-            .filter(|w| w.id != draft.way.id)
+            .filter(|w| w.id != way.id)
             .filter_map(|w| road_line(w, projection, settings)),
     );
     road_network::cuts(&lines, 0)
@@ -388,14 +400,13 @@ fn drawn_runs(drawn: &StretchLine, relative: &[f64], metre: f64) -> Vec<f64> {
 
 /// A stretch of a way between two joints (or its ends).
 struct Stretch {
-    /// Its first and last point in the way's line.
-    nodes: (usize, usize),
     stations: std::ops::Range<usize>,
     /// Length of the drawn road from each station to the next, metres.
     runs_m: Vec<f64>,
     /// Whether each end is a joint, held at the terrain.
     fixed: [bool; 2],
-    /// Length of the level part at each end, tile units.
+    /// Length of the level part at each end, tile units (no more than half the stretch; a
+    /// station ends each).
     level: [f64; 2],
     /// Where bridges pass over it.
     under: Vec<Under>,
@@ -460,12 +471,14 @@ fn add_stretch(
     let length = profile.along[s1] - profile.along[s0];
     let along = &profile.along;
     let terrain = &profile.terrain;
-    // The level parts reach no more than halfway.
+    // The stations within the level parts (the one that ends each included: its distance
+    // was added to the way's, so it may be off by a rounding).
+    let reach = |end: usize| stretch.level[end].min(length / 2.0) * (1.0 + 1e-9);
     let level_at = |i: usize| -> Option<f64> {
         let (from_start, from_end) = (along[i] - along[s0], along[s1] - along[i]);
-        if stretch.fixed[0] && (i == s0 || from_start <= stretch.level[0].min(length / 2.0)) {
+        if stretch.fixed[0] && (i == s0 || from_start <= reach(0)) {
             Some(terrain[s0])
-        } else if stretch.fixed[1] && (i == s1 || from_end < stretch.level[1].min(length / 2.0)) {
+        } else if stretch.fixed[1] && (i == s1 || from_end <= reach(1)) {
             Some(terrain[s1])
         } else {
             None
@@ -727,9 +740,18 @@ mod tests {
             .violations
             .iter()
             .all(|r| r.way == 1 && r.kind == ConstraintKind::TaggedIncline));
+        // The other ways keep the terrain, but for their level parts at the junctions.
         for id in [2, 3, 4] {
             let profile = &settled.profiles[&id];
-            assert_eq!(profile.elevations, profile.terrain, "way {id}");
+            let ends = [profile.terrain[0], *profile.terrain.last().unwrap()];
+            for (i, (&h, &t)) in profile.elevations.iter().zip(&profile.terrain).enumerate() {
+                assert!(
+                    h == t || ends.contains(&h),
+                    "way {id} station {i}: {h} against the terrain's {t}"
+                );
+            }
+            let kept = profile.elevations.iter().zip(&profile.terrain);
+            assert!(kept.filter(|(h, t)| h == t).count() * 2 > profile.terrain.len());
         }
         let profile = &settled.profiles[&1];
         assert_eq!(profile.elevations[0], 10.0);
@@ -771,10 +793,21 @@ mod tests {
             cut > 3.0 * profile.metre,
             "the primary's half width, at least"
         );
+        let level = profile.terrain[0];
+        let reach = cut + (LEVEL_BEYOND_CUT_M + 0.1) * profile.metre;
+        let within = profile.along.iter().filter(|&&a| a <= reach).count();
+        assert!(within >= 2, "a station ends the level part beyond the node");
         for (i, &along) in profile.along.iter().enumerate() {
             if along <= cut {
-                assert_eq!(profile.elevations[i], profile.terrain[0], "station {i}");
+                assert_eq!(profile.elevations[i], level, "station {i}");
             }
+        }
+        // Between the stations too: level all the way to the cut and a little beyond.
+        let beyond = cut + 0.4 * profile.metre;
+        for k in 0..=20 {
+            let along = beyond * f64::from(k) / 20.0;
+            let h = profile.at(along);
+            assert!((h - level).abs() < 1e-9, "{h} at {along} of the cut {cut}");
         }
         let steepest = grades(profile)
             .into_iter()

@@ -159,7 +159,8 @@ fn constraint_feature(report: &ConstraintReport, layer: &str, satisfied: bool, n
     })
 }
 
-/// The ground roads whose profiles left the terrain (by half a centimetre, as written), in
+/// The ground roads whose profiles left the terrain (at some station, to the centimetre they
+/// are written to), in
 /// order of way id.
 fn push_road_profiles(features: &mut Vec<Value>, roads: &RoadProfiles, n: f64) {
     let mut road_ids: Vec<&i64> = roads.profiles.keys().collect();
@@ -170,7 +171,7 @@ fn push_road_profiles(features: &mut Vec<Value>, roads: &RoadProfiles, n: f64) {
             .elevations
             .iter()
             .zip(&profile.terrain)
-            .any(|(e, t)| (e - t).abs() >= 0.005);
+            .any(|(&e, &t)| centimetres(e) != centimetres(t));
         if !left {
             continue;
         }

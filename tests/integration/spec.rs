@@ -334,9 +334,6 @@ fn roads_meeting_at_a_junction_share_its_level() {
 }
 
 #[test]
-#[ignore = "a road leaves its junction at its grade from the node, not level over the cut: \
-            its profile has no station within the level part, and the drawn road steps \
-            0.16 to 0.5 m at the junction's edge"]
 fn a_road_leaves_its_junction_without_a_step() {
     let Junction {
         profiles,
