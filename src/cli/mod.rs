@@ -114,9 +114,12 @@ fn open_renderer(config: &Config) -> Result<Renderer> {
     Ok(renderer)
 }
 
+/// A tile store, with the processes sharing it when it is shared.
+type Store = (Arc<dyn TileStore>, Option<Arc<Cluster>>);
+
 /// The tile store a configuration names: its PostgreSQL database (`cache.url`), with the
 /// cluster that shares it, else its SQLite file.
-fn open_store(config: &Config) -> Result<(Arc<dyn TileStore>, Option<Arc<Cluster>>)> {
+fn open_store(config: &Config) -> Result<Store> {
     let cap = (config.cache.max_size_mib > 0).then(|| config.cache.max_size_mib * 1024 * 1024);
     let url = config.cache.url.trim();
     if url.is_empty() {

@@ -504,3 +504,22 @@ async fn futures_join<T: Send + 'static>(
     }
     out
 }
+
+#[test]
+#[should_panic(expected = "the validator reported on other files than asked")]
+fn a_validator_that_stopped_before_its_reports_passes_nothing() {
+    common::check_validator_run(Some(1), &[std::path::Path::new("a.glb")], &[]);
+}
+
+#[test]
+#[should_panic(expected = "the validator exited with Some(1)")]
+fn a_validator_that_crashed_after_its_reports_passes_nothing() {
+    let clean = common::Validation {
+        file: "a.glb".to_string(),
+        errors: 0,
+        warnings: 0,
+        messages: Vec::new(),
+        draw_calls: None,
+    };
+    common::check_validator_run(Some(1), &[std::path::Path::new("a.glb")], &[clean]);
+}
