@@ -84,7 +84,10 @@ fn tiles(store: &Path, extract: &Path, dir: &Path) -> BTreeMap<String, Vec<u8>> 
     entries
         .into_iter()
         .map(|entry| {
-            let tile = made.get(&entry.key).unwrap().expect("a listed tile is stored");
+            let tile = made
+                .get(&entry.key)
+                .unwrap()
+                .expect("a listed tile is stored");
             // The stored tile's strong validator is the digest of its bytes.
             (entry.key.tile.to_string(), tile.etag.into_bytes())
         })

@@ -751,7 +751,10 @@ static BROWSERS: tokio::sync::Semaphore = tokio::sync::Semaphore::const_new(2);
 
 /// The turn of one browser check; hold it while the page runs.
 pub async fn browser_turn() -> tokio::sync::SemaphorePermit<'static> {
-    BROWSERS.acquire().await.expect("the browsers' turns are never closed")
+    BROWSERS
+        .acquire()
+        .await
+        .expect("the browsers' turns are never closed")
 }
 
 /// A server on the bundled sample whose tile cache the browser checks of this run share (a
