@@ -86,14 +86,7 @@ impl Replica {
 
     /// A counter of `/metrics`.
     fn metric(&self, name: &str) -> f64 {
-        let (_, _, body) = self.get("/metrics");
-        String::from_utf8_lossy(&body)
-            .lines()
-            .find_map(|line| {
-                let (metric, value) = line.split_once(' ')?;
-                (metric == name).then(|| value.trim().parse().ok())?
-            })
-            .unwrap_or(0.0)
+        common::process::metric(&self.address, name).unwrap_or(0.0)
     }
 
     fn post_admin(&self, route: &str, body: &str) -> u16 {

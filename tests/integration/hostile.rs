@@ -188,11 +188,7 @@ fn a_render_past_its_memory_budget_fails_its_tile_and_the_server_lives() {
 }
 
 /// The tile requests a server has taken in, from its metrics.
-fn tile_requests(address: &str) -> u64 {
-    let (_, _, metrics) = request(address, "/metrics", &[]);
-    let text = String::from_utf8_lossy(&metrics).to_string();
-    text.lines()
-        .find_map(|l| l.strip_prefix("terrastitch_tile_requests_total "))
-        .and_then(|v| v.trim().parse().ok())
-        .unwrap_or_else(|| panic!("no tile request count in {text}"))
+fn tile_requests(address: &str) -> f64 {
+    common::process::metric(address, "terrastitch_tile_requests_total")
+        .expect("a count of tile requests in the metrics")
 }

@@ -607,12 +607,7 @@ fn a_server_applies_its_replication_diffs_and_remakes_exactly_the_expired_tiles(
     assert_eq!(body, far_before, "a far tile keeps its bytes");
     assert!(head.contains("x-cache: hit"), "{head}");
     // Of the two tiles stored, only the expired one was made again.
-    let (_, _, metrics) = request(&address, "/metrics", &[]);
-    let metrics = String::from_utf8_lossy(&metrics).into_owned();
-    let remade = metrics
-        .lines()
-        .find_map(|l| l.strip_prefix("terrastitch_regenerations_total "))
-        .map(str::trim);
-    assert_eq!(remade, Some("1"), "{metrics}");
+    let remade = common::process::metric(&address, "terrastitch_regenerations_total");
+    assert_eq!(remade, Some(1.0));
     drop(child);
 }

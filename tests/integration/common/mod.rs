@@ -307,13 +307,16 @@ impl TestServer {
             .text()
             .await
             .unwrap();
-        text.lines()
-            .find_map(|line| {
-                line.strip_prefix(name)
-                    .and_then(|rest| rest.trim().parse().ok())
-            })
-            .unwrap_or_else(|| panic!("metric {name} missing from:\n{text}"))
+        metric_in(&text, name).unwrap_or_else(|| panic!("metric {name} missing from:\n{text}"))
     }
+}
+
+/// The value of the unlabelled metric `name` in a Prometheus text.
+pub fn metric_in(text: &str, name: &str) -> Option<f64> {
+    text.lines().find_map(|line| {
+        let (metric, value) = line.split_once(' ')?;
+        (metric == name).then(|| value.trim().parse().ok())?
+    })
 }
 
 /// One primitive's vertices.

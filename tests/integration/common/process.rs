@@ -64,6 +64,12 @@ pub fn http_get(address: &str, path: &str) -> (u16, Vec<u8>) {
 }
 
 /// A GET over a plain socket with extra headers: the status, the header block and the body.
+/// The value of the unlabelled metric `name` in the `/metrics` of the server at `address`.
+pub fn metric(address: &str, name: &str) -> Option<f64> {
+    let (_, _, body) = request(address, "/metrics", &[]);
+    super::metric_in(&String::from_utf8_lossy(&body), name)
+}
+
 pub fn request(address: &str, path: &str, headers: &[(&str, &str)]) -> (u16, String, Vec<u8>) {
     let mut stream = std::net::TcpStream::connect(address).unwrap();
     let extra: String = headers
