@@ -9,6 +9,7 @@
 //! makes its replacement and swaps it in whole.
 
 pub mod archive;
+pub mod coordinator;
 pub mod encoding;
 mod flight;
 pub mod mbtiles;
@@ -25,10 +26,10 @@ use sha2::Digest;
 
 use crate::format::TileKey;
 pub use archive::{ArchiveStore, Contents};
+pub use coordinator::{Coordinator, Event, Local};
 use encoding::Bodies;
 pub use mbtiles::MbtilesStore;
 pub use pmtiles::PmtilesStore;
-pub use postgres::cluster::{Cluster, Event};
 pub use postgres::PostgresStore;
 pub use sqlite::SqliteStore;
 pub use store::{
@@ -136,9 +137,9 @@ pub struct TileCache {
     waiting: Arc<AtomicUsize>,
     /// Purges lately made, so a tile made again from before one is not stored after it.
     purges: Arc<Mutex<Purges>>,
-    /// The other processes sharing the store, when it is shared: a tile is claimed there
-    /// before it is made, and purges and new versions are told to them.
-    cluster: Option<Arc<Cluster>>,
+    /// How the processes sharing the store share its work: a tile is claimed before it is
+    /// made, and purges and new versions are told to the others.
+    coordinator: Arc<dyn Coordinator>,
 }
 
 /// How often a process waiting for another's render of a tile looks for it in the store.
@@ -213,7 +214,7 @@ impl TileCache {
             flights: Arc::default(),
             waiting: Arc::default(),
             purges: Arc::default(),
-            cluster: None,
+            coordinator: Arc::new(Local::new()),
         }
     }
 
@@ -223,17 +224,17 @@ impl TileCache {
         self.waiting.load(Ordering::SeqCst)
     }
 
-    /// The same cache, coordinating its renders, purges and new versions with the other
-    /// processes of `cluster`.
-    pub fn with_cluster(self, cluster: Arc<Cluster>) -> TileCache {
+    /// The same cache, its renders, purges and new versions coordinated by `coordinator` (a
+    /// new cache is the only process of its store).
+    pub fn coordinated_by(self, coordinator: Arc<dyn Coordinator>) -> TileCache {
         TileCache {
-            cluster: Some(cluster),
+            coordinator,
             ..self
         }
     }
 
-    pub fn cluster(&self) -> Option<&Arc<Cluster>> {
-        self.cluster.as_ref()
+    pub fn coordinator(&self) -> &Arc<dyn Coordinator> {
+        &self.coordinator
     }
 
     pub fn store(&self) -> &Arc<dyn TileStore> {
@@ -276,21 +277,18 @@ impl TileCache {
         E: std::error::Error + Send + Sync + 'static,
     {
         let store = self.store.clone();
-        let cluster = self.cluster.clone().filter(|_| keep);
+        let coordinator = self.coordinator.clone();
         let made_by = wanted.cloned().unwrap_or_default();
         let lookup_or_render = async move {
             if let Some(found) = lookup(&store, key).await? {
                 return Ok(Arc::new(found));
             }
-            let made = match cluster {
-                Some(cluster) => {
-                    render_claimed(cluster, store, key, made_by, Box::new(render)).await?
-                }
-                None => {
-                    render_and_store(keep.then_some(store), key, made_by, None, Box::new(render))
-                        .await?
-                        .ok_or_else(|| CacheError::Panicked("a tile was dropped unasked".into()))?
-                }
+            let made = if keep {
+                render_claimed(coordinator, store, key, made_by, Box::new(render)).await?
+            } else {
+                render_and_store(None, key, made_by, None, Box::new(render))
+                    .await?
+                    .ok_or_else(|| CacheError::Panicked("a tile was dropped unasked".into()))?
             };
             // Made here, or found in the store once another process made it.
             Ok(Arc::new(made))
@@ -400,15 +398,13 @@ impl TileCache {
         }
     }
 
-    /// Tells the other processes of the cluster, if there are any (a failure is logged: their
+    /// Tells the other processes sharing the store, if there are any (a failure is logged: their
     /// memory then holds a tile longer, until its next broadcast or eviction).
     async fn tell(&self, event: Event) {
-        let Some(cluster) = self.cluster.clone() else {
-            return;
-        };
-        let told = tokio::task::spawn_blocking(move || cluster.broadcast(&event)).await;
+        let coordinator = self.coordinator.clone();
+        let told = tokio::task::spawn_blocking(move || coordinator.broadcast(&event)).await;
         if let Ok(Err(error)) = told {
-            tracing::warn!(%error, "telling the cluster failed");
+            tracing::warn!(%error, "telling the other processes failed");
         }
     }
 
@@ -515,11 +511,11 @@ where
     }))
 }
 
-/// Makes and stores a tile once in the whole cluster: claims it first; while another process
-/// holds the claim, waits for the tile to land in the store (or for the claim to lapse, its
-/// holder gone, and takes it over).
+/// Makes and stores a tile once among the processes sharing the store: claims it first; while
+/// another process holds the claim, waits for the tile to land in the store (or for the claim
+/// to lapse, its holder gone, and takes it over).
 async fn render_claimed<E>(
-    cluster: Arc<Cluster>,
+    coordinator: Arc<dyn Coordinator>,
     store: Arc<dyn TileStore>,
     key: TileKey,
     made_by: Provenance,
@@ -530,8 +526,8 @@ where
 {
     let dropped = || CacheError::Panicked("a tile was dropped unasked".into());
     loop {
-        let claiming = cluster.clone();
-        let claim = tokio::task::spawn_blocking(move || claiming.try_lease(&key))
+        let claiming = coordinator.clone();
+        let claim = tokio::task::spawn_blocking(move || claiming.claim(&key))
             .await
             .map_err(|e| CacheError::Panicked(panic_message(e)))?;
         match claim {
@@ -543,7 +539,7 @@ where
                         .await
                         .and_then(|made| made.ok_or_else(dropped)),
                 };
-                let releasing = cluster.clone();
+                let releasing = coordinator.clone();
                 let released = tokio::task::spawn_blocking(move || releasing.release(&key)).await;
                 if let Ok(Err(error)) = released {
                     tracing::warn!(tile = %key.tile, %error, "releasing the claim on a tile failed; it lapses");
@@ -552,7 +548,7 @@ where
             }
             Ok(false) => {}
             Err(error) => {
-                tracing::warn!(tile = %key.tile, %error, "claiming the tile in the cluster failed; made here");
+                tracing::warn!(tile = %key.tile, %error, "claiming the tile failed; made here");
                 return render_and_store(Some(store), key, made_by, None, render)
                     .await
                     .and_then(|made| made.ok_or_else(dropped));

@@ -16,7 +16,8 @@ use std::time::Instant;
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-use crate::cache::{Cluster, PostgresStore, SqliteStore, TileStore};
+use crate::cache::postgres::coordinator::Shared;
+use crate::cache::{Coordinator, Local, PostgresStore, SqliteStore, TileStore};
 use crate::config::{Config, LogFormat};
 use crate::provider::Renderer;
 use crate::source::fetch::Fetcher;
@@ -114,23 +115,23 @@ fn open_renderer(config: &Config) -> Result<Renderer> {
     Ok(renderer)
 }
 
-/// A tile store, with the processes sharing it when it is shared.
-type Store = (Arc<dyn TileStore>, Option<Arc<Cluster>>);
+/// A tile store, with how the processes sharing it share its work.
+type Store = (Arc<dyn TileStore>, Arc<dyn Coordinator>);
 
-/// The tile store a configuration names: its PostgreSQL database (`cache.url`), with the
-/// cluster that shares it, else its SQLite file.
+/// The tile store a configuration names: its PostgreSQL database (`cache.url`), coordinated
+/// through the cluster that shares it, else its SQLite file, which this process owns.
 fn open_store(config: &Config) -> Result<Store> {
     let cap = (config.cache.max_size_mib > 0).then(|| config.cache.max_size_mib * 1024 * 1024);
     let url = config.cache.url.trim();
     if url.is_empty() {
         let store = SqliteStore::open_or_set_aside(&config.cache.path, cap)?
             .with_max_tile(config.cache.max_tile_bytes());
-        return Ok((Arc::new(store), None));
+        return Ok((Arc::new(store), Arc::new(Local::new())));
     }
     let store = open_postgres(url, cap)?.with_max_tile(config.cache.max_tile_bytes());
     let cluster = store.cluster(std::time::Duration::from_secs(config.cache.lease_s));
     tracing::info!(place = store.place(), "tiles kept in PostgreSQL");
-    Ok((Arc::new(store), Some(Arc::new(cluster))))
+    Ok((Arc::new(store), Arc::new(Shared::new(cluster))))
 }
 
 fn open_postgres(url: &str, cap: Option<u64>) -> Result<PostgresStore> {

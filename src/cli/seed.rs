@@ -8,10 +8,10 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 
 use super::flags::{Flags, SourceArgs};
-use crate::cache::{Cluster, TileStore};
+use crate::cache::{Coordinator, TileStore};
 use crate::config::Config;
 use crate::format::Format;
-use crate::offline::{seed, shared_seed};
+use crate::offline::seed;
 use crate::provider::{Renderer, TileProvider};
 use crate::tile::LonLatBounds;
 
@@ -152,20 +152,20 @@ pub fn into_store(
     formats: &[Format],
     shard: seed::Shard,
 ) -> Result<(Renderer, Arc<dyn TileStore>)> {
-    let renderer = super::open_renderer(config)?;
-    let (store, cluster) = super::open_store(config)?;
-    if cluster.is_some() && shard != seed::Shard::default() {
+    if !config.cache.url.trim().is_empty() && shard != seed::Shard::default() {
         anyhow::bail!(
             "--shard is for separate caches: workers on a PostgreSQL cache share its queue"
         );
     }
+    let renderer = super::open_renderer(config)?;
+    let (store, coordinator) = super::open_store(config)?;
     let work = Work {
         area,
         formats,
         config,
         shard,
     };
-    let report = work.seed(&renderer, store.as_ref(), cluster.as_ref())?;
+    let report = work.seed(&renderer, store.as_ref(), coordinator.as_ref())?;
     if !report.failed.is_empty() {
         anyhow::bail!("{} tiles could not be made", report.failed.len());
     }
@@ -186,7 +186,7 @@ impl Work<'_> {
         &self,
         provider: &dyn TileProvider,
         store: &dyn TileStore,
-        cluster: Option<&Arc<Cluster>>,
+        coordinator: &dyn Coordinator,
     ) -> Result<seed::SeedReport> {
         let bbox = self.area.bbox()?;
         let layers = seed::layers(&provider.offer(), &bbox, self.formats, self.area.all_zooms);
@@ -215,24 +215,16 @@ impl Work<'_> {
             bar.set_length(progress.total as u64);
             bar.set_position(progress.done as u64);
         };
-        let report = match cluster {
-            Some(cluster) => {
-                eprintln!(
-                    "working on the cluster's seed queue as {}",
-                    cluster.holder()
-                );
-                shared_seed::seed(
-                    provider,
-                    store,
-                    cluster,
-                    &plan.to_make,
-                    threads,
-                    limit,
-                    &show,
-                )?
-            }
-            None => seed::seed(provider, store, &plan.to_make, threads, limit, &show)?,
-        };
+        eprintln!("working on the seed queue as {}", coordinator.holder());
+        let report = seed::seed(
+            provider,
+            store,
+            coordinator,
+            &plan.to_make,
+            threads,
+            limit,
+            &show,
+        )?;
         bar.finish_and_clear();
         print_report(&report);
         Ok(report)

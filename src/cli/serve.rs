@@ -49,12 +49,9 @@ pub fn run(args: ServeArgs, config: Config) -> Result<()> {
 
 /// Serves the configured sources: tiles are made when first asked for and kept in the cache.
 fn serve_sources(config: Config) -> Result<()> {
-    let (store, cluster) = super::open_store(&config)?;
-    let cache = TileCache::new(store, config.cache.memory_mib * 1024 * 1024);
-    let cache = match cluster {
-        Some(cluster) => cache.with_cluster(cluster),
-        None => cache,
-    };
+    let (store, coordinator) = super::open_store(&config)?;
+    let cache =
+        TileCache::new(store, config.cache.memory_mib * 1024 * 1024).coordinated_by(coordinator);
     let state = AppState::new(cache, &config.server);
     let grace = Duration::from_secs(config.server.shutdown_grace_s);
     run_server(grace, async move {

@@ -5,13 +5,21 @@
 //! killed at any moment leaves a sound cache with whole tiles only. `--shard i/n` takes the
 //! tiles whose place in the box's row-major order is `i − 1` modulo `n`: the shares depend on
 //! the box alone, so jobs on several machines split a region without talking to each other.
+//!
+//! The tiles to make are rows of the coordinator's queue, and every thread takes rows until
+//! none is left. With a store shared by a cluster that queue is the cluster's: no shares to
+//! compute, a worker started later helps with what is left, a worker killed leaves its rows to
+//! lapse and be taken by the others, and the queue survives every worker, so a seed started
+//! again goes on where it stopped. A tile is claimed before it is made (the same claim servers
+//! take), so a seed and a server never make one tile twice.
 
 use std::collections::HashMap;
 use std::str::FromStr;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
+use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 
+use crate::cache::coordinator::{Coordinator, Event, Job, JobKind, Priority};
 use crate::cache::encoding::Bodies;
 use crate::cache::{etag_of, unix_now, Provenance, StoreError, StoredTile, TileFilter, TileStore};
 use crate::format::{Format, TileKey};
@@ -189,76 +197,211 @@ pub struct Progress {
     pub total: usize,
 }
 
-/// Makes the planned tiles with `provider` on `threads` threads and stores each as soon as it is made.
-/// A tile that fails is reported and the others go on; a store error stops the seed.
+/// How long a row whose tile another process is making waits before it is taken again.
+const CLAIMED_ELSEWHERE: Duration = Duration::from_secs(1);
+
+/// How often the progress shown counts what is left in the whole queue.
+const COUNT_EVERY: Duration = Duration::from_secs(2);
+
+/// How long a thread with nothing to take waits for rows others hold to come back.
+const IDLE_LOOK: Duration = Duration::from_millis(500);
+
+/// What became of one row.
+enum Outcome {
+    Made(u64),
+    /// Current in the store already.
+    Current,
+    /// Another process is making it: handed back.
+    Deferred,
+    /// Failed; `true` when it was set aside for good.
+    Failed(String, bool),
+}
+
+/// Queues `keys` with the coordinator and works on its seed queue with `threads` threads until
+/// the queue is empty (rows other workers hold included: a worker that dies leaves them to
+/// this one), storing each tile as soon as it is made. A store error stops the seed; a tile
+/// that fails is tried again by whoever takes it next, and reported when it is set aside.
 pub fn seed(
     provider: &dyn TileProvider,
     store: &dyn TileStore,
+    coordinator: &dyn Coordinator,
     keys: &[TileKey],
     threads: usize,
     render_limit: Option<Duration>,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<SeedReport, StoreError> {
     let started = Instant::now();
+    coordinator.join("seed")?;
     // Components a render before this one solved are found, not solved again.
     if let Err(error) = crate::provider::load_solutions(store) {
         tracing::warn!(%error, "reading solved elevation components failed");
     }
-    let next = AtomicUsize::new(0);
-    let done = AtomicUsize::new(0);
-    let report = Mutex::new(SeedReport::default());
+    coordinator.enqueue(keys, JobKind::Seed, Priority::Seed, false)?;
+    let tally = Tally {
+        total: coordinator.pending(JobKind::Seed)? as usize,
+        ..Tally::default()
+    };
+    tally.left.store(tally.total, Ordering::Relaxed);
     let stop: Mutex<Option<StoreError>> = Mutex::new(None);
+    let stopped = || stop.lock().map_or(true, |s| s.is_some());
+    let workers = Workers {
+        provider,
+        store,
+        coordinator,
+        render_limit,
+        finished: (Mutex::new(0), Condvar::new()),
+    };
     std::thread::scope(|scope| {
         for _ in 0..threads.max(1) {
-            scope.spawn(|| loop {
-                if stop.lock().map_or(true, |s| s.is_some()) {
-                    return;
-                }
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                let Some(&key) = keys.get(i) else { return };
-                let outcome = make_tile(provider, key, render_limit);
-                match outcome {
-                    Ok(tile) => match store.put(&key, &tile) {
-                        Ok(()) => {
-                            // Kept for later renders when they can be: a tile stored without
-                            // them is still whole.
-                            if let Err(error) = crate::provider::save_solutions(store) {
-                                tracing::warn!(%error, "keeping solved elevation components failed");
-                            }
-                            if let Ok(mut r) = report.lock() {
-                                r.made += 1;
-                                r.stored_bytes += tile.bodies.stored_len() as u64;
-                            }
-                        }
-                        Err(error) => {
-                            if let Ok(mut s) = stop.lock() {
-                                s.get_or_insert(error);
-                            }
-                            return;
-                        }
-                    },
-                    Err(error) => {
-                        tracing::error!(tile = %key.tile, format = key.format.as_str(), %error, "tile failed");
-                        if let Ok(mut r) = report.lock() {
-                            r.failed.push((key, error));
-                        }
+            scope.spawn(|| {
+                let tell = |done| tally.record(coordinator, done, progress);
+                if let Err(error) = workers.work(&stopped, tell) {
+                    if let Ok(mut s) = stop.lock() {
+                        s.get_or_insert(error);
                     }
                 }
-                let finished = done.fetch_add(1, Ordering::Relaxed) + 1;
-                progress(Progress {
-                    done: finished,
-                    total: keys.len(),
-                });
             });
         }
     });
     if let Some(error) = stop.into_inner().unwrap_or_else(|p| p.into_inner()) {
         return Err(error);
     }
-    let mut report = report.into_inner().unwrap_or_else(|p| p.into_inner());
+    let mut report = tally.report.into_inner().unwrap_or_else(|p| p.into_inner());
     report.elapsed = started.elapsed();
     report.failed.sort_by_key(|(key, _)| *key);
     Ok(report)
+}
+
+/// What this worker made, and how much of the queue is left.
+#[derive(Default)]
+struct Tally {
+    report: Mutex<SeedReport>,
+    /// Rows in the queue when this worker began.
+    total: usize,
+    /// Rows left: counted down as this worker finishes them, and set from the queue now and
+    /// then (the others' work shows there; a count of a long queue is not free).
+    left: AtomicUsize,
+    last_count: Mutex<Option<Instant>>,
+}
+
+impl Tally {
+    fn record(
+        &self,
+        coordinator: &dyn Coordinator,
+        (key, outcome): (TileKey, Outcome),
+        progress: &(dyn Fn(Progress) + Sync),
+    ) {
+        let mut report = self.report.lock().unwrap_or_else(|p| p.into_inner());
+        match outcome {
+            Outcome::Made(bytes) => {
+                report.made += 1;
+                report.stored_bytes += bytes;
+            }
+            Outcome::Failed(error, true) => report.failed.push((key, error)),
+            Outcome::Current => {}
+            // Still in the queue.
+            Outcome::Failed(_, false) | Outcome::Deferred => return,
+        }
+        drop(report);
+        let _ = self
+            .left
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| {
+                Some(n.saturating_sub(1))
+            });
+        let mut counted = self.last_count.lock().unwrap_or_else(|p| p.into_inner());
+        if counted.is_none_or(|at| at.elapsed() >= COUNT_EVERY) {
+            *counted = Some(Instant::now());
+            if let Ok(pending) = coordinator.pending(JobKind::Seed) {
+                self.left.store(pending as usize, Ordering::Relaxed);
+            }
+        }
+        drop(counted);
+        progress(Progress {
+            done: self.total.saturating_sub(self.left.load(Ordering::Relaxed)),
+            total: self.total,
+        });
+    }
+}
+
+/// What the seed's threads share.
+struct Workers<'a> {
+    provider: &'a dyn TileProvider,
+    store: &'a dyn TileStore,
+    coordinator: &'a dyn Coordinator,
+    render_limit: Option<Duration>,
+    /// Rows the threads finished, and a signal each time: a thread with nothing to take waits
+    /// on it (or on [`IDLE_LOOK`], for rows held elsewhere) before it looks again.
+    finished: (Mutex<u64>, Condvar),
+}
+
+impl Workers<'_> {
+    /// One thread's loop: takes rows until the queue is empty or the seed stops.
+    fn work(
+        &self,
+        stopped: &dyn Fn() -> bool,
+        tell: impl Fn((TileKey, Outcome)),
+    ) -> Result<(), StoreError> {
+        let (count, signal) = &self.finished;
+        while !stopped() {
+            let seen = *count.lock().unwrap_or_else(|p| p.into_inner());
+            let Some(job) = self.coordinator.take(JobKind::Seed)? else {
+                if self.coordinator.pending(JobKind::Seed)? == 0 {
+                    return Ok(());
+                }
+                let guard = count.lock().unwrap_or_else(|p| p.into_inner());
+                let _ = signal
+                    .wait_timeout_while(guard, IDLE_LOOK, |now| *now == seen)
+                    .map_err(|p| p.into_inner());
+                continue;
+            };
+            let outcome = self.make_row(job);
+            *count.lock().unwrap_or_else(|p| p.into_inner()) += 1;
+            signal.notify_all();
+            tell((job.key, outcome?));
+        }
+        Ok(())
+    }
+
+    /// Makes the tile of a row taken, and finishes, defers or fails the row.
+    fn make_row(&self, job: Job) -> Result<Outcome, StoreError> {
+        let (provider, store, coordinator) = (self.provider, self.store, self.coordinator);
+        let key = job.key;
+        let wanted = provider.provenance(key.tile);
+        let current = store
+            .list(&TileFilter::Tiles(vec![key.tile]))?
+            .into_iter()
+            .any(|entry| entry.key == key && Some(&entry.made_by) == wanted.as_ref());
+        if current && !job.force {
+            coordinator.finish(&key, false)?;
+            return Ok(Outcome::Current);
+        }
+        if !coordinator.claim(&key)? {
+            coordinator.defer(&key, CLAIMED_ELSEWHERE)?;
+            return Ok(Outcome::Deferred);
+        }
+        let outcome = match make_tile(provider, key, self.render_limit) {
+            Ok(tile) => {
+                // Whole or not at all: the row is replaced in one transaction.
+                store.put(&key, &tile)?;
+                // Kept for later renders when they can be: a tile stored without them is
+                // still whole.
+                if let Err(error) = crate::provider::save_solutions(store) {
+                    tracing::warn!(%error, "keeping solved elevation components failed");
+                }
+                // Servers holding an older version in memory drop it.
+                coordinator.broadcast(&Event::Stored(vec![key]))?;
+                coordinator.finish(&key, true)?;
+                Outcome::Made(tile.bodies.stored_len() as u64)
+            }
+            Err(error) => {
+                tracing::error!(tile = %key.tile, format = key.format.as_str(), %error, "tile failed");
+                let set_aside = coordinator.fail(&key, &error)?;
+                Outcome::Failed(error, set_aside)
+            }
+        };
+        coordinator.release(&key)?;
+        Ok(outcome)
+    }
 }
 
 /// Makes a tile as the store keeps it (compressed, with its validator and provenance).

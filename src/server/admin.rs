@@ -15,7 +15,7 @@ use serde_json::{json, Value};
 use super::error::ApiError;
 use super::regenerate::queue_stored;
 use super::AppState;
-use crate::cache::postgres::cluster::JobKind;
+use crate::cache::coordinator::JobKind;
 use crate::cache::TileFilter;
 use crate::tile::{LonLatBounds, TileId, TileRange};
 
@@ -165,14 +165,12 @@ pub async fn regenerate(
         .await
         .map_err(ApiError::internal)?;
     tracing::info!(queued, "regeneration asked for");
-    let in_line = match state.cache.cluster().cloned() {
-        // The cluster's queue, which every process works on.
-        Some(cluster) => tokio::task::spawn_blocking(move || cluster.pending(JobKind::Regenerate))
-            .await
-            .map_err(|e| ApiError::internal(e.to_string()))?
-            .map_err(|e| ApiError::internal(e.to_string()))? as usize,
-        None => state.work.regenerator.len(),
-    };
+    // The whole queue: every process sharing the store works on it.
+    let coordinator = state.cache.coordinator().clone();
+    let in_line = tokio::task::spawn_blocking(move || coordinator.pending(JobKind::Regenerate))
+        .await
+        .map_err(|e| ApiError::internal(e.to_string()))?
+        .map_err(|e| ApiError::internal(e.to_string()))? as usize;
     Ok((
         StatusCode::ACCEPTED,
         Json(json!({ "queued": queued, "in_line": in_line })),

@@ -107,7 +107,7 @@ const DOWNLOAD_WAITS: usize = 32;
 pub const FAILED_RENDER_MEMORY: Duration = Duration::from_secs(600);
 
 impl Work {
-    fn new(server: &ServerConfig) -> Work {
+    fn new(server: &ServerConfig, coordinator: Arc<dyn crate::cache::Coordinator>) -> Work {
         let threads = if server.render_threads == 0 {
             std::thread::available_parallelism().map_or(2, |n| n.get())
         } else {
@@ -124,7 +124,7 @@ impl Work {
                 .max_capacity(100_000)
                 .time_to_live(FAILED_RENDER_MEMORY)
                 .build(),
-            regenerator: regenerate::new_queue(),
+            regenerator: Arc::new(regenerate::Regenerator::new(coordinator)),
             background_workers: server.background_renders.max(1),
             check_interval: (server.check_interval_s > 0)
                 .then(|| Duration::from_secs(server.check_interval_s)),
@@ -170,12 +170,13 @@ impl AppState {
     /// A server without a provider yet: tiles are refused with `503` until
     /// [`AppState::provide`].
     pub fn new(cache: TileCache, server: &ServerConfig) -> AppState {
+        let work = Work::new(server, cache.coordinator().clone());
         AppState {
             provider: Arc::new(RwLock::new(ProviderState::Loading)),
             cache,
             zoom: server.zoom,
             metrics: Arc::new(Metrics::default()),
-            work: Arc::new(Work::new(server)),
+            work: Arc::new(work),
             http: Arc::new(Http::new(server)),
         }
     }
@@ -436,9 +437,7 @@ pub async fn serve(
             Err(error) => tracing::warn!(%error, "reading solved elevation components failed"),
         },
     ));
-    if let Some(cluster) = state.cache.cluster().cloned() {
-        join_cluster(&state, &cluster)?;
-    }
+    join(&state)?;
     background.extend(regenerate::start(&state, state.work.background_workers));
     if let Some(interval) = state.work.check_interval {
         background.push(tokio::spawn(regenerate::watch_sources(
@@ -462,21 +461,23 @@ pub async fn serve(
     result
 }
 
-/// Joins the cluster sharing the store: says this server is in it, renews its claims while it
-/// runs, and applies what the other processes broadcast (their new tiles and purges leave
+/// Joins the processes sharing the store: says this server is one of them, keeps its claims
+/// alive while it runs, and applies what is heard (the others' new tiles and purges leave
 /// memory; queued work wakes the workers).
-fn join_cluster(state: &AppState, cluster: &Arc<crate::cache::Cluster>) -> std::io::Result<()> {
-    let registering = cluster.clone();
+fn join(state: &AppState) -> std::io::Result<()> {
+    let coordinator = state.cache.coordinator().clone();
+    let joining = coordinator.clone();
     tokio::task::spawn_blocking(move || {
-        if let Err(error) = registering.register("serve") {
-            tracing::warn!(%error, "registering with the cluster failed");
+        if let Err(error) = joining.join("serve") {
+            tracing::warn!(%error, "joining the processes sharing the store failed");
         }
     });
-    cluster.start_heartbeat()?;
     let (told, mut heard) = tokio::sync::mpsc::unbounded_channel();
-    cluster.listen(move |event| {
-        let _ = told.send(event);
-    })?;
+    coordinator
+        .listen(Arc::new(move |event| {
+            let _ = told.send(event);
+        }))
+        .map_err(std::io::Error::other)?;
     let applying = state.clone();
     tokio::spawn(async move {
         while let Some(event) = heard.recv().await {
@@ -486,7 +487,10 @@ fn join_cluster(state: &AppState, cluster: &Arc<crate::cache::Cluster>) -> std::
             applying.cache.heard(event).await;
         }
     });
-    tracing::info!(holder = cluster.holder(), "joined the cluster");
+    tracing::info!(
+        holder = coordinator.holder(),
+        "joined the processes sharing the store"
+    );
     Ok(())
 }
 

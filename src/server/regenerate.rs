@@ -6,179 +6,92 @@
 //! With a store shared by a cluster, the queue is the cluster's (`work` rows in PostgreSQL):
 //! any process's workers take its tiles, and a tile stale on every process is queued once.
 
-use std::collections::{HashSet, VecDeque};
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
 
 use tokio::sync::Notify;
 
 use super::metrics::Metrics;
 use super::tiles::{render_job, Priority};
 use super::AppState;
-use crate::cache::postgres::cluster::{Cluster, JobKind, Priority as QueuePriority};
+use crate::cache::coordinator::{Coordinator, Job, JobKind, Priority as QueuePriority};
 use crate::cache::{Remade, TileFilter};
 use crate::format::TileKey;
 use crate::provider::Availability;
 use crate::tile::TileId;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct Job {
-    key: TileKey,
-    /// Make it even if the tile held is current.
-    force: bool,
-}
-
-#[derive(Debug, Default)]
-struct Queue {
-    order: VecDeque<Job>,
-    /// Queued or being made.
-    held: HashSet<TileKey>,
-}
-
-/// The queue of tiles to make again.
+/// The line of tiles to make again: the coordinator's queue (in memory, or the cluster's), and
+/// what wakes the workers when work is queued.
 #[derive(Debug)]
 pub struct Regenerator {
-    queue: Mutex<Queue>,
+    coordinator: Arc<dyn Coordinator>,
     wake: Notify,
-    /// Stale tiles lately queued in the cluster's queue, not queued again meanwhile.
-    told_stale: moka::sync::Cache<TileKey, ()>,
+    /// Stale tiles on their way into the queue.
+    queuing: AtomicUsize,
 }
 
-impl Default for Regenerator {
-    fn default() -> Self {
-        Regenerator {
-            queue: Mutex::default(),
-            wake: Notify::new(),
-            told_stale: moka::sync::Cache::builder()
-                .max_capacity(100_000)
-                .time_to_live(STALE_REQUEUE)
-                .build(),
-        }
-    }
-}
-
-/// How long a stale tile queued in the cluster is not queued again by this process.
-const STALE_REQUEUE: std::time::Duration = std::time::Duration::from_secs(30);
-
-/// How long an idle worker of the cluster's queue waits before it looks again (queued work
-/// wakes it at once when the broadcast arrives).
+/// How long an idle worker waits before it looks at the queue again (queued work wakes it at
+/// once; rows another process handed back come due without a word).
 const IDLE_LOOK: std::time::Duration = std::time::Duration::from_secs(2);
 
 impl Regenerator {
-    fn lock(&self) -> std::sync::MutexGuard<'_, Queue> {
-        self.queue.lock().unwrap_or_else(|p| p.into_inner())
+    pub fn new(coordinator: Arc<dyn Coordinator>) -> Regenerator {
+        Regenerator {
+            coordinator,
+            wake: Notify::new(),
+            queuing: AtomicUsize::new(0),
+        }
     }
 
-    /// A stale tile a request just met: made next, unless it is already in line (in the
-    /// cluster's queue when the store is shared).
-    pub fn stale(&self, key: TileKey, cluster: Option<&std::sync::Arc<Cluster>>) {
-        let Some(cluster) = cluster.cloned() else {
-            return self.stale_here(key);
-        };
-        if self.told_stale.contains_key(&key) {
-            return;
-        }
-        self.told_stale.insert(key, ());
+    /// A stale tile a request just met: made before the other work, unless it is already in
+    /// line.
+    pub fn stale(self: &Arc<Self>, key: TileKey) {
+        self.queuing.fetch_add(1, Ordering::SeqCst);
+        let regenerator = self.clone();
         tokio::task::spawn_blocking(move || {
-            let queued = cluster.enqueue(&[key], JobKind::Regenerate, QueuePriority::Stale, false);
+            let queued = regenerator.coordinator.enqueue(
+                &[key],
+                JobKind::Regenerate,
+                QueuePriority::Stale,
+                false,
+            );
+            regenerator.queuing.fetch_sub(1, Ordering::SeqCst);
             if let Err(error) = queued {
-                tracing::warn!(tile = %key.tile, %error, "queueing a stale tile in the cluster failed");
+                tracing::warn!(tile = %key.tile, %error, "queueing a stale tile failed");
             }
         });
-    }
-
-    fn stale_here(&self, key: TileKey) {
-        let mut queue = self.lock();
-        if queue.held.insert(key) {
-            queue.order.push_front(Job { key, force: false });
-            drop(queue);
-            self.wake.notify_one();
-        }
-    }
-
-    /// Tiles to make again, in the order given, after those already in line; returns how many
-    /// were added.
-    pub fn enqueue(&self, keys: impl IntoIterator<Item = TileKey>, force: bool) -> usize {
-        let mut queue = self.lock();
-        let mut added = 0;
-        for key in keys {
-            if queue.held.insert(key) {
-                queue.order.push_back(Job { key, force });
-                added += 1;
-            }
-        }
-        drop(queue);
-        for _ in 0..added {
-            self.wake.notify_one();
-        }
-        added
     }
 
     /// Takes the tiles `filter` selects out of the line; returns how many. A tile already being
     /// made finishes and is stored (a remake checks that its tile is still stored only before
     /// it starts).
     pub fn forget(&self, filter: &TileFilter) -> usize {
-        let mut queue = self.lock();
-        let before = queue.order.len();
-        let Queue { order, held } = &mut *queue;
-        order.retain(|job| {
-            let keep = !filter.matches(job.key.tile);
-            if !keep {
-                held.remove(&job.key);
-            }
-            keep
-        });
-        before - queue.order.len()
+        self.coordinator.withdraw(filter)
     }
 
-    /// Wakes every idle worker (work was queued in the cluster).
+    /// Wakes every idle worker (work was queued).
     pub fn wake_all(&self) {
         self.wake.notify_waiters();
     }
 
-    /// Tiles in line or being made.
+    /// Tiles this process has in line or is making.
     pub fn len(&self) -> usize {
-        self.lock().held.len()
+        self.queuing.load(Ordering::SeqCst) + self.coordinator.in_hand()
     }
 
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
-
-    async fn next(&self) -> Job {
-        loop {
-            let notified = self.wake.notified();
-            if let Some(job) = self.lock().order.pop_front() {
-                return job;
-            }
-            notified.await;
-        }
-    }
-
-    fn done(&self, key: &TileKey) {
-        self.lock().held.remove(key);
-    }
 }
 
-/// One worker: takes tiles from the queue and makes them again, one at a time.
+/// One worker: takes a tile from the queue, makes it again, and finishes its row (or hands it
+/// back as failed, to be tried again later when the queue is shared).
 pub async fn work(state: AppState) {
-    if let Some(cluster) = state.cache.cluster().cloned() {
-        return work_shared(state, cluster).await;
-    }
     let queue = state.work.regenerator.clone();
-    loop {
-        let job = queue.next().await;
-        let _ = remake(&state, job).await;
-        queue.done(&job.key);
-    }
-}
-
-/// One worker on the cluster's queue: takes a row, makes its tile again, and finishes the row
-/// (or hands it back as failed, to be tried again later).
-async fn work_shared(state: AppState, cluster: std::sync::Arc<Cluster>) {
-    let queue = state.work.regenerator.clone();
+    let coordinator = state.cache.coordinator().clone();
     loop {
         let queued = queue.wake.notified();
-        let taking = cluster.clone();
+        let taking = coordinator.clone();
         let taken = tokio::task::spawn_blocking(move || taking.take(JobKind::Regenerate)).await;
         let job = match taken {
             Ok(Ok(Some(job))) => job,
@@ -187,29 +100,22 @@ async fn work_shared(state: AppState, cluster: std::sync::Arc<Cluster>) {
                 continue;
             }
             Ok(Err(error)) => {
-                tracing::warn!(%error, "taking work from the cluster's queue failed");
+                tracing::warn!(%error, "taking work from the queue failed");
                 tokio::time::sleep(IDLE_LOOK).await;
                 continue;
             }
             Err(_) => continue,
         };
         let key = job.key;
-        let outcome = remake(
-            &state,
-            Job {
-                key,
-                force: job.force,
-            },
-        )
-        .await;
-        let finishing = cluster.clone();
+        let outcome = remake(&state, job).await;
+        let finishing = coordinator.clone();
         let finished = tokio::task::spawn_blocking(move || match outcome {
             Ok(made) => finishing.finish(&key, made),
             Err(error) => finishing.fail(&key, &error).map(|_| ()),
         })
         .await;
         if let Ok(Err(error)) = finished {
-            tracing::warn!(tile = %key.tile, %error, "finishing work in the cluster's queue failed; it is taken again when its claim lapses");
+            tracing::warn!(tile = %key.tile, %error, "finishing work in the queue failed; it is taken again when its claim lapses");
         }
     }
 }
@@ -295,11 +201,9 @@ pub async fn queue_stored(
     .map_err(|e| e.to_string())?
     .map_err(|e| e.to_string())?;
     let force = !only_stale;
-    let Some(cluster) = state.cache.cluster().cloned() else {
-        return Ok(state.work.regenerator.enqueue(keys, force));
-    };
+    let coordinator = state.cache.coordinator().clone();
     let queued = tokio::task::spawn_blocking(move || {
-        cluster.enqueue(&keys, JobKind::Regenerate, QueuePriority::Regenerate, force)
+        coordinator.enqueue(&keys, JobKind::Regenerate, QueuePriority::Regenerate, force)
     })
     .await
     .map_err(|e| e.to_string())?
@@ -312,11 +216,6 @@ pub fn start(state: &AppState, workers: usize) -> Vec<tokio::task::JoinHandle<()
     (0..workers.max(1))
         .map(|_| tokio::spawn(work(state.clone())))
         .collect()
-}
-
-/// A shared queue.
-pub fn new_queue() -> Arc<Regenerator> {
-    Arc::new(Regenerator::default())
 }
 
 /// Checks the sources every `interval`; see [`check_sources`].

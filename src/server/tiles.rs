@@ -156,7 +156,7 @@ pub async fn serve(
     }
     if served.stale {
         Metrics::count(&state.metrics.stale_served);
-        state.work.regenerator.stale(key, state.cache.cluster());
+        state.work.regenerator.stale(key);
     }
     Ok(respond(&state, key, &served, &request_headers))
 }

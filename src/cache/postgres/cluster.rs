@@ -21,6 +21,7 @@ use serde_json::{json, Value};
 
 use super::connections::Connections;
 use super::{column, key_columns, key_of, TILES_PER_STATEMENT};
+use crate::cache::coordinator::{Event, Job, JobKind, Priority};
 use crate::cache::store::{StoreError, TileFilter};
 use crate::format::{Format, TileKey};
 use crate::tile::{TileId, TileRange};
@@ -33,59 +34,6 @@ const PAYLOAD_LIMIT: usize = 7_900;
 
 /// Failures after which a row of work is set aside as failed.
 pub const MAX_ATTEMPTS: i32 = 3;
-
-/// Why a tile is in the work queue.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum JobKind {
-    /// Made again: stale, asked for by an operator, or its sources changed. Servers take these.
-    Regenerate,
-    /// Seeded: `terrastitch seed` workers take these.
-    Seed,
-}
-
-impl JobKind {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            JobKind::Regenerate => "regenerate",
-            JobKind::Seed => "seed",
-        }
-    }
-}
-
-/// The order rows are taken in, lowest first.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Priority {
-    /// A stale tile a request met.
-    Stale = 0,
-    /// A tile to make again.
-    Regenerate = 1,
-    /// A tile to seed.
-    Seed = 2,
-}
-
-/// A row of work taken.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Job {
-    pub key: TileKey,
-    /// Make it even if the tile stored is current.
-    pub force: bool,
-    /// How many times it was taken, this one included.
-    pub attempts: i32,
-}
-
-/// What another process tells the cluster.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Event {
-    /// New versions of these tiles are stored.
-    Stored(Vec<TileKey>),
-    /// The tiles the filter selects were removed.
-    Purged(TileFilter),
-    /// Work was queued.
-    Work,
-    /// Broadcasts may have been missed (the listening connection was lost): memory cannot be
-    /// trusted to be current.
-    Missed,
-}
 
 /// How the queue of one kind stands.
 #[derive(Debug, Clone, PartialEq, Eq)]

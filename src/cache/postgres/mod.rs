@@ -8,6 +8,7 @@
 
 pub mod cluster;
 mod connections;
+pub mod coordinator;
 
 use std::sync::Arc;
 
