@@ -1,6 +1,7 @@
 //! The same inputs give the same bytes: the SHA-256 of a fixed set of tiles, made by the command
-//! line from the bundled sample, in every glb variant and as terrain, against the digests recorded
-//! in `tests/golden/digests.txt`.
+//! line (`seed`, the server's pipeline) from the bundled sample, in every glb variant and as
+//! terrain, and read back as the cache serves them, against the digests recorded in
+//! `tests/golden/digests.txt`.
 //!
 //! A change that leaves the output alone leaves these digests alone. A change meant to alter the
 //! bytes records the new digests in a commit of its own that says why:
@@ -14,6 +15,9 @@ use std::path::Path;
 
 use common::{bbox, repo, terrastitch};
 use sha2::{Digest, Sha256};
+use terrastitch::cache::encoding::{Accepted, Encoding};
+use terrastitch::cache::{SqliteStore, TileFilter, TileStore};
+use terrastitch::offline::export::file_suffix;
 
 /// Monaco's ten densest tiles: the coast, the port, the bridges and tunnels of the centre.
 const COLUMNS: std::ops::RangeInclusive<u32> = 8527..=8531;
@@ -24,31 +28,29 @@ fn digests_file() -> std::path::PathBuf {
     repo().join("tests/golden/digests.txt")
 }
 
-/// Every tile file of the served zoom under `dir` (not the coarser zooms the export also
-/// writes, nor its `tileset.json` and `layer.json`), by its path relative to `dir`, with the
-/// SHA-256 of its bytes.
-fn digests_under(dir: &Path) -> BTreeMap<String, String> {
+/// Every tile the cache at `path` holds, by its path in a directory export (`14/x/y.glb`,
+/// `14/x/y.enu-meshopt.glb`, …), with the SHA-256 of its bytes as served uncompressed.
+fn digests_in(path: &Path) -> BTreeMap<String, String> {
+    let store = SqliteStore::open(path, None).unwrap();
+    let identity = Accepted::parse([]);
     let mut digests = BTreeMap::new();
-    let mut pending = vec![dir.join("14")];
-    while let Some(folder) = pending.pop() {
-        for entry in std::fs::read_dir(&folder).unwrap() {
-            let path = entry.unwrap().path();
-            if path.is_dir() {
-                pending.push(path);
-                continue;
-            }
-            let bytes = std::fs::read(&path).unwrap();
-            let relative = path
-                .strip_prefix(dir)
-                .unwrap()
-                .to_string_lossy()
-                .into_owned();
-            let digest: String = Sha256::digest(&bytes)
-                .iter()
-                .map(|b| format!("{b:02x}"))
-                .collect();
-            digests.insert(relative, digest);
-        }
+    for entry in store.list(&TileFilter::All).unwrap() {
+        let key = entry.key;
+        let tile = store.get(&key).unwrap().expect("a listed tile is held");
+        let (coding, bytes) = tile.bodies.choose(&identity);
+        assert_eq!(coding, Encoding::Identity);
+        let relative = format!(
+            "{}/{}/{}{}",
+            key.tile.z,
+            key.tile.x,
+            key.tile.y,
+            file_suffix(key.format)
+        );
+        let digest: String = Sha256::digest(bytes)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        digests.insert(relative, digest);
     }
     digests
 }
@@ -64,11 +66,12 @@ fn recorded() -> BTreeMap<String, String> {
         .collect()
 }
 
-/// The golden tiles made by `export`, with `extra` arguments, by their paths.
-fn export(work: &Path, extra: &[&std::ffi::OsStr]) -> BTreeMap<String, String> {
-    let out = work.join("tiles");
+/// The golden tiles made by `seed` into a cache of their own (the served zoom only), with
+/// `extra` arguments, by their paths.
+fn seed(work: &Path, extra: &[&std::ffi::OsStr]) -> BTreeMap<String, String> {
+    let cache = work.join("cache.sqlite");
     let output = terrastitch()
-        .args(["export", "--bbox"])
+        .args(["seed", "--bbox"])
         .arg(bbox(
             *COLUMNS.start(),
             *COLUMNS.end(),
@@ -77,10 +80,8 @@ fn export(work: &Path, extra: &[&std::ffi::OsStr]) -> BTreeMap<String, String> {
         ))
         .args(["--format", FORMATS])
         .arg("--cache")
-        .arg(work.join("cache.sqlite"))
+        .arg(&cache)
         .args(extra)
-        .arg("-o")
-        .arg(format!("{}/", out.display()))
         .output()
         .unwrap();
     assert!(
@@ -88,7 +89,7 @@ fn export(work: &Path, extra: &[&std::ffi::OsStr]) -> BTreeMap<String, String> {
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
-    digests_under(&out)
+    digests_in(&cache)
 }
 
 /// The tiles that differ from the recorded digests.
@@ -106,7 +107,7 @@ fn changed(made: &BTreeMap<String, String>) -> Vec<String> {
 #[test]
 fn golden_tiles_keep_their_bytes() {
     let work = tempfile::tempdir().unwrap();
-    let made = export(work.path(), &[]);
+    let made = seed(work.path(), &[]);
     assert_eq!(made.len(), 50, "ten tiles in five formats: {made:#?}");
     if std::env::var_os("TERRASTITCH_GOLDEN_WRITE").is_some() {
         let mut text = String::from(
@@ -134,10 +135,10 @@ fn golden_tiles_keep_their_bytes() {
 fn golden_tiles_from_the_store_keep_their_bytes() {
     let work = tempfile::tempdir().unwrap();
     let store = work.path().join("osm.sqlite");
-    let made = export(work.path(), &["--store".as_ref(), store.as_os_str()]);
+    let made = seed(work.path(), &["--store".as_ref(), store.as_os_str()]);
     assert!(
         store.exists(),
-        "export imported the store it was told to read"
+        "seed imported the store it was told to read"
     );
     assert_eq!(made.len(), 50);
     let changed = changed(&made);
