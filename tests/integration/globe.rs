@@ -1,6 +1,8 @@
 //! The 3D Tiles tileset in CesiumJS, in a real browser: the globe page (`static/globe.html`)
 //! loads `/tileset.json` in headless Chromium (software WebGL), driven by playwright-core
-//! (`tests/js/globe_check.mjs`). Tiles must load without errors and draw; then, looking
+//! (`tests/js/globe_check.mjs`), one session through several views. Tiles must load without
+//! errors and draw; from 15 km the parents alone cover the data, from 2 km the zoom-14 tiles,
+//! both on the server's own terrain; then, looking
 //! straight down from 400 m on a building's centre (worked out here from the flat glb), the
 //! feature CesiumJS picks at the centre of the view must be that building: the content sits on
 //! the globe where its longitude and latitude say, and its metadata is readable. The same
@@ -28,22 +30,25 @@ async fn building_centre(server: &TestServer) -> (f64, f64) {
     panic!("no tile around it draws the building");
 }
 
-/// A checker script's report, run with the server's URL, the artefacts folder and the
-/// building's centre (latitude, longitude); kept as `tests/artifacts/globe/{report}`.
-async fn check(script: &str, report: &str, server: &TestServer) -> (serde_json::Value, String) {
+/// A checker script's report, run with the server's URL, the artefacts folder, the
+/// building's centre (latitude, longitude) and `views`; kept as
+/// `tests/artifacts/globe/{report}`.
+async fn check(
+    script: &str,
+    report: &str,
+    server: &TestServer,
+    views: Vec<String>,
+) -> (serde_json::Value, String) {
     let (lon, lat) = building_centre(server).await;
     let artifacts = repo().join("tests/artifacts/globe");
-    let value = browser_check(
-        script,
-        "globe",
-        vec![
-            server.url("/"),
-            artifacts.display().to_string(),
-            lat.to_string(),
-            lon.to_string(),
-        ],
-    )
-    .await;
+    let mut args = vec![
+        server.url("/"),
+        artifacts.display().to_string(),
+        lat.to_string(),
+        lon.to_string(),
+    ];
+    args.extend(views);
+    let value = browser_check(script, "globe", args).await;
     let text = serde_json::to_string_pretty(&value).unwrap();
     std::fs::write(artifacts.join(report), &text).unwrap();
     (value, text)
@@ -70,21 +75,38 @@ async fn centre_in(server: &TestServer, tile: TileId) -> Option<(f64, f64)> {
     (n > 0.0).then(|| tile.frame().to_lon_lat(x / n, z / n))
 }
 
+/// One session of the globe page: its start view, the data from far and near, and a pick.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn cesium_loads_the_tileset_and_picks_a_building_where_it_stands() {
+async fn cesium_shows_the_data_from_far_and_near_on_its_own_terrain_and_picks_a_building_where_it_stands(
+) {
     assert!(
         repo().join("static/vendor/cesium/Cesium.js").exists(),
         "CesiumJS is not in static/vendor: run `make test` (it copies it from viewer/)"
     );
     let (server, _turn) = common::browser_server().await;
-    let (report, text) = check("globe_check.mjs", "report.json", &server).await;
+    let views = far_and_near(&server).await;
+    let (report, text) = check("globe_check.mjs", "report.json", &server, views).await;
     assert!(report["error"].is_null(), "{text}");
     assert_eq!(report["consoleErrors"], serde_json::json!([]), "{text}");
     assert_eq!(report["pageErrors"], serde_json::json!([]), "{text}");
     assert_eq!(report["failedRequests"], serde_json::json!([]), "{text}");
     assert_eq!(report["end"]["failed"], serde_json::json!([]), "{text}");
+    starts_drawn(&report, &text);
+    far_and_near_drawn(&report, &text);
+    // Straight down on the building's centre, CesiumJS picks the building.
+    assert_eq!(
+        report["picked"]["osmId"],
+        serde_json::json!(KNOWN_BUILDING.to_string()),
+        "{text}"
+    );
+    assert_eq!(report["picked"]["osmType"], "way", "{text}");
+    assert_eq!(report["panel"]["visible"], true, "{text}");
+    server.stop().await;
+}
 
-    // The tileset files and compressed content tiles came, and something was drawn.
+/// The start view: the tileset files and compressed content tiles came, and something was
+/// drawn over the ground in view.
+fn starts_drawn(report: &serde_json::Value, text: &str) {
     assert!(
         report["requests"]["tilesets"].as_u64().unwrap() >= 2,
         "{text}"
@@ -106,20 +128,67 @@ async fn cesium_loads_the_tileset_and_picks_a_building_where_it_stands() {
         report["pixels"]["contentFraction"].as_f64().unwrap() > 0.5,
         "{text}"
     );
-    // Straight down on the building's centre, CesiumJS picks the building.
-    assert_eq!(
-        report["picked"]["osmId"],
-        serde_json::json!(KNOWN_BUILDING.to_string()),
-        "{text}"
-    );
-    assert_eq!(report["picked"]["osmType"], "way", "{text}");
-    assert_eq!(report["panel"]["visible"], true, "{text}");
     println!(
         "globe: first settled view {} ms, {} content tiles",
         report["steps"]["firstAllLoadedMs"],
         content.len()
     );
-    server.stop().await;
+}
+
+/// The data's box from 15 km, straight down on the middle of its northern half (the lower half
+/// of the view then lies on the data, a strip 7 km deep); and from 2 km, at 45° on Monaco.
+async fn far_and_near(server: &TestServer) -> Vec<String> {
+    let description: serde_json::Value = reqwest::get(server.url("/tiles.json"))
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let b: Vec<f64> = description["bounds"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let (lon, lat) = building_centre(server).await;
+    let far = format!(
+        "{},{},15000,-90",
+        (b[1] + b[3]) / 2.0 + (b[3] - b[1]) / 4.0,
+        (b[0] + b[2]) / 2.0
+    );
+    vec![far, format!("{lat},{lon},2000,-45")]
+}
+
+/// From far, content over the data drawn from the parents alone; near, from zoom-14 tiles;
+/// both on the server's terrain.
+fn far_and_near_drawn(report: &serde_json::Value, text: &str) {
+    let views = report["views"].as_array().unwrap();
+    assert_eq!(views.len(), 2, "{text}");
+    for view in views {
+        let height = view["height"].as_u64().unwrap();
+        assert_eq!(view["terrain"], "server", "{text}");
+        // Content over at least half of the lower half of the view.
+        let covered = view["pixels"]["contentFraction"].as_f64().unwrap();
+        assert!(covered >= 0.5, "{height} m: {covered}\n{text}");
+        let zooms: Vec<u64> = view["drawnZooms"]
+            .as_object()
+            .unwrap()
+            .keys()
+            .map(|z| z.parse().unwrap())
+            .collect();
+        match height {
+            15000 => assert!(
+                !zooms.is_empty() && zooms.iter().all(|&z| z < 14),
+                "{zooms:?}\n{text}"
+            ),
+            _ => assert!(zooms.contains(&14), "{zooms:?}\n{text}"),
+        }
+        println!(
+            "globe from {height} m: settled in {} ms, content over {:.0} % of the lower half, zooms {zooms:?}",
+            view["settledMs"],
+            covered * 100.0
+        );
+    }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -131,7 +200,7 @@ async fn three_d_tiles_renderer_js_loads_the_tileset_and_finds_the_building_in_p
         "3d-tiles-renderer is not installed: run `make test` (it runs npm ci in tests/js)"
     );
     let (server, _turn) = common::browser_server().await;
-    let (report, text) = check("tiles3d_check.mjs", "tiles3d-report.json", &server).await;
+    let (report, text) = check("tiles3d_check.mjs", "tiles3d-report.json", &server, vec![]).await;
     assert!(report["error"].is_null(), "{text}");
     assert_eq!(report["consoleErrors"], serde_json::json!([]), "{text}");
     assert_eq!(report["pageErrors"], serde_json::json!([]), "{text}");
@@ -157,74 +226,5 @@ async fn three_d_tiles_renderer_js_loads_the_tileset_and_finds_the_building_in_p
         report["settledMs"],
         loaded.len()
     );
-    server.stop().await;
-}
-
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_globe_shows_the_data_from_far_and_near_on_its_own_terrain() {
-    let (server, _turn) = common::browser_server().await;
-    // The data's box: from 15 km, straight down on the middle of its northern half (the lower
-    // half of the view then lies on the data, a strip 7 km deep); from 2 km, at 45° on Monaco.
-    let description: serde_json::Value = reqwest::get(server.url("/tiles.json"))
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    let b: Vec<f64> = description["bounds"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
-    let (lon, lat) = building_centre(&server).await;
-    let far = format!(
-        "{},{},15000,-90",
-        (b[1] + b[3]) / 2.0 + (b[3] - b[1]) / 4.0,
-        (b[0] + b[2]) / 2.0
-    );
-    let near = format!("{lat},{lon},2000,-45");
-    let artifacts = repo().join("tests/artifacts/globe");
-    let report = browser_check(
-        "globe_far_check.mjs",
-        "globe",
-        vec![server.url("/"), artifacts.display().to_string(), far, near],
-    )
-    .await;
-    let text = serde_json::to_string_pretty(&report).unwrap();
-    std::fs::write(artifacts.join("far.json"), &text).unwrap();
-    assert!(report["error"].is_null(), "{text}");
-    assert_eq!(report["pageErrors"], serde_json::json!([]), "{text}");
-    assert_eq!(report["consoleErrors"], serde_json::json!([]), "{text}");
-    assert_eq!(report["failedRequests"], serde_json::json!([]), "{text}");
-    let views = report["views"].as_array().unwrap();
-    assert_eq!(views.len(), 4, "{text}");
-    for view in views {
-        let height = view["height"].as_u64().unwrap();
-        assert_eq!(view["terrain"], "server", "{text}");
-        // Content over at least half of the lower half of the view.
-        let covered = view["pixels"]["contentFraction"].as_f64().unwrap();
-        assert!(covered >= 0.5, "{height} m: {covered}\n{text}");
-        let zooms: Vec<u64> = view["drawnZooms"]
-            .as_object()
-            .unwrap()
-            .keys()
-            .map(|z| z.parse().unwrap())
-            .collect();
-        // From far, the parents alone; near, the zoom-14 content.
-        match height {
-            15000 => assert!(
-                !zooms.is_empty() && zooms.iter().all(|&z| z < 14),
-                "{zooms:?}\n{text}"
-            ),
-            _ => assert!(zooms.contains(&14), "{zooms:?}\n{text}"),
-        }
-        println!(
-            "globe from {height} m ({}): settled in {} ms, content over {:.0} % of the lower half, zooms {zooms:?}",
-            view["pass"].as_str().unwrap(),
-            view["settledMs"],
-            covered * 100.0
-        );
-    }
     server.stop().await;
 }
