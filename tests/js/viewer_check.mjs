@@ -22,7 +22,7 @@ const HUNG_MS = 240000;
 
 const browser = await launch();
 try {
-  const page = await browser.newPage({ viewport: { width: 1024, height: 768 } });
+  const page = await browser.newPage({ viewport: { width: 800, height: 600 } });
   page.setDefaultTimeout(HUNG_MS);
   watch(page, result);
   await addPixelReader(page);
@@ -105,9 +105,9 @@ try {
     const v = window.terrastitchViewer.currentView();
     let step = 0;
     const turn = () => {
-      window.terrastitchViewer.setView({ ...v, heading: v.heading + step * 2 });
+      window.terrastitchViewer.setView({ ...v, heading: v.heading + step * 6 });
       step++;
-      if (step < 60) requestAnimationFrame(turn);
+      if (step < 20) requestAnimationFrame(turn);
       else resolve();
     };
     turn();
