@@ -16,6 +16,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::time::{Duration, Instant};
 
 use crate::elevation;
+pub use crate::elevation::solutions::Solutions;
 use crate::features::{self, FeatureClass, FeatureSet, FeatureSettings};
 use crate::geoid::VerticalDatum;
 use crate::mesh::ground::{self, Ground, MeshSettings};
@@ -118,6 +119,14 @@ impl Deadline {
     }
 }
 
+/// What a render is given besides its data and settings: when to give up, and the memo of the
+/// LP components solved before (by earlier renders, or read from a store), which it also fills.
+#[derive(Debug, Clone, Copy)]
+pub struct Context<'a> {
+    pub deadline: Deadline,
+    pub solutions: &'a Solutions,
+}
+
 #[derive(Debug, Clone)]
 pub struct RenderedTile {
     pub glb: Vec<u8>,
@@ -171,8 +180,9 @@ fn prepare<'a>(
     mosaic: &'a Mosaic,
     settings: &RenderSettings,
     timings: &mut StageTimings,
-    deadline: Deadline,
+    context: Context<'_>,
 ) -> Result<Prepared<'a>, RenderError> {
+    let deadline = context.deadline;
     let frame = tile.frame();
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
 
@@ -188,7 +198,7 @@ fn prepare<'a>(
     let started = Instant::now();
     let projection = features::Projection::new(tile.z);
     let margin = settings.mesh.max_error_m;
-    let structures = settle_groups(tile, selection, &terrain, settings);
+    let structures = settle_groups(tile, selection, &terrain, settings, context.solutions);
     let structure_features = features::structures::rows(
         &mut feature_set,
         &selection.structures,
@@ -213,7 +223,14 @@ fn prepare<'a>(
     deadline.check(tile, "structures")?;
 
     let started = Instant::now();
-    let road_profiles = settle_roads(tile, selection, &feature_set, &terrain, settings, &draped);
+    let road_profiles = settle_roads(
+        tile,
+        selection,
+        &feature_set,
+        (&terrain, settings),
+        &draped,
+        context.solutions,
+    );
     timings.roads = started.elapsed();
     deadline.check(tile, "roads")?;
 
@@ -300,13 +317,14 @@ fn prepare_overview<'a>(
     settings: &RenderSettings,
     level: features::overview::Level,
     timings: &mut StageTimings,
-    deadline: Deadline,
+    context: Context<'_>,
 ) -> Result<Prepared<'a>, RenderError> {
     let frame = tile.frame();
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
     let started = Instant::now();
     let feature_set = features::overview::collect(selection, level, &settings.features);
     timings.features = started.elapsed();
+    let deadline = context.deadline;
     deadline.check(tile, "features")?;
 
     let started = Instant::now();
@@ -433,6 +451,7 @@ fn settle_groups(
     selection: &Selection<'_>,
     terrain: &dyn Elevation,
     settings: &RenderSettings,
+    solutions: &Solutions,
 ) -> Vec<elevation::structures::Settled> {
     let projection = features::Projection::new(tile.z);
     selection
@@ -446,6 +465,7 @@ fn settle_groups(
                 &projection,
                 &settings.features,
                 settings.mesh.max_error_m,
+                solutions,
             );
             log_violations(
                 tile,
@@ -463,9 +483,9 @@ fn settle_roads(
     tile: TileId,
     selection: &Selection<'_>,
     set: &FeatureSet,
-    terrain: &dyn Elevation,
-    settings: &RenderSettings,
+    (terrain, settings): (&dyn Elevation, &RenderSettings),
     draped: &std::collections::BTreeSet<i64>,
+    solutions: &Solutions,
 ) -> elevation::road_profiles::RoadProfiles {
     let Some(graph) = selection.roads else {
         return Default::default();
@@ -499,6 +519,7 @@ fn settle_roads(
         terrain,
         &features::Projection::new(tile.z),
         &settings.features,
+        solutions,
     );
     log_violations(tile, profiles.violations.iter());
     profiles
@@ -521,34 +542,26 @@ fn log_violations<'a>(
     }
 }
 
-/// Components of the elevation LP this process found solved by an earlier tile, and solved.
-pub fn lp_components_reused() -> (u64, u64) {
-    elevation::solutions::Solutions::shared().counts()
-}
-
-/// The LP components this process solved since the last call, encoded for a durable store.
-pub fn unsaved_solutions() -> Vec<([u8; 32], Vec<u8>)> {
-    elevation::solutions::Solutions::shared().take_unsaved()
-}
-
-/// Keeps LP components read from a durable store for this process's renders; returns how
-/// many it could read.
-pub fn remember_solutions(entries: Vec<([u8; 32], Vec<u8>)>) -> usize {
-    elevation::solutions::Solutions::shared().remember(entries)
-}
-
 /// The ground roads of a tile, settled as its glb settles them.
 pub fn settle_road_profiles(
     tile: TileId,
     selection: &Selection<'_>,
     mosaic: &Mosaic,
     settings: &RenderSettings,
+    solutions: &Solutions,
 ) -> elevation::road_profiles::RoadProfiles {
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
     let (cut, draped) = long_ways_cut(tile, selection, settings);
     let selection = &selection.with_cut_ways(&cut);
     let set = features::collect(selection, tile, &settings.features);
-    settle_roads(tile, selection, &set, &terrain, settings, &draped)
+    settle_roads(
+        tile,
+        selection,
+        &set,
+        (&terrain, settings),
+        &draped,
+        solutions,
+    )
 }
 
 /// The lines of `selection` too long to settle whole, cut to the part near the tile, and
@@ -573,44 +586,50 @@ pub fn settle_structures(
     selection: &Selection<'_>,
     mosaic: &Mosaic,
     settings: &RenderSettings,
+    solutions: &Solutions,
 ) -> Vec<elevation::structures::Settled> {
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
-    settle_groups(tile, selection, &terrain, settings)
+    settle_groups(tile, selection, &terrain, settings, solutions)
 }
 
-/// Renders one tile as glb from the elements near it and the SRTM files around it.
+/// Renders one tile as glb from the elements near it and the SRTM files around it, with a memo
+/// of its own.
 pub fn render(
     tile: TileId,
     selection: &Selection<'_>,
     mosaic: &Mosaic,
     settings: &RenderSettings,
 ) -> Result<RenderedTile, RenderError> {
+    let context = Context {
+        deadline: Deadline::none(),
+        solutions: &Solutions::default(),
+    };
     render_within(
         tile,
         selection,
         mosaic,
         settings,
         crate::format::Variant::default(),
-        Deadline::none(),
+        context,
     )
 }
 
-/// [`render`] as `variant`, giving up with [`RenderError::TimedOut`] once `deadline` has
-/// passed.
+/// [`render`] as `variant`, giving up with [`RenderError::TimedOut`] once the context's
+/// deadline has passed.
 pub fn render_within(
     tile: TileId,
     selection: &Selection<'_>,
     mosaic: &Mosaic,
     settings: &RenderSettings,
     variant: crate::format::Variant,
-    deadline: Deadline,
+    context: Context<'_>,
 ) -> Result<RenderedTile, RenderError> {
     guarded(tile, || {
         let mut timings = StageTimings::default();
-        let prepared = prepare(tile, selection, mosaic, settings, &mut timings, deadline)?;
+        let prepared = prepare(tile, selection, mosaic, settings, &mut timings, context)?;
         let datum = settings.vertical_datum;
         let rendered = render_glb(tile, &prepared, variant, datum, timings);
-        deadline.check(tile, "encode")?;
+        context.deadline.check(tile, "encode")?;
         Ok(rendered)
     })
 }
@@ -748,11 +767,11 @@ pub fn render_terrain(
     mosaic: &Mosaic,
     settings: &RenderSettings,
     extensions: crate::format::Extensions,
-    deadline: Deadline,
+    context: Context<'_>,
 ) -> Result<RenderedTerrain, RenderError> {
     guarded(tile, || {
         let mut timings = StageTimings::default();
-        let prepared = prepare(tile, selection, mosaic, settings, &mut timings, deadline)?;
+        let prepared = prepare(tile, selection, mosaic, settings, &mut timings, context)?;
         Ok(encode_terrain(
             &prepared,
             extensions,
@@ -772,7 +791,7 @@ pub fn render_overview_terrain(
     settings: &RenderSettings,
     served_zoom: u8,
     extensions: crate::format::Extensions,
-    deadline: Deadline,
+    context: Context<'_>,
 ) -> Result<RenderedTerrain, RenderError> {
     let settings = overview_settings(settings, tile, served_zoom);
     guarded(tile, || {
@@ -783,7 +802,7 @@ pub fn render_overview_terrain(
             mosaic,
             &settings,
             &mut timings,
-            deadline,
+            context,
         )?;
         Ok(encode_terrain(
             &prepared,
@@ -812,7 +831,7 @@ pub fn render_overview(
     settings: &RenderSettings,
     level: features::overview::Level,
     variant: crate::format::Variant,
-    deadline: Deadline,
+    context: Context<'_>,
 ) -> Result<RenderedTile, RenderError> {
     let settings = overview_settings(settings, tile, tile.z + level.levels_above);
     guarded(tile, || {
@@ -824,7 +843,7 @@ pub fn render_overview(
             &settings,
             level,
             &mut timings,
-            deadline,
+            context,
         )?;
         let datum = settings.vertical_datum;
         Ok(render_glb(tile, &prepared, variant, datum, timings))

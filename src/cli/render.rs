@@ -55,14 +55,14 @@ pub fn run(args: RenderArgs, config: Config) -> Result<()> {
         opened = None;
         make(&renderer, earlier, variant)?;
     }
-    let counted = crate::provider::lp_components_reused();
+    let counted = renderer.solutions().counts();
     let (took, made) = make(&renderer, tile, variant)?;
     std::fs::write(&args.output, &made.bytes)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
     if args.timings {
         // What the render's stages did not take went to reading the tile's inputs.
         let load = took.saturating_sub(made.timings.total()) + opened.unwrap_or_default();
-        print_timings(load, &made, counted);
+        print_timings(load, &made, counted, renderer.solutions().counts());
     }
     Ok(())
 }
@@ -82,7 +82,8 @@ fn make(renderer: &Renderer, tile: TileId, variant: Variant) -> Result<(Duration
 }
 
 /// The figures of `--timings`, on stderr.
-fn print_timings(load: Duration, made: &Made, counted: (u64, u64)) {
+/// `counted` and `now`: the LP components found and solved before and after the tile.
+fn print_timings(load: Duration, made: &Made, counted: (u64, u64), now: (u64, u64)) {
     let t = made.timings;
     let ms = |d: Duration| d.as_secs_f64() * 1000.0;
     eprintln!("load           {:8.1} ms", ms(load));
@@ -121,7 +122,7 @@ fn print_timings(load: Duration, made: &Made, counted: (u64, u64)) {
             s.road_lp_violations
         );
     }
-    let (found, solved) = crate::provider::lp_components_reused();
+    let (found, solved) = now;
     eprintln!(
         "LP components: {} solved, {} found solved by an earlier tile",
         solved - counted.1,

@@ -12,7 +12,7 @@ use crate::cache::{Coordinator, TileStore};
 use crate::config::Config;
 use crate::format::Format;
 use crate::offline::seed;
-use crate::provider::{Renderer, TileProvider};
+use crate::provider::{Renderer, Solutions, TileProvider};
 use crate::tile::LonLatBounds;
 
 /// The tiles of a box, for `seed` and `export`.
@@ -184,10 +184,11 @@ impl Work<'_> {
     /// Renders the planned tiles into the store, with a progress bar on a terminal.
     fn seed(
         &self,
-        provider: &dyn TileProvider,
+        renderer: &Renderer,
         store: &dyn TileStore,
         coordinator: &dyn Coordinator,
     ) -> Result<seed::SeedReport> {
+        let (provider, solutions): (&dyn TileProvider, _) = (renderer, renderer.solutions());
         let bbox = self.area.bbox()?;
         let layers = seed::layers(&provider.offer(), &bbox, self.formats, self.area.all_zooms);
         let plan = seed::plan(provider, store, &layers, self.shard)?;
@@ -217,22 +218,21 @@ impl Work<'_> {
         };
         eprintln!("working on the seed queue as {}", coordinator.holder());
         let report = seed::seed(
-            provider,
+            (provider, solutions),
             store,
             coordinator,
             &plan.to_make,
-            threads,
-            limit,
+            (threads, limit),
             &show,
         )?;
         bar.finish_and_clear();
-        print_report(&report);
+        print_report(&report, solutions);
         Ok(report)
     }
 }
 
-fn print_report(report: &seed::SeedReport) {
-    let (found, solved) = crate::provider::lp_components_reused();
+fn print_report(report: &seed::SeedReport, solutions: &Solutions) {
+    let (found, solved) = solutions.counts();
     eprintln!(
         "made {} tiles in {:.1} s ({:.2} tiles/s), {} bytes stored; {} failed; elevation LP: {} components solved, {} found solved",
         report.made,

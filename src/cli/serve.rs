@@ -62,7 +62,10 @@ fn serve_sources(config: Config) -> Result<()> {
         let (failed_tx, failed_rx) = tokio::sync::oneshot::channel::<anyhow::Error>();
         let loading = state.clone();
         tokio::task::spawn_blocking(move || match super::open_renderer(&config) {
-            Ok(renderer) => loading.provide(Arc::new(renderer)),
+            Ok(renderer) => {
+                let renderer = renderer.with_solutions(loading.work.solutions.clone());
+                loading.provide(Arc::new(renderer))
+            }
             Err(error) => {
                 loading.provider_failed(format!("{error:#}"));
                 let _ = failed_tx.send(error);

@@ -6,6 +6,7 @@
 //! change of slope is written the same way, to the bit, in either.
 
 use super::lp::{self, Constraint, Outcome, Problem, Relation, Smoothness};
+use super::solutions::Solutions;
 use crate::features::structures::{Incline, Slope};
 use crate::geometry::Point;
 
@@ -191,9 +192,10 @@ impl ConstraintBuilder {
         });
     }
 
-    /// Solves the problem; each report takes the violation of its constraint.
-    pub fn solve(&mut self) -> Outcome {
-        let outcome = lp::solve(&self.problem);
+    /// Solves the problem (components `memo` holds are found there); each report takes the
+    /// violation of its constraint.
+    pub fn solve(&mut self, memo: &Solutions) -> Outcome {
+        let outcome = lp::solve(&self.problem, memo);
         for violation in &outcome.violations {
             if let Some(report) = self.reports.get_mut(violation.label as usize) {
                 report.violation = violation.amount;

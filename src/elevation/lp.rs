@@ -95,8 +95,9 @@ pub struct Outcome {
 /// Slack below this (metres) is rounding, not a violation.
 const VIOLATION_EPS: f64 = 1e-4;
 
-/// Solves the problem component by component.
-pub fn solve(problem: &Problem) -> Outcome {
+/// Solves the problem component by component; a component `memo` holds is found there, one
+/// solved is kept in it.
+pub fn solve(problem: &Problem, memo: &Solutions) -> Outcome {
     let n = problem.targets.len();
     let mut values: Vec<f64> = (0..n)
         .map(|i| problem.fixed[i].unwrap_or(problem.targets[i]))
@@ -153,7 +154,7 @@ pub fn solve(problem: &Problem) -> Outcome {
         }
     }
     let mut outcome = Outcome::default();
-    let solved = solve_all(problem, &members, &constraints, &smooth);
+    let solved = solve_all(problem, memo, &members, &constraints, &smooth);
     for (id, solution) in solved.into_iter().enumerate() {
         outcome.components += 1;
         let size = (members[id].len(), constraints[id].len());
@@ -187,13 +188,14 @@ type Solved = Option<(Vec<f64>, Vec<Violation>)>;
 /// solved alone, so the result does not depend on how they are spread.
 fn solve_all(
     problem: &Problem,
+    memo: &Solutions,
     members: &[Vec<usize>],
     constraints: &[Vec<usize>],
     smooth: &[Vec<usize>],
 ) -> Vec<Solved> {
     let solve_range = |range: std::ops::Range<usize>| -> Vec<Solved> {
         range
-            .map(|id| solve_component(problem, &members[id], &constraints[id], &smooth[id]))
+            .map(|id| solve_component(problem, memo, &members[id], &constraints[id], &smooth[id]))
             .collect()
     };
     let count = members.len();
@@ -213,7 +215,13 @@ fn solve_all(
                     (t..count)
                         .step_by(threads)
                         .map(|id| {
-                            solve_component(problem, &members[id], &constraints[id], &smooth[id])
+                            solve_component(
+                                problem,
+                                memo,
+                                &members[id],
+                                &constraints[id],
+                                &smooth[id],
+                            )
                         })
                         .collect::<Vec<Solved>>()
                 })
@@ -237,14 +245,14 @@ fn solve_all(
 }
 
 /// One component as an LP; `None` if the solver fails. A component solved before (in this
-/// tile or another) is taken from [`Solutions::shared`].
+/// tile or another) is taken from `memo`.
 fn solve_component(
     problem: &Problem,
+    memo: &Solutions,
     members: &[usize],
     constraints: &[usize],
     smooth: &[usize],
 ) -> Option<(Vec<f64>, Vec<Violation>)> {
-    let memo = Solutions::shared();
     // Each member's position in the component.
     let local: HashMap<usize, usize> = members.iter().enumerate().map(|(k, &v)| (v, k)).collect();
     let key = component_key(problem, members, &local, constraints, smooth);
@@ -476,7 +484,7 @@ mod tests {
             penalty: None,
             label: 1,
         });
-        let out = solve(&p);
+        let out = solve(&p, &Solutions::default());
         assert_eq!(out.components, 2);
         assert_eq!(out.failed, 0);
         assert!(
@@ -506,7 +514,7 @@ mod tests {
         p.constraints.push(at_least(b, a, 10.0, Some(100.0), 8));
         // An unrelated, satisfiable constraint elsewhere.
         p.constraints.push(at_least(c, d, 2.0, Some(100.0), 9));
-        let out = solve(&p);
+        let out = solve(&p, &Solutions::default());
         assert_eq!(out.failed, 0);
         let total: f64 = out.violations.iter().map(|v| v.amount).sum();
         assert!((total - 20.0).abs() < 1e-3, "{:?}", out.violations);
@@ -532,7 +540,7 @@ mod tests {
                 weight: 10.0,
             });
         }
-        let out = solve(&p);
+        let out = solve(&p, &Solutions::default());
         assert_eq!((out.values[x[0]], out.values[x[4]]), (10.0, 10.0));
         assert!(out.values[x[2]] - out.values[floor] >= 8.0 - 1e-6);
         // A straight deck from bank to bank: no peak at the middle, no sag either side.
@@ -569,7 +577,7 @@ mod tests {
                 let penalty = if hard[k] && a > b { None } else { Some(50.0) };
                 p.constraints.push(at_least(a, b, gap, penalty, k as u32));
             }
-            let out = solve(&p);
+            let out = solve(&p, &Solutions::default());
             proptest::prop_assert_eq!(out.failed, 0);
             let mut reported = vec![0.0; pairs.len()];
             for v in &out.violations {
@@ -611,17 +619,19 @@ mod tests {
 
     #[test]
     fn a_component_solved_once_is_found_again_wherever_it_sits_with_its_own_labels() {
-        let memo = Solutions::shared();
-        // A target no other test uses, so the first solve is this test's.
+        let memo = Solutions::default();
         let target = 1234.5678;
         let (first, [a, b]) = contradiction(0, 7, target);
-        let solved = solve(&first);
-        let (found_before, _) = memo.counts();
+        let solved = solve(&first, &memo);
+        let (found, solved_afresh) = memo.counts();
+        assert_eq!((found, solved_afresh), (0, 1), "a new memo finds nothing");
+        // The same contradiction after three components of its own.
         let (second, [c, d]) = contradiction(3, 40, target);
-        let again = solve(&second);
-        assert!(
-            memo.counts().0 > found_before,
-            "the component is found, not solved"
+        let again = solve(&second, &memo);
+        assert_eq!(
+            memo.counts(),
+            (1, 4),
+            "the contradiction is found, not solved"
         );
         assert_eq!(
             [solved.values[a], solved.values[b]],
@@ -642,7 +652,8 @@ mod tests {
         assert_eq!(labels(&again), shifted);
         // A component that differs in one number is solved, not found.
         let (other, [e, _]) = contradiction(0, 7, target + 1.0);
-        assert_ne!(solve(&other).values[e], solved.values[a]);
+        assert_ne!(solve(&other, &memo).values[e], solved.values[a]);
+        assert_eq!(memo.counts(), (1, 5), "a component that differs is solved");
     }
 
     #[test]
@@ -656,8 +667,9 @@ mod tests {
         }));
         let local = HashMap::from([(a, 0), (b, 1)]);
         let key = component_key(&p, &[a, b], &local, &[0, 1], &[]);
-        assert_eq!(Solutions::shared().remember([(key, damaged)]), 1);
-        let out = solve(&p);
+        let memo = Solutions::default();
+        assert_eq!(memo.remember([(key, damaged)]), 1);
+        let out = solve(&p, &memo);
         assert_eq!(out.failed, 0);
         // The damaged entry would give a −7 m and leave b at its target, 17 m short of a ≥ b + 10.
         assert!(

@@ -21,6 +21,7 @@ use std::collections::HashMap;
 
 use super::constraints::{ConstraintBuilder, ConstraintKind, ConstraintReport, GradeAsked};
 use super::lp::Relation;
+use super::solutions::Solutions;
 use crate::features::carriageways::road_line;
 use crate::features::road_network::{self, Cut, RoadLine, StretchLine};
 use crate::features::structures::Slope;
@@ -182,6 +183,7 @@ struct Draft<'a> {
 /// (other ways are skipped; stretches away from `area` keep the terrain, as nothing there is
 /// drawn from them). `all_ways` and `graph` are the whole data's, so the cut at a junction
 /// far from the tile is the one the tiles around that junction draw.
+#[allow(clippy::too_many_arguments)]
 pub fn settle(
     area: Rect,
     ways: &[&Way],
@@ -190,6 +192,7 @@ pub fn settle(
     terrain: &dyn Elevation,
     projection: &Projection,
     settings: &FeatureSettings,
+    memo: &Solutions,
 ) -> RoadProfiles {
     let mut builder = ConstraintBuilder::default();
     let mut out = RoadProfiles::default();
@@ -233,7 +236,7 @@ pub fn settle(
         drafts.push(draft);
     }
 
-    let outcome = builder.solve();
+    let outcome = builder.solve(memo);
     out.violations = builder
         .reports
         .into_iter()
@@ -616,6 +619,7 @@ mod tests {
             terrain,
             &Projection::new(14),
             &FeatureSettings::default(),
+            &Solutions::default(),
         )
     }
 

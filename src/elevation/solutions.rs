@@ -8,18 +8,19 @@
 //! tile solved takes its solution instead of solving again. The bytes of a tile are the same
 //! whether a component was solved or found here.
 //!
-//! The memo is the process's, bounded in bytes, least recently used first out; it may also be
-//! filled from and written to a durable store (see [`Solutions::remember`] and
+//! A memo is made once by whoever renders (one for a server or a seed, kept across reloads of
+//! the sources) and handed to every render; it is bounded in bytes, least recently used first
+//! out, and may also be filled from and written to a durable store (see [`Solutions::remember`] and
 //! [`Solutions::take_unsaved`]), so the components a tile cache's tiles were made from are
 //! found again after a restart or a diff.
 
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex};
 
 use sha2::{Digest, Sha256};
 
-/// Bytes the process keeps of solved components, at most.
-const MEMO_BYTES: u64 = 64 << 20;
+/// Bytes a memo keeps of solved components, at most, unless told otherwise.
+pub const MEMO_BYTES: u64 = 64 << 20;
 
 /// The digest a component is kept by.
 pub type Key = [u8; 32];
@@ -33,7 +34,7 @@ pub struct Solved {
     pub violations: Vec<(u32, f64)>,
 }
 
-/// The process's memo.
+/// A memo of solved components.
 pub struct Solutions {
     cache: moka::sync::Cache<Key, Arc<Option<Solved>>>,
     /// Components found here, and solved afresh.
@@ -43,11 +44,28 @@ pub struct Solutions {
     unsaved: Mutex<Vec<Key>>,
 }
 
+impl Default for Solutions {
+    fn default() -> Solutions {
+        Solutions::new(MEMO_BYTES)
+    }
+}
+
+impl std::fmt::Debug for Solutions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (found, solved) = self.counts();
+        f.debug_struct("Solutions")
+            .field("found", &found)
+            .field("solved", &solved)
+            .finish_non_exhaustive()
+    }
+}
+
 /// Format of an encoded entry; a change makes stored entries unreadable, not wrong.
 const ENCODING: u8 = 1;
 
 impl Solutions {
-    fn new(bytes: u64) -> Solutions {
+    /// A memo keeping at most `bytes` of solutions.
+    pub fn new(bytes: u64) -> Solutions {
         Solutions {
             cache: moka::sync::Cache::builder()
                 .max_capacity(bytes)
@@ -63,12 +81,6 @@ impl Solutions {
             solved: AtomicU64::new(0),
             unsaved: Mutex::new(Vec::new()),
         }
-    }
-
-    /// The memo every LP of the process reads and fills.
-    pub fn shared() -> &'static Solutions {
-        static SHARED: OnceLock<Solutions> = OnceLock::new();
-        SHARED.get_or_init(|| Solutions::new(MEMO_BYTES))
     }
 
     /// The component kept by `key` when `sound` accepts it, else `solve`'s answer, then kept

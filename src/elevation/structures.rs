@@ -26,6 +26,7 @@ use std::collections::HashMap;
 use crate::elevation::constraints::{ConstraintBuilder, GradeAsked};
 use crate::elevation::lp::{Constraint, Relation};
 use crate::elevation::settled::{Level, Rule, Stations};
+use crate::elevation::solutions::Solutions;
 use crate::features::structures::{self as tags, WayTraits};
 use crate::features::{widened_surface, FeatureClass, FeatureSettings, Projection, Surface};
 use crate::geometry::{Point, Polygon, Rect};
@@ -175,6 +176,7 @@ pub fn settle(
     projection: &Projection,
     settings: &FeatureSettings,
     surface_margin_m: f64,
+    memo: &Solutions,
 ) -> Settled {
     let mut settling = Settling {
         group,
@@ -200,7 +202,7 @@ pub fn settle(
     for crossing in &group.crossings {
         settling.add_crossing(crossing);
     }
-    settling.solve()
+    settling.solve(memo)
 }
 
 /// A group on its way to the LP: what it is settled from, the problem so far, and each chain's
@@ -474,8 +476,8 @@ impl Settling<'_> {
     }
 
     /// Solves the group; each profile reads its elevations back from its variables.
-    fn solve(mut self) -> Settled {
-        let outcome = self.builder.solve();
+    fn solve(mut self, memo: &Solutions) -> Settled {
+        let outcome = self.builder.solve(memo);
         for (profile, row) in self.profiles.iter_mut().zip(&self.rows) {
             let first = row.first;
             profile.elevations = outcome.values[first..first + profile.points.len()].to_vec();

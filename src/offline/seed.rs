@@ -23,7 +23,7 @@ use crate::cache::coordinator::{Coordinator, Event, Job, JobKind, Priority};
 use crate::cache::encoding::Bodies;
 use crate::cache::{etag_of, unix_now, Provenance, StoreError, StoredTile, TileFilter, TileStore};
 use crate::format::{Format, TileKey};
-use crate::provider::{Availability, Deadline, Offer, TileProvider};
+use crate::provider::{Availability, Deadline, Offer, Solutions, TileProvider};
 use crate::tile::{LonLatBounds, TileId, TileRange};
 
 /// The `i`-th of `n` shares of a box's tiles (`1 ≤ i ≤ n`).
@@ -217,23 +217,23 @@ enum Outcome {
     Failed(String, bool),
 }
 
-/// Queues `keys` with the coordinator and works on its seed queue with `threads` threads until
+/// Queues `keys` with the coordinator and works on its seed queue with `threads` threads (each
+/// render given `render_limit`), `provider` rendering with the memo `solutions`, until
 /// the queue is empty (rows other workers hold included: a worker that dies leaves them to
 /// this one), storing each tile as soon as it is made. A store error stops the seed; a tile
 /// that fails is tried again by whoever takes it next, and reported when it is set aside.
 pub fn seed(
-    provider: &dyn TileProvider,
+    (provider, solutions): (&dyn TileProvider, &Solutions),
     store: &dyn TileStore,
     coordinator: &dyn Coordinator,
     keys: &[TileKey],
-    threads: usize,
-    render_limit: Option<Duration>,
+    (threads, render_limit): (usize, Option<Duration>),
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<SeedReport, StoreError> {
     let started = Instant::now();
     coordinator.join("seed")?;
     // Components a render before this one solved are found, not solved again.
-    if let Err(error) = crate::provider::load_solutions(store) {
+    if let Err(error) = crate::provider::load_solutions(store, solutions) {
         tracing::warn!(%error, "reading solved elevation components failed");
     }
     coordinator.enqueue(keys, JobKind::Seed, Priority::Seed, false)?;
@@ -246,6 +246,7 @@ pub fn seed(
     let stopped = || stop.lock().map_or(true, |s| s.is_some());
     let workers = Workers {
         provider,
+        solutions,
         store,
         coordinator,
         render_limit,
@@ -326,6 +327,8 @@ impl Tally {
 /// What the seed's threads share.
 struct Workers<'a> {
     provider: &'a dyn TileProvider,
+    /// The memo the provider's renders fill, kept in the store as tiles are stored.
+    solutions: &'a Solutions,
     store: &'a dyn TileStore,
     coordinator: &'a dyn Coordinator,
     render_limit: Option<Duration>,
@@ -385,7 +388,7 @@ impl Workers<'_> {
                 store.put(&key, &tile)?;
                 // Kept for later renders when they can be: a tile stored without them is
                 // still whole.
-                if let Err(error) = crate::provider::save_solutions(store) {
+                if let Err(error) = crate::provider::save_solutions(store, self.solutions) {
                     tracing::warn!(%error, "keeping solved elevation components failed");
                 }
                 // Servers holding an older version in memory drop it.

@@ -24,26 +24,29 @@ pub use pipeline::{Made, MakeError};
 pub use renderer::Renderer;
 // What the layers above see of making a tile: its time limit, what its stages took, and what
 // the downloads it needed did.
-pub use crate::render::{lp_components_reused, Deadline, StageTimings};
+pub use crate::render::{Deadline, Solutions, StageTimings};
 pub use crate::source::fetch::FetchStats;
 
 /// Solved LP components read from a tile store when a process starts, at most.
 const SOLUTIONS_AT_START: usize = 50_000;
 
-/// Reads the solved LP components `store` keeps, for this process's renders to find; returns
-/// how many it kept.
+/// Reads the solved LP components `store` keeps into `solutions`, for the renders that use it
+/// to find; returns how many it kept.
 pub fn load_solutions(
     store: &dyn crate::cache::TileStore,
+    solutions: &Solutions,
 ) -> Result<usize, crate::cache::StoreError> {
     let entries = store.solutions(SOLUTIONS_AT_START)?;
-    Ok(crate::render::remember_solutions(entries))
+    Ok(solutions.remember(entries))
 }
 
-/// Writes the LP components solved since the last call to `store`; returns how many.
+/// Writes the LP components `solutions` solved since the last call to `store`; returns how
+/// many.
 pub fn save_solutions(
     store: &dyn crate::cache::TileStore,
+    solutions: &Solutions,
 ) -> Result<usize, crate::cache::StoreError> {
-    let entries = crate::render::unsaved_solutions();
+    let entries = solutions.take_unsaved();
     store.keep_solutions(&entries)?;
     Ok(entries.len())
 }

@@ -4,7 +4,7 @@
 
 use super::Inputs;
 use crate::format::{Format, TileKey};
-use crate::render::{Deadline, RenderError, RenderSettings, RenderStats, StageTimings};
+use crate::render::{Context, RenderError, RenderSettings, RenderStats, StageTimings};
 use crate::source::srtm::SrtmError;
 
 /// A tile made.
@@ -54,7 +54,7 @@ pub fn make(
     key: TileKey,
     settings: &RenderSettings,
     served_zoom: u8,
-    deadline: Deadline,
+    context: Context<'_>,
 ) -> Result<Made, MakeError> {
     let tile = key.tile;
     match key.format {
@@ -74,10 +74,10 @@ pub fn make(
                         &sources.osm.coverage(),
                     ),
                     variant,
-                    deadline,
+                    context,
                 )
             } else {
-                crate::render::render_within(tile, &selection, &mosaic, settings, variant, deadline)
+                crate::render::render_within(tile, &selection, &mosaic, settings, variant, context)
             }?;
             Ok(Made {
                 triangles: rendered.stats.triangles,
@@ -96,7 +96,7 @@ pub fn make(
                     settings,
                     served_zoom,
                     extensions,
-                    deadline,
+                    context,
                 )
             } else {
                 let osm = sources.osm_for(tile)?;
@@ -107,7 +107,7 @@ pub fn make(
                     &sources.mosaic_for(tile, &selection, settings.features.longest_way_m())?,
                     settings,
                     extensions,
-                    deadline,
+                    context,
                 )
             }?;
             Ok(Made {

@@ -8,7 +8,7 @@ use super::{Availability, Inputs, Made, MakeError, Offer, TileProvider, Unavaila
 use crate::cache::Provenance;
 use crate::config::SourcesConfig;
 use crate::format::{Format, TileKey};
-use crate::render::{Deadline, RenderSettings};
+use crate::render::{Context, Deadline, RenderSettings, Solutions};
 use crate::source::fetch::{FetchStats, Fetcher};
 use crate::source::replication::Replication;
 use crate::tile::{LonLatBounds, TileId};
@@ -30,6 +30,9 @@ pub struct Renderer {
     pipeline: Arc<str>,
     /// What the inputs were opened from, to open them again when they change.
     origin: Option<(Arc<SourcesConfig>, Arc<Fetcher>)>,
+    /// The LP components solved by this renderer's renders (and those before it, when it is a
+    /// reload), found again by the next.
+    solutions: Arc<Solutions>,
 }
 
 impl Renderer {
@@ -40,7 +43,20 @@ impl Renderer {
             settings: Arc::new(settings),
             zoom,
             origin: None,
+            solutions: Arc::default(),
         }
+    }
+
+    /// The same renderer, finding and keeping solved LP components in `solutions` (shared with
+    /// whoever else reads or saves them).
+    pub fn with_solutions(mut self, solutions: Arc<Solutions>) -> Renderer {
+        self.solutions = solutions;
+        self
+    }
+
+    /// The memo of solved LP components its renders read and fill.
+    pub fn solutions(&self) -> &Arc<Solutions> {
+        &self.solutions
     }
 
     /// Opens the sources a configuration names (downloading with `fetcher`), and keeps the
@@ -197,7 +213,11 @@ impl TileProvider for Renderer {
     }
 
     fn make(&self, key: TileKey, deadline: Deadline) -> Result<Made, MakeError> {
-        super::pipeline::make(&self.inputs, key, &self.settings, self.zoom, deadline)
+        let context = Context {
+            deadline,
+            solutions: &self.solutions,
+        };
+        super::pipeline::make(&self.inputs, key, &self.settings, self.zoom, context)
     }
 
     fn terrain_layer(&self) -> Option<crate::output::layer::TerrainLayer> {
@@ -246,8 +266,10 @@ impl TileProvider for Renderer {
         let mosaic =
             self.inputs
                 .mosaic_for(tile, &selection, self.settings.features.longest_way_m())?;
-        let settled = crate::render::settle_structures(tile, &selection, &mosaic, &self.settings);
-        let roads = crate::render::settle_road_profiles(tile, &selection, &mosaic, &self.settings);
+        let memo = &self.solutions;
+        let settings = &self.settings;
+        let settled = crate::render::settle_structures(tile, &selection, &mosaic, settings, memo);
+        let roads = crate::render::settle_road_profiles(tile, &selection, &mosaic, settings, memo);
         let margin = self.settings.mesh.max_error_m;
         let value =
             crate::output::debug::elevations(tile, &settled, &roads, selection.all_ways, margin);
@@ -266,7 +288,8 @@ impl TileProvider for Renderer {
         tracing::info!(files = ?changed, "sources changed; loading them again");
         let settings = (*self.settings).clone();
         let renderer = Renderer::load(config, settings, self.zoom, fetcher.clone())
-            .map_err(|e| e.to_string())?;
+            .map_err(|e| e.to_string())?
+            .with_solutions(self.solutions.clone());
         Ok(Some(Arc::new(renderer)))
     }
 

@@ -188,11 +188,16 @@ impl Metrics {
     }
 
     /// The metrics in Prometheus' text format; `downloads` counts the provider's downloads
-    /// (none when it downloads nothing).
-    pub fn render_text(&self, pool: PoolGauges, downloads: Option<&FetchStats>) -> String {
+    /// (none when it downloads nothing), `lp_found` the LP components renders found solved.
+    pub fn render_text(
+        &self,
+        pool: PoolGauges,
+        downloads: Option<&FetchStats>,
+        lp_found: u64,
+    ) -> String {
         let none = FetchStats::default();
         let mut out = String::new();
-        for (name, help, value) in self.counters(downloads.unwrap_or(&none)) {
+        for (name, help, value) in self.counters(downloads.unwrap_or(&none), lp_found) {
             let _ = writeln!(
                 out,
                 "# HELP {name} {help}\n# TYPE {name} counter\n{name} {value}"
@@ -211,7 +216,11 @@ impl Metrics {
     }
 
     /// The plain counters, as name, help and value, in the order they are written.
-    fn counters(&self, downloads: &FetchStats) -> [(&'static str, &'static str, u64); 17] {
+    fn counters(
+        &self,
+        downloads: &FetchStats,
+        lp_found: u64,
+    ) -> [(&'static str, &'static str, u64); 17] {
         let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
         [
             (
@@ -262,7 +271,7 @@ impl Metrics {
             (
                 "terrastitch_lp_components_found_total",
                 "Components of the elevation linear program found solved by an earlier tile of the process instead of solved again.",
-                crate::provider::lp_components_reused().0,
+                lp_found,
             ),
             (
                 "terrastitch_lp_violations_total",

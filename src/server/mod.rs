@@ -67,6 +67,9 @@ pub struct Work {
     pub download_waits: Arc<tokio::sync::Semaphore>,
     /// Tiles whose render failed or ran out of time lately, with the error (status, message).
     pub failed_renders: moka::sync::Cache<crate::format::TileKey, (StatusCode, Arc<str>)>,
+    /// The LP components the renders solved, read from the store at start and kept in it:
+    /// the renderer finds and fills them (see [`crate::provider::Renderer::with_solutions`]).
+    pub solutions: Arc<crate::provider::Solutions>,
     /// Tiles to make again in the background.
     pub regenerator: Arc<regenerate::Regenerator>,
     /// Workers making them (each holds at most one render slot).
@@ -124,6 +127,7 @@ impl Work {
                 .max_capacity(100_000)
                 .time_to_live(FAILED_RENDER_MEMORY)
                 .build(),
+            solutions: Arc::default(),
             regenerator: Arc::new(regenerate::Regenerator::new(coordinator)),
             background_workers: server.background_renders.max(1),
             check_interval: (server.check_interval_s > 0)
@@ -410,6 +414,7 @@ async fn metrics(State(state): State<AppState>) -> impl IntoResponse {
         state.metrics.render_text(
             state.pool_gauges(),
             state.provider().ok().as_deref().and_then(|p| p.downloads()),
+            state.work.solutions.counts().0,
         ),
     )
 }
@@ -431,8 +436,9 @@ pub async fn serve(
 ) -> std::io::Result<()> {
     let mut background = vec![tokio::spawn(background_tasks(state.clone()))];
     let store = state.cache.store().clone();
+    let solutions = state.work.solutions.clone();
     background.push(tokio::task::spawn_blocking(
-        move || match crate::provider::load_solutions(store.as_ref()) {
+        move || match crate::provider::load_solutions(store.as_ref(), &solutions) {
             Ok(kept) => tracing::debug!(kept, "solved elevation components read from the cache"),
             Err(error) => tracing::warn!(%error, "reading solved elevation components failed"),
         },
@@ -510,8 +516,11 @@ async fn flush(state: &AppState) {
         tracing::warn!(%error, "recording served tiles failed");
     }
     let store = state.cache.store().clone();
-    let saved =
-        tokio::task::spawn_blocking(move || crate::provider::save_solutions(store.as_ref())).await;
+    let solutions = state.work.solutions.clone();
+    let saved = tokio::task::spawn_blocking(move || {
+        crate::provider::save_solutions(store.as_ref(), &solutions)
+    })
+    .await;
     if let Ok(Err(error)) = saved {
         tracing::warn!(%error, "keeping solved elevation components failed");
     }

@@ -311,7 +311,9 @@ fn road_grades_keep_to_the_class_maximum_unless_reported() {
         let size = tile.tile_size() as f32;
         let selection = common::selection(&sources, id);
         let mosaic = sources.mosaic(id).expect("srtm");
-        let roads = terrastitch::render::settle_road_profiles(id, &selection, &mosaic, &settings);
+        let memo = terrastitch::render::Solutions::default();
+        let roads =
+            terrastitch::render::settle_road_profiles(id, &selection, &mosaic, &settings, &memo);
         settled_stretches += roads.settled;
         // A violation of the way's grade reported within 15 m of the segment from `a` to `b`.
         let reported = |way: i64, a: [f64; 2], b: [f64; 2], metre: f64| {

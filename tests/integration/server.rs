@@ -469,3 +469,27 @@ async fn the_3d_tiles_routes_walk_down_to_content_and_refuse_what_is_not_there()
     }
     server.stop().await;
 }
+
+/// The server's renders share one memo of solved LP components: a road or bridge that reaches
+/// two neighbouring tiles is solved for the first and found for the second, and `/metrics`
+/// says so.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_component_one_tile_solved_is_found_by_its_neighbour() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = start(dir.path(), two_threads()).await;
+    let found = |text: &str| common::metric_in(text, "terrastitch_lp_components_found_total");
+    let metrics = || async { server.get("/metrics", &[]).await.text().await.unwrap() };
+    let first = server.get("/tiles/14/8529/5973.glb", &[]).await;
+    assert_eq!(first.status(), 200);
+    let _ = first.bytes().await;
+    let after_one = found(&metrics().await).expect("the metric is written");
+    let second = server.get("/tiles/14/8530/5973.glb", &[]).await;
+    assert_eq!(second.status(), 200);
+    let _ = second.bytes().await;
+    let after_two = found(&metrics().await).expect("the metric is written");
+    assert!(
+        after_two > after_one,
+        "components found: {after_one} after one tile, {after_two} after its neighbour"
+    );
+    server.stop().await;
+}

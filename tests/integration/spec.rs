@@ -11,7 +11,7 @@ use terrastitch::features::structures::{
 use terrastitch::osm::structures::StructureKind;
 use terrastitch::osm::{LonLat, Node, OsmData, Tags, Way};
 use terrastitch::provider::inputs::{index_osm, QUERY_MARGIN_DEG};
-use terrastitch::render::{settle_road_profiles, settle_structures, RenderSettings};
+use terrastitch::render::{settle_road_profiles, settle_structures, RenderSettings, Solutions};
 use terrastitch::terrain::cell::{CellId, SrtmTile};
 use terrastitch::terrain::{Mosaic, TerrainModel};
 use terrastitch::tile::lon_lat_to_uv;
@@ -128,16 +128,22 @@ type Station = ([f64; 2], f64, f64);
 fn settled(fixture: &Fixture, mosaic: &Mosaic) -> Vec<(StructureKind, Vec<Station>)> {
     let index = index_osm(fixture.data(), TILE.z);
     let selection = index.query(TILE, QUERY_MARGIN_DEG);
-    settle_structures(TILE, &selection, mosaic, &RenderSettings::default())
-        .into_iter()
-        .flat_map(|settled| settled.profiles)
-        .map(|profile| {
-            let stations = (0..profile.points.len())
-                .map(|k| (profile.points[k], profile.elevations[k], profile.terrain[k]))
-                .collect();
-            (profile.kind, stations)
-        })
-        .collect()
+    settle_structures(
+        TILE,
+        &selection,
+        mosaic,
+        &RenderSettings::default(),
+        &Solutions::default(),
+    )
+    .into_iter()
+    .flat_map(|settled| settled.profiles)
+    .map(|profile| {
+        let stations = (0..profile.points.len())
+            .map(|k| (profile.points[k], profile.elevations[k], profile.terrain[k]))
+            .collect();
+        (profile.kind, stations)
+    })
+    .collect()
 }
 
 /// The elevation of a profile where it passes closest to `place`, between its two nearest
@@ -290,7 +296,8 @@ fn junction_on_a_slope() -> Junction {
     let index = index_osm(fixture.data(), TILE.z);
     let selection = index.query(TILE, QUERY_MARGIN_DEG);
     let settings = RenderSettings::default();
-    let profiles = settle_road_profiles(TILE, &selection, &mosaic, &settings);
+    let profiles =
+        settle_road_profiles(TILE, &selection, &mosaic, &settings, &Solutions::default());
     let set = terrastitch::features::collect(&selection, TILE, &settings.features);
     let model = TerrainModel::new(&mosaic, settings.interpolation, TILE.z);
     let drawn =

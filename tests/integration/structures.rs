@@ -6,6 +6,7 @@ use crate::common;
 use std::collections::{BTreeMap, HashMap};
 
 use common::{decode, sample_osm, sample_srtm, GroundLocator, MONACO_TILES as TILES};
+use terrastitch::elevation::solutions::Solutions;
 use terrastitch::elevation::structures::{settle, ConstraintKind, Settled};
 use terrastitch::features::structures as tags;
 use terrastitch::features::{FeatureSettings, Projection};
@@ -26,6 +27,7 @@ fn settle_all(sources: &Inputs) -> Vec<Settled> {
     let mosaic = sources.mosaic(tile).expect("srtm");
     let terrain = TerrainModel::new(&mosaic, Interpolation::default(), 14);
     let margin = MeshSettings::default().max_error_m;
+    let memo = Solutions::default();
     common::whole(sources)
         .structures()
         .iter()
@@ -37,6 +39,7 @@ fn settle_all(sources: &Inputs) -> Vec<Settled> {
                 &Projection::new(14),
                 &FeatureSettings::default(),
                 margin,
+                &memo,
             )
         })
         .collect()

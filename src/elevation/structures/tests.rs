@@ -33,6 +33,7 @@ fn settle_ways_on(ways: &[Way], terrain: &dyn Elevation) -> Vec<Settled> {
                 &Projection::new(14),
                 &FeatureSettings::default(),
                 1.0,
+                &Solutions::default(),
             )
         })
         .collect()

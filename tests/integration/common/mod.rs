@@ -234,7 +234,7 @@ impl TestServer {
         server_config: &ServerConfig,
     ) -> TestServer {
         let state = TestServer::state(cache, server_config);
-        let renderer = std::sync::Arc::new(renderer);
+        let renderer = std::sync::Arc::new(renderer.with_solutions(state.work.solutions.clone()));
         state.provide(renderer.clone());
         let mut server = TestServer::start_state(state).await;
         server.renderer = Some(renderer);
