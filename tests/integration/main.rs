@@ -26,6 +26,7 @@ mod postgres;
 mod road_network;
 mod roofs;
 mod router;
+mod rules;
 mod seams;
 mod server;
 mod spec;

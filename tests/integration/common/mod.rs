@@ -4,6 +4,7 @@
 #![allow(dead_code)]
 
 pub mod compressed;
+pub mod fixture;
 pub mod pg_cluster;
 pub mod process;
 

@@ -1,0 +1,172 @@
+//! Rules of what a tile draws, each on a hand-written fixture rendered whole, as the server
+//! renders a tile: the sea on its side of a coastline, a river's width, a roof's tagged height,
+//! a passage through a building. Fast: no extract is read.
+
+use crate::common::fixture::{at, terrain, Fixture, TILE};
+use crate::common::{corners, decode, DecodedTile, GroundLocator};
+
+use terrastitch::mesh::passages::HEADROOM_M;
+use terrastitch::provider::inputs::{index_osm, QUERY_MARGIN_DEG};
+use terrastitch::render::{render, RenderSettings};
+use terrastitch::terrain::Mosaic;
+
+/// The glb of [`TILE`] made from `fixture` on `mosaic`, decoded.
+fn drawn(fixture: &Fixture, mosaic: &Mosaic) -> DecodedTile {
+    let index = index_osm(fixture.data(), TILE.z);
+    let selection = index.query(TILE, QUERY_MARGIN_DEG);
+    let rendered =
+        render(TILE, &selection, mosaic, &RenderSettings::default()).expect("the fixture renders");
+    decode(&rendered.glb)
+}
+
+/// The tile's vertical scale at the fixtures' latitude: a glb's heights are metres times the
+/// Web Mercator scale factor (see the tile's `frame`), so differences of heights here are
+/// divided by it.
+fn scale() -> f64 {
+    1.0 / at(0.5, 0.5).lat.to_radians().cos()
+}
+
+/// The heights of `node`'s surfaces over a place of the tile (fractions east and south), in
+/// metres.
+fn heights(tile: &DecodedTile, node: &str, (east, south): (f64, f64)) -> Vec<f64> {
+    let size = tile.tile_size();
+    GroundLocator::new(corners(tile.primitives(node)), size)
+        .heights_at(east * size, south * size, 1e-9)
+        .into_iter()
+        .map(|h| h / scale())
+        .collect()
+}
+
+/// The heights of the triangles of `node` drawn in `material`, lowest and highest, in metres.
+fn height_range(tile: &DecodedTile, node: &str, material: &str) -> (f64, f64) {
+    let heights: Vec<f64> = tile
+        .primitives(node)
+        .iter()
+        .filter(|p| p.material == material)
+        .flat_map(|p| p.positions.iter().map(|v| f64::from(v[1]) / scale()))
+        .collect();
+    assert!(!heights.is_empty(), "no {material} in {node}");
+    (
+        heights.iter().copied().fold(f64::MAX, f64::min),
+        heights.iter().copied().fold(f64::MIN, f64::max),
+    )
+}
+
+/// The ground's height at a place of the tile (the terrain, or what is drawn on it).
+fn ground_at(tile: &DecodedTile, place: (f64, f64)) -> f64 {
+    heights(tile, "terrain", place)
+        .into_iter()
+        .chain(heights(tile, "road", place))
+        .fold(f64::MAX, f64::min)
+}
+
+#[test]
+fn the_sea_lies_right_of_a_coastline_and_the_land_left() {
+    let land = terrain(|_, _| 3.0);
+    // Drawn eastward: the land is on its left (north), the sea on its right (south).
+    let mut eastward = Fixture::default();
+    eastward.way(&[("natural", "coastline")], &[(-0.2, 0.5), (1.2, 0.5)]);
+    let tile = drawn(&eastward, &land);
+    assert!(!heights(&tile, "water", (0.5, 0.8)).is_empty(), "sea south");
+    assert!(heights(&tile, "water", (0.5, 0.2)).is_empty(), "land north");
+    // The sea at sea level, the land at its terrain's height above it.
+    let sea = heights(&tile, "water", (0.5, 0.8))[0];
+    let shore = ground_at(&tile, (0.5, 0.2));
+    assert!(
+        (shore - sea - 3.0).abs() < 0.5,
+        "the land stands {} m above the sea",
+        shore - sea
+    );
+
+    // Drawn westward, the same line has the sea on the other side.
+    let mut westward = Fixture::default();
+    westward.way(&[("natural", "coastline")], &[(1.2, 0.5), (-0.2, 0.5)]);
+    let tile = drawn(&westward, &land);
+    assert!(!heights(&tile, "water", (0.5, 0.2)).is_empty(), "sea north");
+    assert!(heights(&tile, "water", (0.5, 0.8)).is_empty(), "land south");
+}
+
+#[test]
+fn a_river_is_water_as_wide_as_its_tag_says() {
+    let mut fixture = Fixture::default();
+    fixture.way(
+        &[("waterway", "river"), ("width", "30")],
+        &[(0.5, -0.2), (0.5, 1.2)],
+    );
+    let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+    // Metres on the ground are Web Mercator metres divided by the scale factor.
+    let metres = |east_m: f64| 0.5 + east_m * scale() / tile.tile_size();
+    for (off_m, water) in [(0.0, true), (12.0, true), (-12.0, true), (18.0, false)] {
+        assert_eq!(
+            !heights(&tile, "water", (metres(off_m), 0.5)).is_empty(),
+            water,
+            "{off_m} m from the river's line"
+        );
+    }
+}
+
+#[test]
+fn a_gabled_roof_rises_its_tagged_height_above_walls_of_the_tagged_height() {
+    let mut fixture = Fixture::default();
+    fixture.area(
+        &[
+            ("building", "house"),
+            ("height", "9"),
+            ("roof:shape", "gabled"),
+            ("roof:height", "3"),
+        ],
+        (0.40, 0.40),
+        (0.44, 0.42),
+    );
+    let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+    let ground = ground_at(&tile, (0.3, 0.3));
+    let (eaves, ridge) = height_range(&tile, "building", "building_roofs");
+    assert!(
+        (ridge - ground - 9.0).abs() < 0.05,
+        "ridge {} m up",
+        ridge - ground
+    );
+    assert!(
+        (ridge - eaves - 3.0).abs() < 0.05,
+        "roof {} m high",
+        ridge - eaves
+    );
+    let (_, wall_top) = height_range(&tile, "building", "building_walls");
+    assert!(
+        (wall_top - ridge).abs() < 1e-3,
+        "the gables reach the ridge"
+    );
+}
+
+#[test]
+fn a_passage_opens_its_building_over_the_road_and_nowhere_else() {
+    let mut fixture = Fixture::default();
+    fixture
+        .area(
+            &[("building", "apartments"), ("height", "15")],
+            (0.40, 0.40),
+            (0.50, 0.50),
+        )
+        .way(
+            &[("highway", "service"), ("tunnel", "building_passage")],
+            &[(0.45, 0.35), (0.45, 0.55)],
+        );
+    let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+    let ground = ground_at(&tile, (0.3, 0.3));
+    let lowest = |place| {
+        heights(&tile, "building", place)
+            .into_iter()
+            .fold(f64::MAX, f64::min)
+            - ground
+    };
+    // Over the road: the ceiling, a headroom up; the road drawn on the ground beneath.
+    let over_road = lowest((0.45, 0.45));
+    assert!(
+        (over_road - HEADROOM_M).abs() < 0.1,
+        "the building's lowest surface over the road is {over_road} m up"
+    );
+    assert!(!heights(&tile, "road", (0.45, 0.45)).is_empty());
+    // Beside the passage: the building's floor, on the ground.
+    let beside = lowest((0.42, 0.45));
+    assert!(beside < 0.5, "beside the road it starts {beside} m up");
+}
