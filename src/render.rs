@@ -43,23 +43,44 @@ pub struct RenderSettings {
     pub mesh: MeshSettings,
     pub features: FeatureSettings,
     /// What the heights of east-north-up content and quantized-mesh terrain are measured from
-    /// (the flat frame keeps SRTM's heights). Last, and left out of the fingerprint at its
-    /// default, so tiles made before it existed keep theirs.
+    /// (the flat frame keeps SRTM's heights). Added after the first fingerprints: left out of
+    /// them at its default (see [`Fingerprinted`]), so tiles made before it existed keep theirs.
     pub vertical_datum: VerticalDatum,
 }
 
 impl RenderSettings {
-    /// A short stable fingerprint of the settings, for cache keys.
+    /// A short stable fingerprint of the settings, for cache keys: the first 6 bytes of the
+    /// SHA-256 of [`Fingerprinted`] as JSON.
     pub fn fingerprint(&self) -> String {
         use sha2::Digest;
-        let text = serde_json::to_string(self).expect("settings serialize");
-        let text = match self.vertical_datum {
-            VerticalDatum::Srtm => text.replace(r#","vertical_datum":"srtm"}"#, "}"),
-            _ => text,
+        let fingerprinted = Fingerprinted {
+            interpolation: &self.interpolation,
+            mesh: &self.mesh,
+            features: &self.features,
+            vertical_datum: &self.vertical_datum,
         };
+        let text = serde_json::to_string(&fingerprinted).expect("settings serialize");
         let digest = sha2::Sha256::digest(text.as_bytes());
         digest[..6].iter().map(|b| format!("{b:02x}")).collect()
     }
+}
+
+/// What a fingerprint is the digest of: the settings the first fingerprints were made of, in
+/// their order, then each setting added since, written only away from its default. A setting
+/// added at its default leaves every fingerprint (and the tiles cached under it) as it was; a
+/// setting changed, or one added and then set, makes a new one.
+#[derive(serde::Serialize)]
+struct Fingerprinted<'a> {
+    interpolation: &'a Interpolation,
+    mesh: &'a MeshSettings,
+    features: &'a FeatureSettings,
+    /// Added after the first fingerprints.
+    #[serde(skip_serializing_if = "is_default")]
+    vertical_datum: &'a VerticalDatum,
+}
+
+fn is_default<T: Default + PartialEq>(value: &&T) -> bool {
+    **value == T::default()
 }
 
 #[derive(Debug, thiserror::Error)]
