@@ -211,7 +211,16 @@ fn prepare<'a>(
     let all_ways = selection.all_ways;
     let (cut, draped) = long_ways_cut(tile, selection, settings);
     let selection = &selection.with_cut_ways(&cut);
+    // What the tile draws, a row for each bridge and tunnel way near it among them: all the
+    // features stage gives; elevation only adds the surfaces of the ground tunnels cut, once,
+    // below.
     let mut feature_set = features::collect(selection, tile, &settings.features);
+    let structure_features = features::structures::rows(
+        &mut feature_set,
+        &selection.structures,
+        selection.all_ways,
+        tile,
+    );
     timings.features = started.elapsed();
     deadline.check(tile, "features")?;
 
@@ -220,12 +229,6 @@ fn prepare<'a>(
     let projection = features::Projection::new(tile.z);
     let margin = settings.mesh.max_error_m;
     let structures = settle_groups(tile, selection, &terrain, settings, context.solutions);
-    let structure_features = features::structures::rows(
-        &mut feature_set,
-        &selection.structures,
-        selection.all_ways,
-        tile,
-    );
     let cuts = elevation::structures::ground_cuts(
         &structures,
         selection.all_ways,
