@@ -47,7 +47,7 @@ test: tests/js/node_modules/.installed tests/py/.venv/.installed static/vendor/.
 # The fast tier: no extract read, no browser, no server process.
 check: lint
 	$(CARGO) test --release --lib
-	$(CARGO) test --release --test integration -- layers:: spec:: router::
+	$(CARGO) test --release --test integration -- layers:: spec:: rules:: router::
 
 lint:
 	$(CARGO) fmt --all -- --check
