@@ -16,6 +16,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::time::{Duration, Instant};
 
 use crate::elevation;
+use crate::elevation::ground::{Ground as SettledGround, LevelIndex};
 pub use crate::elevation::solutions::Solutions;
 use crate::features::{self, FeatureClass, FeatureSet, FeatureSettings};
 use crate::geoid::VerticalDatum;
@@ -182,6 +183,8 @@ struct Prepared<'a> {
     roads: elevation::roads::RoadLevels,
     /// Cliffs and retaining walls.
     steps: elevation::steps::Steps,
+    /// Where the water and the cuts lie: the settled ground's index, made once.
+    levels: LevelIndex,
     /// The profiles of the ground roads, held to their grade.
     road_profiles: elevation::road_profiles::RoadProfiles,
     /// Every way of the data, for the structures' indices.
@@ -272,7 +275,8 @@ fn prepare<'a>(
     );
     // Cliffs and retaining walls step the terrain.
     let steps = elevation::steps::Steps::new(&feature_set.steps);
-    let settled = elevation::ground::Ground::new(&terrain, &water, &cuts, &roads, &steps);
+    let levels = LevelIndex::new(&water, &cuts);
+    let settled = SettledGround::indexed(&terrain, (&water, &cuts), &roads, &steps, &levels);
     let ground = triangulated(&frame, mosaic, settings, &feature_set, &settled)?;
     timings.triangulation = started.elapsed();
     deadline.check(tile, "triangulation")?;
@@ -289,6 +293,7 @@ fn prepare<'a>(
         cuts,
         roads,
         steps,
+        levels,
         road_profiles,
         all_ways,
         feature_settings: settings.features.clone(),
@@ -355,7 +360,8 @@ fn prepare_overview<'a>(
     let water = elevation::water::levels(&feature_set, &terrain, frame.size_m);
     let roads = elevation::roads::RoadLevels::default();
     let steps = elevation::steps::Steps::new(&[]);
-    let settled = elevation::ground::Ground::new(&terrain, &water, &[], &roads, &steps);
+    let levels = LevelIndex::new(&water, &[]);
+    let settled = SettledGround::indexed(&terrain, (&water, &[]), &roads, &steps, &levels);
     let ground = triangulated(&frame, mosaic, settings, &feature_set, &settled)?;
     timings.triangulation = started.elapsed();
     deadline.check(tile, "triangulation")?;
@@ -372,6 +378,7 @@ fn prepare_overview<'a>(
         cuts: Vec::new(),
         roads,
         steps,
+        levels,
         road_profiles: elevation::road_profiles::RoadProfiles::default(),
         all_ways: &[],
         feature_settings: settings.features.clone(),
@@ -405,15 +412,12 @@ fn with_ground_models<R: Send>(
     if threads == 1 {
         return f(points, settled.terrain, settled);
     }
+    // The settled parts, not the ground itself: its terrain model is one thread's.
+    let (water, cuts, roads, steps) = (settled.water, settled.cuts, settled.roads, settled.steps);
+    let index = settled.index();
     crate::parallel::map_chunks(points, threads, &|chunk| {
         let terrain = TerrainModel::new(mosaic, settings.interpolation, frame.tile.z);
-        let ground = elevation::ground::Ground::new(
-            &terrain,
-            settled.water,
-            settled.cuts,
-            settled.roads,
-            settled.steps,
-        );
+        let ground = SettledGround::indexed(&terrain, (water, cuts), roads, steps, index);
         f(chunk, &terrain, &ground)
     })
 }
@@ -674,6 +678,7 @@ fn render_glb(
         cuts,
         roads,
         steps,
+        levels,
         all_ways,
         feature_settings,
         surface_margin_m,
@@ -692,7 +697,7 @@ fn render_glb(
 
     let started = Instant::now();
     let sample_step_uv = srtm_step_uv(tile);
-    let settled = elevation::ground::Ground::new(terrain, water, cuts, roads, steps);
+    let settled = SettledGround::indexed(terrain, (water, cuts), roads, steps, levels);
     parts.extend(mesh::buildings::build(
         &feature_set.buildings,
         frame,

@@ -2,6 +2,8 @@
 //! the ground reshaped around bridges and tunnels, roads on their profiles, and steps at cliffs
 //! and retaining walls, each settled by its own module.
 
+use std::borrow::Cow;
+
 use super::roads::RoadLevels;
 use super::settled::{Bound, Level, LevelGrid};
 use super::steps::Steps;
@@ -19,11 +21,28 @@ pub struct Ground<'a> {
     pub roads: &'a RoadLevels,
     /// Cliffs and retaining walls, stepping the terrain around them.
     pub steps: &'a Steps,
-    water_grid: LevelGrid,
-    cut_grid: LevelGrid,
+    index: Cow<'a, LevelIndex>,
+}
+
+/// Where a tile's water areas and cuts lie, indexed once: every view of its ground (one a
+/// thread, one for the glb) reads the same index.
+#[derive(Debug, Clone, Default)]
+pub struct LevelIndex {
+    water: LevelGrid,
+    cuts: LevelGrid,
+}
+
+impl LevelIndex {
+    pub fn new(water: &[Level], cuts: &[Level]) -> LevelIndex {
+        LevelIndex {
+            water: LevelGrid::new(water),
+            cuts: LevelGrid::new(cuts),
+        }
+    }
 }
 
 impl<'a> Ground<'a> {
+    /// The ground of these parts, indexed here.
     pub fn new(
         terrain: &'a dyn Elevation,
         water: &'a [Level],
@@ -37,16 +56,39 @@ impl<'a> Ground<'a> {
             cuts,
             roads,
             steps,
-            water_grid: LevelGrid::new(water),
-            cut_grid: LevelGrid::new(cuts),
+            index: Cow::Owned(LevelIndex::new(water, cuts)),
         }
+    }
+
+    /// The ground of these parts with the index made of `water` and `cuts` before.
+    pub fn indexed(
+        terrain: &'a dyn Elevation,
+        (water, cuts): (&'a [Level], &'a [Level]),
+        roads: &'a RoadLevels,
+        steps: &'a Steps,
+        index: &'a LevelIndex,
+    ) -> Ground<'a> {
+        Ground {
+            terrain,
+            water,
+            cuts,
+            roads,
+            steps,
+            index: Cow::Borrowed(index),
+        }
+    }
+
+    /// The index of its water areas and cuts.
+    pub fn index(&self) -> &LevelIndex {
+        &self.index
     }
 
     /// The water areas and cuts that cover `p` (floors among them), water first.
     pub fn levels_at(&self, p: [f64; 2]) -> impl Iterator<Item = &Level> {
-        self.water_grid
+        self.index
+            .water
             .covering(self.water, p)
-            .chain(self.cut_grid.covering(self.cuts, p))
+            .chain(self.index.cuts.covering(self.cuts, p))
     }
 }
 
@@ -54,7 +96,8 @@ impl Elevation for Ground<'_> {
     fn elevation_uv(&self, p: [f64; 2]) -> f64 {
         // Where water areas overlap, the lowest level wins.
         let water = self
-            .water_grid
+            .index
+            .water
             .covering(self.water, p)
             .map(|w| w.rule.elevation(p))
             .fold(None, |low: Option<f64>, l| {
@@ -69,7 +112,7 @@ impl Elevation for Ground<'_> {
         let mut cut: Option<f64> = None;
         let mut raised: Option<f64> = None;
         let mut lowered: Option<f64> = None;
-        for level in self.cut_grid.covering(self.cuts, p) {
+        for level in self.index.cuts.covering(self.cuts, p) {
             let h = level.rule.elevation(p);
             match level.bound {
                 Bound::AtLeast => raised = Some(raised.map_or(h, |r: f64| r.max(h))),
