@@ -1,6 +1,7 @@
 //! What a tile is made as, and the key it is known by: the glb variants (frame and
-//! compression), quantized-mesh with its extensions, and a tile in one of them. Value types every
-//! layer passes around; they know nothing of how a tile is made, stored or served.
+//! compression), quantized-mesh with its extensions, a tile in one of them, and the content
+//! codings its bodies are kept and sent in. Value types every layer passes around; they know
+//! nothing of how a tile is made, stored or served.
 
 use crate::tile::TileId;
 
@@ -142,4 +143,31 @@ impl Format {
 pub struct TileKey {
     pub tile: TileId,
     pub format: Format,
+}
+/// A content coding of a response body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Encoding {
+    Identity,
+    Gzip,
+    Brotli,
+}
+
+impl Encoding {
+    /// The name in `Content-Encoding` and in the store.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Encoding::Identity => "identity",
+            Encoding::Gzip => "gzip",
+            Encoding::Brotli => "br",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Encoding> {
+        match name {
+            "identity" => Some(Encoding::Identity),
+            "gzip" => Some(Encoding::Gzip),
+            "br" => Some(Encoding::Brotli),
+            _ => None,
+        }
+    }
 }

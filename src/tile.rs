@@ -359,6 +359,26 @@ impl TileFrame {
     }
 }
 
+/// The levels above the served zoom that glb tiles are made at for far views: the parents of
+/// the 3D Tiles hierarchy. The zoom policy the renderer, the provider's offer and the tileset
+/// writer share.
+pub const OVERVIEW_LEVELS: [u8; 4] = [1, 2, 4, 6];
+
+/// Whether glb tiles are made at `zoom` for far views when the served zoom is `served_zoom`.
+pub fn is_overview_zoom(zoom: u8, served_zoom: u8) -> bool {
+    served_zoom
+        .checked_sub(zoom)
+        .is_some_and(|d| OVERVIEW_LEVELS.contains(&d))
+}
+
+/// The zooms of far views, finest first.
+pub fn overview_zooms(served_zoom: u8) -> Vec<u8> {
+    OVERVIEW_LEVELS
+        .iter()
+        .filter_map(|&d| served_zoom.checked_sub(d))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

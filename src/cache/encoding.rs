@@ -6,33 +6,7 @@ use std::io::Write;
 
 use bytes::Bytes;
 
-/// A content coding of a response body.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Encoding {
-    Identity,
-    Gzip,
-    Brotli,
-}
-
-impl Encoding {
-    /// The name in `Content-Encoding` and in the store.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Encoding::Identity => "identity",
-            Encoding::Gzip => "gzip",
-            Encoding::Brotli => "br",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Encoding> {
-        match name {
-            "identity" => Some(Encoding::Identity),
-            "gzip" => Some(Encoding::Gzip),
-            "br" => Some(Encoding::Brotli),
-            _ => None,
-        }
-    }
-}
+use crate::format::Encoding;
 
 /// A compressed form is kept only when it is at most this share of the original.
 const WORTH_KEEPING: f64 = 0.9;

@@ -7,8 +7,9 @@ use std::sync::Mutex;
 
 use rusqlite::{params, Connection, OptionalExtension};
 
-use super::encoding::{Bodies, Encoding};
+use super::encoding::Bodies;
 use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
+use crate::format::Encoding;
 use crate::format::{Format, TileKey};
 use crate::tile::TileId;
 

@@ -43,25 +43,6 @@ const MIN_BLOCK_TOLERANCES: f64 = 3.0;
 /// The upper bounds of the height bands buildings merge within, metres.
 const HEIGHT_BANDS_M: [f64; 4] = [12.0, 24.0, 48.0, 96.0];
 
-/// The levels above the served zoom that glb tiles are made at for far views: the parents of
-/// the 3D Tiles hierarchy.
-pub const OVERVIEW_LEVELS: [u8; 4] = [1, 2, 4, 6];
-
-/// Whether glb tiles are made at `zoom` for far views when the served zoom is `served_zoom`.
-pub fn is_overview_zoom(zoom: u8, served_zoom: u8) -> bool {
-    served_zoom
-        .checked_sub(zoom)
-        .is_some_and(|d| OVERVIEW_LEVELS.contains(&d))
-}
-
-/// The zooms of far views, finest first.
-pub fn overview_zooms(served_zoom: u8) -> Vec<u8> {
-    OVERVIEW_LEVELS
-        .iter()
-        .filter_map(|&d| served_zoom.checked_sub(d))
-        .collect()
-}
-
 /// How far a tile is generalised.
 #[derive(Debug, Clone, Copy)]
 pub struct Level {

@@ -6,7 +6,7 @@
 //! that meet the data's coverage, as external tilesets, and the last level lists the content
 //! tiles themselves. The root tileset lists the finest level (from 12 up) at which the coverage
 //! takes [`ROOT_CHILDREN`] tiles or fewer. Parents at the zooms of far views (13, 12, 10 and 8
-//! under content at 14, see [`overview`]) carry their own generalised content, which their
+//! under content at 14, see [`is_overview_zoom`]) carry their own generalised content, which their
 //! children replace as the camera nears (`REPLACE`); a tileset file at 12 lists the tiles of
 //! 13 inline, each with its four children. A tile with content is placed by its east-north-up
 //! frame, written relative to its parent's, since a tile's transform applies to its children.
@@ -23,8 +23,7 @@
 use serde_json::{json, Value};
 
 use super::enu::EastNorthUp;
-use crate::features::overview;
-use crate::tile::{LonLatBounds, TileId, TileRange};
+use crate::tile::{is_overview_zoom, LonLatBounds, TileId, TileRange};
 
 /// Zooms between one tileset file and the next.
 pub const LEVEL_STEP: u8 = 2;
@@ -56,7 +55,7 @@ pub struct Plan {
     /// when a tile is asked for, or an archive is served without sources).
     pub list_unknown: bool,
     /// The parents at the zooms of far views carry content of their own
-    /// ([`overview::is_overview_zoom`]); without it (an archive of one zoom), parents are empty.
+    /// ([`is_overview_zoom`]); without it (an archive of one zoom), parents are empty.
     pub parent_content: bool,
     /// For a directory export: the content files are `{z}/{x}/{y}{suffix}` beside one tileset
     /// document that lists every tile inline. `None`: the served paths, with a tileset file
@@ -147,7 +146,7 @@ impl Plan {
     /// Whether `tile` has content: the content zoom, and the parents at the zooms of far views.
     fn has_content(&self, tile: TileId) -> bool {
         tile.z == self.content_zoom
-            || (self.parent_content && overview::is_overview_zoom(tile.z, self.content_zoom))
+            || (self.parent_content && is_overview_zoom(tile.z, self.content_zoom))
     }
 
     /// The error of a tile's own content, metres: none at the content zoom; for a parent, what

@@ -91,9 +91,9 @@ pub enum Unavailable {
     FetchFailed(String),
 }
 
-/// A source of tiles. Every method but [`TileProvider::offer`], [`TileProvider::resolve`],
-/// [`TileProvider::availability`] and [`TileProvider::provenance`] may block (read files,
-/// download, render): call them off the async executor.
+/// A source of tiles. Every method but [`TileProvider::offer`], [`TileProvider::resolve`] and
+/// [`TileProvider::availability`] may block (read files or a store, download, render): call
+/// them off the async executor.
 pub trait TileProvider: Send + Sync + std::fmt::Debug {
     /// What it offers.
     fn offer(&self) -> Offer;
@@ -112,7 +112,8 @@ pub trait TileProvider: Send + Sync + std::fmt::Debug {
     }
 
     /// What a tile made now would be made from: a stored tile made otherwise is stale. `None`
-    /// when the provider makes no tiles (held tiles are never stale).
+    /// when the provider makes no tiles (held tiles are never stale). May block: a store's
+    /// provider reads the tile's last diff.
     fn provenance(&self, tile: TileId) -> Option<Provenance>;
 
     /// Makes the tile, uncompressed.

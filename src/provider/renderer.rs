@@ -118,11 +118,11 @@ impl Renderer {
     }
 
     /// A tile coarser than the served zoom: terrain at any zoom, glb at the levels of far
-    /// views ([`crate::features::overview::is_overview_zoom`]).
+    /// views ([`crate::tile::is_overview_zoom`]).
     fn is_overview(&self, key: TileKey) -> bool {
         match key.format {
             Format::Terrain(_) => key.tile.z < self.zoom,
-            Format::Glb(_) => crate::features::overview::is_overview_zoom(key.tile.z, self.zoom),
+            Format::Glb(_) => crate::tile::is_overview_zoom(key.tile.z, self.zoom),
         }
     }
 }
@@ -134,7 +134,7 @@ impl TileProvider for Renderer {
             coverage: self.inputs.osm.coverage(),
             only: None,
             open_ended: self.inputs.can_fetch_srtm(),
-            far_zooms: crate::features::overview::overview_zooms(self.zoom),
+            far_zooms: crate::tile::overview_zooms(self.zoom),
         }
     }
 
@@ -149,7 +149,7 @@ impl TileProvider for Renderer {
                  views, at zooms {}",
                 tile.z,
                 self.zoom,
-                crate::features::overview::overview_zooms(self.zoom)
+                crate::tile::overview_zooms(self.zoom)
                     .iter()
                     .map(|z| z.to_string())
                     .collect::<Vec<_>>()

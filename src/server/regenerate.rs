@@ -129,8 +129,13 @@ async fn remake(state: &AppState, job: Job) -> Result<bool, String> {
         tracing::warn!(tile = %key.tile, "not made again: the sources no longer cover it");
         return Ok(false);
     }
-    // A provider that makes no tiles has none to make again.
-    let Some(wanted) = provider.provenance(key.tile) else {
+    // A provider that makes no tiles has none to make again (asked on the blocking pool: a
+    // store's provider reads the tile's last diff).
+    let asking = provider.clone();
+    let wanted = tokio::task::spawn_blocking(move || asking.provenance(key.tile))
+        .await
+        .map_err(|e| e.to_string())?;
+    let Some(wanted) = wanted else {
         return Ok(false);
     };
     // Counted before the tile is looked for: a purge after this, even one that comes between
@@ -182,13 +187,13 @@ pub async fn queue_stored(
     only_stale: bool,
 ) -> Result<usize, String> {
     let provider = state.provider().map_err(|e| e.message)?;
-    // A provider that makes no tiles (an archive) has none to make again.
-    if provider.provenance(TileId { z: 0, x: 0, y: 0 }).is_none() {
-        return Ok(0);
-    }
     let store = state.cache.store().clone();
     let keys: Vec<TileKey> = tokio::task::spawn_blocking(move || {
         let mut keys = Vec::new();
+        // A provider that makes no tiles (an archive) has none to make again.
+        if provider.provenance(TileId { z: 0, x: 0, y: 0 }).is_none() {
+            return Ok(keys);
+        }
         store.each(&filter, &mut |entry| {
             let remade = provider.provenance(entry.key.tile);
             if remade.is_some_and(|wanted| !only_stale || entry.made_by != wanted) {

@@ -13,8 +13,9 @@ use super::error::ApiError;
 use super::metrics::Metrics;
 use super::pool::Refused;
 use super::{AppState, RETRY_AFTER_S};
-use crate::cache::encoding::{Accepted, Encoding};
+use crate::cache::encoding::Accepted;
 use crate::cache::{CacheError, Origin, Served};
+use crate::format::Encoding;
 use crate::format::Extensions;
 use crate::format::{Format, TileKey};
 use crate::format::{Frame, Variant};
@@ -120,7 +121,12 @@ pub async fn serve(
             )
         });
     }
-    let wanted = provider.provenance(tile);
+    // What a tile made now is made from: asked on the blocking pool, as a store's provider
+    // reads the tile's last diff there.
+    let asking = provider.clone();
+    let wanted = tokio::task::spawn_blocking(move || asking.provenance(tile))
+        .await
+        .map_err(|e| ApiError::internal(e.to_string()))?;
     let keep = provider.holds_data(key);
     let render = render_job(&state, provider, key, Priority::Request);
     let served = state

@@ -15,8 +15,9 @@ use std::path::Path;
 
 use common::{bbox, repo, terrastitch};
 use sha2::{Digest, Sha256};
-use terrastitch::cache::encoding::{Accepted, Encoding};
+use terrastitch::cache::encoding::Accepted;
 use terrastitch::cache::{SqliteStore, TileFilter, TileStore};
+use terrastitch::format::Encoding;
 use terrastitch::offline::export::file_suffix;
 
 /// Monaco's ten densest tiles: the coast, the port, the bridges and tunnels of the centre.

@@ -12,11 +12,12 @@ pub mod coordinator;
 
 use std::sync::Arc;
 
-use super::encoding::{Bodies, Encoding};
+use super::encoding::Bodies;
 use super::sqlite::{stored_bytes, EVICT_TO, MAX_SOLUTIONS};
 use super::store::{
     Provenance, SolutionEntry, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage,
 };
+use crate::format::Encoding;
 use crate::format::{Format, TileKey};
 use crate::tile::TileId;
 pub use cluster::Cluster;
