@@ -147,9 +147,18 @@ pub trait TileProvider: Send + Sync + std::fmt::Debug {
     }
 
     /// A provider on the inputs as they are now, when they changed since this one opened them
-    /// (an extract rewritten, an SRTM file added or replaced); `None` when nothing changed.
+    /// (an extract rewritten, an SRTM file added or replaced, a diff applied to its store);
+    /// `None` when nothing changed. Changes nothing itself.
     fn reopened(&self) -> Result<Option<Arc<dyn TileProvider>>, String> {
         Ok(None)
+    }
+
+    /// Applies to its store the diffs of its replication source the store lacks (a few at a
+    /// time: the rest follow at the next call); returns how many it applied. A provider
+    /// without a store or a source applies none. Failures are logged: the store stays at the
+    /// last diff applied.
+    fn catch_up(&self) -> usize {
+        0
     }
 
     /// What `/ready` says of it.

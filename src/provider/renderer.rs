@@ -77,29 +77,33 @@ impl Renderer {
         self
     }
 
-    /// Applies the diffs of the configured replication source the store lacks (a few at a
-    /// time: the rest follow at the next check). Failures are logged; the store stays at the
-    /// last diff applied.
-    fn replicate(&self, config: &SourcesConfig, fetcher: &Fetcher) {
-        const DIFFS_PER_CHECK: usize = 60;
+    /// Applies the diffs of the configured replication source the store lacks, at most
+    /// `DIFFS_PER_CALL`; returns how many.
+    fn replicate(&self, config: &SourcesConfig, fetcher: &Fetcher) -> usize {
+        const DIFFS_PER_CALL: usize = 60;
         if config.replication.is_empty() {
-            return;
+            return 0;
         }
         let OsmSource::Store(store) = &self.inputs.osm else {
             tracing::warn!("sources.replication needs sources.store: diffs apply to the store");
-            return;
+            return 0;
         };
         let source = Replication::new(&config.replication);
-        match super::osm_source::catch_up(store.path(), &source, fetcher, DIFFS_PER_CHECK) {
-            Ok(caught) if !caught.applied.is_empty() => tracing::info!(
-                diffs = caught.applied.len(),
-                last = caught.applied.last().map_or(0, |(s, _)| *s),
-                source = caught.source,
-                "the OSM store caught up with its replication source"
-            ),
-            Ok(_) => {}
+        match super::osm_source::catch_up(store.path(), &source, fetcher, DIFFS_PER_CALL) {
+            Ok(caught) => {
+                if !caught.applied.is_empty() {
+                    tracing::info!(
+                        diffs = caught.applied.len(),
+                        last = caught.applied.last().map_or(0, |(s, _)| *s),
+                        source = caught.source,
+                        "the OSM store caught up with its replication source"
+                    );
+                }
+                caught.applied.len()
+            }
             Err(error) => {
-                tracing::error!(%error, "applying the replication source's diffs failed")
+                tracing::error!(%error, "applying the replication source's diffs failed");
+                0
             }
         }
     }
@@ -280,7 +284,6 @@ impl TileProvider for Renderer {
         let Some((config, fetcher)) = &self.origin else {
             return Ok(None);
         };
-        self.replicate(config, fetcher);
         let changed = self.inputs.changed_files();
         if changed.is_empty() {
             return Ok(None);
@@ -291,6 +294,13 @@ impl TileProvider for Renderer {
             .map_err(|e| e.to_string())?
             .with_solutions(self.solutions.clone());
         Ok(Some(Arc::new(renderer)))
+    }
+
+    fn catch_up(&self) -> usize {
+        match &self.origin {
+            Some((config, fetcher)) => self.replicate(config, fetcher),
+            None => 0,
+        }
     }
 
     fn status(&self) -> serde_json::Value {

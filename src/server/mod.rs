@@ -74,8 +74,11 @@ pub struct Work {
     pub regenerator: Arc<regenerate::Regenerator>,
     /// Workers making them (each holds at most one render slot).
     pub background_workers: usize,
-    /// How often the provider is asked whether its inputs changed.
+    /// How often the provider is asked whether its inputs changed, and to apply its
+    /// replication diffs.
     pub check_interval: Option<Duration>,
+    /// Held by the check of the sources under way.
+    pub checking: tokio::sync::Mutex<()>,
     /// Debug views made lately (`None`: the view is turned off).
     pub debug_views: Option<moka::future::Cache<crate::tile::TileId, Arc<[u8]>>>,
 }
@@ -132,6 +135,7 @@ impl Work {
             background_workers: server.background_renders.max(1),
             check_interval: (server.check_interval_s > 0)
                 .then(|| Duration::from_secs(server.check_interval_s)),
+            checking: tokio::sync::Mutex::new(()),
             debug_views: server.debug_view.then(|| {
                 moka::future::Cache::builder()
                     .weigher(|_: &crate::tile::TileId, body: &Arc<[u8]>| {
@@ -447,6 +451,10 @@ pub async fn serve(
     background.extend(regenerate::start(&state, state.work.background_workers));
     if let Some(interval) = state.work.check_interval {
         background.push(tokio::spawn(regenerate::watch_sources(
+            state.clone(),
+            interval,
+        )));
+        background.push(tokio::spawn(regenerate::watch_replication(
             state.clone(),
             interval,
         )));

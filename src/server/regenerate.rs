@@ -236,10 +236,32 @@ pub async fn watch_sources(state: AppState, interval: std::time::Duration) {
     }
 }
 
+/// Applies the provider's replication diffs every `interval`, on a task of its own: a check
+/// of the sources follows at once when any were applied, so the tiles they change are queued
+/// without waiting for the next one.
+pub async fn watch_replication(state: AppState, interval: std::time::Duration) {
+    let mut ticker = tokio::time::interval(interval);
+    ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    loop {
+        ticker.tick().await;
+        let Ok(provider) = state.provider() else {
+            continue;
+        };
+        let applied = tokio::task::spawn_blocking(move || provider.catch_up()).await;
+        if matches!(applied, Ok(n) if n > 0) {
+            if let Err(error) = check_sources(&state).await {
+                tracing::error!(%error, "checking the sources failed; the tiles are still made from the sources loaded before");
+            }
+        }
+    }
+}
+
 /// When the provider's inputs changed (an extract rewritten, an SRTM file added or
-/// replaced), puts a provider on the new ones in place, and queues every stored tile it makes
-/// stale, most recently served first. Returns how many tiles were queued.
+/// replaced, a diff applied to its store), puts a provider on the new ones in place, and
+/// queues every stored tile it makes stale, most recently served first. Returns how many tiles
+/// were queued. One check at a time: the replication task and the periodic check may both ask.
 pub async fn check_sources(state: &AppState) -> Result<usize, String> {
+    let _one_at_a_time = state.work.checking.lock().await;
     let current = state.provider().map_err(|e| e.message)?;
     let reopened = tokio::task::spawn_blocking(move || current.reopened())
         .await
