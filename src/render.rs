@@ -214,29 +214,21 @@ fn prepare<'a>(
     let all_ways = selection.all_ways;
     let (cut, draped) = long_ways_cut(tile, selection, settings);
     let selection = &selection.with_cut_ways(&cut);
-    // What the tile draws, a row for each bridge and tunnel way near it among them: all the
-    // features stage gives; elevation only adds the surfaces of the ground tunnels cut, once,
-    // below.
-    let mut feature_set = features::collect(selection, tile, &settings.features);
-    let structure_features = features::structures::rows(
-        &mut feature_set,
-        &selection.structures,
-        selection.all_ways,
-        tile,
-    );
+    // What the tile draws, with a row for each bridge and tunnel way near it: all the features
+    // stage gives. Elevation adds only the surfaces of the ground tunnels cut, once, below.
+    let (mut feature_set, structure_features) = drawn_features(tile, selection, settings);
     timings.features = started.elapsed();
     deadline.check(tile, "features")?;
 
-    // Bridges and tunnels, each settled whole by the LP; tunnels cut into the ground.
+    // Bridges and tunnels, each settled whole by the LP; the ground their tunnels cut.
     let started = Instant::now();
-    let projection = features::Projection::new(tile.z);
     let margin = settings.mesh.max_error_m;
     let structures = settle_groups(tile, selection, &terrain, settings, context.solutions);
     let cuts = elevation::structures::ground_cuts(
         &structures,
         selection.all_ways,
         &structure_features,
-        &projection,
+        &features::Projection::new(tile.z),
         &settings.features,
         margin,
     );
@@ -262,20 +254,12 @@ fn prepare<'a>(
     deadline.check(tile, "roads")?;
 
     let started = Instant::now();
-    // Water areas lie flat at the level of their lowest shore.
-    let water = elevation::water::levels(&feature_set, &terrain, frame.size_m);
-    // Roads level across their width, junctions level.
-    let cut_surfaces: Vec<u32> = cuts.iter().map(|c| c.surface).collect();
-    let roads = elevation::roads::levels(
-        &feature_set,
-        &road_profiles,
-        &terrain,
-        frame.size_m,
-        &cut_surfaces,
-    );
-    // Cliffs and retaining walls step the terrain.
-    let steps = elevation::steps::Steps::new(&feature_set.steps);
-    let levels = LevelIndex::new(&water, &cuts);
+    let Surfaces {
+        water,
+        roads,
+        steps,
+        levels,
+    } = settled_surfaces(&feature_set, &road_profiles, &terrain, frame.size_m, &cuts);
     let settled = SettledGround::indexed(&terrain, (&water, &cuts), &roads, &steps, &levels);
     let ground = triangulated(&frame, mosaic, settings, &feature_set, &settled)?;
     timings.triangulation = started.elapsed();
@@ -302,6 +286,57 @@ fn prepare<'a>(
         ground,
         normals,
     })
+}
+
+/// The features stage: what the tile draws, and the feature row of each bridge and tunnel way
+/// near it (by index into all ways).
+fn drawn_features(
+    tile: TileId,
+    selection: &Selection<'_>,
+    settings: &RenderSettings,
+) -> (FeatureSet, HashMap<u32, u32>) {
+    let mut feature_set = features::collect(selection, tile, &settings.features);
+    let structure_features = features::structures::rows(
+        &mut feature_set,
+        &selection.structures,
+        selection.all_ways,
+        tile,
+    );
+    (feature_set, structure_features)
+}
+
+/// The levels the settled surfaces give the ground, and their index.
+struct Surfaces {
+    /// Water areas, flat at the level of their lowest shore.
+    water: Vec<elevation::settled::Level>,
+    /// Roads level across their width, junctions level.
+    roads: elevation::roads::RoadLevels,
+    /// Cliffs and retaining walls, stepping the terrain.
+    steps: elevation::steps::Steps,
+    /// Where the water and `cuts` lie.
+    levels: LevelIndex,
+}
+
+/// Settles the water, the roads across and the steps of `set` on `terrain`, the roads on their
+/// `profiles`, beside the ground `cuts`.
+fn settled_surfaces(
+    set: &FeatureSet,
+    profiles: &elevation::road_profiles::RoadProfiles,
+    terrain: &dyn Elevation,
+    size_m: f64,
+    cuts: &[elevation::settled::Level],
+) -> Surfaces {
+    let water = elevation::water::levels(set, terrain, size_m);
+    let cut_surfaces: Vec<u32> = cuts.iter().map(|c| c.surface).collect();
+    let roads = elevation::roads::levels(set, profiles, terrain, size_m, &cut_surfaces);
+    let steps = elevation::steps::Steps::new(&set.steps);
+    let levels = LevelIndex::new(&water, cuts);
+    Surfaces {
+        water,
+        roads,
+        steps,
+        levels,
+    }
 }
 
 /// The ground of a tile triangulated with its surfaces stitched in, the settled elevations on
