@@ -2,8 +2,6 @@
 //! the ground reshaped around bridges and tunnels, roads on their profiles, and steps at cliffs
 //! and retaining walls, each settled by its own module.
 
-use std::borrow::Cow;
-
 use super::roads::RoadLevels;
 use super::settled::{Bound, Level, LevelGrid};
 use super::steps::Steps;
@@ -21,7 +19,7 @@ pub struct Ground<'a> {
     pub roads: &'a RoadLevels,
     /// Cliffs and retaining walls, stepping the terrain around them.
     pub steps: &'a Steps,
-    index: Cow<'a, LevelIndex>,
+    index: &'a LevelIndex,
 }
 
 /// Where a tile's water areas and cuts lie, indexed once: every view of its ground (one a
@@ -42,24 +40,6 @@ impl LevelIndex {
 }
 
 impl<'a> Ground<'a> {
-    /// The ground of these parts, indexed here.
-    pub fn new(
-        terrain: &'a dyn Elevation,
-        water: &'a [Level],
-        cuts: &'a [Level],
-        roads: &'a RoadLevels,
-        steps: &'a Steps,
-    ) -> Ground<'a> {
-        Ground {
-            terrain,
-            water,
-            cuts,
-            roads,
-            steps,
-            index: Cow::Owned(LevelIndex::new(water, cuts)),
-        }
-    }
-
     /// The ground of these parts with the index made of `water` and `cuts` before.
     pub fn indexed(
         terrain: &'a dyn Elevation,
@@ -74,13 +54,13 @@ impl<'a> Ground<'a> {
             cuts,
             roads,
             steps,
-            index: Cow::Borrowed(index),
+            index,
         }
     }
 
     /// The index of its water areas and cuts.
-    pub fn index(&self) -> &LevelIndex {
-        &self.index
+    pub fn index(&self) -> &'a LevelIndex {
+        self.index
     }
 
     /// The water areas and cuts that cover `p` (floors among them), water first.

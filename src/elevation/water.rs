@@ -172,7 +172,8 @@ mod tests {
         assert_eq!(water.len(), 1);
         assert_eq!(water[0].rule, Rule::Level(10.0));
         let (roads, steps) = (Default::default(), Default::default());
-        let ground = Ground::new(&Slope, &water, &[], &roads, &steps);
+        let index = crate::elevation::ground::LevelIndex::new(&water, &[]);
+        let ground = Ground::indexed(&Slope, (&water, &[]), &roads, &steps, &index);
         // Flat inside and on the outline (the high side too), the terrain outside.
         for p in [[0.15, 0.15], [0.2, 0.15], [0.1, 0.1], [0.2, 0.2]] {
             assert!((ground.elevation_uv(p) - 10.0).abs() < 1e-9, "{p:?}");
