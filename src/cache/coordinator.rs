@@ -74,6 +74,12 @@ pub trait Coordinator: Send + Sync + std::fmt::Debug {
     /// This process's name among those sharing the store.
     fn holder(&self) -> &str;
 
+    /// Whether this process is the only one working on the store: its claims are then always
+    /// granted and nobody hears its broadcasts, so neither need be asked for.
+    fn alone(&self) -> bool {
+        false
+    }
+
     /// Says this process takes part, as a `kind` (`serve`, `seed`), and keeps its claims and
     /// taken rows alive for as long as the coordinator is in use.
     fn join(&self, kind: &str) -> Result<(), StoreError>;
@@ -241,6 +247,10 @@ impl Local {
 impl Coordinator for Local {
     fn holder(&self) -> &str {
         "this process"
+    }
+
+    fn alone(&self) -> bool {
+        true
     }
 
     fn join(&self, _kind: &str) -> Result<(), StoreError> {

@@ -283,10 +283,12 @@ impl TileCache {
             if let Some(found) = lookup(&store, key).await? {
                 return Ok(Arc::new(found));
             }
-            let made = if keep {
+            // A process alone with its store claims nothing: the single flight here is the
+            // whole of it.
+            let made = if keep && !coordinator.alone() {
                 render_claimed(coordinator, store, key, made_by, Box::new(render)).await?
             } else {
-                render_and_store(None, key, made_by, None, Box::new(render))
+                render_and_store(keep.then_some(store), key, made_by, None, Box::new(render))
                     .await?
                     .ok_or_else(|| CacheError::Panicked("a tile was dropped unasked".into()))?
             };
@@ -401,6 +403,9 @@ impl TileCache {
     /// Tells the other processes sharing the store, if there are any (a failure is logged: their
     /// memory then holds a tile longer, until its next broadcast or eviction).
     async fn tell(&self, event: Event) {
+        if self.coordinator.alone() {
+            return;
+        }
         let coordinator = self.coordinator.clone();
         let told = tokio::task::spawn_blocking(move || coordinator.broadcast(&event)).await;
         if let Ok(Err(error)) = told {
