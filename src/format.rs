@@ -118,16 +118,20 @@ impl Format {
         }
     }
 
+    /// Every format, the glb variants first.
+    pub fn every() -> impl Iterator<Item = Format> {
+        let terrains = [false, true]
+            .into_iter()
+            .flat_map(|normals| [false, true].map(|watermask| Extensions { normals, watermask }));
+        Variant::ALL
+            .into_iter()
+            .map(Format::Glb)
+            .chain(terrains.map(Format::Terrain))
+    }
+
     /// The format a stored name stands for.
     pub fn from_name(name: &str) -> Option<Format> {
-        if let Some(variant) = Variant::from_name(name) {
-            return Some(Format::Glb(variant));
-        }
-        [false, true]
-            .into_iter()
-            .flat_map(|normals| [false, true].map(|watermask| Extensions { normals, watermask }))
-            .find(|e| e.key() == name)
-            .map(Format::Terrain)
+        Format::every().find(|format| format.as_str() == name)
     }
 
     /// The file extension in URLs.

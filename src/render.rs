@@ -29,7 +29,9 @@ use crate::terrain::{Elevation, Interpolation, Mosaic, TerrainModel};
 use crate::tile::{TileFrame, TileId};
 
 mod stats;
+mod terrain;
 pub use stats::{RenderStats, StageTimings};
+pub use terrain::{render_overview_terrain, render_terrain, RenderedTerrain};
 
 /// How far beyond a tile a line cut to the tile is kept, degrees (about 2 km): ten times as far
 /// as a tile's query reaches, so that where the line bends near the tile, the segments on
@@ -704,6 +706,20 @@ fn render_glb(
     vertical_datum: VerticalDatum,
     mut timings: StageTimings,
 ) -> RenderedTile {
+    let shapes = shapes(tile, prepared, &mut timings);
+    written(tile, prepared, &shapes, (variant, vertical_datum), timings)
+}
+
+/// Everything a glb holds before it is written, whatever its variant: the parts' meshes and
+/// the instances placed.
+struct Shapes {
+    parts: BTreeMap<Part, MeshBuffers>,
+    instanced: BTreeMap<mesh::models::Model, mesh::instances::Instances>,
+    slivers: usize,
+}
+
+/// The ground's parts and every shape on it, meshed.
+fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> Shapes {
     let Prepared {
         frame,
         terrain,
@@ -789,7 +805,72 @@ fn render_glb(
         tracing::warn!(%tile, dropped, "triangles and instances placed at numbers that are not finite were left out");
     }
     timings.shapes = started.elapsed();
+    Shapes {
+        parts,
+        instanced,
+        slivers,
+    }
+}
 
+/// A tile made in one of its formats.
+#[derive(Debug, Clone)]
+pub enum Rendered {
+    Glb(RenderedTile),
+    Terrain(RenderedTerrain),
+}
+
+/// Renders one tile at the served zoom in each of `formats`, from one preparation: the glb
+/// variants and the terrain of a tile share its features, settled elevations and ground, and
+/// its glb variants share their shapes, so each further format costs only its writing. The
+/// bytes of each are those [`render_within`] and [`render_terrain`] make alone.
+pub fn render_formats(
+    tile: TileId,
+    (selection, mosaic): (&Selection<'_>, &Mosaic),
+    settings: &RenderSettings,
+    formats: &[crate::format::Format],
+    context: Context<'_>,
+) -> Result<Vec<Rendered>, RenderError> {
+    use crate::format::Format;
+    guarded(tile, || {
+        let mut timings = StageTimings::default();
+        let prepared = prepare(tile, selection, mosaic, settings, &mut timings, context)?;
+        let datum = settings.vertical_datum;
+        let mut shaped: Option<(Shapes, StageTimings)> = None;
+        let mut rendered = Vec::with_capacity(formats.len());
+        for format in formats {
+            rendered.push(match *format {
+                Format::Glb(variant) => {
+                    let (shapes, timings) = shaped.get_or_insert_with(|| {
+                        let mut timings = timings;
+                        (shapes(tile, &prepared, &mut timings), timings)
+                    });
+                    let glb = written(tile, &prepared, shapes, (variant, datum), *timings);
+                    Rendered::Glb(glb)
+                }
+                Format::Terrain(extensions) => Rendered::Terrain(terrain::encode_terrain(
+                    &prepared, extensions, datum, timings,
+                )),
+            });
+            context.deadline.check(tile, "encode")?;
+        }
+        Ok(rendered)
+    })
+}
+
+/// The glb of `shapes` as `variant`, its heights from `vertical_datum`.
+fn written(
+    tile: TileId,
+    prepared: &Prepared<'_>,
+    shapes: &Shapes,
+    (variant, vertical_datum): (crate::format::Variant, VerticalDatum),
+    mut timings: StageTimings,
+) -> RenderedTile {
+    let Shapes {
+        parts,
+        instanced,
+        slivers,
+    } = shapes;
+    let (frame, feature_set) = (&prepared.frame, &prepared.feature_set);
     let started = Instant::now();
     let description = glb::TileDescription {
         tile,
@@ -800,81 +881,19 @@ fn render_glb(
     };
     let bytes = glb::write(
         &description,
-        &parts,
-        &instanced,
+        parts,
+        instanced,
         &feature_set.features,
         variant,
     );
     timings.encode = started.elapsed();
 
-    let stats = RenderStats::of(prepared, &parts, &instanced, slivers, bytes.len());
+    let stats = RenderStats::of(prepared, parts, instanced, *slivers, bytes.len());
     RenderedTile {
         glb: bytes,
         stats,
         timings,
     }
-}
-
-/// A tile's terrain as quantized-mesh.
-#[derive(Debug, Clone)]
-pub struct RenderedTerrain {
-    pub bytes: Vec<u8>,
-    pub report: quantized_mesh::EncodeReport,
-    pub timings: StageTimings,
-}
-
-/// Renders one tile's ground (the same triangulation as the glb's, with the ground under
-/// buildings kept) as quantized-mesh-1.0, uncompressed.
-pub fn render_terrain(
-    tile: TileId,
-    selection: &Selection<'_>,
-    mosaic: &Mosaic,
-    settings: &RenderSettings,
-    extensions: crate::format::Extensions,
-    context: Context<'_>,
-) -> Result<RenderedTerrain, RenderError> {
-    guarded(tile, || {
-        let mut timings = StageTimings::default();
-        let prepared = prepare(tile, selection, mosaic, settings, &mut timings, context)?;
-        Ok(encode_terrain(
-            &prepared,
-            extensions,
-            settings.vertical_datum,
-            timings,
-        ))
-    })
-}
-
-/// Renders a tile above the served zoom (a coarser one, for Cesium's levels of detail) as
-/// terrain alone: no features, and an error bound that doubles with each level above
-/// `served_zoom`, so a tile holds about as many triangles at every level. Points no SRTM file
-/// covers are at sea level.
-pub fn render_overview_terrain(
-    tile: TileId,
-    mosaic: &Mosaic,
-    settings: &RenderSettings,
-    served_zoom: u8,
-    extensions: crate::format::Extensions,
-    context: Context<'_>,
-) -> Result<RenderedTerrain, RenderError> {
-    let settings = overview_settings(settings, tile, served_zoom);
-    guarded(tile, || {
-        let mut timings = StageTimings::default();
-        let prepared = prepare(
-            tile,
-            &Selection::default(),
-            mosaic,
-            &settings,
-            &mut timings,
-            context,
-        )?;
-        Ok(encode_terrain(
-            &prepared,
-            extensions,
-            settings.vertical_datum,
-            timings,
-        ))
-    })
 }
 
 /// The settings of a tile above the served zoom: an error bound that doubles with each level.
@@ -912,37 +931,6 @@ pub fn render_overview(
         let datum = settings.vertical_datum;
         Ok(render_glb(tile, &prepared, variant, datum, timings))
     })
-}
-
-fn encode_terrain(
-    prepared: &Prepared<'_>,
-    extensions: crate::format::Extensions,
-    datum: VerticalDatum,
-    mut timings: StageTimings,
-) -> RenderedTerrain {
-    let started = Instant::now();
-    let Prepared {
-        frame,
-        feature_set,
-        ground,
-        normals,
-        ..
-    } = prepared;
-    let waters: Vec<&features::Surface> = feature_set
-        .surfaces
-        .iter()
-        .filter(|s| s.class == FeatureClass::Water)
-        .collect();
-    let water = extensions.watermask.then_some(waters.as_slice());
-    let terrain_tile =
-        quantized_mesh::TerrainTile::of_ground(ground, normals, frame, water).in_datum(datum);
-    let (bytes, report) = quantized_mesh::encode(&terrain_tile, extensions);
-    timings.encode = started.elapsed();
-    RenderedTerrain {
-        bytes,
-        report,
-        timings,
-    }
 }
 
 /// The east–west spacing of 3-arc-second samples in global tile units at this zoom: buildings

@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use crate::cache::store::{StoreError, TileFilter};
-use crate::format::TileKey;
+use crate::format::{Format, TileKey};
 
 /// Why a tile is in the work queue.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -105,8 +105,10 @@ pub trait Coordinator: Send + Sync + std::fmt::Debug {
         force: bool,
     ) -> Result<u64, StoreError>;
 
-    /// Takes the next row of `kind` nobody holds.
-    fn take(&self, kind: JobKind) -> Result<Option<Job>, StoreError>;
+    /// Takes the next row of `kind` nobody holds, with the other rows of `kind` of its tile
+    /// that wait (its other formats, which are made together cheaper than one by one); none
+    /// when no row waits.
+    fn take(&self, kind: JobKind) -> Result<Vec<Job>, StoreError>;
 
     /// Done with a taken row: it leaves the queue; `made` counts a tile made.
     fn finish(&self, key: &TileKey, made: bool) -> Result<(), StoreError>;
@@ -210,8 +212,30 @@ impl LocalQueue {
         }
     }
 
-    fn take(&mut self, kind: JobKind) -> Option<Job> {
-        let (_, _, key) = self.line(kind).pop_first()?;
+    fn take(&mut self, kind: JobKind) -> Vec<Job> {
+        let Some((_, _, first)) = self.line(kind).pop_first() else {
+            return Vec::new();
+        };
+        let mut jobs: Vec<Job> = self.taken(first).into_iter().collect();
+        for format in Format::every().filter(|format| *format != first.format) {
+            let key = TileKey {
+                tile: first.tile,
+                format,
+            };
+            let Some(row) = self.rows.get(&key).filter(|row| row.kind == kind) else {
+                continue;
+            };
+            if let Some(place) = row.place {
+                let entry = (row.priority, place, key);
+                self.line(kind).remove(&entry);
+                jobs.extend(self.taken(key));
+            }
+        }
+        jobs
+    }
+
+    /// Marks the row of `key`, out of its line, as taken.
+    fn taken(&mut self, key: TileKey) -> Option<Job> {
         let row = self.rows.get_mut(&key)?;
         row.place = None;
         row.attempts += 1;
@@ -292,7 +316,7 @@ impl Coordinator for Local {
         Ok(queued)
     }
 
-    fn take(&self, kind: JobKind) -> Result<Option<Job>, StoreError> {
+    fn take(&self, kind: JobKind) -> Result<Vec<Job>, StoreError> {
         Ok(self.lock().take(kind))
     }
 
@@ -354,7 +378,7 @@ impl Coordinator for Local {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::format::{Format, Variant};
+    use crate::format::Variant;
     use crate::tile::TileId;
 
     fn key(x: u32) -> TileKey {
@@ -362,6 +386,51 @@ mod tests {
             tile: TileId { z: 14, x, y: 5 },
             format: Format::Glb(Variant::default()),
         }
+    }
+
+    /// The one row taken, if any.
+    fn one(taken: Result<Vec<Job>, StoreError>) -> Option<Job> {
+        let mut jobs = taken.unwrap();
+        assert!(jobs.len() <= 1, "one row a tile: {jobs:?}");
+        jobs.pop()
+    }
+
+    #[test]
+    fn a_tiles_waiting_formats_are_taken_with_it_and_no_other_tiles() {
+        let local = Local::new();
+        let in_format = |x, format| TileKey {
+            tile: TileId { z: 14, x, y: 5 },
+            format,
+        };
+        let terrain = Format::Terrain(Default::default());
+        let meshopt = Format::Glb(Variant {
+            meshopt: true,
+            ..Variant::default()
+        });
+        let seeded = [key(1), in_format(1, terrain), key(2), in_format(1, meshopt)];
+        local
+            .enqueue(&seeded, JobKind::Seed, Priority::Seed, false)
+            .unwrap();
+        local
+            .enqueue(&[key(3)], JobKind::Regenerate, Priority::Stale, false)
+            .unwrap();
+        let mut first: Vec<TileKey> = local
+            .take(JobKind::Seed)
+            .unwrap()
+            .iter()
+            .map(|job| job.key)
+            .collect();
+        first.sort();
+        let mut tile_1 = vec![key(1), in_format(1, terrain), in_format(1, meshopt)];
+        tile_1.sort();
+        assert_eq!(first, tile_1);
+        assert_eq!(one(local.take(JobKind::Seed)).unwrap().key, key(2));
+        assert_eq!(local.take(JobKind::Seed).unwrap(), []);
+        assert_eq!(
+            local.pending(JobKind::Seed).unwrap(),
+            4,
+            "taken, not finished"
+        );
     }
 
     #[test]
@@ -378,11 +447,11 @@ mod tests {
         local
             .enqueue(&[key(3)], JobKind::Regenerate, Priority::Stale, false)
             .unwrap();
-        let order: Vec<u32> = std::iter::from_fn(|| local.take(JobKind::Regenerate).unwrap())
+        let order: Vec<u32> = std::iter::from_fn(|| one(local.take(JobKind::Regenerate)))
             .map(|job| job.key.tile.x)
             .collect();
         assert_eq!(order, [3, 1, 2]);
-        assert_eq!(local.take(JobKind::Seed).unwrap(), None);
+        assert_eq!(local.take(JobKind::Seed).unwrap(), []);
     }
 
     #[test]
@@ -396,10 +465,7 @@ mod tests {
         assert_eq!(queue(&[key(1), key(2)], Priority::Regenerate), 2);
         assert_eq!(queue(&[key(2)], Priority::Regenerate), 0);
         assert_eq!(queue(&[key(2)], Priority::Stale), 1);
-        assert_eq!(
-            local.take(JobKind::Regenerate).unwrap().unwrap().key,
-            key(2)
-        );
+        assert_eq!(one(local.take(JobKind::Regenerate)).unwrap().key, key(2));
         // Taken: queued again, it is not made twice.
         assert_eq!(queue(&[key(2)], Priority::Stale), 0);
         assert_eq!(local.pending(JobKind::Regenerate).unwrap(), 2);
@@ -420,7 +486,7 @@ mod tests {
             .enqueue(&[key(1), key(2)], JobKind::Seed, Priority::Seed, false)
             .unwrap();
         assert_eq!(*heard.lock().unwrap(), [Event::Work]);
-        let taken = local.take(JobKind::Seed).unwrap().unwrap();
+        let taken = one(local.take(JobKind::Seed)).unwrap();
         let all = TileFilter::All;
         assert_eq!(local.withdraw(&all), 1, "the taken row stays");
         assert_eq!(local.pending(JobKind::Seed).unwrap(), 1);
@@ -434,11 +500,11 @@ mod tests {
         local
             .enqueue(&[key(1)], JobKind::Seed, Priority::Seed, true)
             .unwrap();
-        let job = local.take(JobKind::Seed).unwrap().unwrap();
+        let job = one(local.take(JobKind::Seed)).unwrap();
         assert!(job.force);
-        assert_eq!(local.take(JobKind::Seed).unwrap(), None);
+        assert_eq!(local.take(JobKind::Seed).unwrap(), []);
         local.defer(&job.key, Duration::ZERO).unwrap();
-        let again = local.take(JobKind::Seed).unwrap().unwrap();
+        let again = one(local.take(JobKind::Seed)).unwrap();
         assert_eq!((again.key, again.attempts), (key(1), 1));
     }
 }

@@ -338,7 +338,7 @@ struct Workers<'a> {
 }
 
 impl Workers<'_> {
-    /// One thread's loop: takes rows until the queue is empty or the seed stops.
+    /// One thread's loop: takes a tile's rows until the queue is empty or the seed stops.
     fn work(
         &self,
         stopped: &dyn Fn() -> bool,
@@ -347,7 +347,8 @@ impl Workers<'_> {
         let (count, signal) = &self.finished;
         while !stopped() {
             let seen = *count.lock().unwrap_or_else(|p| p.into_inner());
-            let Some(job) = self.coordinator.take(JobKind::Seed)? else {
+            let jobs = self.coordinator.take(JobKind::Seed)?;
+            if jobs.is_empty() {
                 if self.coordinator.pending(JobKind::Seed)? == 0 {
                     return Ok(());
                 }
@@ -356,71 +357,118 @@ impl Workers<'_> {
                     .wait_timeout_while(guard, IDLE_LOOK, |now| *now == seen)
                     .map_err(|p| p.into_inner());
                 continue;
-            };
-            let outcome = self.make_row(job);
-            *count.lock().unwrap_or_else(|p| p.into_inner()) += 1;
+            }
+            let outcomes = self.make_rows(&jobs);
+            *count.lock().unwrap_or_else(|p| p.into_inner()) += jobs.len() as u64;
             signal.notify_all();
-            tell((job.key, outcome?));
+            for outcome in outcomes? {
+                tell(outcome);
+            }
         }
         Ok(())
     }
 
-    /// Makes the tile of a row taken, and finishes, defers or fails the row.
-    fn make_row(&self, job: Job) -> Result<Outcome, StoreError> {
-        let (provider, store, coordinator) = (self.provider, self.store, self.coordinator);
-        let key = job.key;
-        let wanted = provider.provenance(key.tile);
-        let current = store
-            .list(&TileFilter::Tiles(vec![key.tile]))?
-            .into_iter()
-            .any(|entry| entry.key == key && Some(&entry.made_by) == wanted.as_ref());
-        if current && !job.force {
-            coordinator.finish(&key, false)?;
-            return Ok(Outcome::Current);
-        }
-        if !coordinator.claim(&key)? {
-            coordinator.defer(&key, CLAIMED_ELSEWHERE)?;
-            return Ok(Outcome::Deferred);
-        }
-        let outcome = match make_tile(provider, key, self.render_limit) {
-            Ok(tile) => {
-                // Whole or not at all: the row is replaced in one transaction.
-                store.put(&key, &tile)?;
-                // Kept for later renders when they can be: a tile stored without them is
-                // still whole.
-                if let Err(error) = crate::provider::save_solutions(store, self.solutions) {
-                    tracing::warn!(%error, "keeping solved elevation components failed");
-                }
-                // Servers holding an older version in memory drop it.
-                coordinator.broadcast(&Event::Stored(vec![key]))?;
-                coordinator.finish(&key, true)?;
-                Outcome::Made(tile.bodies.stored_len() as u64)
+    /// Makes the tile of the rows taken (one tile's formats), together, and finishes, defers
+    /// or fails each row.
+    fn make_rows(&self, jobs: &[Job]) -> Result<Vec<(TileKey, Outcome)>, StoreError> {
+        let (store, coordinator) = (self.store, self.coordinator);
+        let mut outcomes = Vec::with_capacity(jobs.len());
+        let mut claimed = Vec::with_capacity(jobs.len());
+        let Some(tile) = jobs.first().map(|job| job.key.tile) else {
+            return Ok(outcomes);
+        };
+        let held = store.list(&TileFilter::Tiles(vec![tile]))?;
+        let wanted = self.provider.provenance(tile);
+        for job in jobs {
+            let key = job.key;
+            let current = held
+                .iter()
+                .any(|entry| entry.key == key && Some(&entry.made_by) == wanted.as_ref());
+            if current && !job.force {
+                coordinator.finish(&key, false)?;
+                outcomes.push((key, Outcome::Current));
+            } else if coordinator.claim(&key)? {
+                claimed.push(key);
+            } else {
+                coordinator.defer(&key, CLAIMED_ELSEWHERE)?;
+                outcomes.push((key, Outcome::Deferred));
             }
+        }
+        if claimed.is_empty() {
+            return Ok(outcomes);
+        }
+        let made = make_tiles(self.provider, &claimed, self.render_limit);
+        let result = self.keep(&claimed, made, &mut outcomes);
+        for key in &claimed {
+            coordinator.release(key)?;
+        }
+        result.map(|()| outcomes)
+    }
+
+    /// Stores the tiles made, or fails their rows.
+    fn keep(
+        &self,
+        keys: &[TileKey],
+        made: Result<Vec<StoredTile>, String>,
+        outcomes: &mut Vec<(TileKey, Outcome)>,
+    ) -> Result<(), StoreError> {
+        let (store, coordinator) = (self.store, self.coordinator);
+        let tiles = match made {
+            Ok(tiles) => tiles,
             Err(error) => {
-                tracing::error!(tile = %key.tile, format = key.format.as_str(), %error, "tile failed");
-                let set_aside = coordinator.fail(&key, &error)?;
-                Outcome::Failed(error, set_aside)
+                let tile = keys[0].tile;
+                tracing::error!(%tile, %error, "tile failed");
+                for key in keys {
+                    let set_aside = coordinator.fail(key, &error)?;
+                    outcomes.push((*key, Outcome::Failed(error.clone(), set_aside)));
+                }
+                return Ok(());
             }
         };
-        coordinator.release(&key)?;
-        Ok(outcome)
+        for (key, tile) in keys.iter().zip(&tiles) {
+            // Whole or not at all: the row is replaced in one transaction.
+            store.put(key, tile)?;
+        }
+        // Kept for later renders when they can be: a tile stored without them is still
+        // whole.
+        if let Err(error) = crate::provider::save_solutions(store, self.solutions) {
+            tracing::warn!(%error, "keeping solved elevation components failed");
+        }
+        // Servers holding an older version in memory drop it.
+        coordinator.broadcast(&Event::Stored(keys.to_vec()))?;
+        for (key, tile) in keys.iter().zip(&tiles) {
+            coordinator.finish(key, true)?;
+            outcomes.push((*key, Outcome::Made(tile.bodies.stored_len() as u64)));
+        }
+        Ok(())
     }
 }
 
-/// Makes a tile as the store keeps it (compressed, with its validator and provenance).
-pub(super) fn make_tile(
+/// Makes one tile in the formats of `keys`, together, as the store keeps them (compressed,
+/// with their validators and provenance).
+pub(super) fn make_tiles(
     provider: &dyn TileProvider,
-    key: TileKey,
+    keys: &[TileKey],
     render_limit: Option<Duration>,
-) -> Result<StoredTile, String> {
+) -> Result<Vec<StoredTile>, String> {
     let deadline = render_limit.map_or(Deadline::none(), Deadline::after);
-    let made = provider.make(key, deadline).map_err(|e| e.to_string())?;
-    Ok(StoredTile {
-        etag: etag_of(&made.bytes),
-        bodies: Bodies::compress(made.bytes).map_err(|e| e.to_string())?,
-        made_by: provider.provenance(key.tile).unwrap_or_default(),
-        created_at: unix_now(),
-    })
+    let made = provider
+        .make_together(keys, deadline)
+        .map_err(|e| e.to_string())?;
+    let made_by = keys
+        .first()
+        .and_then(|key| provider.provenance(key.tile))
+        .unwrap_or_default();
+    made.into_iter()
+        .map(|made| {
+            Ok(StoredTile {
+                etag: etag_of(&made.bytes),
+                bodies: Bodies::compress(made.bytes).map_err(|e| e.to_string())?,
+                made_by: made_by.clone(),
+                created_at: unix_now(),
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]

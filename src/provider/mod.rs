@@ -119,6 +119,13 @@ pub trait TileProvider: Send + Sync + std::fmt::Debug {
     /// Makes the tile, uncompressed.
     fn make(&self, key: TileKey, deadline: Deadline) -> Result<Made, MakeError>;
 
+    /// Makes one tile in several formats (`keys`, all of one tile), uncompressed and in their
+    /// order: the bytes [`TileProvider::make`] gives each, made together where the formats
+    /// share their work. The keys fail together.
+    fn make_together(&self, keys: &[TileKey], deadline: Deadline) -> Result<Vec<Made>, MakeError> {
+        keys.iter().map(|key| self.make(*key, deadline)).collect()
+    }
+
     /// Whether the tile holds any of the sources' data; one that holds none (a coarse
     /// terrain tile over the open sea, far from every SRTM file) is cheap to make again and is
     /// not kept in the durable cache, so that no one can fill it with such tiles.
@@ -127,13 +134,13 @@ pub trait TileProvider: Send + Sync + std::fmt::Debug {
         true
     }
 
-    /// Lowest and highest ground under a tile, metres, for a bounding volume: sampled at the
-    /// provider's zoom, the whole source files' range at coarser ones.
     /// The quantized-mesh terrain layer offered, if any.
     fn terrain_layer(&self) -> Option<crate::output::layer::TerrainLayer> {
         None
     }
 
+    /// Lowest and highest ground under a tile, metres, for a bounding volume: sampled at the
+    /// provider's zoom, the whole source files' range at coarser ones.
     fn ground_range(&self, tile: TileId) -> Option<(f64, f64)> {
         let _ = tile;
         None

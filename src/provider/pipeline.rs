@@ -4,7 +4,10 @@
 
 use super::Inputs;
 use crate::format::{Format, TileKey};
-use crate::render::{Context, RenderError, RenderSettings, RenderStats, StageTimings};
+use crate::render::{
+    Context, RenderError, RenderSettings, RenderStats, Rendered, RenderedTerrain, RenderedTile,
+    StageTimings,
+};
 use crate::source::srtm::SrtmError;
 
 /// A tile made.
@@ -19,6 +22,32 @@ pub struct Made {
     pub lp_violations: usize,
     /// Everything the render counted (glb only).
     pub stats: Option<RenderStats>,
+}
+
+impl From<RenderedTile> for Made {
+    fn from(rendered: RenderedTile) -> Made {
+        Made {
+            triangles: rendered.stats.triangles,
+            lp_components: rendered.stats.lp_components,
+            lp_violations: rendered.stats.lp_violations,
+            timings: rendered.timings,
+            bytes: rendered.glb,
+            stats: Some(rendered.stats),
+        }
+    }
+}
+
+impl From<RenderedTerrain> for Made {
+    fn from(rendered: RenderedTerrain) -> Made {
+        Made {
+            triangles: rendered.report.triangles,
+            lp_components: 0,
+            lp_violations: 0,
+            timings: rendered.timings,
+            bytes: rendered.bytes,
+            stats: None,
+        }
+    }
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -79,14 +108,7 @@ pub fn make(
             } else {
                 crate::render::render_within(tile, &selection, &mosaic, settings, variant, context)
             }?;
-            Ok(Made {
-                triangles: rendered.stats.triangles,
-                lp_components: rendered.stats.lp_components,
-                lp_violations: rendered.stats.lp_violations,
-                timings: rendered.timings,
-                bytes: rendered.glb,
-                stats: Some(rendered.stats),
-            })
+            Ok(Made::from(rendered))
         }
         Format::Terrain(extensions) => {
             let rendered = if tile.z < served_zoom {
@@ -110,14 +132,43 @@ pub fn make(
                     context,
                 )
             }?;
-            Ok(Made {
-                triangles: rendered.report.triangles,
-                lp_components: 0,
-                lp_violations: 0,
-                timings: rendered.timings,
-                bytes: rendered.bytes,
-                stats: None,
-            })
+            Ok(Made::from(rendered))
         }
     }
+}
+
+/// Makes one tile in several formats (`keys` all of one tile), in their order: at the served
+/// zoom from one preparation ([`crate::render::render_formats`]), coarser tiles one by one.
+/// The bytes are those [`make`] gives each key; the keys fail together.
+pub fn make_together(
+    sources: &Inputs,
+    keys: &[TileKey],
+    settings: &RenderSettings,
+    served_zoom: u8,
+    context: Context<'_>,
+) -> Result<Vec<Made>, MakeError> {
+    let one_by_one = |keys: &[TileKey]| {
+        keys.iter()
+            .map(|key| make(sources, *key, settings, served_zoom, context))
+            .collect()
+    };
+    let Some(tile) = keys.first().map(|key| key.tile) else {
+        return Ok(Vec::new());
+    };
+    if keys.len() == 1 || tile.z < served_zoom || keys.iter().any(|key| key.tile != tile) {
+        return one_by_one(keys);
+    }
+    let osm = sources.osm_for(tile)?;
+    let selection = osm.selection(tile);
+    let mosaic = sources.mosaic_for(tile, &selection, settings.features.longest_way_m())?;
+    let formats: Vec<_> = keys.iter().map(|key| key.format).collect();
+    let rendered =
+        crate::render::render_formats(tile, (&selection, &mosaic), settings, &formats, context)?;
+    Ok(rendered
+        .into_iter()
+        .map(|rendered| match rendered {
+            Rendered::Glb(tile) => Made::from(tile),
+            Rendered::Terrain(terrain) => Made::from(terrain),
+        })
+        .collect())
 }

@@ -224,6 +224,14 @@ impl TileProvider for Renderer {
         super::pipeline::make(&self.inputs, key, &self.settings, self.zoom, context)
     }
 
+    fn make_together(&self, keys: &[TileKey], deadline: Deadline) -> Result<Vec<Made>, MakeError> {
+        let context = Context {
+            deadline,
+            solutions: &self.solutions,
+        };
+        super::pipeline::make_together(&self.inputs, keys, &self.settings, self.zoom, context)
+    }
+
     fn terrain_layer(&self) -> Option<crate::output::layer::TerrainLayer> {
         let cells: Vec<LonLatBounds> = self
             .inputs

@@ -93,12 +93,12 @@ pub async fn work(state: AppState) {
         let queued = queue.wake.notified();
         let taking = coordinator.clone();
         let taken = tokio::task::spawn_blocking(move || taking.take(JobKind::Regenerate)).await;
-        let job = match taken {
-            Ok(Ok(Some(job))) => job,
-            Ok(Ok(None)) => {
+        let jobs = match taken {
+            Ok(Ok(jobs)) if jobs.is_empty() => {
                 let _ = tokio::time::timeout(IDLE_LOOK, queued).await;
                 continue;
             }
+            Ok(Ok(jobs)) => jobs,
             Ok(Err(error)) => {
                 tracing::warn!(%error, "taking work from the queue failed");
                 tokio::time::sleep(IDLE_LOOK).await;
@@ -106,16 +106,19 @@ pub async fn work(state: AppState) {
             }
             Err(_) => continue,
         };
-        let key = job.key;
-        let outcome = remake(&state, job).await;
-        let finishing = coordinator.clone();
-        let finished = tokio::task::spawn_blocking(move || match outcome {
-            Ok(made) => finishing.finish(&key, made),
-            Err(error) => finishing.fail(&key, &error).map(|_| ()),
-        })
-        .await;
-        if let Ok(Err(error)) = finished {
-            tracing::warn!(tile = %key.tile, %error, "finishing work in the queue failed; it is taken again when its claim lapses");
+        // A tile's formats one after the other: each is a request's render, in flight alone.
+        for job in jobs {
+            let key = job.key;
+            let outcome = remake(&state, job).await;
+            let finishing = coordinator.clone();
+            let finished = tokio::task::spawn_blocking(move || match outcome {
+                Ok(made) => finishing.finish(&key, made),
+                Err(error) => finishing.fail(&key, &error).map(|_| ()),
+            })
+            .await;
+            if let Ok(Err(error)) = finished {
+                tracing::warn!(tile = %key.tile, %error, "finishing work in the queue failed; it is taken again when its claim lapses");
+            }
         }
     }
 }

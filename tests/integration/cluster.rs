@@ -308,9 +308,17 @@ fn purges_and_new_tiles_on_one_replica_reach_the_others_memory() {
 }
 
 /// Starts `terrastitch seed` on `bbox` into the shared database.
-fn seed_worker(url: &str, bbox: &str, lease_s: u64) -> Process {
+fn seed_worker(url: &str, (bbox, formats): (&str, &str), lease_s: u64) -> Process {
     let child = common::terrastitch()
-        .args(["seed", "--bbox", bbox, "--format", "glb", "--threads", "1"])
+        .args([
+            "seed",
+            "--bbox",
+            bbox,
+            "--format",
+            formats,
+            "--threads",
+            "1",
+        ])
         .args(["--cache-url", url])
         .env("TERRASTITCH_CACHE__LEASE_S", lease_s.to_string())
         .stdout(Stdio::null())
@@ -354,16 +362,19 @@ fn seed_workers_share_one_queue_and_finish_a_killed_workers_tiles() {
     assert_eq!(range.len(), 20);
     let bbox = common::bbox(8527, 8531, 5972, 5975);
 
-    // Two workers from the start: each tile made once.
+    // Two workers from the start, in two formats (a tile's rows are taken together): each
+    // tile made once.
     let url = cluster.database("together");
-    let workers = [seed_worker(&url, &bbox, 3), seed_worker(&url, &bbox, 3)];
+    let both = (bbox.as_str(), "glb,terrain");
+    let workers = [seed_worker(&url, both, 3), seed_worker(&url, both, 3)];
     for worker in workers {
         assert!(finish(worker).success());
     }
     let store = PostgresStore::open(&url, None).unwrap();
-    assert_whole(&store, range);
+    let stored = store.list(&TileFilter::Range(range)).unwrap();
+    assert_eq!(stored.len(), 40, "every tile of the box in both formats");
     let mut db = client(&url);
-    assert_eq!(made_by_workers(&mut db), 20, "each tile made once");
+    assert_eq!(made_by_workers(&mut db), 40, "each tile made once");
     let worked: i64 = db
         .query_one("SELECT count(*) FROM workers WHERE made > 0", &[])
         .unwrap()
@@ -373,8 +384,8 @@ fn seed_workers_share_one_queue_and_finish_a_killed_workers_tiles() {
     // One worker killed after its first tile: the other finishes its share.
     let url = cluster.database("killed");
     let store = PostgresStore::open(&url, None).unwrap();
-    let survivor = seed_worker(&url, &bbox, 2);
-    let doomed = seed_worker(&url, &bbox, 2);
+    let survivor = seed_worker(&url, (&bbox, "glb"), 2);
+    let doomed = seed_worker(&url, (&bbox, "glb"), 2);
     let mut db = client(&url);
     let doomed_pid = doomed.0.id();
     wait_for("the doomed worker's first tile", || {

@@ -291,36 +291,45 @@ impl Cluster {
         Ok(queued)
     }
 
-    /// Takes the next row of `kind` nobody holds, for as long as this process renews it.
-    pub fn take(&self, kind: JobKind) -> Result<Option<Job>, StoreError> {
-        let row = self
+    /// Takes the next row of `kind` nobody holds, with the other rows of `kind` of its tile
+    /// nobody holds, for as long as this process renews them.
+    pub fn take(&self, kind: JobKind) -> Result<Vec<Job>, StoreError> {
+        // Rows another taker locks are skipped, the first row's as the others': two takers
+        // never wait on each other.
+        let rows = self
             .connections
             .client()?
-            .query_opt(
+            .query(
                 "UPDATE work SET taken_by = $1,
                    taken_until = now() + make_interval(secs => $2), attempts = attempts + 1
-                 WHERE (z, x, y, format) = (
+                 WHERE (z, x, y, format) IN (
                    SELECT z, x, y, format FROM work
                    WHERE kind = $3 AND NOT failed
                      AND (taken_until IS NULL OR taken_until < now())
-                   ORDER BY priority, queued LIMIT 1
+                     AND (z, x, y) = (
+                       SELECT z, x, y FROM work
+                       WHERE kind = $3 AND NOT failed
+                         AND (taken_until IS NULL OR taken_until < now())
+                       ORDER BY priority, queued LIMIT 1
+                       FOR UPDATE SKIP LOCKED)
                    FOR UPDATE SKIP LOCKED)
                  RETURNING z, x, y, format, force, attempts",
                 &[&self.holder, &self.lease_s(), &kind.as_str()],
             )
             .map_err(|e| self.error(e))?;
-        let Some(row) = row else {
-            return Ok(None);
-        };
-        match key_of(&row) {
-            Some(key) => Ok(Some(Job {
-                key,
-                force: row.get(4),
-                attempts: row.get(5),
-            })),
-            // A format this version does not know: left for a process that does.
-            None => Ok(None),
-        }
+        // A format this version does not know is left for a process that does.
+        let mut jobs: Vec<Job> = rows
+            .iter()
+            .filter_map(|row| {
+                Some(Job {
+                    key: key_of(row)?,
+                    force: row.get(4),
+                    attempts: row.get(5),
+                })
+            })
+            .collect();
+        jobs.sort_by_key(|job| job.key);
+        Ok(jobs)
     }
 
     /// Done with a taken row: it leaves the queue; `made` counts a tile made.

@@ -132,12 +132,10 @@ impl Coordinator for Shared {
         Ok(queued)
     }
 
-    fn take(&self, kind: JobKind) -> Result<Option<Job>, StoreError> {
-        let job = self.cluster.take(kind)?;
-        if job.is_some() {
-            self.taken.fetch_add(1, Ordering::Relaxed);
-        }
-        Ok(job)
+    fn take(&self, kind: JobKind) -> Result<Vec<Job>, StoreError> {
+        let jobs = self.cluster.take(kind)?;
+        self.taken.fetch_add(jobs.len(), Ordering::Relaxed);
+        Ok(jobs)
     }
 
     fn finish(&self, key: &TileKey, made: bool) -> Result<(), StoreError> {
