@@ -41,6 +41,10 @@ const viewer = new Cesium.Viewer('globe', {
   infoBox: false,
   selectionIndicator: false,
   terrainProvider: new Cesium.EllipsoidTerrainProvider(),
+  // A frame is drawn only when the scene changes (the camera, a tile loaded): an idle globe
+  // costs nothing. Nothing here changes with the clock.
+  requestRenderMode: true,
+  maximumRenderTimeChange: Infinity,
 });
 if (ownTerrain) {
   try {
@@ -137,6 +141,7 @@ try {
       Cesium.Cartesian3.multiplyByScalar(up, CONTENT_LIFT_M, up),
     );
   }
+  viewer.scene.requestRender();
   tileset.tileLoad.addEventListener((tile) => {
     stats.loaded.push(tile.content.url.replace(/^.*3dtiles\//, ''));
   });

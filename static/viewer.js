@@ -91,6 +91,12 @@ renderer.toneMappingExposure = 0.6;
 container.appendChild(renderer.domElement);
 
 const scene = new THREE.Scene();
+// A frame is drawn only when something changed (the camera, a tile, a layer, the size): an
+// idle view costs nothing, on a laptop's battery or in software WebGL.
+let redraw = true;
+function invalidate() {
+  redraw = true;
+}
 scene.fog = new THREE.Fog(0xc9d6e3, 6000, 16000);
 const camera = new THREE.PerspectiveCamera(45, container.clientWidth / container.clientHeight, 2, 400000);
 
@@ -122,6 +128,7 @@ function softwareRendering() {
 }
 
 function setShadows(on) {
+  invalidate();
   renderer.shadowMap.enabled = on;
   sun.castShadow = on;
   // Materials compiled without shadows need compiling again.
@@ -399,6 +406,7 @@ function scheduleTiles() {
   updateVisibility(wanted);
   evict();
   showStatus();
+  invalidate();
 }
 
 async function loadTile(tile) {
@@ -636,6 +644,7 @@ function registerClasses(group) {
     box.type = 'checkbox';
     box.checked = true;
     box.addEventListener('change', () => {
+      invalidate();
       classes.set(name, box.checked);
       for (const t of tiles.values()) if (t.group) applyToggles(t.group);
     });
@@ -662,6 +671,7 @@ function applyToggles(group) {
 
 for (const box of document.querySelectorAll('[data-toggle]')) {
   box.addEventListener('change', () => {
+    invalidate();
     layers[box.dataset.toggle] = box.checked;
     if (box.dataset.toggle === 'shadows') {
       setShadows(box.checked);
@@ -710,6 +720,7 @@ async function addDebug(tile) {
     group.renderOrder = 10;
     tile.debug = group;
     scene.add(group);
+    invalidate();
   } catch (error) {
     showError(`debug view of ${tile.x}/${tile.y}: ${error.message || error}`);
   }
@@ -742,11 +753,13 @@ function resize() {
   camera.aspect = container.clientWidth / container.clientHeight;
   camera.updateProjectionMatrix();
   renderer.setSize(container.clientWidth, container.clientHeight);
+  invalidate();
 }
 window.addEventListener('resize', resize);
 
 let lastSchedule = 0;
 controls.addEventListener('change', () => {
+  invalidate();
   writeHash();
   const now = performance.now();
   if (now - lastSchedule > 250) {
@@ -764,7 +777,10 @@ scheduleTiles();
   setShadows(layers.shadows);
 }
 renderer.setAnimationLoop(() => {
+  // The damping moves the camera on for a while after the hand lets go: a 'change' each time.
   controls.update();
+  if (!redraw) return;
+  redraw = false;
   followSun(controls.target);
   renderer.render(scene, camera);
   stats.frames++;
@@ -811,4 +827,6 @@ function locate(osmId) {
   return null;
 }
 
-window.terrastitchViewer = { stats, locate, pick, currentView, setView: jumpTo, tiles };
+window.terrastitchViewer = {
+  stats, locate, pick, currentView, setView: jumpTo, tiles, invalidate,
+};

@@ -53,7 +53,10 @@ export async function addPixelReader(page) {
 export async function globeCoverage(page) {
   return page.evaluate(() => {
     const { viewer, tileset } = window.terrastitchGlobe;
+    // Drawn now and read at once (the page draws only on change, and a drawing buffer is
+    // not kept past its frame).
     const read = () => {
+      viewer.scene.requestRender();
       viewer.render();
       return window.canvasPixels(viewer.scene.canvas);
     };
@@ -62,6 +65,7 @@ export async function globeCoverage(page) {
     tileset.show = false;
     const bare = read();
     tileset.show = true;
+    viewer.scene.requestRender();
     viewer.render();
     const colours = new Set();
     let changed = 0;

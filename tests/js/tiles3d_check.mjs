@@ -54,11 +54,19 @@ const at = (height, dLat = 0) => WGS84_ELLIPSOID.getCartographicToPosition(lat +
 camera.position.copy(at(1200, -0.00015));
 camera.up.copy(at(1).sub(at(0)).normalize());
 camera.lookAt(at(0));
+// The camera stands still: a frame is drawn when the tiles shown change.
+let dirty = true;
+for (const type of ['load-model', 'dispose-model', 'tile-visibility-change']) {
+  tiles.addEventListener(type, () => { dirty = true; });
+}
 function frame() {
   camera.updateMatrixWorld();
   tiles.update();
-  renderer.render(scene, camera);
-  state.frames++;
+  if (dirty) {
+    dirty = false;
+    renderer.render(scene, camera);
+    state.frames++;
+  }
   requestAnimationFrame(frame);
 }
 frame();

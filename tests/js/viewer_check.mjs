@@ -31,11 +31,15 @@ try {
     return { requested: [...s.requested], loaded: [...s.loaded], failed: [...s.failed],
       frames: s.frames, firstFullView: s.firstFullView };
   });
-  // Waits until the page has drawn `count` frames more than it has now.
+  // Waits until the page has drawn `count` frames more than it has now. It draws only what
+  // changed: each look asks it for a frame.
   const frames = async (count) => {
     const now = (await stats()).frames;
-    await page.waitForFunction((until) => window.terrastitchViewer.stats.frames >= until,
-      now + count, { timeout: HUNG_MS, polling: 100 });
+    await page.waitForFunction((until) => {
+      const viewer = window.terrastitchViewer;
+      if (viewer.stats.frames < until) viewer.invalidate();
+      return viewer.stats.frames >= until;
+    }, now + count, { timeout: HUNG_MS, polling: 100 });
   };
 
   const loadStarted = Date.now();
