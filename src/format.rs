@@ -95,6 +95,9 @@ impl Extensions {
     }
 }
 
+/// Credit shown wherever tiles are shown, and written into every file of them.
+pub const ATTRIBUTION: &str = "© OpenStreetMap contributors, SRTM: NASA/USGS";
+
 /// The formats tiles are made in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Format {

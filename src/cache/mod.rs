@@ -12,8 +12,6 @@ pub mod archive;
 pub mod coordinator;
 pub mod encoding;
 mod flight;
-pub mod mbtiles;
-pub mod pmtiles;
 pub mod postgres;
 pub mod sqlite;
 pub mod store;
@@ -25,44 +23,19 @@ use std::sync::{Arc, Mutex};
 use sha2::Digest;
 
 use crate::format::TileKey;
-pub use archive::{ArchiveStore, Contents};
+pub use archive::mbtiles::MbtilesStore;
+pub use archive::pmtiles::PmtilesStore;
+pub use archive::{open_archive, ArchiveStore, Contents};
 pub use coordinator::{Coordinator, Event, Local};
 use encoding::Bodies;
-pub use mbtiles::MbtilesStore;
-pub use pmtiles::PmtilesStore;
 pub use postgres::PostgresStore;
 pub use sqlite::SqliteStore;
 pub use store::{
     unix_now, Provenance, SolutionEntry, StoreError, StoredEntry, StoredTile, TileFilter,
-    TileStore, Usage,
+    TileReader, TileStore, Usage,
 };
 
 /// Where a response came from.
-/// Opens an MBTiles or a PMTiles file, told apart by their first bytes; a tile in it longer than
-/// `max_tile` bytes, uncompressed, is damaged.
-pub fn open_archive(
-    path: &std::path::Path,
-    max_tile: u64,
-) -> Result<Arc<dyn ArchiveStore>, StoreError> {
-    let mut magic = [0u8; 16];
-    let read =
-        std::fs::File::open(path).and_then(|mut file| std::io::Read::read(&mut file, &mut magic));
-    let read = read.map_err(|source| StoreError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let magic = &magic[..read];
-    if magic.starts_with(b"PMTiles") {
-        Ok(Arc::new(PmtilesStore::open(path, max_tile)?))
-    } else if magic.starts_with(b"SQLite format 3\0") {
-        Ok(Arc::new(MbtilesStore::open(path, max_tile)?))
-    } else {
-        Err(StoreError::Damaged {
-            path: path.to_path_buf(),
-            report: "it is neither a PMTiles nor an MBTiles file".to_string(),
-        })
-    }
-}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Origin {
@@ -125,10 +98,37 @@ pub enum CacheError<E: std::error::Error> {
     Panicked(String),
 }
 
+/// What a cache keeps its tiles in.
+#[derive(Clone, Debug)]
+enum Held {
+    /// A store: read, written as tiles are made, its served tiles recorded.
+    Store(Arc<dyn TileStore>),
+    /// An exported archive at a path: read only, and all there is of its tiles.
+    Archive(Arc<dyn TileReader>, Arc<std::path::Path>),
+}
+
+impl Held {
+    fn reader(&self) -> Arc<dyn TileReader> {
+        match self {
+            Held::Store(store) => store.clone(),
+            Held::Archive(archive, _) => archive.clone(),
+        }
+    }
+
+    fn writer(&self) -> Result<&Arc<dyn TileStore>, StoreError> {
+        match self {
+            Held::Store(store) => Ok(store),
+            Held::Archive(_, path) => Err(StoreError::ReadOnly {
+                path: path.to_path_buf(),
+            }),
+        }
+    }
+}
+
 #[derive(Clone)]
 pub struct TileCache {
     memory: moka::future::Cache<TileKey, Arc<CachedTile>>,
-    store: Arc<dyn TileStore>,
+    store: Held,
     /// Tiles served from memory since the store last heard of it.
     touched: Arc<Mutex<HashSet<TileKey>>>,
     /// Lookups and renders under way, by key.
@@ -200,7 +200,18 @@ impl Drop for Waiting<'_> {
 type Render<E> = Box<dyn FnOnce() -> Result<Vec<u8>, E> + Send>;
 
 impl TileCache {
+    /// A cache over a store it reads and writes.
     pub fn new(store: Arc<dyn TileStore>, memory_bytes: u64) -> TileCache {
+        TileCache::holding(Held::Store(store), memory_bytes)
+    }
+
+    /// A cache over an exported archive: it serves the archive's tiles and stores nothing.
+    pub fn reading(archive: Arc<dyn ArchiveStore>, memory_bytes: u64) -> TileCache {
+        let path: Arc<std::path::Path> = Arc::from(archive.path());
+        TileCache::holding(Held::Archive(archive, path), memory_bytes)
+    }
+
+    fn holding(store: Held, memory_bytes: u64) -> TileCache {
         let memory = moka::future::Cache::builder()
             .weigher(|_key: &TileKey, tile: &Arc<CachedTile>| -> u32 {
                 tile.bodies.weight().try_into().unwrap_or(u32::MAX)
@@ -237,8 +248,14 @@ impl TileCache {
         &self.coordinator
     }
 
-    pub fn store(&self) -> &Arc<dyn TileStore> {
-        &self.store
+    /// Where its tiles are read from.
+    pub fn reader(&self) -> Arc<dyn TileReader> {
+        self.store.reader()
+    }
+
+    /// Its store, to write to; an archive is read only.
+    pub fn writer(&self) -> Result<&Arc<dyn TileStore>, StoreError> {
+        self.store.writer()
     }
 
     /// The tile if memory holds it, whatever made it.
@@ -276,21 +293,23 @@ impl TileCache {
         F: FnOnce() -> Result<Vec<u8>, E> + Send + 'static,
         E: std::error::Error + Send + Sync + 'static,
     {
-        let store = self.store.clone();
+        let held = self.store.clone();
         let coordinator = self.coordinator.clone();
         let made_by = wanted.cloned().unwrap_or_default();
         let lookup_or_render = async move {
-            if let Some(found) = lookup(&store, key).await? {
+            if let Some(found) = lookup(&held, key).await? {
                 return Ok(Arc::new(found));
             }
+            let store = held.writer().ok().filter(|_| keep).cloned();
             // A process alone with its store claims nothing: the single flight here is the
             // whole of it.
-            let made = if keep && !coordinator.alone() {
-                render_claimed(coordinator, store, key, made_by, Box::new(render)).await?
-            } else {
-                render_and_store(keep.then_some(store), key, made_by, None, Box::new(render))
+            let made = match store {
+                Some(store) if !coordinator.alone() => {
+                    render_claimed(coordinator, store, key, made_by, Box::new(render)).await?
+                }
+                store => render_and_store(store, key, made_by, None, Box::new(render))
                     .await?
-                    .ok_or_else(|| CacheError::Panicked("a tile was dropped unasked".into()))?
+                    .ok_or_else(|| CacheError::Panicked("a tile was dropped unasked".into()))?,
             };
             // Made here, or found in the store once another process made it.
             Ok(Arc::new(made))
@@ -346,7 +365,7 @@ impl TileCache {
         E: std::error::Error + Send + Sync + 'static,
     {
         let purges = Some((self.purges.clone(), purges_so_far));
-        let store = Some(self.store.clone());
+        let store = self.store.writer().ok().cloned();
         match render_and_store(store, key, wanted, purges, Box::new(render)).await? {
             Some(tile) => {
                 let remade = if tile.stored {
@@ -369,7 +388,7 @@ impl TileCache {
     pub async fn purge(&self, filter: TileFilter) -> Result<Vec<TileKey>, StoreError> {
         self.record_purge(filter.clone());
         let all = filter == TileFilter::All;
-        let store = self.store.clone();
+        let store = self.store.writer()?.clone();
         let removing = filter.clone();
         let removed = tokio::task::spawn_blocking(move || store.remove(&removing))
             .await
@@ -454,10 +473,14 @@ impl TileCache {
             std::mem::take(&mut *self.touched.lock().unwrap_or_else(|p| p.into_inner()))
                 .into_iter()
                 .collect();
+        // An archive records nothing.
+        let Ok(store) = self.store.writer() else {
+            return Ok(());
+        };
         if keys.is_empty() {
             return Ok(());
         }
-        let store = self.store.clone();
+        let store = store.clone();
         tokio::task::spawn_blocking(move || store.touch(&keys, unix_now()))
             .await
             .unwrap_or_else(|e| {
@@ -480,18 +503,14 @@ pub enum Remade {
 
 /// The stored tile, marked as read from the store (and its use recorded). A store that cannot
 /// be read (damaged, its disk gone) does not stop the tile: it is made again.
-async fn lookup<E>(
-    store: &Arc<dyn TileStore>,
-    key: TileKey,
-) -> Result<Option<CachedTile>, CacheError<E>>
+async fn lookup<E>(held: &Held, key: TileKey) -> Result<Option<CachedTile>, CacheError<E>>
 where
     E: std::error::Error + Send + Sync + 'static,
 {
-    let reading = store.clone();
+    let reading = held.clone();
     let lookup = tokio::task::spawn_blocking(move || {
-        let store = reading;
-        let found = store.get(&key)?;
-        if found.is_some() {
+        let found = reading.reader().get(&key)?;
+        if let (Some(_), Ok(store)) = (&found, reading.writer()) {
             store.touch(&[key], unix_now())?;
         }
         Ok::<_, StoreError>(found)
@@ -501,7 +520,7 @@ where
     let found = match lookup {
         Ok(found) => found,
         // An archive is all there is of its tiles: one it cannot read is not made again.
-        Err(error) if store.read_only() => return Err(CacheError::Store(error)),
+        Err(error) if matches!(held, Held::Archive(..)) => return Err(CacheError::Store(error)),
         Err(error) => {
             tracing::error!(tile = %key.tile, format = key.format.as_str(), %error, "reading the stored tile failed; making it again");
             None
@@ -538,7 +557,7 @@ where
         match claim {
             Ok(true) => {
                 // It may have landed between the lookup and the claim.
-                let made = match lookup(&store, key).await? {
+                let made = match lookup(&Held::Store(store.clone()), key).await? {
                     Some(found) => Ok(found),
                     None => render_and_store(Some(store), key, made_by, None, render)
                         .await
@@ -560,7 +579,7 @@ where
             }
         }
         tokio::time::sleep(LANDING_POLL).await;
-        if let Some(found) = lookup(&store, key).await? {
+        if let Some(found) = lookup(&Held::Store(store.clone()), key).await? {
             return Ok(found);
         }
     }
@@ -622,32 +641,5 @@ fn panic_message(error: tokio::task::JoinError) -> String {
     match error.try_into_panic() {
         Ok(payload) => crate::panics::text(payload.as_ref()),
         Err(error) => error.to_string(),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_file_of_neither_kind_is_refused_by_name() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("tiles.pmtiles");
-        std::fs::write(&path, b"not an archive").unwrap();
-        let error = open_archive(&path, store::DEFAULT_MAX_TILE_BYTES)
-            .err()
-            .unwrap()
-            .to_string();
-        assert!(
-            error.contains("neither a PMTiles nor an MBTiles"),
-            "{error}"
-        );
-        let missing = open_archive(
-            &dir.path().join("absent.pmtiles"),
-            store::DEFAULT_MAX_TILE_BYTES,
-        )
-        .err()
-        .unwrap();
-        assert!(missing.to_string().contains("absent.pmtiles"), "{missing}");
     }
 }

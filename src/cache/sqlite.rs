@@ -8,7 +8,9 @@ use std::sync::Mutex;
 use rusqlite::{params, Connection, OptionalExtension};
 
 use super::encoding::Bodies;
-use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
+use super::store::{
+    Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileReader, TileStore, Usage,
+};
 use crate::format::Encoding;
 use crate::format::{Format, TileKey};
 use crate::tile::TileId;
@@ -309,7 +311,7 @@ fn tile_of(row: &rusqlite::Row<'_>) -> rusqlite::Result<TileId> {
     })
 }
 
-impl TileStore for SqliteStore {
+impl TileReader for SqliteStore {
     fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError> {
         type Row = (
             Vec<u8>,
@@ -381,6 +383,107 @@ impl TileStore for SqliteStore {
         }))
     }
 
+    fn solutions(&self, limit: usize) -> Result<Vec<super::store::SolutionEntry>, StoreError> {
+        let connection = self.connection();
+        let mut newest = connection
+            .prepare("SELECT key, data FROM solutions ORDER BY rowid DESC LIMIT ?1")
+            .map_err(|e| self.error(e))?;
+        let rows = newest
+            .query_map([i64::try_from(limit).unwrap_or(i64::MAX)], |row| {
+                Ok((row.get::<_, Vec<u8>>(0)?, row.get::<_, Vec<u8>>(1)?))
+            })
+            .map_err(|e| self.error(e))?;
+        let mut out = Vec::new();
+        for row in rows {
+            let (key, data) = row.map_err(|e| self.error(e))?;
+            // A key of another length is not one of ours: skipped.
+            if let Ok(key) = <[u8; 32]>::try_from(key.as_slice()) {
+                out.push((key, data));
+            }
+        }
+        Ok(out)
+    }
+
+    fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
+        const COLUMNS: &str = "z, x, y, format, pipeline, sources, size, accessed_at";
+        let mut entries = Vec::new();
+        let mut read = |statement: &mut rusqlite::Statement<'_>, values: &[i64]| {
+            let rows = statement
+                .query_map(rusqlite::params_from_iter(values), |row| {
+                    Ok((
+                        tile_of(row)?,
+                        row.get::<_, String>(3)?,
+                        Provenance {
+                            pipeline: row.get(4)?,
+                            sources: row.get(5)?,
+                        },
+                        row.get::<_, i64>(6)?,
+                        row.get::<_, i64>(7)?,
+                    ))
+                })
+                .map_err(|e| self.error(e))?;
+            for row in rows {
+                let (tile, format, made_by, size, accessed_at) = row.map_err(|e| self.error(e))?;
+                // Rows of a format this program does not know are left alone.
+                if let Some(format) = Format::from_name(&format) {
+                    entries.push(StoredEntry {
+                        key: TileKey { tile, format },
+                        made_by,
+                        size: size.max(0) as u64,
+                        accessed_at,
+                    });
+                }
+            }
+            Ok::<_, StoreError>(())
+        };
+        match filter {
+            // A list of tiles is read by the primary key, a chunk at a time, the connection
+            // let go between chunks so that other requests get in.
+            TileFilter::Tiles(tiles) => {
+                for chunk in tiles.chunks(TILES_PER_TURN) {
+                    let_others_in();
+                    let connection = self.connection();
+                    let mut statement = connection
+                        .prepare_cached(&format!(
+                            "SELECT {COLUMNS} FROM tiles WHERE z = ?1 AND x = ?2 AND y = ?3"
+                        ))
+                        .map_err(|e| self.error(e))?;
+                    for t in chunk {
+                        read(
+                            &mut statement,
+                            &[i64::from(t.z), i64::from(t.x), i64::from(t.y)],
+                        )?;
+                    }
+                }
+            }
+            other => {
+                let connection = self.connection();
+                for (condition, values) in filter_sql(other) {
+                    let mut statement = connection
+                        .prepare(&format!("SELECT {COLUMNS} FROM tiles WHERE {condition}"))
+                        .map_err(|e| self.error(e))?;
+                    read(&mut statement, &values)?;
+                }
+            }
+        }
+        // Most recently served first.
+        entries.sort_by(|a, b| b.accessed_at.cmp(&a.accessed_at).then(a.key.cmp(&b.key)));
+        Ok(entries)
+    }
+
+    fn usage(&self) -> Result<Usage, StoreError> {
+        self.connection()
+            .query_row("SELECT tiles, bytes FROM usage", [], |row| {
+                Ok(Usage {
+                    tiles: row.get::<_, i64>(0)?.max(0) as u64,
+                    bytes: row.get::<_, i64>(1)?.max(0) as u64,
+                })
+            })
+            .map_err(|e| self.error(e))
+    }
+}
+
+impl TileStore for SqliteStore {
     fn put(&self, key: &TileKey, tile: &StoredTile) -> Result<(), StoreError> {
         let (coding, primary) = tile.bodies.primary();
         let mut connection = self.connection();
@@ -418,27 +521,6 @@ impl TileStore for SqliteStore {
         transaction.commit().map_err(|e| self.error(e))?;
         super::store::log_eviction(evicted, self.max_bytes);
         Ok(())
-    }
-
-    fn solutions(&self, limit: usize) -> Result<Vec<super::store::SolutionEntry>, StoreError> {
-        let connection = self.connection();
-        let mut newest = connection
-            .prepare("SELECT key, data FROM solutions ORDER BY rowid DESC LIMIT ?1")
-            .map_err(|e| self.error(e))?;
-        let rows = newest
-            .query_map([i64::try_from(limit).unwrap_or(i64::MAX)], |row| {
-                Ok((row.get::<_, Vec<u8>>(0)?, row.get::<_, Vec<u8>>(1)?))
-            })
-            .map_err(|e| self.error(e))?;
-        let mut out = Vec::new();
-        for row in rows {
-            let (key, data) = row.map_err(|e| self.error(e))?;
-            // A key of another length is not one of ours: skipped.
-            if let Ok(key) = <[u8; 32]>::try_from(key.as_slice()) {
-                out.push((key, data));
-            }
-        }
-        Ok(out)
     }
 
     fn keep_solutions(&self, entries: &[super::store::SolutionEntry]) -> Result<(), StoreError> {
@@ -546,84 +628,6 @@ impl TileStore for SqliteStore {
         }
         removed.sort();
         Ok(removed)
-    }
-
-    fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
-        const COLUMNS: &str = "z, x, y, format, pipeline, sources, size, accessed_at";
-        let mut entries = Vec::new();
-        let mut read = |statement: &mut rusqlite::Statement<'_>, values: &[i64]| {
-            let rows = statement
-                .query_map(rusqlite::params_from_iter(values), |row| {
-                    Ok((
-                        tile_of(row)?,
-                        row.get::<_, String>(3)?,
-                        Provenance {
-                            pipeline: row.get(4)?,
-                            sources: row.get(5)?,
-                        },
-                        row.get::<_, i64>(6)?,
-                        row.get::<_, i64>(7)?,
-                    ))
-                })
-                .map_err(|e| self.error(e))?;
-            for row in rows {
-                let (tile, format, made_by, size, accessed_at) = row.map_err(|e| self.error(e))?;
-                // Rows of a format this program does not know are left alone.
-                if let Some(format) = Format::from_name(&format) {
-                    entries.push(StoredEntry {
-                        key: TileKey { tile, format },
-                        made_by,
-                        size: size.max(0) as u64,
-                        accessed_at,
-                    });
-                }
-            }
-            Ok::<_, StoreError>(())
-        };
-        match filter {
-            // A list of tiles is read by the primary key, a chunk at a time, the connection
-            // let go between chunks so that other requests get in.
-            TileFilter::Tiles(tiles) => {
-                for chunk in tiles.chunks(TILES_PER_TURN) {
-                    let_others_in();
-                    let connection = self.connection();
-                    let mut statement = connection
-                        .prepare_cached(&format!(
-                            "SELECT {COLUMNS} FROM tiles WHERE z = ?1 AND x = ?2 AND y = ?3"
-                        ))
-                        .map_err(|e| self.error(e))?;
-                    for t in chunk {
-                        read(
-                            &mut statement,
-                            &[i64::from(t.z), i64::from(t.x), i64::from(t.y)],
-                        )?;
-                    }
-                }
-            }
-            other => {
-                let connection = self.connection();
-                for (condition, values) in filter_sql(other) {
-                    let mut statement = connection
-                        .prepare(&format!("SELECT {COLUMNS} FROM tiles WHERE {condition}"))
-                        .map_err(|e| self.error(e))?;
-                    read(&mut statement, &values)?;
-                }
-            }
-        }
-        // Most recently served first.
-        entries.sort_by(|a, b| b.accessed_at.cmp(&a.accessed_at).then(a.key.cmp(&b.key)));
-        Ok(entries)
-    }
-
-    fn usage(&self) -> Result<Usage, StoreError> {
-        self.connection()
-            .query_row("SELECT tiles, bytes FROM usage", [], |row| {
-                Ok(Usage {
-                    tiles: row.get::<_, i64>(0)?.max(0) as u64,
-                    bytes: row.get::<_, i64>(1)?.max(0) as u64,
-                })
-            })
-            .map_err(|e| self.error(e))
     }
 }
 

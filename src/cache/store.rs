@@ -139,25 +139,19 @@ pub struct Usage {
     pub bytes: u64,
 }
 
-/// A durable home for rendered tiles. Every call is blocking; callers on the async executor
-/// run them on the blocking pool.
 /// A solved component of the elevation LP as a store keeps it: its digest and its encoded
 /// solution, opaque to the store.
 pub type SolutionEntry = ([u8; 32], Vec<u8>);
 
-pub trait TileStore: Send + Sync + std::fmt::Debug {
+/// Where rendered tiles are read from: a durable store, or an exported archive that is all
+/// there is of its tiles. Every call is blocking; callers on the async executor run them on
+/// the blocking pool.
+pub trait TileReader: Send + Sync + std::fmt::Debug {
     /// The stored tile, whatever made it (the caller decides whether it is stale).
     fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError>;
-    /// Stores a tile in one step, replacing the one before: a reader sees the old tile or the
-    /// new one, never a mix. May evict the least recently used tiles to stay under a size cap.
-    fn put(&self, key: &TileKey, tile: &StoredTile) -> Result<(), StoreError>;
-    /// Records that tiles were served at `at` (seconds since the Unix epoch).
-    fn touch(&self, keys: &[TileKey], at: i64) -> Result<(), StoreError>;
-    /// Removes the matching tiles and names them.
-    fn remove(&self, filter: &TileFilter) -> Result<Vec<TileKey>, StoreError>;
     /// The matching tiles, most recently served first.
     fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError>;
-    /// Each matching tile in turn, in [`TileStore::list`]'s order; a store that holds runs of
+    /// Each matching tile in turn, in [`TileReader::list`]'s order; a store that holds runs of
     /// tiles under one entry (an archive) walks them without listing them.
     fn each(
         &self,
@@ -170,17 +164,23 @@ pub trait TileStore: Send + Sync + std::fmt::Debug {
         Ok(())
     }
     fn usage(&self) -> Result<Usage, StoreError>;
-    /// Whether the store is all there is of its tiles (an archive, read-only): a tile it holds
-    /// but cannot read is then an error, not a tile to make again.
-    fn read_only(&self) -> bool {
-        false
-    }
     /// Up to `limit` solved components of the elevation LP kept beside the tiles, newest first,
     /// as (digest, encoded solution): opaque to the store. A store that keeps none has none.
     fn solutions(&self, limit: usize) -> Result<Vec<SolutionEntry>, StoreError> {
         let _ = limit;
         Ok(Vec::new())
     }
+}
+
+/// A durable home for rendered tiles: read, and written as tiles are made, served and purged.
+pub trait TileStore: TileReader {
+    /// Stores a tile in one step, replacing the one before: a reader sees the old tile or the
+    /// new one, never a mix. May evict the least recently used tiles to stay under a size cap.
+    fn put(&self, key: &TileKey, tile: &StoredTile) -> Result<(), StoreError>;
+    /// Records that tiles were served at `at` (seconds since the Unix epoch).
+    fn touch(&self, keys: &[TileKey], at: i64) -> Result<(), StoreError>;
+    /// Removes the matching tiles and names them.
+    fn remove(&self, filter: &TileFilter) -> Result<Vec<TileKey>, StoreError>;
     /// Keeps solved components for later renders (bounded; an entry already kept stays).
     fn keep_solutions(&self, entries: &[SolutionEntry]) -> Result<(), StoreError> {
         let _ = entries;

@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 
 use super::flags::{Flags, SourceArgs};
-use crate::cache::{Coordinator, TileStore};
+use crate::cache::{Coordinator, TileReader, TileStore};
 use crate::config::Config;
 use crate::format::Format;
 use crate::offline::seed;

@@ -100,7 +100,7 @@ fn serve_archive(file: &Path, config: Config) -> Result<()> {
         zoom: archive.contents.max_zoom(),
         ..config.server.clone()
     };
-    let cache = TileCache::new(store, config.cache.memory_mib * 1024 * 1024);
+    let cache = TileCache::reading(store, config.cache.memory_mib * 1024 * 1024);
     let state = AppState::new(cache, &server);
     state.provide(Arc::new(archive));
     run_server(Duration::from_secs(server.shutdown_grace_s), async move {

@@ -17,14 +17,12 @@ use std::cell::RefCell;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use rusqlite::{params, Connection};
 use serde_json::Value;
 
 use super::seed::Layer;
-use crate::cache::archive::{format_name, CONTENTS_KEY};
-use crate::cache::{Contents, StoreError, TileStore};
+use crate::cache::archive;
+use crate::cache::{Contents, StoreError, TileReader};
 use crate::format::{Format, Frame, TileKey, Variant};
-use crate::output::glb::ATTRIBUTION;
 use crate::output::layer::TerrainLayer;
 use crate::output::tileset::{Plan, Root};
 use crate::tile::{LonLatBounds, TileId};
@@ -146,18 +144,8 @@ pub enum ExportError {
         #[source]
         source: std::io::Error,
     },
-    #[error("cannot write MBTiles file {path}: {source}")]
-    Sqlite {
-        path: PathBuf,
-        #[source]
-        source: rusqlite::Error,
-    },
-    #[error("cannot write PMTiles file {path}: {source}")]
-    Pmtiles {
-        path: PathBuf,
-        #[source]
-        source: pmtiles::PmtError,
-    },
+    #[error(transparent)]
+    Archive(#[from] archive::WriteError),
     #[error("tile {0} is not in the cache; seed it first")]
     Missing(String),
     #[error(
@@ -186,7 +174,7 @@ impl ExportReport {
 /// Writes `export` from `store` to `target`; every tile must be in the store. A file target
 /// takes one format.
 pub fn export(
-    store: &dyn TileStore,
+    store: &dyn TileReader,
     export: &Export,
     target: &Target,
 ) -> Result<ExportReport, ExportError> {
@@ -202,148 +190,43 @@ pub fn export(
 }
 
 /// The tile's body, uncompressed.
-fn body(store: &dyn TileStore, key: &TileKey) -> Result<Vec<u8>, ExportError> {
+fn body(store: &dyn TileReader, key: &TileKey) -> Result<Vec<u8>, ExportError> {
     let tile = store
         .get(key)?
         .ok_or_else(|| ExportError::Missing(format!("{} ({})", key.tile, key.format.as_str())))?;
     Ok(tile.bodies.identity.to_vec())
 }
 
-/// The metadata both archives carry: name, format, description, attribution, bounds, centre,
-/// zooms, and the contents under [`CONTENTS_KEY`].
-fn metadata(contents: &Contents) -> Vec<(&'static str, String)> {
-    let zoom = contents.max_zoom();
-    let min_zoom = contents.zooms.first().copied().unwrap_or(zoom);
-    let description = match contents.format {
-        Format::Glb(_) => "3D tiles of OpenStreetMap on SRTM terrain, glTF binary",
-        Format::Terrain(_) => "Terrain from SRTM with OpenStreetMap roads, railways and water stitched into it, quantized-mesh",
-    };
-    let mut rows = vec![
-        ("name", "terrastitch".to_string()),
-        ("format", format_name(contents.format).to_string()),
-        ("description", description.to_string()),
-        ("attribution", ATTRIBUTION.to_string()),
-        ("type", "overlay".to_string()),
-        ("version", "1".to_string()),
-        ("minzoom", min_zoom.to_string()),
-        ("maxzoom", zoom.to_string()),
-        (CONTENTS_KEY, contents.to_json().to_string()),
-    ];
-    if let Some(b) = contents.bounds {
-        let (lon, lat) = ((b.west + b.east) / 2.0, (b.south + b.north) / 2.0);
-        rows.push((
-            "bounds",
-            format!("{},{},{},{}", b.west, b.south, b.east, b.north),
-        ));
-        rows.push(("center", format!("{lon},{lat},{zoom}")));
-    }
-    rows
-}
-
 fn export_mbtiles(
-    store: &dyn TileStore,
+    store: &dyn TileReader,
     keys: &[TileKey],
     path: &Path,
     contents: &Contents,
 ) -> Result<ExportReport, ExportError> {
     let partial = partial_path(path);
-    let _ = std::fs::remove_file(&partial);
-    let sqlite = |source| ExportError::Sqlite {
-        path: path.to_path_buf(),
-        source,
-    };
-    let mut connection = Connection::open(&partial).map_err(sqlite)?;
     let mut report = ExportReport::default();
-    {
-        let transaction = connection.transaction().map_err(sqlite)?;
-        transaction
-            .execute_batch(
-                "CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT);
-                 CREATE TABLE tiles (zoom_level INTEGER, tile_column INTEGER,
-                                     tile_row INTEGER, tile_data BLOB,
-                                     PRIMARY KEY (zoom_level, tile_column, tile_row));",
-            )
-            .map_err(sqlite)?;
-        for (name, value) in metadata(contents) {
-            transaction
-                .execute(
-                    "INSERT INTO metadata (name, value) VALUES (?1, ?2)",
-                    params![name, value],
-                )
-                .map_err(sqlite)?;
-        }
-        for key in keys {
-            let data = body(store, key)?;
-            // MBTiles rows count from the south.
-            let row = (1u64 << key.tile.z) - 1 - u64::from(key.tile.y);
-            transaction
-                .execute(
-                    "INSERT OR REPLACE INTO tiles VALUES (?1, ?2, ?3, ?4)",
-                    params![key.tile.z, key.tile.x, row as i64, data],
-                )
-                .map_err(sqlite)?;
-            report.add(&data);
-        }
-        transaction.commit().map_err(sqlite)?;
-    }
-    connection.close().map_err(|(_, e)| sqlite(e))?;
+    archive::mbtiles::write::<ExportError>((&partial, path), contents, keys, &mut |key| {
+        let data = body(store, key)?;
+        report.add(&data);
+        Ok(data)
+    })?;
     move_into_place(&partial, path)?;
     Ok(report)
 }
 
 fn export_pmtiles(
-    store: &dyn TileStore,
+    store: &dyn TileReader,
     keys: &[TileKey],
     path: &Path,
     contents: &Contents,
 ) -> Result<ExportReport, ExportError> {
-    let failed = |source| ExportError::Pmtiles {
-        path: path.to_path_buf(),
-        source,
-    };
-    let io = |source| ExportError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    // The specification wants tiles in Hilbert order for a clustered archive.
-    let mut ordered: Vec<(pmtiles::TileCoord, &TileKey)> = Vec::with_capacity(keys.len());
-    for key in keys {
-        let (z, x, y) = (key.tile.z, key.tile.x, key.tile.y);
-        ordered.push((pmtiles::TileCoord::new(z, x, y).map_err(failed)?, key));
-    }
-    ordered.sort_by_key(|(coord, _)| pmtiles::TileId::from(*coord).value());
-    let rows = metadata(contents);
-    let mut document = serde_json::Map::new();
-    for (name, value) in &rows {
-        let value = match *name {
-            CONTENTS_KEY => serde_json::from_str(value).unwrap_or(Value::Null),
-            _ => Value::String(value.clone()),
-        };
-        document.insert(name.to_string(), value);
-    }
-    let zoom = contents.max_zoom();
-    let mut writer = pmtiles::PmTilesWriter::new(pmtiles::TileType::Unknown)
-        .min_zoom(contents.zooms.first().copied().unwrap_or(zoom))
-        .max_zoom(zoom)
-        .center_zoom(zoom)
-        .metadata(Value::Object(document).to_string());
-    if let Some(b) = contents.bounds {
-        writer = writer
-            .bounds(b.west, b.south, b.east, b.north)
-            .center((b.west + b.east) / 2.0, (b.south + b.north) / 2.0);
-    }
     let partial = partial_path(path);
-    let file = std::fs::File::create(&partial).map_err(io)?;
-    let mut writer = writer
-        .create(std::io::BufWriter::new(file))
-        .map_err(failed)?;
     let mut report = ExportReport::default();
-    for (coord, key) in ordered {
+    archive::pmtiles::write::<ExportError>((&partial, path), contents, keys, &mut |key| {
         let data = body(store, key)?;
-        writer.add_tile(coord, &data).map_err(failed)?;
         report.add(&data);
-    }
-    writer.finalize().map_err(failed)?;
+        Ok(data)
+    })?;
     move_into_place(&partial, path)?;
     Ok(report)
 }
@@ -385,7 +268,7 @@ pub fn write_whole(path: &Path, bytes: &[u8]) -> Result<(), ExportError> {
 }
 
 fn export_directory(
-    store: &dyn TileStore,
+    store: &dyn TileReader,
     export: &Export,
     root: &Path,
 ) -> Result<ExportReport, ExportError> {

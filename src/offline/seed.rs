@@ -21,7 +21,9 @@ use std::time::{Duration, Instant};
 
 use crate::cache::coordinator::{Coordinator, Event, Job, JobKind, Priority};
 use crate::cache::encoding::Bodies;
-use crate::cache::{etag_of, unix_now, Provenance, StoreError, StoredTile, TileFilter, TileStore};
+use crate::cache::{
+    etag_of, unix_now, Provenance, StoreError, StoredTile, TileFilter, TileReader, TileStore,
+};
 use crate::format::{Format, TileKey};
 use crate::provider::{Availability, Deadline, Offer, Solutions, TileProvider};
 use crate::tile::{LonLatBounds, TileId, TileRange};
@@ -110,7 +112,7 @@ pub fn layers(offer: &Offer, bbox: &LonLatBounds, formats: &[Format], coarser: b
 /// would not make them now. Shards split the tiles in the layers' order, row by row.
 pub fn plan(
     provider: &dyn TileProvider,
-    store: &dyn TileStore,
+    store: &dyn TileReader,
     layers: &[Layer],
     shard: Shard,
 ) -> Result<Plan, StoreError> {

@@ -37,8 +37,7 @@ use materials::{material_of, metallic_of};
 
 mod materials;
 
-/// Credit shown wherever tiles are shown.
-pub const ATTRIBUTION: &str = "© OpenStreetMap contributors, SRTM: NASA/USGS";
+pub use crate::format::ATTRIBUTION;
 
 /// What the writer needs to describe the tile.
 #[derive(Debug, Clone)]

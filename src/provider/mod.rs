@@ -33,7 +33,7 @@ const SOLUTIONS_AT_START: usize = 50_000;
 /// Reads the solved LP components `store` keeps into `solutions`, for the renders that use it
 /// to find; returns how many it kept.
 pub fn load_solutions(
-    store: &dyn crate::cache::TileStore,
+    store: &dyn crate::cache::TileReader,
     solutions: &Solutions,
 ) -> Result<usize, crate::cache::StoreError> {
     let entries = store.solutions(SOLUTIONS_AT_START)?;

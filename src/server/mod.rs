@@ -439,7 +439,7 @@ pub async fn serve(
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
     let mut background = vec![tokio::spawn(background_tasks(state.clone()))];
-    let store = state.cache.store().clone();
+    let store = state.cache.reader();
     let solutions = state.work.solutions.clone();
     background.push(tokio::task::spawn_blocking(
         move || match crate::provider::load_solutions(store.as_ref(), &solutions) {
@@ -523,7 +523,10 @@ async fn flush(state: &AppState) {
     if let Err(error) = state.cache.flush_touches().await {
         tracing::warn!(%error, "recording served tiles failed");
     }
-    let store = state.cache.store().clone();
+    // An archive keeps none.
+    let Ok(store) = state.cache.writer().cloned() else {
+        return;
+    };
     let solutions = state.work.solutions.clone();
     let saved = tokio::task::spawn_blocking(move || {
         crate::provider::save_solutions(store.as_ref(), &solutions)

@@ -144,7 +144,7 @@ async fn remake(state: &AppState, job: Job) -> Result<bool, String> {
     // Counted before the tile is looked for: a purge after this, even one that comes between
     // the look and the render, keeps the new tile out of the store.
     let purges_so_far = state.cache.purges_so_far();
-    let store = state.cache.store().clone();
+    let store = state.cache.reader();
     let listed =
         tokio::task::spawn_blocking(move || store.list(&TileFilter::Tiles(vec![key.tile]))).await;
     let stored = match listed {
@@ -190,7 +190,7 @@ pub async fn queue_stored(
     only_stale: bool,
 ) -> Result<usize, String> {
     let provider = state.provider().map_err(|e| e.message)?;
-    let store = state.cache.store().clone();
+    let store = state.cache.reader();
     let keys: Vec<TileKey> = tokio::task::spawn_blocking(move || {
         let mut keys = Vec::new();
         // A provider that makes no tiles (an archive) has none to make again.

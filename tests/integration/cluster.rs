@@ -12,7 +12,7 @@ use common::pg_cluster::Cluster;
 use common::process::{request, spawn_server};
 use common::wait_for;
 use terrastitch::cache::encoding::Bodies;
-use terrastitch::cache::{etag_of, PostgresStore, StoredTile, TileFilter, TileStore};
+use terrastitch::cache::{etag_of, PostgresStore, StoredTile, TileFilter, TileReader, TileStore};
 use terrastitch::format::{Format, TileKey};
 use terrastitch::tile::{TileId, TileRange};
 

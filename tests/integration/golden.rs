@@ -16,7 +16,7 @@ use std::path::Path;
 use common::{bbox, repo, terrastitch};
 use sha2::{Digest, Sha256};
 use terrastitch::cache::encoding::Accepted;
-use terrastitch::cache::{SqliteStore, TileFilter, TileStore};
+use terrastitch::cache::{SqliteStore, TileFilter, TileReader};
 use terrastitch::format::Encoding;
 use terrastitch::offline::export::file_suffix;
 

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use common::{sample_osm, sample_srtm, wait_until, TestServer, HUNG};
 use terrastitch::cache::{
     Provenance, Remade, SqliteStore, StoreError, StoredEntry, StoredTile, TileCache, TileFilter,
-    TileStore, Usage,
+    TileReader, TileStore, Usage,
 };
 use terrastitch::config::ServerConfig;
 use terrastitch::format::{Format, TileKey};
@@ -349,10 +349,19 @@ async fn a_purge_made_while_a_tile_is_made_again_wins() {
 #[derive(Debug)]
 struct FullDisk(SqliteStore);
 
-impl TileStore for FullDisk {
+impl TileReader for FullDisk {
     fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError> {
         self.0.get(key)
     }
+    fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
+        self.0.list(filter)
+    }
+    fn usage(&self) -> Result<Usage, StoreError> {
+        self.0.usage()
+    }
+}
+
+impl TileStore for FullDisk {
     fn put(&self, _key: &TileKey, _tile: &StoredTile) -> Result<(), StoreError> {
         Err(StoreError::Sqlite {
             path: self.0.path().to_path_buf(),
@@ -367,12 +376,6 @@ impl TileStore for FullDisk {
     }
     fn remove(&self, filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
         self.0.remove(filter)
-    }
-    fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
-        self.0.list(filter)
-    }
-    fn usage(&self) -> Result<Usage, StoreError> {
-        self.0.usage()
     }
 }
 
@@ -509,7 +512,7 @@ async fn every_error_is_json_with_its_right_code() {
 async fn coarse_tiles_far_from_the_data_are_served_but_not_stored() {
     let dir = tempfile::tempdir().unwrap();
     let server = start(dir.path(), ServerConfig::default()).await;
-    let store = server.state.cache.store().clone();
+    let store = server.state.cache.reader();
     // Zoom 6 over the Pacific, then zoom 6 over Monaco.
     for (path, stored) in [("/tiles/6/2/30.terrain", 0), ("/tiles/6/33/23.terrain", 1)] {
         let response = server.get(path, &[]).await;

@@ -9,7 +9,7 @@ use std::process::{Command, Stdio};
 
 use common::process::{http_get, request, spawn_server};
 use common::{bbox, terrastitch};
-use terrastitch::cache::{etag_of, SqliteStore, TileFilter, TileStore};
+use terrastitch::cache::{etag_of, SqliteStore, TileFilter, TileReader, TileStore};
 use terrastitch::tile::{LonLatBounds, TileId, TileRange};
 
 fn run(args: &[&str], cache: &Path) -> (bool, String) {

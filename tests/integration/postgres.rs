@@ -6,7 +6,9 @@ use crate::common;
 
 use common::pg_cluster::Cluster;
 use terrastitch::cache::encoding::Bodies;
-use terrastitch::cache::{etag_of, PostgresStore, Provenance, StoredTile, TileFilter, TileStore};
+use terrastitch::cache::{
+    etag_of, PostgresStore, Provenance, StoredTile, TileFilter, TileReader, TileStore,
+};
 use terrastitch::format::{Format, TileKey};
 use terrastitch::tile::{TileId, TileRange};
 

@@ -7,7 +7,6 @@ use crate::common;
 
 use std::io::Read;
 use std::sync::atomic::Ordering;
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use common::{sample_osm, sample_srtm, wait_until, TestServer};
@@ -140,7 +139,7 @@ async fn a_render_past_its_time_limit_is_stopped_with_a_503() {
         server.metric("terrastitch_render_timeouts_total").await,
         1.0
     );
-    assert_eq!(server.state.cache.store().usage().unwrap().tiles, 0);
+    assert_eq!(server.state.cache.reader().usage().unwrap().tiles, 0);
     // Asked again, the tile is not tried again: the same error, at once.
     let again = server.get("/tiles/14/8529/5973.glb", &[]).await;
     assert_eq!(again.status(), 503);
@@ -197,7 +196,7 @@ async fn a_stale_tile_is_served_while_it_is_made_again() {
     let fresh = server.get("/tiles/14/8527/5974.glb", &[]).await;
     assert_eq!(fresh.headers()["x-cache"], "hit");
     assert_eq!(&fresh.bytes().await.unwrap()[..4], b"glTF");
-    let stored = server.state.cache.store().list(&TileFilter::All).unwrap();
+    let stored = server.state.cache.reader().list(&TileFilter::All).unwrap();
     assert_eq!(stored.len(), 1);
     let renderer = server.renderer.as_ref().unwrap();
     assert_eq!(stored[0].made_by.pipeline, renderer.pipeline());
@@ -378,7 +377,7 @@ async fn shutdown_finishes_the_renders_in_flight() {
         state.pool_gauges().running > 0 || state.metrics.renders.load(Ordering::Relaxed) > 0
     })
     .await;
-    let store: Arc<dyn TileStore> = server.state.cache.store().clone();
+    let store = server.state.cache.reader();
     server.stop().await;
     let (status, len) = request.await.unwrap();
     assert_eq!(status, 200);

@@ -13,7 +13,7 @@ use std::process::Output;
 
 use common::{sample_osm, terrastitch};
 use sha2::{Digest, Sha256};
-use terrastitch::cache::{SqliteStore, TileFilter, TileStore};
+use terrastitch::cache::{SqliteStore, TileFilter, TileReader};
 
 /// Monaco's tiles: every tile the bundled extract reaches.
 const AREA: &str = "7.37,43.72,7.45,43.76";

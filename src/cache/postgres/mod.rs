@@ -15,7 +15,8 @@ use std::sync::Arc;
 use super::encoding::Bodies;
 use super::sqlite::{stored_bytes, EVICT_TO, MAX_SOLUTIONS};
 use super::store::{
-    Provenance, SolutionEntry, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage,
+    Provenance, SolutionEntry, StoreError, StoredEntry, StoredTile, TileFilter, TileReader,
+    TileStore, Usage,
 };
 use crate::format::Encoding;
 use crate::format::{Format, TileKey};
@@ -267,7 +268,7 @@ fn key_of(row: &postgres::Row) -> Option<TileKey> {
     })
 }
 
-impl TileStore for PostgresStore {
+impl TileReader for PostgresStore {
     fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError> {
         let (z, x, y) = key_columns(&key.tile);
         let row = self
@@ -304,6 +305,61 @@ impl TileStore for PostgresStore {
         }))
     }
 
+    fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
+        let rows = self.select_keys(
+            filter,
+            "SELECT z, x, y, format, pipeline, sources, size, accessed_at FROM tiles",
+            "ORDER BY accessed_at DESC",
+        )?;
+        let mut entries: Vec<StoredEntry> = rows
+            .iter()
+            .filter_map(|row| {
+                Some(StoredEntry {
+                    key: key_of(row)?,
+                    made_by: Provenance {
+                        pipeline: row.get(4),
+                        sources: row.get(5),
+                    },
+                    size: row.get::<_, i64>(6).max(0) as u64,
+                    accessed_at: row.get(7),
+                })
+            })
+            .collect();
+        // Lists read in chunks come back chunk by chunk: one order for the whole.
+        entries.sort_by_key(|e| std::cmp::Reverse(e.accessed_at));
+        Ok(entries)
+    }
+
+    fn usage(&self) -> Result<Usage, StoreError> {
+        let row = self
+            .client()?
+            .query_one("SELECT tiles, bytes FROM usage WHERE id = 0", &[])
+            .map_err(|e| self.error(e))?;
+        Ok(Usage {
+            tiles: row.get::<_, i64>(0).max(0) as u64,
+            bytes: row.get::<_, i64>(1).max(0) as u64,
+        })
+    }
+
+    fn solutions(&self, limit: usize) -> Result<Vec<SolutionEntry>, StoreError> {
+        let rows = self
+            .client()?
+            .query(
+                "SELECT key, data FROM solutions ORDER BY kept DESC LIMIT $1",
+                &[&i64::try_from(limit).unwrap_or(i64::MAX)],
+            )
+            .map_err(|e| self.error(e))?;
+        Ok(rows
+            .iter()
+            .filter_map(|row| {
+                let key = <[u8; 32]>::try_from(row.get::<_, &[u8]>(0)).ok()?;
+                Some((key, row.get::<_, Vec<u8>>(1)))
+            })
+            .collect())
+    }
+}
+
+impl TileStore for PostgresStore {
     fn put(&self, key: &TileKey, tile: &StoredTile) -> Result<(), StoreError> {
         let (coding, primary) = tile.bodies.primary();
         let (z, x, y) = key_columns(&key.tile);
@@ -367,59 +423,6 @@ impl TileStore for PostgresStore {
     fn remove(&self, filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
         let rows = self.select_keys(filter, "DELETE FROM tiles", "RETURNING z, x, y, format")?;
         Ok(rows.iter().filter_map(key_of).collect())
-    }
-
-    fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
-        let rows = self.select_keys(
-            filter,
-            "SELECT z, x, y, format, pipeline, sources, size, accessed_at FROM tiles",
-            "ORDER BY accessed_at DESC",
-        )?;
-        let mut entries: Vec<StoredEntry> = rows
-            .iter()
-            .filter_map(|row| {
-                Some(StoredEntry {
-                    key: key_of(row)?,
-                    made_by: Provenance {
-                        pipeline: row.get(4),
-                        sources: row.get(5),
-                    },
-                    size: row.get::<_, i64>(6).max(0) as u64,
-                    accessed_at: row.get(7),
-                })
-            })
-            .collect();
-        // Lists read in chunks come back chunk by chunk: one order for the whole.
-        entries.sort_by_key(|e| std::cmp::Reverse(e.accessed_at));
-        Ok(entries)
-    }
-
-    fn usage(&self) -> Result<Usage, StoreError> {
-        let row = self
-            .client()?
-            .query_one("SELECT tiles, bytes FROM usage WHERE id = 0", &[])
-            .map_err(|e| self.error(e))?;
-        Ok(Usage {
-            tiles: row.get::<_, i64>(0).max(0) as u64,
-            bytes: row.get::<_, i64>(1).max(0) as u64,
-        })
-    }
-
-    fn solutions(&self, limit: usize) -> Result<Vec<SolutionEntry>, StoreError> {
-        let rows = self
-            .client()?
-            .query(
-                "SELECT key, data FROM solutions ORDER BY kept DESC LIMIT $1",
-                &[&i64::try_from(limit).unwrap_or(i64::MAX)],
-            )
-            .map_err(|e| self.error(e))?;
-        Ok(rows
-            .iter()
-            .filter_map(|row| {
-                let key = <[u8; 32]>::try_from(row.get::<_, &[u8]>(0)).ok()?;
-                Some((key, row.get::<_, Vec<u8>>(1)))
-            })
-            .collect())
     }
 
     fn keep_solutions(&self, entries: &[SolutionEntry]) -> Result<(), StoreError> {

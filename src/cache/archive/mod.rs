@@ -1,18 +1,22 @@
 //! An exported archive — an MBTiles file or a PMTiles file, as `terrastitch export` writes them
-//! — as a read-only tile store ([`ArchiveStore`]; [`super::open_archive`] opens either kind),
+//! — as a read-only tile store ([`ArchiveStore`]; [`open_archive`] opens either kind),
 //! with what it holds beside its tiles: the zooms, the ground's heights under the tiles (the bounding volumes of a 3D Tiles
 //! tileset over them) and, for terrain, the `layer.json` that describes it. These go into the
 //! archive's metadata as one JSON object under [`CONTENTS_KEY`]; an archive without it (written
 //! elsewhere, or by an older export) holds what its zoom range says, without heights.
 
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use serde_json::{json, Value};
 
-use super::encoding::Bodies;
-use super::store::{Provenance, StoreError, StoredTile, TileStore};
-use crate::format::{Extensions, Format, Variant};
+pub mod mbtiles;
+pub mod pmtiles;
+
+use crate::cache::encoding::Bodies;
+use crate::cache::store::{Provenance, StoreError, StoredTile, TileReader};
+use crate::format::{Extensions, Format, TileKey, Variant, ATTRIBUTION};
 use crate::tile::{LonLatBounds, TileId};
 
 /// The name of the metadata entry holding [`Contents`].
@@ -126,15 +130,98 @@ pub fn format_name(format: Format) -> &'static str {
 /// A tile read from an archive, as a store holds it: its codings made once, its validator.
 pub(super) fn archived_tile(data: Vec<u8>, made_by: Provenance) -> Result<StoredTile, StoreError> {
     Ok(StoredTile {
-        etag: super::etag_of(&data),
+        etag: crate::cache::etag_of(&data),
         bodies: Bodies::compress(data)?,
         made_by,
         created_at: 0,
     })
 }
 
+/// Opens an MBTiles or a PMTiles file, told apart by their first bytes; a tile in it longer than
+/// `max_tile` bytes, uncompressed, is damaged.
+pub fn open_archive(
+    path: &std::path::Path,
+    max_tile: u64,
+) -> Result<Arc<dyn ArchiveStore>, StoreError> {
+    let mut magic = [0u8; 16];
+    let read =
+        std::fs::File::open(path).and_then(|mut file| std::io::Read::read(&mut file, &mut magic));
+    let read = read.map_err(|source| StoreError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let magic = &magic[..read];
+    if magic.starts_with(b"PMTiles") {
+        Ok(Arc::new(pmtiles::PmtilesStore::open(path, max_tile)?))
+    } else if magic.starts_with(b"SQLite format 3\0") {
+        Ok(Arc::new(mbtiles::MbtilesStore::open(path, max_tile)?))
+    } else {
+        Err(StoreError::Damaged {
+            path: path.to_path_buf(),
+            report: "it is neither a PMTiles nor an MBTiles file".to_string(),
+        })
+    }
+}
+
+/// Why an archive could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum WriteError {
+    #[error("cannot write {path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("cannot write MBTiles file {path}: {source}")]
+    Sqlite {
+        path: PathBuf,
+        #[source]
+        source: rusqlite::Error,
+    },
+    #[error("cannot write PMTiles file {path}: {source}")]
+    Pmtiles {
+        path: PathBuf,
+        #[source]
+        source: ::pmtiles::PmtError,
+    },
+}
+
+/// The body of each tile an archive is written with, asked for in the order it is written.
+pub type TileBodies<'a, E> = dyn FnMut(&TileKey) -> Result<Vec<u8>, E> + 'a;
+
+/// The metadata both archives carry: name, format, description, attribution, bounds, centre,
+/// zooms, and the contents under [`CONTENTS_KEY`].
+pub(crate) fn metadata(contents: &Contents) -> Vec<(&'static str, String)> {
+    let zoom = contents.max_zoom();
+    let min_zoom = contents.zooms.first().copied().unwrap_or(zoom);
+    let description = match contents.format {
+        Format::Glb(_) => "3D tiles of OpenStreetMap on SRTM terrain, glTF binary",
+        Format::Terrain(_) => "Terrain from SRTM with OpenStreetMap roads, railways and water stitched into it, quantized-mesh",
+    };
+    let mut rows = vec![
+        ("name", "terrastitch".to_string()),
+        ("format", format_name(contents.format).to_string()),
+        ("description", description.to_string()),
+        ("attribution", ATTRIBUTION.to_string()),
+        ("type", "overlay".to_string()),
+        ("version", "1".to_string()),
+        ("minzoom", min_zoom.to_string()),
+        ("maxzoom", zoom.to_string()),
+        (CONTENTS_KEY, contents.to_json().to_string()),
+    ];
+    if let Some(b) = contents.bounds {
+        let (lon, lat) = ((b.west + b.east) / 2.0, (b.south + b.north) / 2.0);
+        rows.push((
+            "bounds",
+            format!("{},{},{},{}", b.west, b.south, b.east, b.north),
+        ));
+        rows.push(("center", format!("{lon},{lat},{zoom}")));
+    }
+    rows
+}
+
 /// A read-only store of an exported file.
-pub trait ArchiveStore: TileStore {
+pub trait ArchiveStore: TileReader {
     fn contents(&self) -> &Contents;
     fn path(&self) -> &Path;
 }
@@ -171,5 +258,27 @@ mod tests {
         let read = Contents::read(format, None, (14, 14), Some(&odd));
         assert_eq!(read.zooms, vec![14]);
         assert!(read.ground.is_empty());
+    }
+
+    #[test]
+    fn a_file_of_neither_kind_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("tiles.pmtiles");
+        std::fs::write(&path, b"not an archive").unwrap();
+        let error = open_archive(&path, crate::cache::store::DEFAULT_MAX_TILE_BYTES)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            error.contains("neither a PMTiles nor an MBTiles"),
+            "{error}"
+        );
+        let missing = open_archive(
+            &dir.path().join("absent.pmtiles"),
+            crate::cache::store::DEFAULT_MAX_TILE_BYTES,
+        )
+        .err()
+        .unwrap();
+        assert!(missing.to_string().contains("absent.pmtiles"), "{missing}");
     }
 }

@@ -22,10 +22,15 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, MutexGuard};
 
-use super::archive::{archived_tile, ArchiveStore, Contents, CONTENTS_KEY};
-use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
+use super::{
+    archived_tile, metadata, ArchiveStore, Contents, TileBodies, WriteError, CONTENTS_KEY,
+};
+use crate::cache::store::{
+    Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileReader, Usage,
+};
 use crate::format::TileKey;
 use crate::tile::{LonLatBounds, TileId};
+use serde_json::Value;
 
 const HEADER_LEN: usize = 127;
 /// Leaf directories nest at most this deep (the specification allows one level; some writers
@@ -271,13 +276,11 @@ impl PmtilesStore {
         let named = entry
             .and_then(|e| e["format"].as_str())
             .or(metadata["format"].as_str());
-        let format = named
-            .and_then(super::archive::format_named)
-            .ok_or_else(|| {
-                self.damaged(format!(
-                    "its format is {named:?}, not a glb variant or terrain"
-                ))
-            })?;
+        let format = named.and_then(super::format_named).ok_or_else(|| {
+            self.damaged(format!(
+                "its format is {named:?}, not a glb variant or terrain"
+            ))
+        })?;
         let [west, south, east, north] = self.header.bounds;
         let bounds = (west < east && south < north).then_some(LonLatBounds {
             west,
@@ -342,12 +345,6 @@ impl PmtilesStore {
             made_by: self.provenance(),
             size: u64::from(entry.length),
             accessed_at: 0,
-        }
-    }
-
-    fn read_only_error(&self) -> StoreError {
-        StoreError::ReadOnly {
-            path: self.path.clone(),
         }
     }
 }
@@ -538,7 +535,7 @@ impl ArchiveStore for PmtilesStore {
     }
 }
 
-impl TileStore for PmtilesStore {
+impl TileReader for PmtilesStore {
     fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError> {
         if key.format != self.contents.format {
             return Ok(None);
@@ -557,22 +554,6 @@ impl TileStore for PmtilesStore {
             .inflated(bytes, self.header.tile_gzip, self.max_tile)
             .map_err(|e| self.damaged(format!("tile {}: {e}", key.tile)))?;
         archived_tile(data, self.provenance()).map(Some)
-    }
-
-    fn put(&self, _key: &TileKey, _tile: &StoredTile) -> Result<(), StoreError> {
-        Err(self.read_only_error())
-    }
-
-    fn read_only(&self) -> bool {
-        true
-    }
-
-    fn touch(&self, _keys: &[TileKey], _at: i64) -> Result<(), StoreError> {
-        Ok(())
-    }
-
-    fn remove(&self, _filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
-        Err(self.read_only_error())
     }
 
     fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
@@ -630,6 +611,59 @@ impl TileStore for PmtilesStore {
         }
         Ok(usage)
     }
+}
+
+/// Writes a PMTiles v3 file of `keys` into `into` (named `path` in errors), with the
+/// `pmtiles` crate, tiles in Hilbert order (a clustered archive), each tile's bytes asked of
+/// `body` in turn.
+pub fn write<E: From<WriteError>>(
+    (into, path): (&Path, &Path),
+    contents: &Contents,
+    keys: &[TileKey],
+    body: &mut TileBodies<'_, E>,
+) -> Result<(), E> {
+    let failed = |source| WriteError::Pmtiles {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut ordered: Vec<(pmtiles::TileCoord, &TileKey)> = Vec::with_capacity(keys.len());
+    for key in keys {
+        let (z, x, y) = (key.tile.z, key.tile.x, key.tile.y);
+        ordered.push((pmtiles::TileCoord::new(z, x, y).map_err(failed)?, key));
+    }
+    ordered.sort_by_key(|(coord, _)| pmtiles::TileId::from(*coord).value());
+    let mut document = serde_json::Map::new();
+    for (name, value) in metadata(contents) {
+        let value = match name {
+            CONTENTS_KEY => serde_json::from_str(&value).unwrap_or(Value::Null),
+            _ => Value::String(value),
+        };
+        document.insert(name.to_string(), value);
+    }
+    let zoom = contents.max_zoom();
+    let mut writer = pmtiles::PmTilesWriter::new(pmtiles::TileType::Unknown)
+        .min_zoom(contents.zooms.first().copied().unwrap_or(zoom))
+        .max_zoom(zoom)
+        .center_zoom(zoom)
+        .metadata(Value::Object(document).to_string());
+    if let Some(b) = contents.bounds {
+        writer = writer
+            .bounds(b.west, b.south, b.east, b.north)
+            .center((b.west + b.east) / 2.0, (b.south + b.north) / 2.0);
+    }
+    let file = std::fs::File::create(into).map_err(|source| WriteError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut writer = writer
+        .create(std::io::BufWriter::new(file))
+        .map_err(failed)?;
+    for (coord, key) in ordered {
+        let data = body(key)?;
+        writer.add_tile(coord, &data).map_err(failed)?;
+    }
+    writer.finalize().map_err(failed)?;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -14,11 +14,16 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use rusqlite::{Connection, OpenFlags, OptionalExtension};
+use rusqlite::{params, Connection, OpenFlags, OptionalExtension};
 
-use super::archive::{archived_tile, format_named, ArchiveStore, Contents, CONTENTS_KEY};
-use super::sqlite::Database;
-use super::store::{Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileStore, Usage};
+use super::{
+    archived_tile, format_named, metadata, ArchiveStore, Contents, TileBodies, WriteError,
+    CONTENTS_KEY,
+};
+use crate::cache::sqlite::Database;
+use crate::cache::store::{
+    Provenance, StoreError, StoredEntry, StoredTile, TileFilter, TileReader, Usage,
+};
 use crate::format::TileKey;
 use crate::tile::{LonLatBounds, TileId};
 
@@ -122,12 +127,6 @@ impl MbtilesStore {
         self.db.error(source)
     }
 
-    fn read_only_error(&self) -> StoreError {
-        StoreError::ReadOnly {
-            path: self.db.path().to_path_buf(),
-        }
-    }
-
     /// What every tile of the file was made from, as far as a server that only reads it knows.
     pub fn provenance(&self) -> Provenance {
         Provenance {
@@ -208,7 +207,7 @@ impl ArchiveStore for MbtilesStore {
     }
 }
 
-impl TileStore for MbtilesStore {
+impl TileReader for MbtilesStore {
     fn get(&self, key: &TileKey) -> Result<Option<StoredTile>, StoreError> {
         if key.format != self.contents.format {
             return Ok(None);
@@ -243,22 +242,6 @@ impl TileStore for MbtilesStore {
                 },
             }),
         }
-    }
-
-    fn put(&self, _key: &TileKey, _tile: &StoredTile) -> Result<(), StoreError> {
-        Err(self.read_only_error())
-    }
-
-    fn read_only(&self) -> bool {
-        true
-    }
-
-    fn touch(&self, _keys: &[TileKey], _at: i64) -> Result<(), StoreError> {
-        Ok(())
-    }
-
-    fn remove(&self, _filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
-        Err(self.read_only_error())
     }
 
     fn list(&self, filter: &TileFilter) -> Result<Vec<StoredEntry>, StoreError> {
@@ -315,4 +298,52 @@ impl TileStore for MbtilesStore {
             )
             .map_err(|e| self.error(e))
     }
+}
+
+/// Writes an MBTiles file of `keys` into `into` (named `path` in errors): the `metadata` and
+/// `tiles` tables of the MBTiles 1.3 layout, rows numbered TMS-style, south to north, each
+/// tile's bytes asked of `body` in turn.
+pub fn write<E: From<WriteError>>(
+    (into, path): (&Path, &Path),
+    contents: &Contents,
+    keys: &[TileKey],
+    body: &mut TileBodies<'_, E>,
+) -> Result<(), E> {
+    let _ = std::fs::remove_file(into);
+    let sqlite = |source| WriteError::Sqlite {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut connection = Connection::open(into).map_err(sqlite)?;
+    let transaction = connection.transaction().map_err(sqlite)?;
+    transaction
+        .execute_batch(
+            "CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT);
+             CREATE TABLE tiles (zoom_level INTEGER, tile_column INTEGER,
+                                 tile_row INTEGER, tile_data BLOB,
+                                 PRIMARY KEY (zoom_level, tile_column, tile_row));",
+        )
+        .map_err(sqlite)?;
+    for (name, value) in metadata(contents) {
+        transaction
+            .execute(
+                "INSERT INTO metadata (name, value) VALUES (?1, ?2)",
+                params![name, value],
+            )
+            .map_err(sqlite)?;
+    }
+    for key in keys {
+        let data = body(key)?;
+        // MBTiles rows count from the south.
+        let row = (1u64 << key.tile.z) - 1 - u64::from(key.tile.y);
+        transaction
+            .execute(
+                "INSERT OR REPLACE INTO tiles VALUES (?1, ?2, ?3, ?4)",
+                params![key.tile.z, key.tile.x, row as i64, data],
+            )
+            .map_err(sqlite)?;
+    }
+    transaction.commit().map_err(sqlite)?;
+    connection.close().map_err(|(_, e)| sqlite(e))?;
+    Ok(())
 }
