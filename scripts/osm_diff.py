@@ -18,12 +18,16 @@ EDIT is one of:
   far-node:DEG       moves the middle node of the longest road on the ground DEG degrees north
                      and DEG east (to the pole at most; `far-node:pole` puts it there)
 
-The chosen elements are printed to stderr (`way 123`), one a line. With OUT.osm.pbf the
+With OSM_DIFF_CACHE set to a directory, the extract's parts are kept there once read, for the
+next runs. The chosen elements are printed to stderr (`way 123`), one a line. With OUT.osm.pbf the
 extract with the change applied is written too (pyosmium's MergeInputReader, as `osmium
 apply-changes`), to compare an updated store with one imported from it.
 """
 
 import gzip
+import hashlib
+import os
+import pickle
 import random
 import sys
 from xml.sax.saxutils import quoteattr
@@ -210,12 +214,42 @@ def edit(extract, what):
     raise SystemExit(f"unknown edit {what}")
 
 
+def read(source):
+    """The extract's parts, read once: with OSM_DIFF_CACHE set to a directory, kept there
+    (pickled, named for the file's path, size and time) and read back by later runs."""
+    folder = os.environ.get("OSM_DIFF_CACHE")
+    if not folder:
+        extract = Extract()
+        extract.apply_file(source)
+        return extract
+    stat = os.stat(source)
+    name = hashlib.sha256(f"{os.path.abspath(source)}:{stat.st_size}:{stat.st_mtime_ns}".encode())
+    path = os.path.join(folder, name.hexdigest()[:16] + ".pickle")
+    try:
+        with open(path, "rb") as cached:
+            parts = pickle.load(cached)
+        extract = Extract()
+        extract.nodes, extract.ways, extract.relations, extract.in_relation = parts
+        return extract
+    except (OSError, pickle.UnpicklingError, EOFError, ValueError):
+        pass
+    extract = Extract()
+    extract.apply_file(source)
+    os.makedirs(folder, exist_ok=True)
+    # Written beside its place and moved there whole: runs at once never read half a file.
+    partial = f"{path}.{os.getpid()}"
+    with open(partial, "wb") as out:
+        parts = (extract.nodes, extract.ways, extract.relations, extract.in_relation)
+        pickle.dump(parts, out, protocol=pickle.HIGHEST_PROTOCOL)
+    os.replace(partial, path)
+    return extract
+
+
 def main():
     if len(sys.argv) not in (4, 5):
         raise SystemExit(__doc__)
     source, what, osc = sys.argv[1:4]
-    extract = Extract()
-    extract.apply_file(source)
+    extract = read(source)
     create = []
     if what in ("cut-node", "bring-node", "cut-ways", "bring-ways"):
         create, delete, chosen = restore(extract, what)

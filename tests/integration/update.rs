@@ -33,9 +33,15 @@ fn run(command: &mut std::process::Command) -> Output {
 }
 
 /// Writes the diff `edit` of the bundled extract and the extract it makes; returns the
-/// elements it chose (`way 123`).
+/// elements it chose (`way 123`). The extract is read once for every diff, by the first, and
+/// kept in `tests/artifacts/osm-diff` for the others (and the next runs, while it is the same
+/// file).
 fn write_diff(edit: &str, osc: &Path, changed: &Path) -> Vec<String> {
     let output = run(std::process::Command::new(python())
+        .env(
+            "OSM_DIFF_CACHE",
+            common::repo().join("tests/artifacts/osm-diff"),
+        )
         .arg(common::repo().join("scripts/osm_diff.py"))
         .arg(sample_osm())
         .arg(edit)
