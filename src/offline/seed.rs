@@ -399,7 +399,8 @@ impl Workers<'_> {
         if claimed.is_empty() {
             return Ok(outcomes);
         }
-        let made = make_tiles(self.provider, &claimed, self.render_limit);
+        let made_by = wanted.unwrap_or_default();
+        let made = make_tiles(self.provider, (&claimed, made_by), self.render_limit);
         let result = self.keep(&claimed, made, &mut outcomes);
         for key in &claimed {
             coordinator.release(key)?;
@@ -447,20 +448,16 @@ impl Workers<'_> {
 }
 
 /// Makes one tile in the formats of `keys`, together, as the store keeps them (compressed,
-/// with their validators and provenance).
-pub(super) fn make_tiles(
+/// with their validators and the provenance `made_by`).
+fn make_tiles(
     provider: &dyn TileProvider,
-    keys: &[TileKey],
+    (keys, made_by): (&[TileKey], Provenance),
     render_limit: Option<Duration>,
 ) -> Result<Vec<StoredTile>, String> {
     let deadline = render_limit.map_or(Deadline::none(), Deadline::after);
     let made = provider
         .make_together(keys, deadline)
         .map_err(|e| e.to_string())?;
-    let made_by = keys
-        .first()
-        .and_then(|key| provider.provenance(key.tile))
-        .unwrap_or_default();
     made.into_iter()
         .map(|made| {
             Ok(StoredTile {
