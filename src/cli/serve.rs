@@ -55,6 +55,7 @@ fn serve_sources(config: Config) -> Result<()> {
     let state = AppState::new(cache, &config.server);
     let grace = Duration::from_secs(config.server.shutdown_grace_s);
     run_server(grace, async move {
+        let stop = shutdown_signal();
         let listener = listen(&config.server.listen).await?;
         tracing::info!("serving on http://{}/", listener.local_addr()?);
         // The sources load while the server already answers `/health` (and `/ready` with
@@ -75,7 +76,7 @@ fn serve_sources(config: Config) -> Result<()> {
         let recorded = failure.clone();
         let shutdown = async move {
             tokio::select! {
-                _ = shutdown_signal() => {},
+                _ = stop => {},
                 Ok(error) = failed_rx => {
                     if let Ok(mut slot) = recorded.lock() {
                         *slot = Some(error);
@@ -104,10 +105,11 @@ fn serve_archive(file: &Path, config: Config) -> Result<()> {
     let state = AppState::new(cache, &server);
     state.provide(Arc::new(archive));
     run_server(Duration::from_secs(server.shutdown_grace_s), async move {
+        let stop = shutdown_signal();
         let listener = listen(&server.listen).await?;
         let address = listener.local_addr()?;
         tracing::info!(file = %file.display(), "serving an exported file on http://{address}/");
-        server::serve(listener, state, shutdown_signal()).await?;
+        server::serve(listener, state, stop).await?;
         Ok(())
     })
 }
@@ -134,25 +136,42 @@ fn run_server(
     result
 }
 
-/// Resolves at the first SIGTERM or Ctrl-C.
-async fn shutdown_signal() {
-    let ctrl_c = async {
-        let _ = tokio::signal::ctrl_c().await;
-    };
+/// Resolves at the first SIGTERM or Ctrl-C. The handlers are installed when this is called, not
+/// when the future is first polled: a server that has said it listens already stops cleanly on
+/// a signal, even while its shutdown task has not run yet.
+fn shutdown_signal() -> impl std::future::Future<Output = ()> {
     #[cfg(unix)]
-    let terminate = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut signal) => {
-                signal.recv().await;
-            }
-            Err(_) => std::future::pending::<()>().await,
-        }
+    let signals = {
+        use tokio::signal::unix::{signal, SignalKind};
+        (
+            signal(SignalKind::terminate()).ok(),
+            signal(SignalKind::interrupt()).ok(),
+        )
     };
-    #[cfg(not(unix))]
-    let terminate = std::future::pending::<()>();
-    tokio::select! {
-        _ = ctrl_c => {},
-        _ = terminate => {},
+    async move {
+        #[cfg(unix)]
+        {
+            let (mut terminate, mut interrupt) = signals;
+            tokio::select! {
+                _ = recv(terminate.as_mut()) => {},
+                _ = recv(interrupt.as_mut()) => {},
+            }
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = tokio::signal::ctrl_c().await;
+        }
+        tracing::info!("shutting down");
     }
-    tracing::info!("shutting down");
+}
+
+/// The next signal of an installed handler; never, without one.
+#[cfg(unix)]
+async fn recv(signal: Option<&mut tokio::signal::unix::Signal>) {
+    match signal {
+        Some(signal) => {
+            signal.recv().await;
+        }
+        None => std::future::pending::<()>().await,
+    }
 }

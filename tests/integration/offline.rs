@@ -715,6 +715,25 @@ async fn a_directory_export_is_a_3d_tileset_on_a_static_host() {
     assert!(report["probe"].is_object(), "{text}");
 }
 
+/// A signal that comes the moment the server says it listens, before it has answered
+/// anything, still stops it cleanly: the handlers are in place before the address is announced.
+#[test]
+fn a_signal_right_after_listening_stops_the_server_cleanly() {
+    for signal in ["-TERM", "-INT"] {
+        let dir = tempfile::tempdir().unwrap();
+        let cache = dir.path().join("cache.sqlite");
+        let (mut child, _address, _lines) =
+            spawn_server(&["--cache", cache.to_str().unwrap()], &[]);
+        let status = Command::new("kill")
+            .args([signal, &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let exit = child.wait().unwrap();
+        assert!(exit.success(), "{signal}: {exit:?}");
+    }
+}
+
 /// With JSON logs, every line is one JSON object, and a request's lines carry its id; SIGTERM
 /// stops the server cleanly.
 #[test]
