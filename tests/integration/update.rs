@@ -13,7 +13,7 @@ use std::process::Output;
 
 use common::{sample_osm, terrastitch};
 use sha2::{Digest, Sha256};
-use terrastitch::cache::{SqliteStore, TileFilter, TileReader};
+use terrastitch::cache::{SqliteStore, TileFilter, TileReader, TileStore};
 
 /// Monaco's tiles: every tile the bundled extract reaches.
 const AREA: &str = "7.37,43.72,7.45,43.76";
@@ -73,18 +73,26 @@ fn update(store: &Path, osc: &Path) -> Output {
 }
 
 /// The digest of each of the area's tiles made from `store` (imported from `extract`), by
-/// `seed` into a cache of its own in `dir`.
+/// `seed` into a cache of its own in `dir`. The cache starts with the elevation components the
+/// sample's seed solved and no tile: a component is found by what it holds, so a seed reuses
+/// those its store still has and solves the rest, as a seed after an update does.
 fn tiles(store: &Path, extract: &Path, dir: &Path) -> BTreeMap<String, Vec<u8>> {
     std::fs::create_dir_all(dir).unwrap();
     let cache = dir.join("cache.sqlite");
+    std::fs::copy(solved_by_the_sample(), &cache).unwrap();
+    seed(store, extract, &cache)
+}
+
+/// Seeds the area into `cache` and returns the digest of each tile in it.
+fn seed(store: &Path, extract: &Path, cache: &Path) -> BTreeMap<String, Vec<u8>> {
     run(terrastitch()
         .args(["seed", "--bbox", AREA, "--format", "glb", "--store"])
         .arg(store)
         .arg("--osm")
         .arg(extract)
         .arg("--cache")
-        .arg(&cache));
-    let made = SqliteStore::open(&cache, None).unwrap();
+        .arg(cache));
+    let made = SqliteStore::open(cache, None).unwrap();
     let entries = made.list(&TileFilter::All).unwrap();
     assert!(!entries.is_empty(), "the area has tiles");
     entries
@@ -100,17 +108,31 @@ fn tiles(store: &Path, extract: &Path, dir: &Path) -> BTreeMap<String, Vec<u8>> 
         .collect()
 }
 
-/// The area's tiles from a store imported from the bundled extract: made once a run, as every
-/// diff of it starts from them.
-fn tiles_of_the_sample() -> BTreeMap<String, Vec<u8>> {
-    static MADE: std::sync::OnceLock<BTreeMap<String, Vec<u8>>> = std::sync::OnceLock::new();
+/// The area's tiles from a store imported from the bundled extract, and a cache holding only
+/// the elevation components they solved: made once a run, as every diff of it starts from them.
+fn the_sample() -> &'static (BTreeMap<String, Vec<u8>>, tempfile::TempDir) {
+    static MADE: std::sync::OnceLock<(BTreeMap<String, Vec<u8>>, tempfile::TempDir)> =
+        std::sync::OnceLock::new();
     MADE.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
         let store = dir.path().join("osm.sqlite");
         import(&store, &sample_osm());
-        tiles(&store, &sample_osm(), &dir.path().join("tiles"))
+        let cache = dir.path().join("cache.sqlite");
+        let tiles = seed(&store, &sample_osm(), &cache);
+        let made = SqliteStore::open(&cache, None).unwrap();
+        made.remove(&TileFilter::All).unwrap();
+        drop(made);
+        std::fs::rename(&cache, dir.path().join("solved.sqlite")).unwrap();
+        (tiles, dir)
     })
-    .clone()
+}
+
+fn tiles_of_the_sample() -> BTreeMap<String, Vec<u8>> {
+    the_sample().0.clone()
+}
+
+fn solved_by_the_sample() -> PathBuf {
+    the_sample().1.path().join("solved.sqlite")
 }
 
 fn file_digest(path: &Path) -> Vec<u8> {
