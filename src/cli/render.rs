@@ -9,7 +9,9 @@ use clap::Args;
 use super::flags::SourceArgs;
 use crate::config::Config;
 use crate::format::{Format, Variant};
-use crate::provider::{Availability, Deadline, Made, Renderer, StageTimings, TileProvider};
+use crate::provider::{
+    Availability, Deadline, Fetching, Made, Renderer, StageTimings, TileProvider,
+};
 use crate::tile::TileId;
 
 #[derive(Args)]

@@ -164,7 +164,7 @@ pub fn available(provider: &dyn TileProvider, tile: TileId, format: Format) -> O
     let key = provider.resolve(tile, format).ok()?;
     match provider.availability(key) {
         Availability::Ready => Some(key),
-        Availability::AfterFetch => match provider.fetch(tile) {
+        Availability::AfterFetch => match crate::provider::capabilities::fetch(provider, tile) {
             Ok(()) => Some(key),
             Err(error) => {
                 tracing::info!(%error, "tile left out");

@@ -7,18 +7,18 @@
 //! MBTiles file, whose tiles are the cache's store: it never makes one).
 
 pub mod archive;
+pub mod capabilities;
 pub mod inputs;
 pub mod osm_source;
 pub mod pipeline;
 pub mod renderer;
-
-use std::sync::Arc;
 
 use crate::cache::Provenance;
 use crate::format::{Format, TileKey};
 use crate::tile::{LonLatBounds, TileId};
 
 pub use archive::Archive;
+pub use capabilities::{Explaining, Fetching, Reloading};
 pub use inputs::Inputs;
 pub use pipeline::{Made, MakeError};
 pub use renderer::Renderer;
@@ -91,9 +91,10 @@ pub enum Unavailable {
     FetchFailed(String),
 }
 
-/// A source of tiles. Every method but [`TileProvider::offer`], [`TileProvider::resolve`] and
-/// [`TileProvider::availability`] may block (read files or a store, download, render): call
-/// them off the async executor.
+/// A source of tiles: the core every provider has, and the capabilities some add
+/// ([`Fetching`], [`Explaining`], [`Reloading`]). Every method but [`TileProvider::offer`],
+/// [`TileProvider::resolve`], [`TileProvider::availability`] and the capabilities' accessors
+/// may block (read files or a store, render): call them off the async executor.
 pub trait TileProvider: Send + Sync + std::fmt::Debug {
     /// What it offers.
     fn offer(&self) -> Offer;
@@ -103,13 +104,6 @@ pub trait TileProvider: Send + Sync + std::fmt::Debug {
 
     /// Whether `key` can be had now.
     fn availability(&self, key: TileKey) -> Availability;
-
-    /// Downloads what `tile` lacks, when [`TileProvider::availability`] says
-    /// [`Availability::AfterFetch`].
-    fn fetch(&self, tile: TileId) -> Result<(), Unavailable> {
-        let _ = tile;
-        Ok(())
-    }
 
     /// What a tile made now would be made from: a stored tile made otherwise is stale. `None`
     /// when the provider makes no tiles (held tiles are never stale). May block: a store's
@@ -146,33 +140,21 @@ pub trait TileProvider: Send + Sync + std::fmt::Debug {
         None
     }
 
-    /// A GeoJSON view of how a tile's elevations were settled, for looking into a tile.
-    fn explain(&self, tile: TileId) -> Result<Vec<u8>, MakeError> {
-        Err(MakeError::NotHeld(format!(
-            "no view of how tile {tile} was made: this server does not make tiles"
-        )))
-    }
-
-    /// A provider on the inputs as they are now, when they changed since this one opened them
-    /// (an extract rewritten, an SRTM file added or replaced, a diff applied to its store);
-    /// `None` when nothing changed. Changes nothing itself.
-    fn reopened(&self) -> Result<Option<Arc<dyn TileProvider>>, String> {
-        Ok(None)
-    }
-
-    /// Applies to its store the diffs of its replication source the store lacks (a few at a
-    /// time: the rest follow at the next call); returns how many it applied. A provider
-    /// without a store or a source applies none. Failures are logged: the store stays at the
-    /// last diff applied.
-    fn catch_up(&self) -> usize {
-        0
-    }
-
     /// What `/ready` says of it.
     fn status(&self) -> serde_json::Value;
 
-    /// Counters of its downloads, if it downloads.
-    fn downloads(&self) -> Option<&FetchStats> {
+    /// Its downloads of what tiles lack, if it downloads.
+    fn fetching(&self) -> Option<&dyn Fetching> {
+        None
+    }
+
+    /// Its view into how a tile was made, if it makes tiles.
+    fn explaining(&self) -> Option<&dyn Explaining> {
+        None
+    }
+
+    /// How it follows its inputs as they change, if they can.
+    fn reloading(&self) -> Option<&dyn Reloading> {
         None
     }
 }

@@ -4,7 +4,10 @@
 use std::sync::Arc;
 
 use super::osm_source::OsmSource;
-use super::{Availability, Inputs, Made, MakeError, Offer, TileProvider, Unavailable};
+use super::{
+    Availability, Explaining, Fetching, Inputs, Made, MakeError, Offer, Reloading, TileProvider,
+    Unavailable,
+};
 use crate::cache::Provenance;
 use crate::config::SourcesConfig;
 use crate::format::{Format, TileKey};
@@ -178,17 +181,6 @@ impl TileProvider for Renderer {
         }
     }
 
-    fn fetch(&self, tile: TileId) -> Result<(), Unavailable> {
-        use super::inputs::MissingSrtm;
-        self.inputs.fetch_missing_srtm(tile).map_err(|e| match e {
-            MissingSrtm::NotFound { .. } => Unavailable::NotCovered(e.to_string()),
-            MissingSrtm::Failed { .. } => Unavailable::FetchFailed(e.to_string()),
-        })?;
-        self.inputs
-            .check_coverage(tile)
-            .map_err(|e| Unavailable::NotCovered(e.to_string()))
-    }
-
     fn holds_data(&self, key: TileKey) -> bool {
         if !self.is_overview(key) {
             return true;
@@ -272,6 +264,49 @@ impl TileProvider for Renderer {
         }
     }
 
+    fn status(&self) -> serde_json::Value {
+        let mut status = serde_json::json!({
+            "osm_extracts": self.inputs.osm_paths.len(),
+            "srtm_files": self.inputs.srtm.cells().len(),
+            "zoom": self.zoom,
+        });
+        if let Some(problem) = self.inputs.cannot_serve() {
+            status["cannot_serve"] = problem.into();
+        }
+        status
+    }
+
+    fn fetching(&self) -> Option<&dyn Fetching> {
+        Some(self)
+    }
+
+    fn explaining(&self) -> Option<&dyn Explaining> {
+        Some(self)
+    }
+
+    fn reloading(&self) -> Option<&dyn Reloading> {
+        Some(self)
+    }
+}
+
+impl Fetching for Renderer {
+    fn fetch(&self, tile: TileId) -> Result<(), Unavailable> {
+        use super::inputs::MissingSrtm;
+        self.inputs.fetch_missing_srtm(tile).map_err(|e| match e {
+            MissingSrtm::NotFound { .. } => Unavailable::NotCovered(e.to_string()),
+            MissingSrtm::Failed { .. } => Unavailable::FetchFailed(e.to_string()),
+        })?;
+        self.inputs
+            .check_coverage(tile)
+            .map_err(|e| Unavailable::NotCovered(e.to_string()))
+    }
+
+    fn downloads(&self) -> Option<&FetchStats> {
+        self.origin.as_ref().map(|(_, fetcher)| &fetcher.stats)
+    }
+}
+
+impl Explaining for Renderer {
     fn explain(&self, tile: TileId) -> Result<Vec<u8>, MakeError> {
         let osm = self.inputs.osm_for(tile)?;
         let selection = osm.selection(tile);
@@ -287,7 +322,9 @@ impl TileProvider for Renderer {
             crate::output::debug::elevations(tile, &settled, &roads, selection.all_ways, margin);
         serde_json::to_vec(&value).map_err(|e| MakeError::Encode(e.to_string()))
     }
+}
 
+impl Reloading for Renderer {
     fn reopened(&self) -> Result<Option<Arc<dyn TileProvider>>, String> {
         let Some((config, fetcher)) = &self.origin else {
             return Ok(None);
@@ -309,21 +346,5 @@ impl TileProvider for Renderer {
             Some((config, fetcher)) => self.replicate(config, fetcher),
             None => 0,
         }
-    }
-
-    fn status(&self) -> serde_json::Value {
-        let mut status = serde_json::json!({
-            "osm_extracts": self.inputs.osm_paths.len(),
-            "srtm_files": self.inputs.srtm.cells().len(),
-            "zoom": self.zoom,
-        });
-        if let Some(problem) = self.inputs.cannot_serve() {
-            status["cannot_serve"] = problem.into();
-        }
-        status
-    }
-
-    fn downloads(&self) -> Option<&FetchStats> {
-        self.origin.as_ref().map(|(_, fetcher)| &fetcher.stats)
     }
 }

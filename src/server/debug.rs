@@ -79,6 +79,11 @@ fn explain(
     provider: &dyn TileProvider,
     tile: TileId,
 ) -> Result<Arc<[u8]>, ApiError> {
+    let Some(explaining) = provider.explaining() else {
+        return Err(ApiError::not_found(format!(
+            "no view of how tile {tile} was made: this server does not make tiles"
+        )));
+    };
     let _slot = work.pool.acquire().map_err(|refused| match refused {
         Refused::Busy { .. } => ApiError::unavailable(
             format!("the debug view of {tile} cannot be made now: {refused}; retry shortly"),
@@ -87,7 +92,7 @@ fn explain(
         Refused::Closed => ApiError::unavailable("the server is shutting down", RETRY_AFTER_S),
     })?;
     let started = std::time::Instant::now();
-    let body = provider.explain(tile).map_err(|e| match e {
+    let body = explaining.explain(tile).map_err(|e| match e {
         MakeError::NotHeld(message) => ApiError::not_found(message),
         e => ApiError::internal(format!("debug view of {tile} failed: {e}")),
     })?;

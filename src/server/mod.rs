@@ -417,7 +417,11 @@ async fn metrics(State(state): State<AppState>) -> impl IntoResponse {
         [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
         state.metrics.render_text(
             state.pool_gauges(),
-            state.provider().ok().as_deref().and_then(|p| p.downloads()),
+            state
+                .provider()
+                .ok()
+                .as_deref()
+                .and_then(|p| p.fetching().and_then(|f| f.downloads())),
             state.work.solutions.counts().0,
         ),
     )

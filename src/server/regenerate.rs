@@ -250,7 +250,9 @@ pub async fn watch_replication(state: AppState, interval: std::time::Duration) {
         let Ok(provider) = state.provider() else {
             continue;
         };
-        let applied = tokio::task::spawn_blocking(move || provider.catch_up()).await;
+        let applied =
+            tokio::task::spawn_blocking(move || provider.reloading().map_or(0, |r| r.catch_up()))
+                .await;
         if matches!(applied, Ok(n) if n > 0) {
             if let Err(error) = check_sources(&state).await {
                 tracing::error!(%error, "checking the sources failed; the tiles are still made from the sources loaded before");
@@ -266,9 +268,12 @@ pub async fn watch_replication(state: AppState, interval: std::time::Duration) {
 pub async fn check_sources(state: &AppState) -> Result<usize, String> {
     let _one_at_a_time = state.work.checking.lock().await;
     let current = state.provider().map_err(|e| e.message)?;
-    let reopened = tokio::task::spawn_blocking(move || current.reopened())
-        .await
-        .map_err(|e| e.to_string())??;
+    let reopened = tokio::task::spawn_blocking(move || match current.reloading() {
+        Some(reloading) => reloading.reopened(),
+        None => Ok(None),
+    })
+    .await
+    .map_err(|e| e.to_string())??;
     let Some(provider) = reopened else {
         return Ok(0);
     };

@@ -184,7 +184,7 @@ async fn fetch(
     let fetching = provider.clone();
     tokio::task::spawn_blocking(move || {
         let _permit = permit;
-        fetching.fetch(tile)
+        crate::provider::capabilities::fetch(fetching.as_ref(), tile)
     })
     .await
     .map_err(|e| ApiError::internal(e.to_string()))??;

@@ -307,6 +307,21 @@ async fn a_zoom_the_provider_does_not_offer_is_a_404_with_a_json_body() {
     server.stop().await;
 }
 
+/// A provider without the capability of a route (here, a view into how a tile was made) is
+/// asked nothing: the route says so with a 404 and a JSON body, and no render slot is taken.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_route_the_provider_has_no_capability_for_is_a_404_with_a_json_body() {
+    let fake = Arc::new(Fake::default());
+    let (server, _dir) = start(&fake, one_slot_no_queue()).await;
+    let response = server.get("/debug/tiles/14/8529/5973.geojson", &[]).await;
+    assert_eq!(response.status(), 404);
+    let json: serde_json::Value = response.json().await.unwrap();
+    let message = json["error"].as_str().unwrap_or_default();
+    assert!(message.contains("does not make tiles"), "{json}");
+    assert_eq!(fake.made.load(Ordering::SeqCst), 0);
+    server.stop().await;
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn tiles_are_refused_with_503_until_a_provider_is_in_place() {
     let dir = tempfile::tempdir().unwrap();
