@@ -10,8 +10,8 @@
 use std::collections::BTreeMap;
 
 use super::roofs::{
-    bend, centred_roof, long_axis, profile_roof, skeleton_roof, spread, square_up, CentredRoof,
-    RoofEnd, RoofError, RoofMesh, SkeletonRoof,
+    bend, centred_roof, long_axis, profile_roof, skeleton_roof, spread, CentredRoof, RoofEnd,
+    RoofError, RoofMesh, SkeletonRoof,
 };
 use super::{newell, passages, MeshBuffers, Part};
 use crate::features::buildings::{Finish, RoofShape, RoofSpec};
@@ -127,8 +127,11 @@ pub enum Fallback {
     /// A pyramid, dome or onion over a footprint with courtyards or not star-shaped around its
     /// centroid: hipped.
     NotStarShaped,
-    /// The straight skeleton or the roof on it could not be built: flat.
+    /// The straight skeleton or the roof on it could not be built: gabled across the
+    /// footprint's long axis, drawn by a profile on the outline as it is.
     Skeleton,
+    /// Neither the straight skeleton nor a gabled profile could be built: flat.
+    SkeletonAndProfile,
     /// The footprint has no width across the roof's direction: flat.
     Profile,
 }
@@ -138,7 +141,8 @@ impl Fallback {
         match self {
             Fallback::TooDetailed => "footprint too detailed: flat",
             Fallback::NotStarShaped => "not star-shaped around its centroid: hipped",
-            Fallback::Skeleton => "no straight skeleton: flat",
+            Fallback::Skeleton => "no straight skeleton: gabled by a profile",
+            Fallback::SkeletonAndProfile => "no straight skeleton and no width across: flat",
             Fallback::Profile => "no width across the roof: flat",
         }
     }
@@ -514,7 +518,14 @@ fn pitched_roof(
             }
             (Some(mesh), fallback)
         }
-        Err(error) => (None, fall_back(Fallback::Skeleton, Some(error))),
+        // The outline stays as drawn (the ground is cut by it): a profile needs no skeleton.
+        Err(error) => {
+            let gable = Some((vec![(0.0, 0.0), (0.5, 1.0), (1.0, 0.0)], GABLE_RUN));
+            match profiled_roof(spec, rings, None, gable, tagged, most) {
+                Ok(mesh) => (Some(mesh), fall_back(Fallback::Skeleton, Some(error))),
+                Err(_) => (None, fall_back(Fallback::SkeletonAndProfile, Some(error))),
+            }
+        }
     }
 }
 
@@ -657,9 +668,7 @@ fn skeleton_shape(spec: &RoofSpec, direction: Option<Point>) -> SkeletonRoof {
     }
 }
 
-/// The skeleton's roof, built again at `most` when it rises higher. A near-rectilinear
-/// footprint whose skeleton trips on its almost-parallel sides gets the roof of its squared
-/// outline (paper 003 §5.2), the walls following it.
+/// The skeleton's roof, built again at `most` when it rises higher.
 fn skeleton_roof_within(
     rings: &[Vec<Point>],
     shape: SkeletonRoof,
@@ -667,18 +676,12 @@ fn skeleton_roof_within(
     pitch: f64,
     most: f64,
 ) -> Result<RoofMesh, RoofError> {
-    let build = |rings: &[Vec<Point>]| {
-        skeleton_roof(rings, shape, tagged, pitch).and_then(|mesh| {
-            if mesh.height > most {
-                skeleton_roof(rings, shape, Some(most), pitch)
-            } else {
-                Ok(mesh)
-            }
-        })
-    };
-    build(rings).or_else(|error| match square_up(rings) {
-        Some(squared) => build(&squared),
-        None => Err(error),
+    skeleton_roof(rings, shape, tagged, pitch).and_then(|mesh| {
+        if mesh.height > most {
+            skeleton_roof(rings, shape, Some(most), pitch)
+        } else {
+            Ok(mesh)
+        }
     })
 }
 

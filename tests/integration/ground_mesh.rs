@@ -127,7 +127,7 @@ fn ground_and_building_floors_cover_each_tile_once_without_cracks() {
             .collect();
         let floors: Vec<_> = common::corners(tile.primitives("building"))
             .into_iter()
-            .filter(|t| facing_y(t) < 0.0)
+            .filter(faces_down)
             .collect();
         let (uncovered, twice) = coverage(&ground, &floors, size, 200_000);
         assert!(
@@ -277,8 +277,21 @@ fn height_beside(a: [f64; 3], b: [f64; 3], m: [f64; 3]) -> Option<f64> {
     (off <= 1e-3).then(|| (m[1] - (a[1] + t * (b[1] - a[1]))).abs())
 }
 
-/// Twice the signed area of a triangle seen from above (+y).
-fn facing_y(t: &[[f64; 3]; 3]) -> f64 {
+/// Whether a triangle faces more down than sideways: a floor or a ceiling, not a wall. A wall
+/// at one elevation along its top is not quite vertical in the tile's flat frame, whose up
+/// leans away from the centre with the earth's curvature, so the sign of its plan area alone
+/// does not tell.
+fn faces_down(t: &[[f64; 3]; 3]) -> bool {
     let [a, b, c] = t;
-    (b[2] - a[2]) * (c[0] - a[0]) - (b[0] - a[0]) * (c[2] - a[2])
+    let (u, v) = (
+        [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+        [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+    );
+    let normal = [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ];
+    let length = normal.iter().map(|n| n * n).sum::<f64>().sqrt();
+    length > 0.0 && normal[1] < -0.5 * length
 }

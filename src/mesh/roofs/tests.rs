@@ -373,46 +373,6 @@ fn a_skillion_slopes_as_one_plane_with_a_high_wall() {
 }
 
 #[test]
-fn squaring_straightens_a_near_rectilinear_footprint() {
-    // An L drawn a little off: corners of 88° to 92°, turned by 20°.
-    let l = [
-        [0.0, 0.0],
-        [12.0, 0.2],
-        [12.1, 6.0],
-        [6.0, 5.9],
-        [6.2, 14.0],
-        [-0.1, 14.1],
-    ];
-    let (c, s) = (0.35f64.cos(), 0.35f64.sin());
-    let turned: Vec<Point> = l
-        .iter()
-        .map(|p| [p[0] * c - p[1] * s, p[0] * s + p[1] * c])
-        .collect();
-    let squared = square_up(&[turned]).expect("near-rectilinear");
-    let ring = &squared[0];
-    assert_eq!(ring.len(), 6);
-    for i in 0..6 {
-        let (a, b, d) = (ring[(i + 5) % 6], ring[i], ring[(i + 1) % 6]);
-        let (u, v) = ([b[0] - a[0], b[1] - a[1]], [d[0] - b[0], d[1] - b[1]]);
-        let cosine = (u[0] * v[0] + u[1] * v[1]) / (u[0].hypot(u[1]) * v[0].hypot(v[1]));
-        assert!(cosine.abs() < 1e-9, "corner {i}: {cosine}");
-    }
-    // Squaring this one would move a corner half a metre: the walls would leave the
-    // ground's cut.
-    let mut leaning = l.to_vec();
-    leaning[1] = [12.0, 1.0];
-    assert!(square_up(&[leaning]).is_none());
-    // A hexagon is not rectilinear.
-    let hexagon: Vec<Point> = (0..6)
-        .map(|i| {
-            let a = std::f64::consts::TAU * i as f64 / 6.0;
-            [a.cos(), a.sin()]
-        })
-        .collect();
-    assert!(square_up(&[hexagon]).is_none());
-}
-
-#[test]
 fn long_axis_follows_the_longer_side() {
     let angle: f64 = 0.4;
     let (c, s) = (angle.cos(), angle.sin());
