@@ -13,7 +13,9 @@ use std::collections::HashMap;
 
 use tracing::debug;
 
-use super::{Area, BuildingShape, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface};
+use super::{
+    inference, Area, BuildingShape, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface,
+};
 use crate::osm::units::{parse_count, parse_length_m};
 use crate::osm::{ElementRef, Relation, Tags};
 
@@ -187,94 +189,7 @@ fn default_height_m(building: &str, settings: &FeatureSettings) -> f64 {
     }
 }
 
-/// A roof the mesh stage can build (Simple 3D Buildings' `roof:shape` values).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum RoofShape {
-    Flat,
-    /// One plane sloping down towards `roof:direction`.
-    Skillion,
-    /// Slopes on the long sides, vertical gables at the ends of each wing.
-    Gabled,
-    /// Every side slopes up to the ridges (the straight skeleton raised).
-    Hipped,
-    /// Gabled ends cut off by a small hip at the top.
-    HalfHipped,
-    /// Gabled, with one end hipped (the one `roof:direction` names).
-    SideHipped,
-    /// Gabled, with one end half-hipped.
-    SideHalfHipped,
-    /// Hipped ends with a small gable at the top (dutch hip).
-    HippedAndGabled,
-    /// Straight faces from every side to a point over the middle (also `cone`).
-    Pyramidal,
-    /// A quarter circle in section, up to a point over the middle.
-    Dome,
-    /// Bulging out past the walls, then drawn in to a point.
-    Onion,
-    /// A barrel vault: a half ellipse across the footprint.
-    Round,
-    /// Gabled, with steep lower slopes and shallow upper ones.
-    Gambrel,
-    /// Hipped, with steep lower slopes and shallow upper ones.
-    Mansard,
-    /// Gabled with the ridge off the middle: a long slope towards `roof:direction`.
-    Saltbox,
-    /// Teeth across the footprint: long slopes and steep glazed faces.
-    Sawtooth,
-    /// Two slopes falling to a valley in the middle.
-    Butterfly,
-}
-
-impl RoofShape {
-    /// The shape a `roof:shape` value names, `None` for a value we do not know.
-    pub fn from_tag(value: &str) -> Option<RoofShape> {
-        Some(match value {
-            "flat" => RoofShape::Flat,
-            "skillion" | "lean_to" => RoofShape::Skillion,
-            "gabled" => RoofShape::Gabled,
-            "hipped" => RoofShape::Hipped,
-            "half-hipped" | "half_hipped" => RoofShape::HalfHipped,
-            "side_hipped" => RoofShape::SideHipped,
-            "side_half-hipped" => RoofShape::SideHalfHipped,
-            "hipped-and-gabled" | "dutch" => RoofShape::HippedAndGabled,
-            "pyramidal" | "cone" => RoofShape::Pyramidal,
-            "dome" => RoofShape::Dome,
-            "onion" => RoofShape::Onion,
-            "round" => RoofShape::Round,
-            "gambrel" => RoofShape::Gambrel,
-            "mansard" => RoofShape::Mansard,
-            "saltbox" | "gabled_height_moved" => RoofShape::Saltbox,
-            "sawtooth" => RoofShape::Sawtooth,
-            "butterfly" => RoofShape::Butterfly,
-            "crosspitched" => {
-                debug!("crosspitched roof drawn hipped");
-                RoofShape::Hipped
-            }
-            _ => return None,
-        })
-    }
-
-    /// Every shape.
-    pub const ALL: [RoofShape; 17] = [
-        RoofShape::Flat,
-        RoofShape::Skillion,
-        RoofShape::Gabled,
-        RoofShape::Hipped,
-        RoofShape::HalfHipped,
-        RoofShape::SideHipped,
-        RoofShape::SideHalfHipped,
-        RoofShape::HippedAndGabled,
-        RoofShape::Pyramidal,
-        RoofShape::Dome,
-        RoofShape::Onion,
-        RoofShape::Round,
-        RoofShape::Gambrel,
-        RoofShape::Mansard,
-        RoofShape::Saltbox,
-        RoofShape::Sawtooth,
-        RoofShape::Butterfly,
-    ];
-}
+pub use super::roof_shape::RoofShape;
 
 /// The roof a building's tags ask for.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -305,28 +220,9 @@ pub fn roof_spec(tags: &Tags, settings: &FeatureSettings) -> RoofSpec {
     let tagged_shape = tags
         .get("roof:shape")
         .or_else(|| tags.get("building:roof:shape"));
+    // Untagged, flat: a building's own roof is inferred from more than its tags
+    // (`super::inference`), a part's is flat (Simple 3D Buildings).
     let shape = match tagged_shape {
-        // Untagged, small houses and sheds have gabled roofs far more often than flat ones.
-        None if matches!(
-            tags.get("building"),
-            Some(
-                "house"
-                    | "detached"
-                    | "semidetached_house"
-                    | "farm"
-                    | "bungalow"
-                    | "cabin"
-                    | "hut"
-                    | "shed"
-                    | "barn"
-                    | "farm_auxiliary"
-                    | "chapel"
-                    | "church"
-            )
-        ) =>
-        {
-            RoofShape::Gabled
-        }
         None => RoofShape::Flat,
         Some(value) => RoofShape::from_tag(value).unwrap_or_else(|| {
             debug!(roof_shape = value, "unknown roof shape drawn flat");
@@ -455,6 +351,12 @@ const DEFAULT_ROOF: [f64; 3] = [0.62, 0.36, 0.30];
 /// From `building:colour` and `roof:colour` (names or `#rrggbb`), else the colour of
 /// `building:material` and `roof:material`, else the defaults.
 pub fn appearance(tags: &Tags) -> Appearance {
+    appearance_or(tags, (DEFAULT_WALLS, DEFAULT_ROOF))
+}
+
+/// As [`appearance`], with the walls' and the roof's colours (linear RGB) where nothing is
+/// tagged for them.
+pub fn appearance_or(tags: &Tags, (walls, roof): ([f64; 3], [f64; 3])) -> Appearance {
     let pick =
         |colour_key: &str, material_key: &str, material: fn(&str) -> Option<[f64; 3]>, default| {
             let srgb = tags
@@ -472,13 +374,8 @@ pub fn appearance(tags: &Tags) -> Appearance {
             [r, g, b, 255]
         };
     Appearance {
-        walls: pick(
-            "building:colour",
-            "building:material",
-            wall_material,
-            DEFAULT_WALLS,
-        ),
-        roof: pick("roof:colour", "roof:material", roof_material, DEFAULT_ROOF),
+        walls: pick("building:colour", "building:material", wall_material, walls),
+        roof: pick("roof:colour", "roof:material", roof_material, roof),
         wall_finish: tags
             .get("building:material")
             .map_or(Finish::Matte, Finish::of_material),
@@ -486,6 +383,11 @@ pub fn appearance(tags: &Tags) -> Appearance {
             .get("roof:material")
             .map_or(Finish::Matte, Finish::of_material),
     }
+}
+
+/// Walls' and roof's sRGB colours as linear RGB.
+fn linear((walls, roof): ([f64; 3], [f64; 3])) -> ([f64; 3], [f64; 3]) {
+    (walls.map(srgb_to_linear), roof.map(srgb_to_linear))
 }
 
 fn srgb_to_linear(c: f64) -> f64 {
@@ -630,6 +532,42 @@ pub fn height_m(tags: &Tags, settings: &FeatureSettings) -> (f64, bool) {
     (default_height_m(building, settings), false)
 }
 
+/// Puts what was inferred for a building into its height and roof where its tags are silent;
+/// returns the values inferred, as the tags they stand for.
+fn apply_inferred(
+    guess: &inference::Inferred,
+    tags: &Tags,
+    settings: &FeatureSettings,
+    (height, roof): (&mut f64, &mut RoofSpec),
+) -> Vec<(&'static str, String)> {
+    let mut inferred = Vec::new();
+    if let Some(levels) = guess.levels {
+        *height = f64::from(levels) * settings.level_height_m;
+        // The walls are the levels; a pitched roof stands on them.
+        roof.over_levels = true;
+        inferred.push(("building:levels", levels.to_string()));
+    }
+    if let Some(guessed) = guess.roof {
+        roof.shape = guessed.shape;
+        if !tags.is_set("roof:angle") && guessed.pitch_deg > 0.0 {
+            roof.pitch = guessed.pitch_deg.to_radians().tan();
+        }
+        inferred.push(("roof:shape", guessed.shape.tag().to_string()));
+    }
+    let untagged = |colour, material| !tags.is_set(colour) && !tags.is_set(material);
+    let hex = |c: [f64; 3]| {
+        let [r, g, b] = c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8);
+        format!("#{r:02x}{g:02x}{b:02x}")
+    };
+    if untagged("building:colour", "building:material") {
+        inferred.push(("building:colour", hex(guess.colours.0)));
+    }
+    if untagged("roof:colour", "roof:material") {
+        inferred.push(("roof:colour", hex(guess.colours.1)));
+    }
+    inferred
+}
+
 pub(super) fn add_area(
     set: &mut FeatureSet,
     area: &Area<'_>,
@@ -649,11 +587,24 @@ pub(super) fn add_area(
         debug!(element = ?area.element, "building without a usable footprint skipped");
         return;
     }
-    let (height, tagged) = height_m(area.tags, settings);
+    let (mut height, tagged) = height_m(area.tags, settings);
     let basement = basement_m(area.tags, settings);
-    let roof = roof_spec(area.tags, settings);
+    let mut roof = roof_spec(area.tags, settings);
+    let mut appearance = appearance(area.tags);
+    let mut inferred = Vec::new();
+    if !part {
+        let outlines: Vec<&[crate::osm::LonLat]> =
+            area.polygons.iter().map(|p| p.outer.as_slice()).collect();
+        let tagged_height = tagged.then_some(height);
+        if let Some(guess) = inference::building(area.tags, &outlines, tagged_height, area.element)
+        {
+            inferred = apply_inferred(&guess, area.tags, settings, (&mut height, &mut roof));
+            appearance = appearance_or(area.tags, linear(guess.colours));
+        }
+    }
     let min_height = min_height_m(area.tags, settings).min(height);
     let feature = set.add_feature(Some(area.element), FeatureClass::Building, area.tags);
+    set.features[feature as usize].inferred = inferred;
     for footprint in &footprints {
         set.buildings.push(BuildingShape {
             feature,
@@ -665,7 +616,7 @@ pub(super) fn add_area(
             min_height_m: min_height,
             drawn: true,
             base: None,
-            appearance: appearance(area.tags),
+            appearance,
             passages: Vec::new(),
         });
     }
@@ -722,9 +673,10 @@ mod tests {
             roof_spec(&tags(&[("roof:shape", "mansard")]), &s).shape,
             RoofShape::Mansard
         );
+        // Untagged, the roof is inferred from more than tags (`super::inference`).
         assert_eq!(
             roof_spec(&tags(&[("building", "house")]), &s).shape,
-            RoofShape::Gabled
+            RoofShape::Flat
         );
         assert_eq!(
             roof_spec(&tags(&[("roof:shape", "something")]), &s).shape,

@@ -11,6 +11,7 @@ pub mod barriers;
 pub mod buildings;
 pub mod carriageways;
 pub mod coastline;
+pub mod inference;
 pub mod landcover;
 pub mod objects;
 pub mod overview;
@@ -18,6 +19,7 @@ pub mod power;
 pub mod railways;
 pub mod road_network;
 pub mod roads;
+pub mod roof_shape;
 pub mod structures;
 pub mod vegetation;
 pub mod water;
@@ -103,6 +105,9 @@ pub struct FeatureInfo {
     pub element: Option<ElementRef>,
     pub class: FeatureClass,
     pub tags: Tags,
+    /// Values its tags leave unsaid that were inferred, as the tags they stand for
+    /// (`roof:shape`, `building:levels`, …): what a viewer can show as guessed.
+    pub inferred: Vec<(&'static str, String)>,
 }
 
 impl FeatureInfo {
@@ -258,6 +263,7 @@ impl FeatureSet {
             element,
             class,
             tags: tags.clone(),
+            inferred: Vec::new(),
         });
         (self.features.len() - 1) as u32
     }

@@ -865,6 +865,23 @@ fn write_property_table(builder: &mut BinaryBuilder, features: &[FeatureInfo]) -
             })
             .collect(),
     );
+    let inferred = strings(
+        builder,
+        features
+            .iter()
+            .map(|f| {
+                if f.inferred.is_empty() {
+                    return String::new();
+                }
+                let object: serde_json::Map<String, Value> = f
+                    .inferred
+                    .iter()
+                    .map(|(k, v)| (k.to_string(), Value::String(v.clone())))
+                    .collect();
+                Value::Object(object).to_string()
+            })
+            .collect(),
+    );
     let ids: Vec<u8> = features
         .iter()
         .flat_map(|f| f.element.map_or(0i64, |e| e.id).to_le_bytes())
@@ -881,7 +898,8 @@ fn write_property_table(builder: &mut BinaryBuilder, features: &[FeatureInfo]) -
                         "osm_id": {"type": "SCALAR", "componentType": "INT64", "description": "OSM element id (0 for the default ground)"},
                         "class": {"type": "STRING", "description": "terrain, road, railway, water, landcover, building, vegetation, barrier or object"},
                         "name": {"type": "STRING", "description": "the name tag, empty if none"},
-                        "tags": {"type": "STRING", "description": "all OSM tags as a JSON object"}
+                        "tags": {"type": "STRING", "description": "all OSM tags as a JSON object"},
+                        "inferred": {"type": "STRING", "description": "values the tags leave unsaid that were inferred, as a JSON object of the tags they stand for (roof:shape, building:levels, roof:colour, building:colour); empty when nothing was"}
                     }
                 }
             }
@@ -895,7 +913,8 @@ fn write_property_table(builder: &mut BinaryBuilder, features: &[FeatureInfo]) -
                 "osm_id": {"values": ids_view.value()},
                 "class": class,
                 "name": name,
-                "tags": tags
+                "tags": tags,
+                "inferred": inferred
             }
         }]
     })

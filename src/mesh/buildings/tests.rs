@@ -218,7 +218,14 @@ fn a_pitched_roof_stands_on_the_levels_tagged_not_in_them() {
     let house = [[0.0, 0.0], [10.0, 0.0], [10.0, 8.0], [0.0, 8.0]];
     // Two levels of walls, the gabled roof on top (4 m wide each side at 30°).
     let levels = solid(
-        &building(&[("building", "house"), ("building:levels", "2")], &house),
+        &building(
+            &[
+                ("building", "house"),
+                ("building:levels", "2"),
+                ("roof:shape", "gabled"),
+            ],
+            &house,
+        ),
         1000.0,
         0.0,
         0.0,
@@ -244,12 +251,20 @@ fn a_pitched_roof_stands_on_the_levels_tagged_not_in_them() {
     assert_eq!(heights(&synonym), heights(&levels));
     // A tagged height holds the roof; so do levels that count the roof's own (of 3 m).
     for (tags, roof) in [
-        (&[("building", "house"), ("height", "6")][..], ridge),
+        (
+            &[
+                ("building", "house"),
+                ("height", "6"),
+                ("roof:shape", "gabled"),
+            ][..],
+            ridge,
+        ),
         (
             &[
                 ("building", "house"),
                 ("building:levels", "1"),
                 ("roof:levels", "1"),
+                ("roof:shape", "gabled"),
             ][..],
             3.0,
         ),

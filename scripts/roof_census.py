@@ -1,0 +1,128 @@
+#!/usr/bin/env python3
+"""Counts the roofs of the buildings in glb tiles, from the tiles' own feature tables.
+
+    roof_census.py EXTRACT.osm.pbf TILE.glb...
+
+Each building (by OSM id, once however many tiles hold it) is counted by its `building` value
+and its roof: the `roof:shape` tagged, else the one the tile says it inferred. Footprint areas
+come from the extract (pyosmium). Prints, as JSON: the roof shapes by building type, the share
+of untagged buildings under 300 m² with a pitched roof, and for each tile its buildings and
+the distinct roof colours it inferred.
+"""
+
+import json
+import math
+import struct
+import sys
+from collections import Counter, defaultdict
+
+import osmium
+
+
+def property_table(path):
+    """The rows of a glb's feature table, as dicts of its string and id properties."""
+    data = open(path, "rb").read()
+    magic, _, _ = struct.unpack_from("<III", data, 0)
+    if magic != 0x46546C67:
+        raise SystemExit(f"{path}: not a glb")
+    offset, chunks = 12, {}
+    while offset < len(data):
+        length, kind = struct.unpack_from("<II", data, offset)
+        chunks[kind] = data[offset + 8 : offset + 8 + length]
+        offset += 8 + length
+    document = json.loads(chunks[0x4E4F534A])
+    binary = chunks.get(0x004E4942, b"")
+    views = document["bufferViews"]
+
+    def view(index):
+        v = views[index]
+        start = v.get("byteOffset", 0)
+        return binary[start : start + v["byteLength"]]
+
+    table = document["extensions"]["EXT_structural_metadata"]["propertyTables"][0]
+    count = table["count"]
+    rows = [dict() for _ in range(count)]
+    for name, prop in table["properties"].items():
+        values = view(prop["values"])
+        if "stringOffsets" in prop:
+            offsets = view(prop["stringOffsets"])
+            bounds = struct.unpack_from(f"<{count + 1}I", offsets, 0)
+            for i in range(count):
+                rows[i][name] = values[bounds[i] : bounds[i + 1]].decode("utf-8")
+        else:
+            ids = struct.unpack_from(f"<{count}q", values, 0)
+            for i in range(count):
+                rows[i][name] = ids[i]
+    return rows
+
+
+class Areas(osmium.SimpleHandler):
+    """Footprint areas of closed building ways, square metres."""
+
+    def __init__(self):
+        super().__init__()
+        self.areas = {}
+
+    def way(self, w):
+        if "building" not in w.tags or len(w.nodes) < 4 or w.nodes[0].ref != w.nodes[-1].ref:
+            return
+        try:
+            points = [(n.lon, n.lat) for n in w.nodes]
+        except osmium.InvalidLocationError:
+            return
+        lat0 = points[0][1]
+        east = 111_320 * math.cos(math.radians(lat0))
+        xy = [(lon * east, lat * 110_540) for lon, lat in points]
+        area = sum(a[0] * b[1] - b[0] * a[1] for a, b in zip(xy, xy[1:])) / 2
+        self.areas[w.id] = abs(area)
+
+
+def main():
+    if len(sys.argv) < 3:
+        raise SystemExit(__doc__)
+    areas = Areas()
+    areas.apply_file(sys.argv[1], locations=True)
+    seen = {}
+    tiles = {}
+    for path in sys.argv[2:]:
+        buildings, colours = 0, set()
+        for row in property_table(path):
+            if row.get("class") != "building" or row.get("osm_type") != "way":
+                continue
+            buildings += 1
+            tags = json.loads(row["tags"] or "{}")
+            inferred = json.loads(row.get("inferred") or "{}")
+            if "roof:colour" in inferred:
+                colours.add(inferred["roof:colour"])
+            tagged = tags.get("roof:shape")
+            shape = tagged or inferred.get("roof:shape", "flat")
+            seen[row["osm_id"]] = (tags.get("building", "yes"), shape, tagged is not None)
+        tiles[path] = {"buildings": buildings, "inferred_roof_colours": len(colours)}
+    by_type = defaultdict(Counter)
+    small = Counter()
+    for osm_id, (kind, shape, tagged) in seen.items():
+        by_type[kind][shape] += 1
+        if not tagged and areas.areas.get(osm_id, math.inf) < 300:
+            small["pitched" if shape != "flat" else "flat"] += 1
+    total_small = sum(small.values())
+    print(
+        json.dumps(
+            {
+                "buildings": len(seen),
+                "untagged_under_300m2": total_small,
+                "pitched_share_untagged_under_300m2": small["pitched"] / total_small
+                if total_small
+                else None,
+                "shapes_by_type": {
+                    k: dict(v.most_common())
+                    for k, v in sorted(by_type.items(), key=lambda kv: -sum(kv[1].values()))
+                },
+                "tiles": tiles,
+            },
+            indent=1,
+        )
+    )
+
+
+if __name__ == "__main__":
+    main()
