@@ -439,6 +439,7 @@ async function loadTile(tile) {
     }
     tile.group = group;
     tile.state = 'loaded';
+    paintOverRoads(group);
     registerClasses(group);
     applyToggles(group);
     scene.add(group);
@@ -476,6 +477,21 @@ function evict() {
     }
     tiles.delete(key);
   }
+}
+
+// Road paint lies 3 cm over the road: drawn with a depth offset, it stays on top of the road
+// from every distance instead of flickering through it.
+function paintOverRoads(group) {
+  group.traverse((o) => {
+    const materials = Array.isArray(o.material) ? o.material : o.material ? [o.material] : [];
+    for (const m of materials) {
+      if (m.name === 'marking') {
+        m.polygonOffset = true;
+        m.polygonOffsetFactor = -2;
+        m.polygonOffsetUnits = -2;
+      }
+    }
+  });
 }
 
 function dispose(object) {

@@ -6,6 +6,7 @@
 
 use std::collections::HashMap;
 
+use super::markings;
 use super::road_network::{self, RoadLine};
 use super::roads::{self, Paving};
 use super::structures::is_off_ground;
@@ -71,6 +72,7 @@ pub(super) fn add_roads(
 ) {
     let mut lines = Vec::new();
     let mut roads: Vec<(u32, Paving, f64)> = Vec::new();
+    let mut plans = Vec::new();
     for way in ways {
         let Some(line) = road_line(way, projection, settings) else {
             continue;
@@ -84,6 +86,11 @@ pub(super) fn add_roads(
         };
         let feature = set.add_feature(Some(element), FeatureClass::Road, &way.tags);
         roads.push((feature, Paving::from_tags(&way.tags), width));
+        // The lines painted on it are a feature of their own, shown and hidden apart.
+        plans.push(markings::lane_plan(&way.tags).map(|plan| {
+            let painted = set.add_feature(Some(element), FeatureClass::Marking, &way.tags);
+            (painted, plan)
+        }));
         if roads::is_steps(&way.tags) {
             let feature = set.add_feature(Some(element), FeatureClass::Object, &way.tags);
             set.stairs.push(Stairs {
@@ -96,7 +103,15 @@ pub(super) fn add_roads(
         lines.push(line);
     }
     let network = road_network::build(&lines);
-    for ((feature, paving, _), road) in roads.iter().zip(network.roads) {
+    for (((feature, paving, _), road), (painted, line)) in roads
+        .iter()
+        .zip(network.roads)
+        .zip(plans.iter().zip(&lines))
+    {
+        if let Some((painted, plan)) = painted {
+            set.markings
+                .extend(markings::along(*painted, &road, plan, line.metre));
+        }
         if let Some(mut surface) =
             Surface::from_parts(FeatureClass::Road, *feature, road.pieces, road.outline)
         {

@@ -13,6 +13,7 @@ pub mod carriageways;
 pub mod coastline;
 pub mod inference;
 pub mod landcover;
+pub mod markings;
 pub mod objects;
 pub mod overview;
 pub mod power;
@@ -45,10 +46,12 @@ pub enum FeatureClass {
     Bridge,
     /// Tunnels: floors and linings under the ground, and their portals.
     Tunnel,
+    /// Lines painted on roads: one feature per road that has them.
+    Marking,
 }
 
 impl FeatureClass {
-    pub const ALL: [FeatureClass; 11] = [
+    pub const ALL: [FeatureClass; 12] = [
         FeatureClass::Terrain,
         FeatureClass::Road,
         FeatureClass::Railway,
@@ -60,6 +63,7 @@ impl FeatureClass {
         FeatureClass::Object,
         FeatureClass::Bridge,
         FeatureClass::Tunnel,
+        FeatureClass::Marking,
     ];
 
     pub fn as_str(self) -> &'static str {
@@ -75,6 +79,7 @@ impl FeatureClass {
             FeatureClass::Building => "building",
             FeatureClass::Bridge => "bridge",
             FeatureClass::Tunnel => "tunnel",
+            FeatureClass::Marking => "marking",
         }
     }
 
@@ -89,12 +94,13 @@ impl FeatureClass {
             FeatureClass::Water => 3,
             FeatureClass::LandCover => 4,
             FeatureClass::Terrain => 5,
-            // Trees, barriers and objects are not ground.
+            // Trees, barriers, objects and paint are not ground.
             FeatureClass::Vegetation
             | FeatureClass::Barrier
             | FeatureClass::Object
             | FeatureClass::Bridge
-            | FeatureClass::Tunnel => 6,
+            | FeatureClass::Tunnel
+            | FeatureClass::Marking => 6,
         }
     }
 }
@@ -247,6 +253,8 @@ pub struct FeatureSet {
     pub steps: Vec<barriers::GroundStep>,
     /// Flights of steps (`highway=steps` on the ground) to draw over their ramps.
     pub stairs: Vec<carriageways::Stairs>,
+    /// Lines painted on the roads on the ground, along their surfaces as drawn.
+    pub markings: Vec<markings::Marking>,
     /// Outlines of the roads, railways and water near the tile, also those just outside it:
     /// they weigh the terrain error on both sides of a shared edge alike.
     pub nearby_outlines: Vec<Vec<Point>>,
@@ -313,7 +321,7 @@ impl FeatureSet {
         self.features.iter().filter(|f| f.class == class).count()
     }
 
-    /// Drops the surfaces, buildings, barriers and steps whose bounds miss `rect`, and the
+    /// Drops the surfaces, buildings, barriers, steps and markings whose bounds miss `rect`, and the
     /// features left without geometry; the default ground (feature 0) stays. Feature ids are
     /// renumbered in order.
     pub fn retain_touching(&mut self, rect: &Rect) {
@@ -328,6 +336,8 @@ impl FeatureSet {
             .retain(|l| Rect::around(&l.line).intersects(rect));
         self.stairs
             .retain(|s| Rect::around(&s.line).intersects(rect));
+        self.markings
+            .retain(|m| Rect::around(&m.line).intersects(rect));
         let mut used = vec![false; self.features.len()];
         used[0] = true;
         for feature in self
@@ -339,6 +349,7 @@ impl FeatureSet {
             .chain(self.steps.iter().map(|s| s.feature))
             .chain(self.power_lines.iter().map(|l| l.feature))
             .chain(self.stairs.iter().map(|s| s.feature))
+            .chain(self.markings.iter().map(|m| m.feature))
         {
             used[feature as usize] = true;
         }
@@ -374,6 +385,9 @@ impl FeatureSet {
         }
         for stairs in &mut self.stairs {
             stairs.feature = renumbered[stairs.feature as usize];
+        }
+        for marking in &mut self.markings {
+            marking.feature = renumbered[marking.feature as usize];
         }
     }
 }

@@ -43,6 +43,10 @@ pub struct RoadSurface {
     /// to node before its ends are cut back): the left and right corners of a piece lie on
     /// the same bisector of it.
     pub lines: Vec<(std::ops::Range<usize>, StretchLine)>,
+    /// For each run of `lines`, the distance along the way's own line (from its first node,
+    /// tile units) each boundary of its pieces stands for: one more than the run's pieces. The
+    /// same in every tile that draws the way, wherever the tile sees its junctions.
+    pub stations: Vec<Vec<f64>>,
 }
 
 /// A stretch's line as drawn: from node to node with its bends rounded, and for each point
@@ -98,6 +102,8 @@ struct Cap {
 struct Piece {
     road: usize,
     line: StretchLine,
+    /// Distance along the way's own line from its first node to the piece's, tile units.
+    offset: f64,
     start: Option<ArmKey>,
     end: Option<ArmKey>,
 }
@@ -163,6 +169,7 @@ fn split_and_cut(
             pieces.push(Piece {
                 road,
                 line: stretch_line(&line.points[start..=i], line.half_width),
+                offset: geometry::polyline_length(&line.points[..=start]),
                 start: junction_at(line.nodes[start]).then_some(ArmKey {
                     road,
                     index: start,
@@ -274,6 +281,12 @@ fn widen(
         surface
             .lines
             .push((first..first + last, piece.line.clone()));
+        surface.stations.push(
+            stations_of(&piece.line, &trimmed)
+                .into_iter()
+                .map(|s| piece.offset + s)
+                .collect(),
+        );
         surface.pieces.extend((0..last).map(|i| Polygon {
             outer: vec![left[i], left[i + 1], right[i + 1], right[i]],
             holes: Vec::new(),
@@ -742,6 +755,37 @@ fn edge_corner(a: &Cap, b: &Cap, between: f64) -> Option<Point> {
     let near = between < std::f64::consts::PI
         || (distance(corner, a.plus) <= reach && distance(corner, b.minus) <= reach);
     (s < -tolerance && t < -tolerance && near).then_some(corner)
+}
+
+/// The stations of `points` (a part of `line`'s points in order, as [`trim`] leaves them):
+/// each found on the segment of `line` it lies on, between its ends' stations.
+fn stations_of(line: &StretchLine, points: &[Point]) -> Vec<f64> {
+    let mut segment = 0;
+    points
+        .iter()
+        .map(|&p| {
+            let last = line.points.len().saturating_sub(2);
+            // The first segment from here whose far end is not behind `p`.
+            while segment < last && !ahead(line.points[segment], line.points[segment + 1], p) {
+                segment += 1;
+            }
+            let (a, b) = (line.points[segment], line.points[segment + 1]);
+            let length2 = (b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2);
+            let t = if length2 > 0.0 {
+                (((p[0] - a[0]) * (b[0] - a[0]) + (p[1] - a[1]) * (b[1] - a[1])) / length2)
+                    .clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let (sa, sb) = (line.stations[segment], line.stations[segment + 1]);
+            sa + (sb - sa) * t
+        })
+        .collect()
+}
+
+/// Whether `p` lies before or on `b` along the segment `a`–`b`.
+fn ahead(a: Point, b: Point, p: Point) -> bool {
+    (p[0] - b[0]) * (b[0] - a[0]) + (p[1] - b[1]) * (b[1] - a[1]) <= 0.0
 }
 
 /// The polyline without its first `start` and last `end` units of length; `None` when nothing

@@ -7,6 +7,7 @@ pub mod flatten;
 pub mod ground;
 pub mod ground_parts;
 pub mod instances;
+pub mod markings;
 pub mod models;
 pub mod normals;
 pub mod passages;
@@ -40,6 +41,8 @@ pub enum Part {
     PowerLine,
     /// The treads and risers of a flight of steps.
     Stairs,
+    /// The lines painted on roads.
+    Marking,
     /// A bridge's deck: paved like its road, or a railway's bed.
     BridgeDeck(Option<Paving>),
     /// A bridge's sides, underside and piers.
@@ -61,6 +64,7 @@ impl Part {
         match self {
             Part::Terrain => FeatureClass::Terrain,
             Part::Road(_) => FeatureClass::Road,
+            Part::Marking => FeatureClass::Marking,
             Part::Railway => FeatureClass::Railway,
             Part::Water => FeatureClass::Water,
             Part::LandCover(_) => FeatureClass::LandCover,
@@ -92,6 +96,7 @@ impl Part {
             Part::Object(kind) => kind.as_str(),
             Part::PowerLine => "power_line",
             Part::Stairs => "stairs",
+            Part::Marking => "marking",
             Part::BridgeDeck(None) => "bridge_deck_railway",
             Part::BridgeDeck(Some(Paving::Asphalt)) => "bridge_deck_asphalt",
             Part::BridgeDeck(Some(Paving::Concrete)) => "bridge_deck_concrete",
@@ -132,7 +137,8 @@ impl Part {
             | FeatureClass::Barrier
             | FeatureClass::Object
             | FeatureClass::Bridge
-            | FeatureClass::Tunnel => None,
+            | FeatureClass::Tunnel
+            | FeatureClass::Marking => None,
         }
     }
 }

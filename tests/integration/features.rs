@@ -394,6 +394,7 @@ fn roads_through_buildings_run_on_under_their_raised_floors() {
         .features
         .iter()
         .enumerate()
+        .filter(|(_, f)| f.class == "road")
         .filter(|(_, f)| f.tags.get("tunnel").and_then(|v| v.as_str()) == Some("building_passage"))
         .map(|(index, _)| index)
         .collect();

@@ -231,3 +231,74 @@ fn a_tagged_flat_roof_stays_flat() {
     let bottom = roof.iter().map(|v| v[1]).fold(f32::MAX, f32::min);
     assert!(!roof.is_empty() && top - bottom < 1e-3, "{bottom}..{top}");
 }
+
+/// The painted lines of a tile: for each line, its distance south of the tile's middle (metres
+/// on the ground, rounded to decimetres) and the length it is painted over, east to west.
+fn painted_lines(tile: &DecodedTile) -> Vec<(f64, f64)> {
+    let size = tile.tile_size();
+    let mut lines: std::collections::BTreeMap<i64, (f64, f64)> = Default::default();
+    for primitive in tile.primitives("marking") {
+        assert_eq!(primitive.material, "marking");
+        for t in primitive.indices.chunks_exact(3) {
+            let corners = [0, 1, 2].map(|k| primitive.positions[t[k] as usize]);
+            let south = corners.iter().map(|c| f64::from(c[2])).sum::<f64>() / 3.0;
+            let off_m = (south - size / 2.0) / scale();
+            let (west, east) = corners.iter().fold((f64::MAX, f64::MIN), |(w, e), c| {
+                (w.min(f64::from(c[0])), e.max(f64::from(c[0])))
+            });
+            let line = lines.entry((off_m * 2.0).round() as i64).or_default();
+            // Two triangles a piece: half its length each.
+            line.0 = off_m;
+            line.1 += (east - west) / scale() / 2.0;
+        }
+    }
+    lines.into_values().collect()
+}
+
+#[test]
+fn a_four_lane_road_has_three_lines_and_a_solid_centre() {
+    let mut fixture = Fixture::default();
+    fixture.way(
+        &[("highway", "primary"), ("lanes", "4")],
+        &[(-0.2, 0.5), (1.2, 0.5)],
+    );
+    let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+    let lines = painted_lines(&tile);
+    assert_eq!(lines.len(), 3, "{lines:?}");
+    // 4 lanes of the configured 3.5 m: lines at a quarter, half and three quarters across.
+    let width = 4.0 * 3.5;
+    for ((off, _), expected) in lines.iter().zip([-width / 4.0, 0.0, width / 4.0]) {
+        assert!((off - expected).abs() < 0.2, "{lines:?}");
+    }
+    let across_m = tile.tile_size() / scale();
+    assert!(
+        lines[1].1 > 0.99 * across_m,
+        "the centre line is solid: {lines:?}"
+    );
+    for lane in [lines[0], lines[2]] {
+        assert!(
+            (lane.1 / across_m - 1.0 / 3.0).abs() < 0.05,
+            "a lane line is a third paint: {lines:?}"
+        );
+    }
+    // The paint lies just above the road.
+    let road = ground_at(&tile, (0.3, 0.5));
+    let (low, high) = height_range(&tile, "marking", "marking");
+    assert!(
+        low > road && high < road + 0.1,
+        "paint at {low}..{high} over {road}"
+    );
+}
+
+#[test]
+fn a_residential_street_without_lanes_and_a_service_road_are_not_painted() {
+    let mut fixture = Fixture::default();
+    fixture.way(&[("highway", "residential")], &[(-0.2, 0.3), (1.2, 0.3)]);
+    fixture.way(
+        &[("highway", "service"), ("lanes", "2")],
+        &[(-0.2, 0.7), (1.2, 0.7)],
+    );
+    let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+    assert!(!tile.primitives("road").is_empty());
+    assert!(painted_lines(&tile).is_empty());
+}
