@@ -57,22 +57,35 @@ fn painted(marking: &Marking) -> Vec<Vec<Point>> {
     let period = dash + gap;
     let mut runs = Vec::new();
     let mut start = ((first - gap / 2.0) / period).floor() * period + gap / 2.0;
+    // The segment the dashes have reached: each dash is looked for from there on.
+    let mut reached = 0;
     while start < last {
         let (from, to) = (start.max(first), (start + dash).min(last));
         if to > from {
-            runs.push(part_of(&marking.line, stations, from, to));
+            runs.push(part_of(&marking.line, stations, (from, to), &mut reached));
         }
         start += period;
     }
     runs
 }
 
-/// The part of `line` between stations `from` and `to` (`stations` rising along it).
-fn part_of(line: &[Point], stations: &[f64], from: f64, to: f64) -> Vec<Point> {
+/// The part of `line` between stations `from` and `to` (`stations` rising along it), looked
+/// for from segment `reached` on, which is left at the segment where the part ends.
+fn part_of(
+    line: &[Point],
+    stations: &[f64],
+    (from, to): (f64, f64),
+    reached: &mut usize,
+) -> Vec<Point> {
     let mut part = Vec::new();
-    for (pair, s) in line.windows(2).zip(stations.windows(2)) {
+    let segments = line.windows(2).zip(stations.windows(2)).enumerate();
+    for (k, (pair, s)) in segments.skip(*reached) {
         let (start, end) = (s[0], s[1]);
-        if end <= from || start > to || end <= start {
+        if start > to {
+            break;
+        }
+        *reached = k;
+        if end <= from || end <= start {
             continue;
         }
         let at = |d: f64| {
