@@ -1,5 +1,6 @@
 //! The lines painted on roads ([`crate::features::markings`]) as thin strips just above the
-//! settled road surface: a solid line as one strip along it, a dashed one as a strip per dash.
+//! settled road surface: a solid line as a strip along each of its segments, a dashed one as
+//! such strips along each dash.
 //! Each strip piece is clipped to the tile, so a line crossing an edge is cut along it by both
 //! tiles at the same points, from the same dashes.
 

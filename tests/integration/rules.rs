@@ -1,6 +1,6 @@
 //! Rules of what a tile draws, each on a hand-written fixture rendered whole, as the server
 //! renders a tile: the sea on its side of a coastline, a river's width, a roof's tagged height,
-//! a passage through a building. Fast: no extract is read.
+//! a passage through a building, the lines painted on a road. Fast: no extract is read.
 
 use crate::common::fixture::{at, terrain, Fixture, TILE};
 use crate::common::{corners, decode, DecodedTile, GroundLocator};
