@@ -79,7 +79,7 @@ fn update(store: &Path, osc: &Path) -> Output {
 fn tiles(store: &Path, extract: &Path, dir: &Path) -> BTreeMap<String, Vec<u8>> {
     std::fs::create_dir_all(dir).unwrap();
     let cache = dir.join("cache.sqlite");
-    std::fs::copy(solved_by_the_sample(), &cache).unwrap();
+    std::fs::write(&cache, &the_sample().1).unwrap();
     seed(store, extract, &cache)
 }
 
@@ -108,11 +108,14 @@ fn seed(store: &Path, extract: &Path, cache: &Path) -> BTreeMap<String, Vec<u8>>
         .collect()
 }
 
-/// The area's tiles from a store imported from the bundled extract, and a cache holding only
-/// the elevation components they solved: made once a run, as every diff of it starts from them.
-fn the_sample() -> &'static (BTreeMap<String, Vec<u8>>, tempfile::TempDir) {
-    static MADE: std::sync::OnceLock<(BTreeMap<String, Vec<u8>>, tempfile::TempDir)> =
-        std::sync::OnceLock::new();
+/// Each tile's digest, by its name.
+type Digests = BTreeMap<String, Vec<u8>>;
+
+/// The area's tiles from a store imported from the bundled extract, and the bytes of a cache
+/// file holding only the elevation components they solved: made once a run, as every diff of
+/// it starts from them.
+fn the_sample() -> &'static (Digests, Vec<u8>) {
+    static MADE: std::sync::OnceLock<(Digests, Vec<u8>)> = std::sync::OnceLock::new();
     MADE.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
         let store = dir.path().join("osm.sqlite");
@@ -122,17 +125,15 @@ fn the_sample() -> &'static (BTreeMap<String, Vec<u8>>, tempfile::TempDir) {
         let made = SqliteStore::open(&cache, None).unwrap();
         made.remove(&TileFilter::All).unwrap();
         drop(made);
-        std::fs::rename(&cache, dir.path().join("solved.sqlite")).unwrap();
-        (tiles, dir)
+        // Closed, the store has folded its write-ahead log into the file: its bytes are whole.
+        let log = dir.path().join("cache.sqlite-wal");
+        assert!(std::fs::metadata(&log).map_or(true, |m| m.len() == 0));
+        (tiles, std::fs::read(&cache).unwrap())
     })
 }
 
 fn tiles_of_the_sample() -> BTreeMap<String, Vec<u8>> {
     the_sample().0.clone()
-}
-
-fn solved_by_the_sample() -> PathBuf {
-    the_sample().1.path().join("solved.sqlite")
 }
 
 fn file_digest(path: &Path) -> Vec<u8> {
