@@ -770,13 +770,7 @@ fn stations_of(line: &StretchLine, points: &[Point]) -> Vec<f64> {
                 segment += 1;
             }
             let (a, b) = (line.points[segment], line.points[segment + 1]);
-            let length2 = (b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2);
-            let t = if length2 > 0.0 {
-                (((p[0] - a[0]) * (b[0] - a[0]) + (p[1] - a[1]) * (b[1] - a[1])) / length2)
-                    .clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
+            let t = geometry::share_along_segment(p, a, b);
             let (sa, sb) = (line.stations[segment], line.stations[segment + 1]);
             sa + (sb - sa) * t
         })

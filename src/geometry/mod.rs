@@ -299,15 +299,22 @@ pub fn polyline_length(points: &[Point]) -> f64 {
         .sum()
 }
 
-/// Distance from `p` to the segment `a`–`b`.
-pub fn distance_to_segment(p: Point, a: Point, b: Point) -> f64 {
+/// How far along the segment `a`–`b` the point nearest `p` lies, as a share from 0 at `a` to
+/// 1 at `b` (0 for a segment of no length).
+pub fn share_along_segment(p: Point, a: Point, b: Point) -> f64 {
     let d = [b[0] - a[0], b[1] - a[1]];
     let len2 = d[0] * d[0] + d[1] * d[1];
-    let t = if len2 > 0.0 {
+    if len2 > 0.0 {
         (((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1]) / len2).clamp(0.0, 1.0)
     } else {
         0.0
-    };
+    }
+}
+
+/// Distance from `p` to the segment `a`–`b`.
+pub fn distance_to_segment(p: Point, a: Point, b: Point) -> f64 {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let t = share_along_segment(p, a, b);
     let q = [a[0] + t * d[0], a[1] + t * d[1]];
     ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt()
 }
