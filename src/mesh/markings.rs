@@ -7,7 +7,7 @@
 use super::MeshBuffers;
 use crate::features::markings::{Marking, Pattern};
 use crate::features::tile_rect;
-use crate::geometry::{clip_to_rect, Point, Rect};
+use crate::geometry::{bracket, clip_to_rect, Point, Rect};
 use crate::terrain::Elevation;
 use crate::tile::TileFrame;
 
@@ -58,49 +58,28 @@ fn painted(marking: &Marking) -> Vec<Vec<Point>> {
     let period = dash + gap;
     let mut runs = Vec::new();
     let mut start = ((first - gap / 2.0) / period).floor() * period + gap / 2.0;
-    // The segment the dashes have reached: each dash is looked for from there on.
-    let mut reached = 0;
     while start < last {
         let (from, to) = (start.max(first), (start + dash).min(last));
         if to > from {
-            runs.push(part_of(&marking.line, stations, (from, to), &mut reached));
+            runs.push(part_of(&marking.line, stations, (from, to)));
         }
         start += period;
     }
     runs
 }
 
-/// The part of `line` between stations `from` and `to` (`stations` rising along it), looked
-/// for from segment `reached` on, which is left at the segment where the part ends.
-fn part_of(
-    line: &[Point],
-    stations: &[f64],
-    (from, to): (f64, f64),
-    reached: &mut usize,
-) -> Vec<Point> {
-    let mut part = Vec::new();
-    let segments = line.windows(2).zip(stations.windows(2)).enumerate();
-    for (k, (pair, s)) in segments.skip(*reached) {
-        let (start, end) = (s[0], s[1]);
-        if start > to {
-            break;
-        }
-        *reached = k;
-        if end <= from || end <= start {
-            continue;
-        }
-        let at = |d: f64| {
-            let t = ((d - start) / (end - start)).clamp(0.0, 1.0);
-            [
-                pair[0][0] + (pair[1][0] - pair[0][0]) * t,
-                pair[0][1] + (pair[1][1] - pair[0][1]) * t,
-            ]
-        };
-        if part.is_empty() {
-            part.push(at(from.max(start)));
-        }
-        part.push(at(to.min(end)));
-    }
+/// The part of `line` between stations `from` and `to` (`stations` rising along it): its
+/// ends found by [`bracket`], and the line's own points between them.
+fn part_of(line: &[Point], stations: &[f64], (from, to): (f64, f64)) -> Vec<Point> {
+    let at = |d: f64| {
+        let (k, t) = bracket(stations, d);
+        let (a, b) = (line[k - 1], line[k]);
+        [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]
+    };
+    let inside = stations.partition_point(|&s| s <= from)..stations.partition_point(|&s| s < to);
+    let mut part = vec![at(from)];
+    part.extend_from_slice(&line[inside]);
+    part.push(at(to));
     part
 }
 
