@@ -6,11 +6,11 @@
 
 use std::collections::BTreeMap;
 
-use terrastitch::features::buildings::{appearance, Finish, RoofShape, RoofSpec};
+use terrastitch::features::buildings::{appearance, RoofShape, RoofSpec};
 use terrastitch::features::{BuildingShape, FeatureClass, FeatureInfo};
 use terrastitch::geometry::{Point, Polygon};
 use terrastitch::mesh::buildings::{extrude, solid};
-use terrastitch::mesh::{MeshBuffers, Part};
+
 use terrastitch::osm::Tags;
 use terrastitch::output::glb::{self, TileDescription};
 use terrastitch::TileId;
@@ -96,7 +96,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         class: FeatureClass::Terrain,
         tags: Tags::default(),
     }];
-    let (mut walls, mut roofs) = (MeshBuffers::default(), MeshBuffers::default());
+    let mut parts = BTreeMap::new();
     let spacing = 30.0;
     for (row, shape) in shapes.iter().enumerate() {
         for (column, (name, rings)) in footprints().into_iter().enumerate() {
@@ -143,15 +143,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 drawn: true,
                 base: None,
                 appearance: appearance(&tags),
+                // Blank walls: the roofs are what the gallery shows.
+                facade: Default::default(),
                 passages: Vec::new(),
             };
             let shell = solid(&building, frame.size_m, 0.0, 0.0);
-            extrude(&building, &shell, &frame, &mut walls, &mut roofs);
+            extrude(&building, &shell, &frame, &mut parts);
         }
     }
-    let mut parts = BTreeMap::new();
-    parts.insert(Part::BuildingWalls(Finish::Matte), walls);
-    parts.insert(Part::BuildingRoofs(Finish::Matte), roofs);
     let description = TileDescription {
         tile,
         bounds: tile.bounds(),

@@ -6,8 +6,9 @@
 Each building (by OSM id, once however many tiles hold it) is counted by its `building` value
 and its roof: the `roof:shape` tagged, else the one the tile says it inferred. Footprint areas
 come from the extract (pyosmium). Prints, as JSON: the roof shapes by building type, the share
-of untagged buildings under 300 m² with a pitched roof, and for each tile its buildings and
-the distinct roof colours it inferred.
+of untagged buildings under 300 m² with a pitched roof, the buildings of two levels or more
+(tagged or inferred) with windows (drawn in a `facade_*` material) and those without by type,
+and for each tile its buildings and the distinct roof colours it inferred.
 """
 
 import json
@@ -19,8 +20,8 @@ from collections import Counter, defaultdict
 import osmium
 
 
-def property_table(path):
-    """The rows of a glb's feature table, as dicts of its string and id properties."""
+def glb_chunks(path):
+    """A glb's JSON document and binary chunk."""
     data = open(path, "rb").read()
     magic, _, _ = struct.unpack_from("<III", data, 0)
     if magic != 0x46546C67:
@@ -30,8 +31,38 @@ def property_table(path):
         length, kind = struct.unpack_from("<II", data, offset)
         chunks[kind] = data[offset + 8 : offset + 8 + length]
         offset += 8 + length
-    document = json.loads(chunks[0x4E4F534A])
-    binary = chunks.get(0x004E4942, b"")
+    return json.loads(chunks[0x4E4F534A]), chunks.get(0x004E4942, b"")
+
+
+def glazed_features(path):
+    """The feature ids drawn in a facade material (with windows), of a plain (not compressed)
+    glb."""
+    document, binary = glb_chunks(path)
+    glazed = set()
+    for mesh in document["meshes"]:
+        for primitive in mesh["primitives"]:
+            material = document["materials"][primitive["material"]].get("name", "")
+            if not material.startswith("facade"):
+                continue
+            accessor = document["accessors"][primitive["attributes"]["_FEATURE_ID_0"]]
+            view = document["bufferViews"][accessor["bufferView"]]
+            start = view.get("byteOffset", 0) + accessor.get("byteOffset", 0)
+            if accessor["componentType"] == 5123:
+                stride = view.get("byteStride", 2)
+                glazed.update(
+                    struct.unpack_from("<H", binary, start + i * stride)[0]
+                    for i in range(accessor["count"])
+                )
+            else:
+                glazed.update(
+                    int(v) for v in struct.unpack_from(f"<{accessor['count']}f", binary, start)
+                )
+    return glazed
+
+
+def property_table(path):
+    """The rows of a glb's feature table, as dicts of its string and id properties."""
+    document, binary = glb_chunks(path)
     views = document["bufferViews"]
 
     def view(index):
@@ -84,14 +115,23 @@ def main():
     areas.apply_file(sys.argv[1], locations=True)
     seen = {}
     tiles = {}
+    windows = {}
     for path in sys.argv[2:]:
         buildings, colours = 0, set()
-        for row in property_table(path):
+        glazed = glazed_features(path)
+        for feature, row in enumerate(property_table(path)):
             if row.get("class") != "building" or row.get("osm_type") != "way":
                 continue
             buildings += 1
             tags = json.loads(row["tags"] or "{}")
             inferred = json.loads(row.get("inferred") or "{}")
+            try:
+                levels = float(tags.get("building:levels") or inferred.get("building:levels"))
+            except (TypeError, ValueError):
+                levels = 0
+            if levels >= 2:
+                has = feature in glazed or windows.get(row["osm_id"], (None, False))[1]
+                windows[row["osm_id"]] = (tags.get("building", "yes"), has)
             if "roof:colour" in inferred:
                 colours.add(inferred["roof:colour"])
             tagged = tags.get("roof:shape")
@@ -105,6 +145,7 @@ def main():
         if not tagged and areas.areas.get(osm_id, math.inf) < 300:
             small["pitched" if shape != "flat" else "flat"] += 1
     total_small = sum(small.values())
+    unglazed = Counter(kind for kind, has in windows.values() if not has)
     print(
         json.dumps(
             {
@@ -113,6 +154,9 @@ def main():
                 "pitched_share_untagged_under_300m2": small["pitched"] / total_small
                 if total_small
                 else None,
+                "two_levels_or_more": len(windows),
+                "of_them_with_windows": sum(1 for _, has in windows.values() if has),
+                "without_windows_by_type": dict(unglazed.most_common()),
                 "shapes_by_type": {
                     k: dict(v.most_common())
                     for k, v in sorted(by_type.items(), key=lambda kv: -sum(kv[1].values()))

@@ -14,7 +14,8 @@ use std::collections::HashMap;
 use tracing::debug;
 
 use super::{
-    inference, Area, BuildingShape, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface,
+    facades, inference, Area, BuildingShape, FeatureClass, FeatureSet, FeatureSettings, Projection,
+    Surface,
 };
 use crate::osm::units::{parse_count, parse_length_m};
 use crate::osm::{ElementRef, Relation, Tags};
@@ -592,6 +593,7 @@ pub(super) fn add_area(
     let mut roof = roof_spec(area.tags, settings);
     let mut appearance = appearance(area.tags);
     let mut inferred = Vec::new();
+    let mut levels = tagged_levels(area.tags);
     if !part {
         let outlines: Vec<&[crate::osm::LonLat]> =
             area.polygons.iter().map(|p| p.outer.as_slice()).collect();
@@ -600,8 +602,15 @@ pub(super) fn add_area(
         {
             inferred = apply_inferred(&guess, area.tags, settings, (&mut height, &mut roof));
             appearance = appearance_or(area.tags, linear(guess.colours));
+            levels = levels.or(guess.levels.map(f64::from));
         }
     }
+    let largest = area
+        .polygons
+        .iter()
+        .filter_map(|p| inference::Footprint::of(&p.outer))
+        .max_by(|a, b| a.area_m2.total_cmp(&b.area_m2));
+    let facade = facades::facade(area.tags, largest.as_ref(), levels, settings);
     let min_height = min_height_m(area.tags, settings).min(height);
     let feature = set.add_feature(Some(area.element), FeatureClass::Building, area.tags);
     set.features[feature as usize].inferred = inferred;
@@ -617,6 +626,7 @@ pub(super) fn add_area(
             drawn: true,
             base: None,
             appearance,
+            facade,
             passages: Vec::new(),
         });
     }
@@ -783,6 +793,7 @@ mod tests {
                 drawn: true,
                 base: None,
                 appearance: appearance(&t),
+                facade: Default::default(),
                 passages: Vec::new(),
             });
         }
@@ -831,6 +842,7 @@ mod tests {
                 drawn: true,
                 base: None,
                 appearance: appearance(&t),
+                facade: Default::default(),
                 passages: Vec::new(),
             });
         };

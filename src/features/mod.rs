@@ -11,6 +11,7 @@ pub mod barriers;
 pub mod buildings;
 pub mod carriageways;
 pub mod coastline;
+pub mod facades;
 pub mod inference;
 pub mod landcover;
 pub mod markings;
@@ -230,6 +231,8 @@ pub struct BuildingShape {
     /// part outside any.
     pub base: Option<usize>,
     pub appearance: buildings::Appearance,
+    /// What its walls show: windows by level and bay, shop windows, or nothing.
+    pub facade: facades::Facade,
     /// The surfaces of the roads that pass through the building (`tunnel=building_passage`)
     /// whose bounds meet its footprint: the walls open over them, its floors above.
     pub passages: Vec<Polygon>,

@@ -507,6 +507,8 @@ fn block_shape(
         drawn: true,
         base: None,
         appearance: buildings::appearance(&Tags::default()),
+        // Far views draw walls without windows.
+        facade: Default::default(),
         passages: Vec::new(),
     }
 }

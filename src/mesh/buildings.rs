@@ -13,8 +13,8 @@ use super::roofs::{
     bend, centred_roof, long_axis, profile_roof, skeleton_roof, spread, CentredRoof, RoofEnd,
     RoofError, RoofMesh, SkeletonRoof,
 };
-use super::{newell, passages, MeshBuffers, Part};
-use crate::features::buildings::{Finish, RoofShape, RoofSpec};
+use super::{facades, newell, passages, MeshBuffers, Part};
+use crate::features::buildings::{RoofShape, RoofSpec};
 use crate::features::BuildingShape;
 use crate::geometry::constrained::triangulate_polygon;
 use crate::geometry::{clip_to_rect, signed_area2, Point, Polygon};
@@ -93,6 +93,8 @@ pub struct Solid {
     pub roof: Vec<[[f64; 3]; 3]>,
     /// True when the roof is flat (one normal for all its triangles).
     pub flat_roof: bool,
+    /// The elevation of the eaves (the top of a flat roof), metres: the walls' levels end here.
+    pub eaves: f64,
     /// The bottom, facing down: under a part that floats, underground otherwise.
     pub floor: Vec<[[f64; 3]; 3]>,
     /// True for a part above the ground (`min_height`).
@@ -246,6 +248,7 @@ pub fn solid_over_passages(
         }
         None => top,
     };
+    solid.eaves = eaves;
     let carving = carving.and_then(|c| c.with_ceiling(&ground_at, eaves));
     // Walls: the building lies left of every edge (outer ring counter-clockwise, holes
     // clockwise), so `a, b` at the bottom then `b, a` at the eaves faces outwards.
@@ -329,35 +332,24 @@ fn plan_ring(ring: &[Point], origin: Point, size_m: f64) -> Vec<Point> {
         .collect()
 }
 
-/// The buildings drawn in the tile as parts, one primitive per finish of walls and of roofs;
-/// `sample_step_uv` is how finely the ground under them is sampled.
+/// The buildings drawn in the tile as parts: one primitive per finish of blank walls and of
+/// roofs, and per glazing of walls with windows; `sample_step_uv` is how finely the ground
+/// under them is sampled.
 pub fn build(
     buildings: &[BuildingShape],
     frame: &TileFrame,
     terrain: &TerrainModel<'_>,
     ground: &dyn Elevation,
     sample_step_uv: f64,
-) -> Vec<(Part, MeshBuffers)> {
-    let mut walls: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
-    let mut roofs: BTreeMap<Finish, MeshBuffers> = BTreeMap::new();
+) -> BTreeMap<Part, MeshBuffers> {
+    let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
     let solids = solids(buildings, frame, terrain, ground, sample_step_uv);
     for (building, solid) in buildings.iter().zip(&solids) {
         if let Some(solid) = solid {
-            let look = &building.appearance;
-            extrude(
-                building,
-                solid,
-                frame,
-                walls.entry(look.wall_finish).or_default(),
-                roofs.entry(look.roof_finish).or_default(),
-            );
+            extrude(building, solid, frame, &mut parts);
         }
     }
-    walls
-        .into_iter()
-        .map(|(f, b)| (Part::BuildingWalls(f), b))
-        .chain(roofs.into_iter().map(|(f, b)| (Part::BuildingRoofs(f), b)))
-        .collect()
+    parts
 }
 
 /// The shells of the buildings drawn in the tile (`None` for the others), each on the ground
@@ -397,46 +389,88 @@ pub fn solids(
         .collect()
 }
 
-/// Adds the part of a building's shell inside the tile: walls, roof and floor.
+/// Adds the part of a building's shell inside the tile to `parts`: walls (with windows where
+/// its facade has them), roof and floor.
 pub fn extrude(
     building: &BuildingShape,
     solid: &Solid,
     frame: &TileFrame,
-    walls: &mut MeshBuffers,
-    roofs: &mut MeshBuffers,
+    parts: &mut BTreeMap<Part, MeshBuffers>,
 ) {
     let rect = crate::features::tile_rect(frame.tile);
-    walls.paint(building.appearance.walls);
-    roofs.paint(building.appearance.roof);
-    // Each face clipped to the tile in the plan, its height carried along.
-    let place = |face: &[[f64; 3]]| -> Vec<[f64; 3]> {
-        let uv: Vec<[f64; 3]> = face
+    let look = &building.appearance;
+    // Each face clipped to the tile in the plan, its height (and texture coordinates) carried
+    // along.
+    let place = |face: &[[f64; 3]], uvs: Option<&[[f64; 2]]>| {
+        let lifted: Vec<[f64; 5]> = face
             .iter()
-            .map(|c| {
+            .enumerate()
+            .map(|(i, c)| {
                 let [u, v] = solid.to_uv(c[0], c[1]);
-                [u, v, c[2]]
+                let [s, t] = uvs.map_or([0.0; 2], |uvs| uvs[i]);
+                [u, v, c[2], s, t]
             })
             .collect();
-        clip_to_rect(&uv, &rect)
-            .into_iter()
-            .map(|[u, v, elevation]| {
+        let clipped = clip_to_rect(&lifted, &rect);
+        let corners: Vec<[f64; 3]> = clipped
+            .iter()
+            .map(|&[u, v, elevation, ..]| {
                 let (x, z) = frame.uv_to_local(u, v);
                 [x, frame.elevation_to_y(elevation, z), z]
             })
-            .collect()
+            .collect();
+        let uvs: Vec<[f64; 2]> = clipped
+            .iter()
+            .map(|&[.., s, t]| facades::snapped([s, t]))
+            .collect();
+        (corners, uvs)
     };
     // The plan's (x, y, elevation) is the local frame's (x, z, y).
     let facing = |face: &[[f64; 3]]| {
         let n = newell(face);
         [n[0], n[2], n[1]]
     };
+    let facade = &building.facade;
+    let levels = facades::Levels::new(facade, solid.ground, solid.eaves);
     for face in &solid.walls {
-        walls.push_flat_polygon(&place(face), facing(face), building.feature);
+        let pieces = match (facade.ground, facade.upper) {
+            (Some(ground), upper) => {
+                let (below, above) = facades::split_at(face, levels.ground_floor_top());
+                [(below, Some(ground)), (above, upper)]
+            }
+            (None, upper) => [(face.clone(), upper), (Vec::new(), None)],
+        };
+        for (piece, glazing) in pieces.iter().filter(|(p, _)| p.len() >= 3) {
+            let across = glazing.and_then(|g| {
+                let bay = if Some(g) == facade.upper {
+                    facade.bay_m
+                } else {
+                    g.bay_m()
+                };
+                facades::Across::of(face, bay).map(|a| (g, a))
+            });
+            match across {
+                Some((glazing, across)) => {
+                    let (corners, uvs) = place(piece, Some(&across.uvs(piece, &levels)));
+                    painted(parts, Part::Facade(glazing), look.walls).push_textured_polygon(
+                        &corners,
+                        &uvs,
+                        facing(face),
+                        building.feature,
+                    );
+                }
+                None => {
+                    let (corners, _) = place(piece, None);
+                    painted(parts, Part::BuildingWalls(look.wall_finish), look.walls)
+                        .push_flat_polygon(&corners, facing(face), building.feature);
+                }
+            }
+        }
     }
     let fan = |triangles: &[[[f64; 3]; 3]]| -> Vec<[[f64; 3]; 3]> {
         let mut out = Vec::with_capacity(triangles.len());
         for t in triangles {
-            let corners = place(t);
+            let (corners, _) = place(t, None);
             for i in 1..corners.len().saturating_sub(1) {
                 out.push([corners[0], corners[i], corners[i + 1]]);
             }
@@ -445,14 +479,31 @@ pub fn extrude(
     };
     // The floor closes the shell (under the ground where the building stands on it), so a
     // building is a closed solid in the tile for printing, volumes and shadow volumes.
-    walls.push_flat_triangles(&fan(&solid.floor), [0.0, -1.0, 0.0], building.feature);
+    painted(parts, Part::BuildingWalls(look.wall_finish), look.walls).push_flat_triangles(
+        &fan(&solid.floor),
+        [0.0, -1.0, 0.0],
+        building.feature,
+    );
+    let roofs = painted(parts, Part::BuildingRoofs(look.roof_finish), look.roof);
     if solid.flat_roof {
         roofs.push_flat_triangles(&fan(&solid.roof), [0.0, 1.0, 0.0], building.feature);
     } else {
         for triangle in &solid.roof {
-            roofs.push_flat_polygon(&place(triangle), facing(triangle), building.feature);
+            let (corners, _) = place(triangle, None);
+            roofs.push_flat_polygon(&corners, facing(triangle), building.feature);
         }
     }
+}
+
+/// The buffers of a part, painted from now on in `colour`.
+fn painted(
+    parts: &mut BTreeMap<Part, MeshBuffers>,
+    part: Part,
+    colour: [u8; 4],
+) -> &mut MeshBuffers {
+    let buffers = parts.entry(part).or_default();
+    buffers.paint(colour);
+    buffers
 }
 
 /// Untagged roof heights are rise per run times these shares of the footprint's width across

@@ -3,6 +3,7 @@
 
 pub mod barriers;
 pub mod buildings;
+pub mod facades;
 pub mod flatten;
 pub mod ground;
 pub mod ground_parts;
@@ -20,6 +21,7 @@ pub mod tin;
 
 use crate::features::barriers::BarrierKind;
 use crate::features::buildings::Finish;
+use crate::features::facades::Glazing;
 use crate::features::landcover::Cover;
 use crate::features::objects::ObjectKind;
 use crate::features::roads::Paving;
@@ -36,6 +38,8 @@ pub enum Part {
     LandCover(Cover),
     BuildingWalls(Finish),
     BuildingRoofs(Finish),
+    /// Walls with windows: textured a bay wide and a level high.
+    Facade(Glazing),
     Barrier(BarrierKind),
     Object(ObjectKind),
     PowerLine,
@@ -68,7 +72,9 @@ impl Part {
             Part::Railway => FeatureClass::Railway,
             Part::Water => FeatureClass::Water,
             Part::LandCover(_) => FeatureClass::LandCover,
-            Part::BuildingWalls(_) | Part::BuildingRoofs(_) => FeatureClass::Building,
+            Part::BuildingWalls(_) | Part::BuildingRoofs(_) | Part::Facade(_) => {
+                FeatureClass::Building
+            }
             Part::TreeTrunk | Part::TreeCrown(..) => FeatureClass::Vegetation,
             Part::Barrier(_) => FeatureClass::Barrier,
             Part::Object(_) | Part::PowerLine | Part::Stairs => FeatureClass::Object,
@@ -91,6 +97,10 @@ impl Part {
             Part::BuildingRoofs(Finish::Matte) => "building_roofs",
             Part::BuildingRoofs(Finish::Metal) => "building_roofs_metal",
             Part::BuildingRoofs(Finish::Glass) => "building_roofs_glass",
+            Part::Facade(Glazing::Punched) => "facade_punched",
+            Part::Facade(Glazing::Ribbon) => "facade_ribbon",
+            Part::Facade(Glazing::Shopfront) => "facade_shopfront",
+            Part::Facade(Glazing::CurtainWall) => "facade_curtain_wall",
             Part::TreeTrunk => "tree_trunk",
             Part::Barrier(kind) => kind.as_str(),
             Part::Object(kind) => kind.as_str(),
@@ -192,6 +202,9 @@ pub struct MeshBuffers {
     /// base colour is then white and each feature carries its own colour.
     pub colours: Vec<[u8; 4]>,
     paint: Option<[u8; 4]>,
+    /// Texture coordinates per vertex, when the buffers are textured (every vertex pushed by
+    /// [`MeshBuffers::push_textured_polygon`]); empty otherwise.
+    pub uvs: Vec<[f32; 2]>,
 }
 
 impl MeshBuffers {
@@ -232,6 +245,7 @@ impl MeshBuffers {
         retain_marked(&mut self.normals, &kept);
         retain_marked(&mut self.feature_ids, &kept);
         retain_marked(&mut self.colours, &kept);
+        retain_marked(&mut self.uvs, &kept);
         let before = self.triangle_count();
         self.indices = self
             .indices
@@ -256,6 +270,29 @@ impl MeshBuffers {
     /// Adds a flat convex polygon (corners in order, either winding) as a fan sharing its
     /// vertices, front towards `facing`. Degenerate polygons are skipped.
     pub fn push_flat_polygon(&mut self, corners: &[[f64; 3]], facing: [f64; 3], feature: u32) {
+        self.push_polygon(corners, None, facing, feature);
+    }
+
+    /// Adds a flat convex polygon as [`MeshBuffers::push_flat_polygon`] does, with a texture
+    /// coordinate at each corner. Buffers are either textured throughout or not at all.
+    pub fn push_textured_polygon(
+        &mut self,
+        corners: &[[f64; 3]],
+        uvs: &[[f64; 2]],
+        facing: [f64; 3],
+        feature: u32,
+    ) {
+        debug_assert_eq!(corners.len(), uvs.len());
+        self.push_polygon(corners, Some(uvs), facing, feature);
+    }
+
+    fn push_polygon(
+        &mut self,
+        corners: &[[f64; 3]],
+        uvs: Option<&[[f64; 2]]>,
+        facing: [f64; 3],
+        feature: u32,
+    ) {
         if corners.len() < 3 {
             return;
         }
@@ -267,6 +304,9 @@ impl MeshBuffers {
         let first = self.positions.len() as u32;
         for &corner in corners {
             self.push_vertex(corner, normal, feature);
+        }
+        if let Some(uvs) = uvs {
+            self.uvs.extend(uvs.iter().map(|uv| uv.map(|c| c as f32)));
         }
         for i in 1..corners.len() as u32 - 1 {
             // Corners in a row on one side (a wall's top passing through a roof's bends) would

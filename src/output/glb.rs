@@ -25,6 +25,7 @@ use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
 use serde_json::{json as value, Value};
 
+use crate::features::facades::Glazing;
 use crate::features::{FeatureClass, FeatureInfo};
 use crate::format::{Frame, Variant};
 use crate::geoid::VerticalDatum;
@@ -36,6 +37,7 @@ use crate::tile::{LonLatBounds, TileId};
 use materials::{material_of, metallic_of};
 use metadata::write_property_table;
 
+mod facades;
 mod materials;
 mod metadata;
 
@@ -96,6 +98,9 @@ struct BinaryBuilder {
     root: json::Root,
     /// With meshopt: the length of the fallback buffer the compressed views decode into.
     fallback: Option<usize>,
+    /// The facade textures written so far, and the sampler they share.
+    textures: BTreeMap<Glazing, json::Index<json::Texture>>,
+    sampler: Option<json::Index<json::texture::Sampler>>,
 }
 
 impl BinaryBuilder {
@@ -329,6 +334,9 @@ fn reordered(buffers: &MeshBuffers) -> MeshBuffers {
     if buffers.colours.len() == count {
         out.colours = order.iter().map(|&i| buffers.colours[i]).collect();
     }
+    if buffers.uvs.len() == count {
+        out.uvs = order.iter().map(|&i| buffers.uvs[i]).collect();
+    }
     out
 }
 
@@ -357,6 +365,8 @@ pub fn write(
         bytes: Vec::new(),
         root: json::Root::default(),
         fallback: variant.meshopt.then_some(0),
+        textures: BTreeMap::new(),
+        sampler: None,
     };
 
     let mut nodes = Vec::new();
@@ -479,6 +489,12 @@ fn declare_extensions(builder: &mut BinaryBuilder, has_instances: bool) {
         for extension in ["KHR_mesh_quantization", "EXT_meshopt_compression"] {
             builder.root.extensions_used.push(extension.to_string());
             builder.root.extensions_required.push(extension.to_string());
+        }
+        // Facade texture coordinates are whole texels, scaled back by the texture's transform.
+        if !builder.textures.is_empty() {
+            let extension = facades::TEXTURE_TRANSFORM.to_string();
+            builder.root.extensions_used.push(extension.clone());
+            builder.root.extensions_required.push(extension);
         }
     }
 }
@@ -622,6 +638,8 @@ fn write_primitive(
             json::accessor::Type::Vec4,
         )
     });
+    let uvs = (!buffers.uvs.is_empty() && buffers.uvs.len() == count)
+        .then(|| facades::write_uvs(builder, &buffers.uvs, compressed));
     let material = write_material(builder, part, painted);
 
     let distinct: BTreeSet<u32> = buffers.feature_ids.iter().copied().collect();
@@ -630,6 +648,9 @@ fn write_primitive(
     attributes.insert(Valid(json::mesh::Semantic::Normals), normals);
     if let Some(colours) = colours {
         attributes.insert(Valid(json::mesh::Semantic::Colors(0)), colours);
+    }
+    if let Some(uvs) = uvs {
+        attributes.insert(Valid(json::mesh::Semantic::TexCoords(0)), uvs);
     }
     attributes.insert(
         Valid(json::mesh::Semantic::Extras("FEATURE_ID_0".to_string())),
@@ -794,10 +815,15 @@ fn write_material(
     if painted {
         colour = [1.0, 1.0, 1.0, 1.0];
     }
+    let base_color_texture = match part {
+        Part::Facade(glazing) => Some(facades::texture_info(builder, glazing)),
+        _ => None,
+    };
     builder.root.push(json::Material {
         name: Some(part.name().to_string()),
         pbr_metallic_roughness: json::material::PbrMetallicRoughness {
             base_color_factor: json::material::PbrBaseColorFactor(colour),
+            base_color_texture,
             metallic_factor: json::material::StrengthFactor(metallic_of(part)),
             roughness_factor: json::material::StrengthFactor(roughness),
             ..Default::default()

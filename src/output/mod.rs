@@ -4,5 +4,6 @@ pub mod debug;
 pub mod enu;
 pub mod glb;
 pub mod layer;
+pub mod png;
 pub mod quantized_mesh;
 pub mod tileset;

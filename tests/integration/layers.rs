@@ -144,7 +144,10 @@ const CRATES: &[(&str, &[&str])] = &[
     ("quick_xml", &["source/osc.rs"]),
     ("zip", &["source/srtm.rs"]),
     ("tiff", &["source/geotiff.rs"]),
-    ("flate2", &["inflate.rs", "cache/", "source/"]),
+    (
+        "flate2",
+        &["inflate.rs", "cache/", "source/", "output/png.rs"],
+    ),
     ("brotli", &["inflate.rs", "cache/"]),
     (
         "moka",

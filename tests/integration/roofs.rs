@@ -101,7 +101,11 @@ fn an_untagged_church_gets_a_gabled_roof() {
             .collect()
     };
     let roofs = triangles("building_roofs");
-    let walls = triangles("building_walls");
+    // Walls with windows or blank, and their gables.
+    let walls: Vec<_> = ["building_walls", "facade_punched"]
+        .iter()
+        .flat_map(|m| triangles(m))
+        .collect();
     let sloped = roofs
         .iter()
         .filter(|(_, n)| (0.3..0.95).contains(&n[1]))

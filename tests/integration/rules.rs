@@ -1,6 +1,7 @@
 //! Rules of what a tile draws, each on a hand-written fixture rendered whole, as the server
 //! renders a tile: the sea on its side of a coastline, a river's width, a roof's tagged height,
-//! a passage through a building, the lines painted on a road. Fast: no extract is read.
+//! a passage through a building, the windows of its facade, the lines painted on a road. Fast:
+//! no extract is read.
 
 use crate::common::fixture::{at, terrain, Fixture, TILE};
 use crate::common::{corners, decode, DecodedTile, GroundLocator};
@@ -131,11 +132,118 @@ fn a_gabled_roof_rises_its_tagged_height_above_walls_of_the_tagged_height() {
         "roof {} m high",
         ridge - eaves
     );
-    let (_, wall_top) = height_range(&tile, "building", "building_walls");
+    let (_, wall_top) = height_range(&tile, "building", "facade_punched");
     assert!(
         (wall_top - ridge).abs() < 1e-3,
         "the gables reach the ridge"
     );
+}
+
+/// The feature row of the one building whose `building` tag is `kind`.
+fn building_row(tile: &DecodedTile, kind: &str) -> u32 {
+    let rows: Vec<usize> = (0..tile.features.len())
+        .filter(|&i| {
+            tile.features[i]
+                .tags
+                .get("building")
+                .and_then(|v| v.as_str())
+                == Some(kind)
+        })
+        .collect();
+    assert_eq!(rows.len(), 1, "one {kind}");
+    rows[0] as u32
+}
+
+/// The texture coordinates of the wall triangles of one feature drawn in `material`.
+fn wall_uvs(tile: &DecodedTile, material: &str, feature: u32) -> Vec<[[f32; 2]; 3]> {
+    tile.primitives("building")
+        .iter()
+        .filter(|p| p.material == material)
+        .flat_map(|p| {
+            assert_eq!(p.uvs.len(), p.positions.len(), "{material} is textured");
+            p.triangles()
+                .filter(move |t| p.feature_ids[t[0]] == feature)
+                .map(move |t| t.map(|i| p.uvs[i]))
+        })
+        .collect()
+}
+
+#[test]
+fn a_house_has_windows_by_level_and_bay_a_shop_has_shop_windows_and_a_garage_none() {
+    let mut fixture = Fixture::default();
+    fixture
+        .area(
+            &[
+                ("building", "house"),
+                ("building:levels", "2"),
+                ("roof:shape", "flat"),
+            ],
+            (0.40, 0.40),
+            (0.406, 0.405),
+        )
+        .area(
+            &[
+                ("building", "apartments"),
+                ("building:levels", "4"),
+                ("shop", "bakery"),
+            ],
+            (0.45, 0.40),
+            (0.46, 0.41),
+        )
+        .area(&[("building", "garage")], (0.42, 0.40), (0.424, 0.403));
+    let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+    let (house, shop, garage) = (
+        building_row(&tile, "house"),
+        building_row(&tile, "apartments"),
+        building_row(&tile, "garage"),
+    );
+    // The house: its two levels of windows, the top of its walls two levels up, every wall a
+    // whole number of bays wide.
+    let triangles = wall_uvs(&tile, "facade_punched", house);
+    assert!(triangles.len() >= 8, "{} wall triangles", triangles.len());
+    let vs: Vec<f32> = triangles.iter().flatten().map(|uv| uv[1]).collect();
+    let top = vs.iter().copied().fold(f32::MAX, f32::min);
+    assert!((top + 2.0).abs() < 1e-4, "the walls end {} levels up", -top);
+    for triangle in &triangles {
+        let us = triangle.map(|uv| uv[0]);
+        for u in us {
+            let whole = u.round();
+            assert!(
+                (u - whole).abs() < 1e-4,
+                "a wall's corners are at whole bays: {us:?}"
+            );
+        }
+    }
+    let widest = triangles
+        .iter()
+        .flat_map(|t| t.map(|uv| uv[0]))
+        .fold(0.0f32, f32::max);
+    assert!(widest >= 1.0, "{widest} bays");
+    // The shop: shop windows on the ground floor, windows above, none of them crossing.
+    let ground_floor = wall_uvs(&tile, "facade_shopfront", shop);
+    assert!(!ground_floor.is_empty(), "shop windows");
+    assert!(ground_floor.iter().flatten().all(|uv| uv[1] >= -1.0 - 1e-4));
+    let upper = wall_uvs(&tile, "facade_punched", shop);
+    let upper_v: Vec<f32> = upper.iter().flatten().map(|uv| uv[1]).collect();
+    assert!(upper_v.iter().all(|&v| v <= -1.0 + 1e-4), "{upper_v:?}");
+    assert!(
+        upper_v.iter().any(|&v| (v + 4.0).abs() < 1e-4),
+        "four levels"
+    );
+    // The garage: blank walls only.
+    for primitive in tile.primitives("building") {
+        let glazed = primitive.material.starts_with("facade");
+        assert!(
+            !(glazed && primitive.feature_ids.contains(&garage)),
+            "a garage in {}",
+            primitive.material
+        );
+    }
+    let blank = tile
+        .primitives("building")
+        .iter()
+        .any(|p| p.material == "building_walls" && p.feature_ids.contains(&garage));
+    assert!(blank, "the garage's walls are drawn blank");
 }
 
 #[test]

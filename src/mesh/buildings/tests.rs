@@ -27,6 +27,7 @@ fn building(pairs: &[(&str, &str)], outer: &[Point]) -> BuildingShape {
         drawn: true,
         base: None,
         appearance: appearance(&tags),
+        facade: crate::features::facades::facade(&tags, None, None, &settings),
         passages: Vec::new(),
     }
 }

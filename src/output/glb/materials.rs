@@ -22,6 +22,7 @@ pub(super) fn material_of(part: Part) -> ([f32; 4], f32) {
         Part::LandCover(cover) => cover.material(),
         Part::BuildingWalls(finish) => ([0.86, 0.80, 0.70, 1.0], finish.metallic_roughness().1),
         Part::BuildingRoofs(finish) => ([0.62, 0.36, 0.30, 1.0], finish.metallic_roughness().1),
+        Part::Facade(glazing) => ([0.86, 0.80, 0.70, 1.0], super::facades::roughness(glazing)),
         Part::TreeTrunk => ([0.22, 0.15, 0.09, 1.0], 0.95),
         Part::Barrier(kind) => kind.material(),
         Part::Object(kind) => kind.material(),

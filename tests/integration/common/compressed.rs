@@ -248,6 +248,7 @@ pub fn decode_compressed(bytes: &[u8]) -> CompressedTile {
                 normals,
                 feature_ids,
                 indices,
+                ..Primitive::default()
             });
         }
         if let Some(grid) = grid {

@@ -328,6 +328,8 @@ pub struct Primitive {
     pub normals: Vec<[f32; 3]>,
     pub feature_ids: Vec<u32>,
     pub indices: Vec<u32>,
+    /// Texture coordinates, where the primitive is textured.
+    pub uvs: Vec<[f32; 2]>,
 }
 
 impl Primitive {
@@ -419,12 +421,17 @@ pub fn decode(bytes: &[u8]) -> DecodedTile {
                 other => panic!("feature ids of type {other:?}"),
             };
             assert_eq!(feature_ids.len(), positions.len());
+            let uvs: Vec<[f32; 2]> = reader
+                .read_tex_coords(0)
+                .map(|t| t.into_f32().collect())
+                .unwrap_or_default();
             primitives.push(Primitive {
                 material: primitive.material().name().unwrap_or_default().to_string(),
                 positions,
                 normals,
                 feature_ids,
                 indices,
+                uvs,
             });
         }
         nodes.insert(name, primitives);
