@@ -4,8 +4,9 @@
 //! up it; the glazing says what fills a bay. Houses, flats and hotels have windows punched in
 //! the wall; offices, schools and hospitals wide windows between narrow piers; a shop, a café or
 //! a retail building has shop windows on its ground floor; a glass building is a curtain wall.
-//! Garages, sheds, barns, tanks and single-storey industrial halls have blank walls, as do
-//! buildings too small to live in.
+//! Garages, sheds, tanks, single-storey industrial halls and farm buildings have blank walls,
+//! as do buildings too small to live in; halls and farm buildings of two levels or more have
+//! windows.
 
 use super::inference::Footprint;
 use super::FeatureSettings;
@@ -97,11 +98,6 @@ fn is_blank(building: &str) -> bool {
             | "carport"
             | "shed"
             | "roof"
-            | "barn"
-            | "cowshed"
-            | "stable"
-            | "sty"
-            | "farm_auxiliary"
             | "storage_tank"
             | "tank"
             | "silo"
@@ -122,6 +118,15 @@ fn is_hall(building: &str) -> bool {
     matches!(
         building,
         "industrial" | "warehouse" | "manufacture" | "factory" | "hangar" | "sports_hall"
+    )
+}
+
+/// Farm buildings: blank walls on one level (a shed, a stall), small windows on the walls of
+/// two levels or more (the gables stay blank).
+fn is_farm_building(building: &str) -> bool {
+    matches!(
+        building,
+        "barn" | "cowshed" | "stable" | "sty" | "farm_auxiliary"
     )
 }
 
@@ -195,6 +200,8 @@ pub fn facade(
         None
     } else if is_hall(building) {
         several_levels.then_some(Glazing::Ribbon)
+    } else if is_farm_building(building) {
+        several_levels.then_some(Glazing::Punched)
     } else if is_ribbon(building) || (building == "yes" && area >= LARGE_UNTAGGED_M2) {
         Some(Glazing::Ribbon)
     } else {
@@ -279,7 +286,7 @@ mod tests {
             of(&[("building", "office")], 400.0).upper,
             Some(Glazing::Ribbon)
         );
-        for blank in ["garage", "shed", "barn", "storage_tank", "roof"] {
+        for blank in ["garage", "shed", "barn", "stable", "storage_tank", "roof"] {
             let facade = of(&[("building", blank)], 60.0);
             assert!(!facade.is_glazed(), "{blank}: {facade:?}");
         }
@@ -299,6 +306,20 @@ mod tests {
         assert_eq!(
             facade(&hall, Some(&house(3000.0)), Some(3.0), &s).upper,
             Some(Glazing::Ribbon)
+        );
+    }
+
+    #[test]
+    fn a_barn_of_two_levels_has_windows() {
+        let s = FeatureSettings::default();
+        let barn = tags(&[("building", "barn")]);
+        assert_eq!(
+            facade(&barn, Some(&house(200.0)), Some(1.0), &s).upper,
+            None
+        );
+        assert_eq!(
+            facade(&barn, Some(&house(200.0)), Some(2.0), &s).upper,
+            Some(Glazing::Punched)
         );
     }
 
