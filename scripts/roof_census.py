@@ -73,13 +73,21 @@ def property_table(path):
     table = document["extensions"]["EXT_structural_metadata"]["propertyTables"][0]
     count = table["count"]
     rows = [dict() for _ in range(count)]
+    schema = document["extensions"]["EXT_structural_metadata"]["schema"]
+    declared = schema["classes"][table["class"]]["properties"]
     for name, prop in table["properties"].items():
         values = view(prop["values"])
+        enum_type = declared[name].get("enumType")
         if "stringOffsets" in prop:
             offsets = view(prop["stringOffsets"])
-            bounds = struct.unpack_from(f"<{count + 1}I", offsets, 0)
+            kind = "H" if prop.get("stringOffsetType") == "UINT16" else "I"
+            bounds = struct.unpack_from(f"<{count + 1}{kind}", offsets, 0)
             for i in range(count):
                 rows[i][name] = values[bounds[i] : bounds[i + 1]].decode("utf-8")
+        elif enum_type is not None:
+            names = {v["value"]: v["name"] for v in schema["enums"][enum_type]["values"]}
+            for i in range(count):
+                rows[i][name] = names.get(values[i], "")
         else:
             ids = struct.unpack_from(f"<{count}q", values, 0)
             for i in range(count):

@@ -532,13 +532,22 @@ async function propertyTable(parser) {
     return views[index];
   };
   const columns = {};
+  const schema = metadata.schema ?? {};
+  const classProperties = schema.classes?.[table.class]?.properties ?? {};
   for (const [name, property] of Object.entries(table.properties)) {
     const values = await view(property.values);
+    const enumType = classProperties[name]?.enumType;
     if (property.stringOffsets !== undefined) {
-      const offsets = new Uint32Array(await view(property.stringOffsets));
+      const raw = await view(property.stringOffsets);
+      const offsets =
+        property.stringOffsetType === 'UINT16' ? new Uint16Array(raw) : new Uint32Array(raw);
       const bytes = new Uint8Array(values);
       const decoder = new TextDecoder();
       columns[name] = (i) => decoder.decode(bytes.subarray(offsets[i], offsets[i + 1]));
+    } else if (enumType !== undefined) {
+      const names = new Map((schema.enums?.[enumType]?.values ?? []).map((v) => [v.value, v.name]));
+      const bytes = new Uint8Array(values);
+      columns[name] = (i) => names.get(bytes[i]) ?? '';
     } else {
       const numbers = new BigInt64Array(values);
       columns[name] = (i) => numbers[i].toString();

@@ -459,10 +459,35 @@ pub fn read_features<'a>(
         let p = &table["properties"][property];
         let values = view_bytes(p["values"].as_u64().expect("values") as usize);
         let offsets = view_bytes(p["stringOffsets"].as_u64().expect("offsets") as usize);
-        let offset =
-            |i: usize| u32::from_le_bytes(offsets[i * 4..i * 4 + 4].try_into().unwrap()) as usize;
+        let offset = |i: usize| match p["stringOffsetType"].as_str() {
+            Some("UINT16") => {
+                u16::from_le_bytes(offsets[i * 2..i * 2 + 2].try_into().unwrap()) as usize
+            }
+            _ => u32::from_le_bytes(offsets[i * 4..i * 4 + 4].try_into().unwrap()) as usize,
+        };
         (0..count)
             .map(|i| String::from_utf8(values[offset(i)..offset(i + 1)].to_vec()).expect("utf-8"))
+            .collect()
+    };
+    // An enum column (one byte a row), by the names of its values.
+    let enums = |property: &str| -> Vec<String> {
+        let p = &table["properties"][property];
+        let schema = &root["extensions"]["EXT_structural_metadata"]["schema"];
+        let enum_type = schema["classes"]["osm_feature"]["properties"][property]["enumType"]
+            .as_str()
+            .expect("an enum property");
+        let names: BTreeMap<u64, String> = schema["enums"][enum_type]["values"]
+            .as_array()
+            .expect("enum values")
+            .iter()
+            .map(|v| {
+                let name = v["name"].as_str().expect("name").to_string();
+                (v["value"].as_u64().expect("value"), name)
+            })
+            .collect();
+        let values = view_bytes(p["values"].as_u64().expect("values") as usize);
+        (0..count)
+            .map(|i| names[&u64::from(values[i])].clone())
             .collect()
     };
     let ids = view_bytes(
@@ -471,8 +496,8 @@ pub fn read_features<'a>(
             .expect("ids") as usize,
     );
     let (osm_type, class, name, tags) = (
-        strings("osm_type"),
-        strings("class"),
+        enums("osm_type"),
+        enums("class"),
         strings("name"),
         strings("tags"),
     );
