@@ -761,10 +761,11 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         frame,
         &settled,
     ));
-    parts.insert(
-        Part::Marking,
-        mesh::markings::build(&feature_set.markings, frame, &settled),
-    );
+    parts.extend(mesh::markings::build(
+        &feature_set.markings,
+        frame,
+        &settled,
+    ));
     let drawn = mesh::instances::DrawnGround::new(ground, &vertex_y, frame, &settled);
     parts.insert(
         Part::Stairs,

@@ -485,7 +485,7 @@ function paintOverRoads(group) {
   group.traverse((o) => {
     const materials = Array.isArray(o.material) ? o.material : o.material ? [o.material] : [];
     for (const m of materials) {
-      if (m.name === 'marking') {
+      if (m.name === 'marking' || m.name === 'crossing') {
         m.polygonOffset = true;
         m.polygonOffsetFactor = -2;
         m.polygonOffsetUnits = -2;

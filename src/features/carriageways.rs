@@ -6,10 +6,10 @@
 
 use std::collections::HashMap;
 
-use super::markings;
 use super::road_network::{self, RoadLine};
 use super::roads::{self, Paving};
 use super::structures::is_off_ground;
+use super::{crossings, inference, markings};
 use super::{
     railways, widened_surface, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface,
 };
@@ -73,6 +73,7 @@ pub(super) fn add_roads(
     let mut lines = Vec::new();
     let mut roads: Vec<(u32, Paving, f64)> = Vec::new();
     let mut plans = Vec::new();
+    let mut traffic = Vec::new();
     for way in ways {
         let Some(line) = road_line(way, projection, settings) else {
             continue;
@@ -101,6 +102,7 @@ pub(super) fn add_roads(
             });
         }
         lines.push(line);
+        traffic.push(crossings::is_painted_road(&way.tags));
     }
     let network = road_network::build(&lines);
     for (((feature, paving, _), road), (painted, line)) in roads
@@ -147,6 +149,59 @@ pub(super) fn add_roads(
             surface.paving = paving;
             surface.junction_at = centre;
             set.surfaces.push(surface);
+        }
+    }
+    let widths: Vec<f64> = roads.iter().map(|r| r.2).collect();
+    add_crossings(set, (&lines, &widths, &traffic), nodes);
+}
+
+/// Paints the crossings on the roads for traffic among `lines` (each with its width, metres,
+/// and whether it carries traffic): one feature a crossing node, however many ways share it.
+fn add_crossings(
+    set: &mut FeatureSet,
+    (lines, widths, traffic): (&[RoadLine], &[f64], &[bool]),
+    nodes: &[&Node],
+) {
+    let crossing_nodes: HashMap<i64, &Node> = nodes
+        .iter()
+        .filter(|n| n.tags.is_set("crossing") || n.tags.get("highway") == Some("crossing"))
+        .map(|n| (n.id, *n))
+        .collect();
+    if crossing_nodes.is_empty() {
+        return;
+    }
+    let mut painted = std::collections::HashSet::new();
+    for ((line, &width), _) in lines.iter().zip(widths).zip(traffic).filter(|(_, &t)| t) {
+        for (k, id) in line.nodes.iter().enumerate() {
+            let Some(node) = crossing_nodes.get(id) else {
+                continue;
+            };
+            let region = inference::Region::of(node.position);
+            let Some(paint) = crossings::paint(&node.tags, region) else {
+                continue;
+            };
+            let (before, after) = (
+                line.points[k.saturating_sub(1)],
+                line.points[(k + 1).min(line.points.len() - 1)],
+            );
+            let (dx, dy) = (after[0] - before[0], after[1] - before[1]);
+            let length = dx.hypot(dy);
+            if length <= 0.0 || !painted.insert(*id) {
+                continue;
+            }
+            let element = ElementRef {
+                element_type: ElementType::Node,
+                id: *id,
+            };
+            let feature = set.add_feature(Some(element), FeatureClass::Marking, &node.tags);
+            set.markings.extend(crossings::strips(
+                feature,
+                paint,
+                line.points[k],
+                [dx / length, dy / length],
+                width,
+                line.metre,
+            ));
         }
     }
 }

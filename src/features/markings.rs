@@ -56,6 +56,16 @@ pub struct Marking {
     pub pattern: Pattern,
     pub width_m: f64,
     pub metre: f64,
+    pub paint: Paint,
+}
+
+/// What a marking paints: each is a glTF material of its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Paint {
+    /// Lines along the road: lane and centre lines.
+    Line,
+    /// A pedestrian crossing's stripes or lines ([`super::crossings`]).
+    Crossing,
 }
 
 /// The lanes of a road from its tags; `None` for a road that gets no lines.
@@ -170,6 +180,7 @@ pub fn along(feature: u32, road: &RoadSurface, plan: &LanePlan, metre: f64) -> V
                 pattern: if centre { plan.centre } else { plan.lane },
                 width_m: if centre { CENTRE_LINE_M } else { LANE_LINE_M },
                 metre,
+                paint: Paint::Line,
             });
         }
     }

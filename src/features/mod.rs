@@ -11,6 +11,7 @@ pub mod barriers;
 pub mod buildings;
 pub mod carriageways;
 pub mod coastline;
+pub mod crossings;
 pub mod facades;
 pub mod inference;
 pub mod landcover;

@@ -4,8 +4,10 @@
 //! Each strip piece is clipped to the tile, so a line crossing an edge is cut along it by both
 //! tiles at the same points, from the same dashes.
 
-use super::MeshBuffers;
-use crate::features::markings::{Marking, Pattern};
+use std::collections::BTreeMap;
+
+use super::{MeshBuffers, Part};
+use crate::features::markings::{Marking, Paint, Pattern};
 use crate::features::tile_rect;
 use crate::geometry::{bracket, clip_to_rect, Point, Rect};
 use crate::terrain::Elevation;
@@ -15,8 +17,12 @@ use crate::tile::TileFrame;
 /// where it is interpolated between its vertices, too little to be seen as a step.
 const LIFT_M: f64 = 0.03;
 
-/// The strips of every marking, in one set of buffers.
-pub fn build(markings: &[Marking], frame: &TileFrame, ground: &dyn Elevation) -> MeshBuffers {
+/// The strips of every marking: the lines along roads as one part, the crossings as another.
+pub fn build(
+    markings: &[Marking],
+    frame: &TileFrame,
+    ground: &dyn Elevation,
+) -> BTreeMap<Part, MeshBuffers> {
     let rect = tile_rect(frame.tile);
     // A piece whose line stays this far outside the tile may still reach into it.
     let margin = markings
@@ -27,17 +33,22 @@ pub fn build(markings: &[Marking], frame: &TileFrame, ground: &dyn Elevation) ->
         min: [rect.min[0] - margin, rect.min[1] - margin],
         max: [rect.max[0] + margin, rect.max[1] + margin],
     };
-    let mut buffers = MeshBuffers::default();
+    let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
     for marking in markings {
+        let part = match marking.paint {
+            Paint::Line => Part::Marking,
+            Paint::Crossing => Part::Crossing,
+        };
+        let buffers = parts.entry(part).or_default();
         for run in painted(marking) {
             for pair in run.windows(2) {
                 if Rect::around(pair).intersects(&reach) {
-                    strip(&mut buffers, frame, ground, marking, (pair[0], pair[1]));
+                    strip(buffers, frame, ground, marking, (pair[0], pair[1]));
                 }
             }
         }
     }
-    buffers
+    parts
 }
 
 /// The painted runs of a marking's line: the whole line when solid, else each dash, laid by
@@ -136,6 +147,7 @@ mod tests {
             feature: 0,
             line: vec![[0.0, 0.0], [length / 2.0, 0.0], [length, 0.0]],
             stations: vec![0.0, length / 2.0, length],
+            paint: Paint::Line,
             pattern,
             width_m: 0.12,
             metre: 1.0,

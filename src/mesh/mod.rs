@@ -47,6 +47,8 @@ pub enum Part {
     Stairs,
     /// The lines painted on roads.
     Marking,
+    /// Pedestrian crossings painted on roads.
+    Crossing,
     /// A bridge's deck: paved like its road, or a railway's bed.
     BridgeDeck(Option<Paving>),
     /// A bridge's sides, underside and piers.
@@ -68,7 +70,7 @@ impl Part {
         match self {
             Part::Terrain => FeatureClass::Terrain,
             Part::Road(_) => FeatureClass::Road,
-            Part::Marking => FeatureClass::Marking,
+            Part::Marking | Part::Crossing => FeatureClass::Marking,
             Part::Railway => FeatureClass::Railway,
             Part::Water => FeatureClass::Water,
             Part::LandCover(_) => FeatureClass::LandCover,
@@ -107,6 +109,7 @@ impl Part {
             Part::PowerLine => "power_line",
             Part::Stairs => "stairs",
             Part::Marking => "marking",
+            Part::Crossing => "crossing",
             Part::BridgeDeck(None) => "bridge_deck_railway",
             Part::BridgeDeck(Some(Paving::Asphalt)) => "bridge_deck_asphalt",
             Part::BridgeDeck(Some(Paving::Concrete)) => "bridge_deck_concrete",

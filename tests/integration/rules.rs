@@ -4,7 +4,7 @@
 //! no extract is read.
 
 use crate::common::fixture::{at, terrain, Fixture, TILE};
-use crate::common::{corners, decode, DecodedTile, GroundLocator};
+use crate::common::{corners, decode, DecodedTile, Feature, GroundLocator, Primitive};
 
 use terrastitch::mesh::passages::HEADROOM_M;
 use terrastitch::provider::inputs::{index_osm, QUERY_MARGIN_DEG};
@@ -409,4 +409,67 @@ fn a_residential_street_without_lanes_and_a_service_road_are_not_painted() {
     let tile = drawn(&fixture, &terrain(|_, _| 100.0));
     assert!(!tile.primitives("road").is_empty());
     assert!(painted_lines(&tile).is_empty());
+}
+
+#[test]
+fn a_zebra_crossing_draws_stripes_across_the_road_and_an_unmarked_one_none() {
+    let mut fixture = Fixture::default();
+    fixture
+        .way(
+            &[("highway", "residential"), ("width", "7")],
+            &[(-0.2, 0.5), (0.5, 0.5), (1.2, 0.5)],
+        )
+        .tag_node(
+            (0.5, 0.5),
+            &[("highway", "crossing"), ("crossing", "zebra")],
+        )
+        .way(
+            &[("highway", "residential"), ("width", "7")],
+            &[(-0.2, 0.7), (0.5, 0.7), (1.2, 0.7)],
+        )
+        .tag_node(
+            (0.5, 0.7),
+            &[("highway", "crossing"), ("crossing", "unmarked")],
+        );
+    let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+    let crossings: Vec<&Feature> = tile
+        .features
+        .iter()
+        .filter(|f| f.class == "marking" && f.osm_type == "node")
+        .collect();
+    assert_eq!(crossings.len(), 1, "{crossings:?}");
+    let stripes: Vec<&Primitive> = tile
+        .primitives("marking")
+        .iter()
+        .filter(|p| p.material == "crossing")
+        .collect();
+    let vertices: Vec<[f64; 3]> = stripes
+        .iter()
+        .flat_map(|p| p.positions.iter().map(|v| v.map(f64::from)))
+        .collect();
+    // Seven stripes of 0.5 m with 0.5 m between them fill the 7 m road: 6.5 m across, 4 m
+    // along, at the crossing's node.
+    assert_eq!(vertices.len(), 7 * 4, "{} vertices", vertices.len());
+    let extent = |axis: usize| {
+        let low = vertices.iter().map(|v| v[axis]).fold(f64::MAX, f64::min);
+        let high = vertices.iter().map(|v| v[axis]).fold(f64::MIN, f64::max);
+        (
+            (high - low) / scale(),
+            (high + low) / 2.0 / tile.tile_size(),
+        )
+    };
+    let (along, east) = extent(0);
+    let (across, south) = extent(2);
+    assert!((along - 4.0).abs() < 0.05, "{along} m along the road");
+    assert!((across - 6.5).abs() < 0.05, "{across} m across the road");
+    assert!(
+        (east - 0.5).abs() < 1e-3 && (south - 0.5).abs() < 1e-3,
+        "at {east}, {south}"
+    );
+    let road = ground_at(&tile, (0.3, 0.5));
+    let (low, high) = height_range(&tile, "marking", "crossing");
+    assert!(
+        low > road && high < road + 0.1,
+        "paint at {low}..{high} over {road}"
+    );
 }

@@ -28,7 +28,7 @@ pub(super) fn material_of(part: Part) -> ([f32; 4], f32) {
         Part::Object(kind) => kind.material(),
         Part::PowerLine => ([0.12, 0.12, 0.13, 1.0], 0.5),
         Part::Stairs => ([0.66, 0.64, 0.60, 1.0], 0.9),
-        Part::Marking => ([0.86, 0.86, 0.82, 1.0], 0.7),
+        Part::Marking | Part::Crossing => ([0.86, 0.86, 0.82, 1.0], 0.7),
         Part::BridgeDeck(Some(paving)) | Part::TunnelFloor(Some(paving)) => paving.material(),
         Part::BridgeDeck(None) | Part::TunnelFloor(None) => material_of(Part::Railway),
         Part::BridgeStructure => ([0.58, 0.57, 0.55, 1.0], 0.9),

@@ -29,6 +29,7 @@ pub fn at(east: f64, south: f64) -> LonLat {
 #[derive(Default)]
 pub struct Fixture {
     ways: Vec<Way>,
+    nodes: Vec<Node>,
     next_node: i64,
 }
 
@@ -80,9 +81,28 @@ impl Fixture {
         self
     }
 
+    /// Tags the node the first way through `place` has there (a crossing on a road, say).
+    pub fn tag_node(&mut self, place: (f64, f64), tags: &[(&str, &str)]) -> &mut Self {
+        let position = at(place.0, place.1);
+        let id = self
+            .ways
+            .iter()
+            .find_map(|w| {
+                let k = w.positions.iter().position(|p| *p == position)?;
+                Some(w.nodes[k])
+            })
+            .expect("a way passes through the place");
+        self.nodes.push(Node {
+            id,
+            position,
+            tags: Tags::from_pairs(tags.iter().copied()),
+        });
+        self
+    }
+
     pub fn data(&self) -> OsmData {
         OsmData {
-            nodes: Vec::<Node>::new(),
+            nodes: self.nodes.clone(),
             ways: self.ways.clone(),
             relations: Vec::new(),
             coverage: vec![TILE.bounds().expanded(0.1)],
