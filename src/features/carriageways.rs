@@ -6,6 +6,7 @@
 
 use std::collections::HashMap;
 
+use super::objects::ObjectKind;
 use super::road_network::{self, RoadLine};
 use super::roads::{self, Paving};
 use super::structures::is_off_ground;
@@ -63,13 +64,14 @@ pub struct Stairs {
 /// Adds the roads among `ways` as one network: a surface per way, split and cut back where
 /// ways meet, and a surface per junction (traced to its OSM node). A way of steps is a road
 /// of the network (its ramp) and a flight of steps over it.
+/// Returns where the signals and signs mapped on these roads stand.
 pub(super) fn add_roads(
     set: &mut FeatureSet,
     ways: &[&Way],
     nodes: &[&Node],
     projection: &Projection,
     settings: &FeatureSettings,
-) {
+) -> Vec<RoadSide> {
     let mut lines = Vec::new();
     let mut roads: Vec<(u32, Paving, f64)> = Vec::new();
     let mut plans = Vec::new();
@@ -153,6 +155,96 @@ pub(super) fn add_roads(
     }
     let widths: Vec<f64> = roads.iter().map(|r| r.2).collect();
     add_crossings(set, (&lines, &widths, &traffic), nodes);
+    road_sides(&lines, &widths, &traffic, nodes)
+}
+
+/// Where a signal, sign or bus stop mapped on a road's node stands: beside the road, facing the
+/// traffic it is for (a bus stop facing the road).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RoadSide {
+    pub node: i64,
+    /// Global tile units.
+    pub at: Point,
+    /// Rotation about the vertical of the local frame (counter-clockwise seen from above) that
+    /// turns a model facing north to face the oncoming traffic.
+    pub rotation: f64,
+}
+
+/// Clearance between a road's edge and a signal's pole, metres.
+const POLE_CLEARANCE_M: f64 = 0.5;
+
+/// The places of the signals, signs and bus stops mapped on the nodes of the roads for traffic
+/// among `lines`: at the right edge for the traffic they serve (`direction` or
+/// `traffic_signals:direction` `forward`/`backward`); signals without a direction on both
+/// edges, a sign without one for the traffic towards the nearer end of its way, a bus stop
+/// without one for the traffic along its way.
+fn road_sides(
+    lines: &[RoadLine],
+    widths: &[f64],
+    traffic: &[bool],
+    nodes: &[&Node],
+) -> Vec<RoadSide> {
+    let kinds: HashMap<i64, (ObjectKind, &Tags)> = nodes
+        .iter()
+        .filter_map(|n| {
+            let kind = ObjectKind::from_tags(&n.tags)?;
+            kind.stands_beside_the_road()
+                .then_some((n.id, (kind, &n.tags)))
+        })
+        .collect();
+    let mut places = Vec::new();
+    let mut placed = std::collections::HashSet::new();
+    for ((line, &width), _) in lines.iter().zip(widths).zip(traffic).filter(|(_, &t)| t) {
+        for (k, id) in line.nodes.iter().enumerate() {
+            let Some(&(kind, tags)) = kinds.get(id) else {
+                continue;
+            };
+            let (before, after) = (
+                line.points[k.saturating_sub(1)],
+                line.points[(k + 1).min(line.points.len() - 1)],
+            );
+            let (dx, dy) = (after[0] - before[0], after[1] - before[1]);
+            let length = dx.hypot(dy);
+            if length <= 0.0 || !placed.insert(*id) {
+                continue;
+            }
+            let forward = [dx / length, dy / length];
+            let tagged = tags
+                .get("traffic_signals:direction")
+                .or_else(|| tags.get("direction"));
+            let bus_stop = matches!(kind, ObjectKind::BusStop | ObjectKind::BusShelter);
+            let ways: &[f64] = match tagged {
+                Some("forward") => &[1.0],
+                Some("backward") => &[-1.0],
+                _ if kind == ObjectKind::TrafficSignals => &[1.0, -1.0],
+                _ if bus_stop || 2 * k >= line.points.len() => &[1.0],
+                _ => &[-1.0],
+            };
+            let offset = (width / 2.0 + POLE_CLEARANCE_M) * line.metre;
+            for &sense in ways {
+                let d = [forward[0] * sense, forward[1] * sense];
+                // Right of the traffic (x east, y south): (-dy, dx).
+                let at = [
+                    line.points[k][0] - d[1] * offset,
+                    line.points[k][1] + d[0] * offset,
+                ];
+                // A signal or sign faces the oncoming traffic (-d), a bus stop the road (left of
+                // d); the rotation is the compass bearing of that facing, turned the other way.
+                let facing = if bus_stop {
+                    [d[1], -d[0]]
+                } else {
+                    [-d[0], -d[1]]
+                };
+                let bearing = facing[0].atan2(-facing[1]);
+                places.push(RoadSide {
+                    node: *id,
+                    at,
+                    rotation: -bearing,
+                });
+            }
+        }
+    }
+    places
 }
 
 /// Paints the crossings on the roads for traffic among `lines` (each with its width, metres,

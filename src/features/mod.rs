@@ -487,7 +487,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     let mut set = FeatureSet::default();
     set.add_feature(None, FeatureClass::Terrain, &Tags::default());
     let areas = areas_of(selection);
-    carriageways::add_roads(
+    let road_sides = carriageways::add_roads(
         &mut set,
         &selection.ways,
         &selection.nodes,
@@ -513,7 +513,13 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     add_sea(&mut set, selection, tile, &projection);
     water::drop_waterways_in_water_areas(&mut set);
     set.retain_touching(&tile_rect(tile));
-    objects::collect(&mut set, selection, &projection, &tile_rect(tile));
+    objects::collect(
+        &mut set,
+        selection,
+        &projection,
+        &tile_rect(tile),
+        &road_sides,
+    );
     vegetation::collect(
         &mut set,
         selection,

@@ -1,7 +1,10 @@
 //! Objects of street level a simple model describes well enough (paper 001 §4.3): street lamps,
-//! benches, bollards, power poles and towers, wind turbines. Mapped as nodes, drawn as instances
-//! of one model per kind.
+//! benches, bollards, waste baskets, post boxes, fire hydrants, bus stops and shelters, bicycle
+//! stands, flagpoles, memorials, traffic signals and stop and give-way signs, power poles and
+//! towers, wind turbines. Mapped as nodes, drawn as instances of one model per kind. Signals,
+//! signs and bus stops mapped on a road stand at its edge ([`super::carriageways`] places them).
 
+use super::carriageways::RoadSide;
 use super::{FeatureClass, FeatureSet, Projection};
 use crate::geometry::{Point, Rect};
 use crate::osm::index::Selection;
@@ -16,9 +19,43 @@ pub enum ObjectKind {
     PowerPole,
     PowerTower,
     WindTurbine,
+    WasteBasket,
+    PostBox,
+    FireHydrant,
+    /// A bus stop's pole and sign.
+    BusStop,
+    /// A bus stop with a shelter (`shelter=yes`).
+    BusShelter,
+    BicycleParking,
+    Flagpole,
+    /// A memorial stone (not plaques and stumbling stones, which lie flat).
+    Memorial,
+    TrafficSignals,
+    StopSign,
+    GiveWaySign,
 }
 
 impl ObjectKind {
+    pub const ALL: [ObjectKind; 17] = [
+        ObjectKind::StreetLamp,
+        ObjectKind::Bench,
+        ObjectKind::Bollard,
+        ObjectKind::PowerPole,
+        ObjectKind::PowerTower,
+        ObjectKind::WindTurbine,
+        ObjectKind::WasteBasket,
+        ObjectKind::PostBox,
+        ObjectKind::FireHydrant,
+        ObjectKind::BusStop,
+        ObjectKind::BusShelter,
+        ObjectKind::BicycleParking,
+        ObjectKind::Flagpole,
+        ObjectKind::Memorial,
+        ObjectKind::TrafficSignals,
+        ObjectKind::StopSign,
+        ObjectKind::GiveWaySign,
+    ];
+
     pub fn from_tags(tags: &Tags) -> Option<ObjectKind> {
         if tags.get("highway") == Some("street_lamp") {
             return Some(ObjectKind::StreetLamp);
@@ -28,6 +65,9 @@ impl ObjectKind {
         }
         if tags.get("barrier") == Some("bollard") {
             return Some(ObjectKind::Bollard);
+        }
+        if let Some(kind) = Self::furniture(tags) {
+            return Some(kind);
         }
         match tags.get("power") {
             Some("pole") => return Some(ObjectKind::PowerPole),
@@ -43,6 +83,53 @@ impl ObjectKind {
         None
     }
 
+    /// Street furniture other than lamps, benches and bollards.
+    fn furniture(tags: &Tags) -> Option<ObjectKind> {
+        match tags.get("highway") {
+            Some("bus_stop") if tags.get("shelter") == Some("yes") => {
+                return Some(ObjectKind::BusShelter)
+            }
+            Some("bus_stop") => return Some(ObjectKind::BusStop),
+            Some("traffic_signals") => return Some(ObjectKind::TrafficSignals),
+            Some("stop") => return Some(ObjectKind::StopSign),
+            Some("give_way") => return Some(ObjectKind::GiveWaySign),
+            _ => {}
+        }
+        match tags.get("amenity") {
+            Some("waste_basket") => return Some(ObjectKind::WasteBasket),
+            Some("post_box") => return Some(ObjectKind::PostBox),
+            Some("bicycle_parking") => return Some(ObjectKind::BicycleParking),
+            _ => {}
+        }
+        if tags.get("emergency") == Some("fire_hydrant") {
+            let hidden = matches!(tags.get("fire_hydrant:type"), Some("underground" | "wall"));
+            return (!hidden).then_some(ObjectKind::FireHydrant);
+        }
+        if tags.get("man_made") == Some("flagpole") {
+            return Some(ObjectKind::Flagpole);
+        }
+        if tags.get("historic") == Some("memorial") {
+            let flat = matches!(
+                tags.get("memorial"),
+                Some("plaque" | "stolperstein" | "blue_plaque")
+            );
+            return (!flat).then_some(ObjectKind::Memorial);
+        }
+        None
+    }
+
+    /// Whether the kind, mapped on a road's line, stands at its edge.
+    pub fn stands_beside_the_road(self) -> bool {
+        matches!(
+            self,
+            ObjectKind::TrafficSignals
+                | ObjectKind::StopSign
+                | ObjectKind::GiveWaySign
+                | ObjectKind::BusStop
+                | ObjectKind::BusShelter
+        )
+    }
+
     pub fn as_str(self) -> &'static str {
         match self {
             ObjectKind::StreetLamp => "street_lamp",
@@ -51,6 +138,17 @@ impl ObjectKind {
             ObjectKind::PowerPole => "power_pole",
             ObjectKind::PowerTower => "power_tower",
             ObjectKind::WindTurbine => "wind_turbine",
+            ObjectKind::WasteBasket => "waste_basket",
+            ObjectKind::PostBox => "post_box",
+            ObjectKind::FireHydrant => "fire_hydrant",
+            ObjectKind::BusStop => "bus_stop",
+            ObjectKind::BusShelter => "bus_shelter",
+            ObjectKind::BicycleParking => "bicycle_parking",
+            ObjectKind::Flagpole => "flagpole",
+            ObjectKind::Memorial => "memorial",
+            ObjectKind::TrafficSignals => "traffic_signals",
+            ObjectKind::StopSign => "stop_sign",
+            ObjectKind::GiveWaySign => "give_way_sign",
         }
     }
 
@@ -63,6 +161,17 @@ impl ObjectKind {
             ObjectKind::PowerPole => ([0.30, 0.22, 0.15, 1.0], 0.9),
             ObjectKind::PowerTower => ([0.55, 0.57, 0.58, 1.0], 0.5),
             ObjectKind::WindTurbine => ([0.85, 0.86, 0.86, 1.0], 0.4),
+            ObjectKind::WasteBasket => ([0.10, 0.20, 0.12, 1.0], 0.6),
+            ObjectKind::PostBox => ([0.85, 0.62, 0.05, 1.0], 0.5),
+            ObjectKind::FireHydrant => ([0.60, 0.05, 0.04, 1.0], 0.5),
+            ObjectKind::BusStop => ([0.55, 0.58, 0.60, 1.0], 0.5),
+            ObjectKind::BusShelter => ([0.48, 0.52, 0.55, 1.0], 0.3),
+            ObjectKind::BicycleParking => ([0.55, 0.56, 0.57, 1.0], 0.4),
+            ObjectKind::Flagpole => ([0.80, 0.80, 0.80, 1.0], 0.4),
+            ObjectKind::Memorial => ([0.42, 0.41, 0.39, 1.0], 0.9),
+            ObjectKind::TrafficSignals => ([0.10, 0.10, 0.11, 1.0], 0.5),
+            ObjectKind::StopSign => ([0.62, 0.04, 0.04, 1.0], 0.5),
+            ObjectKind::GiveWaySign => ([0.80, 0.78, 0.76, 1.0], 0.5),
         }
     }
 }
@@ -95,18 +204,35 @@ fn direction(tags: &Tags) -> Option<f64> {
     Some(-degrees.to_radians())
 }
 
+/// Adds the objects mapped as nodes of `selection` that lie in `rect`; the signals and signs a
+/// road placed at its edges (`road_sides`) stand there instead, one feature for the places of a
+/// node.
 pub(super) fn collect(
     set: &mut FeatureSet,
     selection: &Selection<'_>,
     projection: &Projection,
     rect: &Rect,
+    road_sides: &[RoadSide],
 ) {
     for node in &selection.nodes {
         let Some(kind) = ObjectKind::from_tags(&node.tags) else {
             continue;
         };
-        let at = projection.point(node.position);
-        if !rect.owns(at) {
+        let beside: Vec<(Point, f64)> = road_sides
+            .iter()
+            .filter(|s| kind.stands_beside_the_road() && s.node == node.id)
+            .map(|s| (s.at, s.rotation))
+            .collect();
+        let places = if beside.is_empty() {
+            vec![(
+                projection.point(node.position),
+                direction(&node.tags).unwrap_or(0.0),
+            )]
+        } else {
+            beside
+        };
+        let places: Vec<(Point, f64)> = places.into_iter().filter(|p| rect.owns(p.0)).collect();
+        if places.is_empty() {
             continue;
         }
         let element = ElementRef {
@@ -114,12 +240,14 @@ pub(super) fn collect(
             id: node.id,
         };
         let feature = set.add_feature(Some(element), FeatureClass::Object, &node.tags);
-        set.objects.push(PointObject {
-            at,
-            kind,
-            rotation: direction(&node.tags).unwrap_or(0.0),
-            feature,
-        });
+        for (at, rotation) in places {
+            set.objects.push(PointObject {
+                at,
+                kind,
+                rotation,
+                feature,
+            });
+        }
     }
 }
 
@@ -153,5 +281,32 @@ mod tests {
             Some(-90f64.to_radians())
         );
         assert_eq!(direction(&tags(&[("direction", "sideways")])), None);
+        let kind = |pairs: &[(&str, &str)]| ObjectKind::from_tags(&tags(pairs));
+        assert_eq!(
+            kind(&[("highway", "bus_stop"), ("shelter", "yes")]),
+            Some(ObjectKind::BusShelter)
+        );
+        assert_eq!(kind(&[("highway", "bus_stop")]), Some(ObjectKind::BusStop));
+        assert_eq!(
+            kind(&[("emergency", "fire_hydrant")]),
+            Some(ObjectKind::FireHydrant)
+        );
+        assert_eq!(
+            kind(&[
+                ("emergency", "fire_hydrant"),
+                ("fire_hydrant:type", "underground")
+            ]),
+            None
+        );
+        assert_eq!(
+            kind(&[("historic", "memorial"), ("memorial", "plaque")]),
+            None
+        );
+        assert_eq!(
+            kind(&[("highway", "traffic_signals")]),
+            Some(ObjectKind::TrafficSignals)
+        );
+        assert!(ObjectKind::StopSign.stands_beside_the_road());
+        assert!(!ObjectKind::PostBox.stands_beside_the_road());
     }
 }

@@ -1,7 +1,9 @@
 //! The models drawn as instances (`EXT_mesh_gpu_instancing`): trees, and the objects of street
-//! level a simple shape describes well enough (street lamps, benches, bollards, power poles and
-//! towers, wind turbines). Each model is built once, foot at the origin and `y` up, in metres
-//! (trees one unit tall, scaled per instance), from surfaces of revolution and boxes.
+//! level a simple shape describes well enough (street lamps, benches, bollards, street
+//! furniture, signals and signs, power poles and towers, wind turbines). Each model is built
+//! once, foot at the origin, `y` up and its front towards `-z` (north before it is turned), in
+//! metres (trees one unit tall, scaled per instance), from surfaces of revolution, boxes and
+//! flat plates.
 
 use std::f64::consts::TAU;
 
@@ -136,8 +138,89 @@ fn object(kind: ObjectKind) -> MeshBuffers {
                 }
             }
         }
+        other => furniture(&mut b, other),
     }
     b
+}
+
+/// Street furniture, signals and signs, in metres.
+fn furniture(b: &mut MeshBuffers, kind: ObjectKind) {
+    match kind {
+        ObjectKind::WasteBasket => lathe(b, &[(0.2, -0.05), (0.22, 0.85), (0.0, 0.85)]),
+        ObjectKind::PostBox => {
+            cuboid(b, [-0.06, -0.2, -0.06], [0.06, 0.8, 0.06]);
+            cuboid(b, [-0.22, 0.8, -0.18], [0.22, 1.35, 0.18]);
+        }
+        ObjectKind::FireHydrant => {
+            lathe(b, &[(0.13, -0.05), (0.11, 0.55), (0.09, 0.62), (0.0, 0.72)]);
+            cuboid(b, [-0.2, 0.35, -0.05], [0.2, 0.45, 0.05]);
+        }
+        ObjectKind::BusStop => {
+            lathe(b, &[(0.045, -0.3), (0.04, 2.7)]);
+            cuboid(b, [-0.25, 2.15, -0.07], [0.25, 2.7, -0.04]);
+        }
+        ObjectKind::BusShelter => {
+            // A roof on four posts, closed at the back and one side, open to the road (north).
+            cuboid(b, [-1.6, 2.35, -0.8], [1.6, 2.5, 0.8]);
+            for x in [-1.55, 1.5] {
+                for z in [-0.75, 0.7] {
+                    cuboid(b, [x, -0.1, z], [x + 0.05, 2.35, z + 0.05]);
+                }
+            }
+            cuboid(b, [-1.55, 0.1, 0.7], [1.55, 2.3, 0.74]);
+            cuboid(b, [-1.55, 0.1, -0.75], [-1.51, 2.3, 0.7]);
+            cuboid(b, [-1.2, 0.42, 0.3], [1.2, 0.47, 0.65]);
+        }
+        ObjectKind::BicycleParking => {
+            // Three stands, each an inverted U of tube.
+            for x in [-0.8, 0.0, 0.8] {
+                cuboid(b, [x - 0.03, -0.2, -0.4], [x + 0.03, 0.8, -0.34]);
+                cuboid(b, [x - 0.03, -0.2, 0.34], [x + 0.03, 0.8, 0.4]);
+                cuboid(b, [x - 0.03, 0.8, -0.4], [x + 0.03, 0.86, 0.4]);
+            }
+        }
+        ObjectKind::Flagpole => lathe(b, &[(0.07, -0.3), (0.04, 8.0), (0.06, 8.05), (0.0, 8.12)]),
+        ObjectKind::Memorial => {
+            cuboid(b, [-0.55, -0.2, -0.3], [0.55, 0.25, 0.3]);
+            cuboid(b, [-0.4, 0.25, -0.15], [0.4, 1.7, 0.15]);
+        }
+        ObjectKind::TrafficSignals => {
+            lathe(b, &[(0.07, -0.3), (0.06, 3.3)]);
+            cuboid(b, [-0.17, 2.2, -0.3], [0.17, 3.1, -0.07]);
+        }
+        ObjectKind::StopSign => {
+            lathe(b, &[(0.03, -0.3), (0.03, 2.3)]);
+            // An octagon 0.7 m across, facing north.
+            let corners: Vec<[f64; 3]> = (0..8)
+                .map(|k| {
+                    let angle = TAU * (k as f64 + 0.5) / 8.0;
+                    [0.38 * angle.cos(), 2.05 + 0.38 * angle.sin(), -0.05]
+                })
+                .collect();
+            plate(b, &corners, 0.02);
+        }
+        ObjectKind::GiveWaySign => {
+            lathe(b, &[(0.03, -0.3), (0.03, 2.2)]);
+            // A triangle point down, 0.8 m a side, facing north.
+            plate(
+                b,
+                &[[-0.4, 2.55, -0.05], [0.4, 2.55, -0.05], [0.0, 1.86, -0.05]],
+                0.02,
+            );
+        }
+        _ => {}
+    }
+}
+
+/// A flat plate: `corners` (a convex polygon in a plane of constant `z`) facing `-z`, and its
+/// back `thickness` metres behind facing `+z`.
+fn plate(b: &mut MeshBuffers, corners: &[[f64; 3]], thickness: f64) {
+    b.push_flat_polygon(corners, [0.0, 0.0, -1.0], 0);
+    let back: Vec<[f64; 3]> = corners
+        .iter()
+        .map(|c| [c[0], c[1], c[2] + thickness])
+        .collect();
+    b.push_flat_polygon(&back, [0.0, 0.0, 1.0], 0);
 }
 
 /// A surface of revolution about `y` through the profile points `(radius, height)`, bottom to
@@ -233,6 +316,38 @@ fn cuboid(buffers: &mut MeshBuffers, min: [f64; 3], max: [f64; 3]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_object_stands_on_its_foot_with_its_faces_outwards() {
+        for kind in ObjectKind::ALL {
+            let model = object(kind);
+            assert!(model.triangle_count() >= 4, "{kind:?} has no shape");
+            let low = model
+                .positions
+                .iter()
+                .map(|p| p[1])
+                .fold(f32::MAX, f32::min);
+            let high = model
+                .positions
+                .iter()
+                .map(|p| p[1])
+                .fold(f32::MIN, f32::max);
+            assert!(low <= 0.0 && high > 0.5, "{kind:?} from {low} to {high}");
+            for t in model.indices.chunks_exact(3) {
+                let [a, b, c] = [t[0], t[1], t[2]].map(|i| model.positions[i as usize]);
+                let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+                let n = [
+                    e1[1] * e2[2] - e1[2] * e2[1],
+                    e1[2] * e2[0] - e1[0] * e2[2],
+                    e1[0] * e2[1] - e1[1] * e2[0],
+                ];
+                let stored = model.normals[t[0] as usize];
+                let dot = n[0] * stored[0] + n[1] * stored[1] + n[2] * stored[2];
+                assert!(dot >= 0.0, "{kind:?}: a triangle faces inwards");
+            }
+        }
+    }
 
     #[test]
     fn models_are_closed_enough_and_face_outwards() {

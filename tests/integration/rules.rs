@@ -6,6 +6,7 @@
 use crate::common::fixture::{at, terrain, Fixture, TILE};
 use crate::common::{corners, decode, DecodedTile, Feature, GroundLocator, Primitive};
 
+use terrastitch::features::objects::ObjectKind;
 use terrastitch::mesh::passages::HEADROOM_M;
 use terrastitch::provider::inputs::{index_osm, QUERY_MARGIN_DEG};
 use terrastitch::render::{render, RenderSettings};
@@ -472,4 +473,60 @@ fn a_zebra_crossing_draws_stripes_across_the_road_and_an_unmarked_one_none() {
         low > road && high < road + 0.1,
         "paint at {low}..{high} over {road}"
     );
+}
+
+#[test]
+fn signals_on_a_road_stand_at_both_edges_a_stop_sign_and_a_bus_stop_at_one() {
+    let mut fixture = Fixture::default();
+    fixture
+        .way(
+            &[("highway", "residential"), ("width", "7")],
+            &[(-0.2, 0.5), (0.3, 0.5), (0.5, 0.5), (0.7, 0.5), (1.2, 0.5)],
+        )
+        .tag_node((0.7, 0.5), &[("highway", "bus_stop")])
+        .tag_node((0.5, 0.5), &[("highway", "traffic_signals")])
+        .tag_node((0.3, 0.5), &[("highway", "stop"), ("direction", "forward")]);
+    let index = index_osm(fixture.data(), TILE.z);
+    let selection = index.query(TILE, QUERY_MARGIN_DEG);
+    let set = terrastitch::features::collect(&selection, TILE, &Default::default());
+    let projection = terrastitch::features::Projection::new(TILE.z);
+    let centre = projection.point(at(0.5, 0.5));
+    let metre = projection.metres(1.0, at(0.5, 0.5).lat);
+    // Metres east and south of the signals' node.
+    let offsets = |kind: ObjectKind| -> Vec<(f64, f64)> {
+        set.objects
+            .iter()
+            .filter(|o| o.kind == kind)
+            .map(|o| ((o.at[0] - centre[0]) / metre, (o.at[1] - centre[1]) / metre))
+            .collect()
+    };
+    let mut signals = offsets(ObjectKind::TrafficSignals);
+    signals.sort_by(|a, b| a.1.total_cmp(&b.1));
+    assert_eq!(signals.len(), 2, "{signals:?}");
+    // Half the road's 7 m and half a metre clear of its edge, either side.
+    for ((east, south), expected) in signals.iter().zip([-4.0, 4.0]) {
+        assert!(
+            east.abs() < 1e-6 && (south - expected).abs() < 1e-6,
+            "{signals:?}"
+        );
+    }
+    // Eastward traffic keeps right: the stop sign for it stands on the south edge.
+    let stop = offsets(ObjectKind::StopSign);
+    let expected_east = (projection.point(at(0.3, 0.5))[0] - centre[0]) / metre;
+    assert_eq!(stop.len(), 1, "{stop:?}");
+    assert!(
+        (stop[0].0 - expected_east).abs() < 1e-6 && (stop[0].1 - 4.0).abs() < 1e-6,
+        "{stop:?}"
+    );
+    // A bus stop on the road's line stands at the edge of the traffic along the way.
+    let bus = offsets(ObjectKind::BusStop);
+    assert!(bus.len() == 1 && (bus[0].1 - 4.0).abs() < 1e-6, "{bus:?}");
+    // One feature for the two places of the signals' node.
+    let features: std::collections::BTreeSet<u32> = set
+        .objects
+        .iter()
+        .filter(|o| o.kind == ObjectKind::TrafficSignals)
+        .map(|o| o.feature)
+        .collect();
+    assert_eq!(features.len(), 1);
 }
