@@ -554,6 +554,13 @@ fn apply_inferred(
             roof.pitch = guessed.pitch_deg.to_radians().tan();
         }
         inferred.push(("roof:shape", guessed.shape.tag().to_string()));
+        if let Some(direction) = guessed
+            .direction_deg
+            .filter(|_| roof.direction_deg.is_none())
+        {
+            roof.direction_deg = Some(direction);
+            inferred.push(("roof:direction", format!("{direction:.0}")));
+        }
     }
     let untagged = |colour, material| !tags.is_set(colour) && !tags.is_set(material);
     let hex = |c: [f64; 3]| {
@@ -569,11 +576,14 @@ fn apply_inferred(
     inferred
 }
 
+/// Adds a building (or a part) of `area`; `rows` holds the bearing of the shared wall of each
+/// building in a row ([`super::rows`]).
 pub(super) fn add_area(
     set: &mut FeatureSet,
     area: &Area<'_>,
     projection: &Projection,
     settings: &FeatureSettings,
+    rows: &HashMap<ElementRef, f64>,
 ) {
     let part = is_building_part(area.tags);
     if !is_building(area.tags) && !part {
@@ -598,7 +608,9 @@ pub(super) fn add_area(
         let outlines: Vec<&[crate::osm::LonLat]> =
             area.polygons.iter().map(|p| p.outer.as_slice()).collect();
         let tagged_height = tagged.then_some(height);
-        if let Some(guess) = inference::building(area.tags, &outlines, tagged_height, area.element)
+        let row = rows.get(&area.element).copied();
+        if let Some(guess) =
+            inference::building(area.tags, &outlines, tagged_height, area.element, row)
         {
             inferred = apply_inferred(&guess, area.tags, settings, (&mut height, &mut roof));
             appearance = appearance_or(area.tags, linear(guess.colours));

@@ -289,6 +289,9 @@ pub struct InferredRoof {
     pub shape: RoofShape,
     /// Degrees.
     pub pitch_deg: f64,
+    /// The compass direction its faces look towards (degrees), where the roof follows a row
+    /// rather than the footprint's long side.
+    pub direction_deg: Option<f64>,
 }
 
 /// The roof a building most plausibly has when `roof:shape` is not tagged: from its `building`
@@ -301,10 +304,7 @@ pub fn roof(
     region: Region,
     element: ElementRef,
 ) -> InferredRoof {
-    let flat = InferredRoof {
-        shape: RoofShape::Flat,
-        pitch_deg: 0.0,
-    };
+    let flat = InferredRoof::FLAT;
     let kind = kind_of(building);
     // Large, many-cornered or tall buildings are flat wherever they stand.
     let large = match kind {
@@ -373,7 +373,57 @@ pub fn roof(
     if shape == RoofShape::Flat {
         return flat;
     }
-    InferredRoof { shape, pitch_deg }
+    InferredRoof {
+        shape,
+        pitch_deg,
+        direction_deg: None,
+    }
+}
+
+impl InferredRoof {
+    const FLAT: InferredRoof = InferredRoof {
+        shape: RoofShape::Flat,
+        pitch_deg: 0.0,
+        direction_deg: None,
+    };
+}
+
+/// The roof of a building in a row ([`super::rows`]) whose shared wall runs along `wall_deg`
+/// (a compass bearing): one style for the row, without the variation drawn per building, so
+/// neighbours agree — flat where most of their kind are (or where size or height make them so),
+/// else gabled with its ridge across the shared walls, along the row, at the region's middle
+/// pitch.
+pub fn row_roof(
+    building: &str,
+    footprint: &Footprint,
+    height_m: Option<f64>,
+    region: Region,
+    wall_deg: f64,
+) -> InferredRoof {
+    let kind = kind_of(building);
+    let large = match kind {
+        Kind::Farm | Kind::Church => footprint.area_m2 > 3000.0,
+        Kind::House if building == "yes" => footprint.area_m2 > 300.0,
+        _ => footprint.area_m2 > 1500.0,
+    };
+    let tall = height_m.is_some_and(|h| h > 20.0);
+    let mostly_flat = match kind {
+        Kind::Flat | Kind::Small => true,
+        Kind::Apartments | Kind::Other => {
+            matches!(region, Region::Mediterranean | Region::Other)
+        }
+        Kind::House | Kind::Farm | Kind::Church => false,
+    };
+    if mostly_flat || large || tall || footprint.corners > 12 || footprint.area_m2 < 12.0 {
+        return InferredRoof::FLAT;
+    }
+    let (low, range) = region.house_pitch_deg();
+    InferredRoof {
+        shape: RoofShape::Gabled,
+        pitch_deg: low + range / 2.0,
+        // The faces look along the shared wall, to the street on either side.
+        direction_deg: Some(wall_deg),
+    }
 }
 
 /// The levels a building most plausibly has when neither `height` nor `building:levels` is
@@ -383,11 +433,18 @@ pub fn levels(
     building: &str,
     footprint: &Footprint,
     region: Region,
-    element: ElementRef,
+    variation: Option<ElementRef>,
 ) -> Option<u32> {
+    // Drawn from the element; a building in a row (no variation) takes the middle, as its
+    // neighbours do.
     let extra = |most: u32| -> u32 {
-        let drawn = draw(element, SALT_LEVELS) * f64::from(most + 1);
-        (drawn as u32).min(most)
+        match variation {
+            Some(element) => {
+                let drawn = draw(element, SALT_LEVELS) * f64::from(most + 1);
+                (drawn as u32).min(most)
+            }
+            None => most.div_ceil(2),
+        }
     };
     match kind_of(building) {
         Kind::House if footprint.area_m2 <= 300.0 => {
@@ -539,13 +596,15 @@ pub struct Inferred {
 }
 
 /// Infers what a building's tags leave unsaid from its `building` value, its outline (the
-/// largest, when it has several), the height tagged (if any) and its element; `None` for an
-/// outline too small or degenerate to measure.
+/// largest, when it has several), the height tagged (if any), its element and, for a building
+/// in a row, the bearing of its shared wall; `None` for an outline too small or degenerate to
+/// measure.
 pub fn building(
     tags: &Tags,
     outlines: &[&[LonLat]],
     tagged_height_m: Option<f64>,
     element: ElementRef,
+    row: Option<f64>,
 ) -> Option<Inferred> {
     let (outline, footprint) = outlines
         .iter()
@@ -556,9 +615,12 @@ pub fn building(
     let shape_tagged = tags.is_set("roof:shape") || tags.is_set("building:roof:shape");
     let levels_tagged = tags.is_set("building:levels");
     let levels = (tagged_height_m.is_none() && !levels_tagged)
-        .then(|| levels(kind, &footprint, region, element))
+        .then(|| levels(kind, &footprint, region, row.is_none().then_some(element)))
         .flatten();
-    let roof = (!shape_tagged).then(|| roof(kind, &footprint, tagged_height_m, region, element));
+    let roof = (!shape_tagged).then(|| match row {
+        Some(wall_deg) => row_roof(kind, &footprint, tagged_height_m, region, wall_deg),
+        None => roof(kind, &footprint, tagged_height_m, region, element),
+    });
     let flat = roof.map_or(tags.get("roof:shape") == Some("flat"), |r| {
         r.shape == RoofShape::Flat
     });

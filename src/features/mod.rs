@@ -23,6 +23,7 @@ pub mod railways;
 pub mod road_network;
 pub mod roads;
 pub mod roof_shape;
+pub mod rows;
 pub mod structures;
 pub mod vegetation;
 pub mod water;
@@ -487,6 +488,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     let mut set = FeatureSet::default();
     set.add_feature(None, FeatureClass::Terrain, &Tags::default());
     let areas = areas_of(selection);
+    let rows = rows::shared_walls(&areas);
     let road_sides = carriageways::add_roads(
         &mut set,
         &selection.ways,
@@ -504,7 +506,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         roads::add_area(&mut set, area, &projection);
         water::add_area(&mut set, area, &projection);
         landcover::add_area(&mut set, area, &projection);
-        buildings::add_area(&mut set, area, &projection, settings);
+        buildings::add_area(&mut set, area, &projection, settings, &rows);
     }
     buildings::link_building_relations(&mut set, &selection.relations);
     buildings::replace_outlines_by_parts(&mut set);

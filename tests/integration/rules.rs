@@ -530,3 +530,45 @@ fn signals_on_a_road_stand_at_both_edges_a_stop_sign_and_a_bus_stop_at_one() {
         .collect();
     assert_eq!(features.len(), 1);
 }
+
+#[test]
+fn a_terrace_of_touching_houses_shares_one_roof_style_with_its_ridges_along_the_row() {
+    // Three houses 6 m wide and 10 m deep side by side east–west, sharing their walls: alone,
+    // each would have its ridge along its long side, north–south.
+    let metre = 1.0 / (40_075_016.686 * at(0.5, 0.5).lat.to_radians().cos() / 16384.0);
+    let south = 0.5 + 10.0 * metre;
+    for padding in 0..4 {
+        let mut fixture = Fixture::default();
+        for _ in 0..padding {
+            fixture.way(&[("note", "padding")], &[(0.1, 0.1), (0.11, 0.1)]);
+        }
+        let walls: Vec<f64> = (0..4).map(|k| 0.5 + 6.0 * metre * f64::from(k)).collect();
+        for pair in walls.windows(2) {
+            fixture.area(&[("building", "house")], (pair[0], 0.5), (pair[1], south));
+        }
+        let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+        let roofs: Vec<&Feature> = tile
+            .features
+            .iter()
+            .filter(|f| f.class == "building")
+            .collect();
+        assert_eq!(roofs.len(), 3);
+        let roof = roof_vertices(&tile);
+        let top = roof.iter().map(|v| v[1]).fold(f32::MIN, f32::max);
+        let bottom = roof.iter().map(|v| v[1]).fold(f32::MAX, f32::min);
+        assert!(
+            f64::from(top - bottom) / scale() > 1.0,
+            "the row is pitched"
+        );
+        // One ridge line through the row: the highest vertices spread east–west over all
+        // three houses, at one height.
+        let ridge: Vec<&[f32; 3]> = roof.iter().filter(|v| v[1] > top - 0.05).collect();
+        let spread = |axis: usize| {
+            let values = ridge.iter().map(|v| v[axis]);
+            values.clone().fold(f32::MIN, f32::max) - values.fold(f32::MAX, f32::min)
+        };
+        let row_m = f64::from(spread(0)) / scale();
+        assert!(row_m > 17.0, "the ridges run {row_m} m east–west");
+        assert!(f64::from(spread(2)) / scale() < 0.1, "one ridge line");
+    }
+}

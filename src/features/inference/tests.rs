@@ -175,14 +175,14 @@ fn an_outline_without_square_corners_is_hipped_rather_than_gabled() {
 fn the_same_building_gets_the_same_roof_and_levels_every_time() {
     let footprint = Footprint::of(&rectangle(LIECHTENSTEIN, 11.0, 9.0)).unwrap();
     let first = roof("yes", &footprint, None, Region::Alpine, way(4242));
-    let first_levels = levels("yes", &footprint, Region::Alpine, way(4242));
+    let first_levels = levels("yes", &footprint, Region::Alpine, Some(way(4242)));
     for _ in 0..3 {
         assert_eq!(
             roof("yes", &footprint, None, Region::Alpine, way(4242)),
             first
         );
         assert_eq!(
-            levels("yes", &footprint, Region::Alpine, way(4242)),
+            levels("yes", &footprint, Region::Alpine, Some(way(4242))),
             first_levels
         );
     }
@@ -200,17 +200,40 @@ fn houses_have_levels_by_region_and_sheds_keep_their_type_height() {
     let house = Footprint::of(&rectangle(HARRISBURG, 14.0, 10.0)).unwrap();
     let annex = Footprint::of(&rectangle(HARRISBURG, 6.0, 5.0)).unwrap();
     for id in 1..=100 {
-        let n = levels("house", &house, Region::NorthAmerica, way(id)).unwrap();
+        let n = levels("house", &house, Region::NorthAmerica, Some(way(id))).unwrap();
         assert!((1..=2).contains(&n), "{n}");
         assert_eq!(
-            levels("yes", &annex, Region::NorthAmerica, way(id)),
+            levels("yes", &annex, Region::NorthAmerica, Some(way(id))),
             Some(1)
         );
         assert_eq!(
-            levels("garage", &annex, Region::NorthAmerica, way(id)),
+            levels("garage", &annex, Region::NorthAmerica, Some(way(id))),
             None
         );
-        let flats = levels("apartments", &house, Region::Mediterranean, way(id)).unwrap();
+        let flats = levels("apartments", &house, Region::Mediterranean, Some(way(id))).unwrap();
         assert!((5..=8).contains(&flats), "{flats}");
     }
+}
+
+#[test]
+fn a_row_takes_one_style_without_variation_and_its_ridge_along_the_row() {
+    let house = Footprint::of(&rectangle(BAVARIA, 6.0, 10.0)).unwrap();
+    let roofs: Vec<InferredRoof> = (0..3)
+        .map(|_| row_roof("house", &house, None, Region::CentralEurope, 12.0))
+        .collect();
+    assert!(roofs.windows(2).all(|w| w[0] == w[1]));
+    assert_eq!(roofs[0].shape, RoofShape::Gabled);
+    assert_eq!(roofs[0].direction_deg, Some(12.0));
+    for (building, region) in [
+        ("apartments", Region::Mediterranean),
+        ("garage", Region::CentralEurope),
+        ("retail", Region::Alpine),
+    ] {
+        let roof = row_roof(building, &house, None, region, 0.0);
+        assert_eq!(roof.shape, RoofShape::Flat, "{building} in {region:?}");
+    }
+    // Levels without variation: the middle of the region's range, the same for every house.
+    let levels_of = |id| levels("house", &house, Region::CentralEurope, id);
+    assert_eq!(levels_of(None), levels_of(None));
+    assert!(levels_of(None).is_some());
 }
