@@ -113,11 +113,26 @@ impl BinaryBuilder {
         let encoded = encode_vertices(data, stride);
         self.compressed(
             &encoded,
-            data.len(),
-            stride,
-            data.len() / stride,
-            "ATTRIBUTES",
+            (data.len(), stride, data.len() / stride),
+            ("ATTRIBUTES", None),
             target,
+        )
+    }
+
+    /// A compressed view of vertex data already put through a meshopt `filter` (its decoder
+    /// undoes it after the codec).
+    fn filtered_vertex_view(
+        &mut self,
+        data: &[u8],
+        stride: usize,
+        filter: &str,
+    ) -> json::Index<json::buffer::View> {
+        let encoded = encode_vertices(data, stride);
+        self.compressed(
+            &encoded,
+            (data.len(), stride, data.len() / stride),
+            ("ATTRIBUTES", Some(filter)),
+            Some(json::buffer::Target::ArrayBuffer),
         )
     }
 
@@ -177,23 +192,20 @@ impl BinaryBuilder {
         let stride = if wide { 4 } else { 2 };
         self.compressed(
             &encoded,
-            bytes.len(),
-            stride,
-            indices.len(),
-            "TRIANGLES",
+            (bytes.len(), stride, indices.len()),
+            ("TRIANGLES", None),
             target,
         )
     }
 
     /// Appends meshoptimizer's bytes to the binary chunk and a view of the fallback buffer
-    /// that they decode into.
+    /// that they decode into (`decoded_length` bytes of `count` elements of `stride`), by a
+    /// codec `mode` and a filter, if any.
     fn compressed(
         &mut self,
         encoded: &[u8],
-        decoded_length: usize,
-        stride: usize,
-        count: usize,
-        mode: &str,
+        (decoded_length, stride, count): (usize, usize, usize),
+        (mode, filter): (&str, Option<&str>),
         target: Option<json::buffer::Target>,
     ) -> json::Index<json::buffer::View> {
         while self.bytes.len() % 4 != 0 {
@@ -205,7 +217,7 @@ impl BinaryBuilder {
         *fallback = fallback.next_multiple_of(4);
         let decoded_offset = *fallback;
         *fallback += decoded_length;
-        let extension = value!({
+        let mut extension = value!({
             "buffer": 0,
             "byteOffset": offset,
             "byteLength": encoded.len(),
@@ -213,6 +225,9 @@ impl BinaryBuilder {
             "count": count,
             "mode": mode,
         });
+        if let Some(filter) = filter {
+            extension["filter"] = value!(filter);
+        }
         self.root.push(json::buffer::View {
             buffer: json::Index::new(1),
             byte_length: USize64::from(decoded_length),
@@ -730,7 +745,9 @@ fn write_float_positions(
     builder.float_vec3(positions, Some((value!(min), value!(max))))
 }
 
-/// Normals as floats, or in a compressed tile as signed normalized bytes, padded to 4 a vertex.
+/// Normals as floats, or in a compressed tile as signed normalized bytes, padded to 4 a vertex,
+/// stored octahedrally (meshopt's `OCTAHEDRAL` filter: two components that vary instead of
+/// three, which its codec packs tighter; the decoder gives back the bytes of the unit vector).
 fn write_normals(
     builder: &mut BinaryBuilder,
     normals: &[[f32; 3]],
@@ -740,19 +757,23 @@ fn write_normals(
     if !compressed {
         return builder.float_vec3(normals, None);
     }
-    let bytes: Vec<u8> = normals
-        .iter()
-        .flat_map(|n| {
-            let [a, b, c] = n.map(|v| (v.clamp(-1.0, 1.0) * 127.0).round() as i8 as u8);
-            [a, b, c, 0]
-        })
+    let units: Vec<[f32; 4]> = normals.iter().map(|n| [n[0], n[1], n[2], 0.0]).collect();
+    let bytes: Vec<u8> = meshopt::encode_filter_oct::<i8>(&units, 8)
+        .into_iter()
+        .flatten()
+        .map(|v| v as u8)
         .collect();
-    builder.byte_attribute(
-        &bytes,
+    let view = builder.filtered_vertex_view(&bytes, 4, "OCTAHEDRAL");
+    builder.root.buffer_views[view.value()].byte_stride = Some(json::buffer::Stride(4));
+    let accessor = builder.accessor(
+        view,
         count,
         json::accessor::ComponentType::I8,
         json::accessor::Type::Vec3,
-    )
+        None,
+    );
+    builder.root.accessors[accessor.value()].normalized = true;
+    accessor
 }
 
 /// Feature ids: 16-bit where they fit (vertex attributes may not be 32-bit integers), each

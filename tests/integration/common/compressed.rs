@@ -59,7 +59,11 @@ fn views(root: &Value, bin: &[u8]) -> Vec<Vec<u8>> {
             );
             assert!(fallback.get("uri").is_none());
             assert_eq!(number(meshopt, "buffer"), 0);
-            assert!(meshopt.get("filter").is_none() || meshopt["filter"] == "NONE");
+            let octahedral = match meshopt.get("filter").and_then(|f| f.as_str()) {
+                None | Some("NONE") => false,
+                Some("OCTAHEDRAL") => true,
+                Some(other) => panic!("unexpected filter {other}"),
+            };
             let offset = number(meshopt, "byteOffset");
             let source = &bin[offset..offset + number(meshopt, "byteLength")];
             let (count, stride) = (number(meshopt, "count"), number(meshopt, "byteStride"));
@@ -92,6 +96,15 @@ fn views(root: &Value, bin: &[u8]) -> Vec<Vec<u8>> {
                 other => panic!("unexpected meshopt view {other:?}"),
             };
             assert_eq!(decoded.len(), number(view, "byteLength"));
+            if octahedral {
+                assert_eq!(stride, 4, "octahedral bytes");
+                let mut units: Vec<[i8; 4]> = decoded
+                    .chunks_exact(4)
+                    .map(|c| [c[0] as i8, c[1] as i8, c[2] as i8, c[3] as i8])
+                    .collect();
+                meshopt::decode_filter_oct(&mut units);
+                return units.into_iter().flatten().map(|v| v as u8).collect();
+            }
             decoded
         })
         .collect()
