@@ -433,7 +433,11 @@ pub fn extrude(
     let facade = &building.facade;
     let levels = facades::Levels::new(facade, solid.ground, solid.eaves);
     for face in &solid.walls {
+        // A gable or a side of the roof, above the eaves, is wall only: drawn blank, it needs no
+        // texture coordinates.
+        let gable = face.iter().all(|c| c[2] >= solid.eaves);
         let pieces = match (facade.ground, facade.upper) {
+            _ if gable => [(face.clone(), None), (Vec::new(), None)],
             (Some(ground), upper) => {
                 let (below, above) = facades::split_at(face, levels.ground_floor_top());
                 [(below, Some(ground)), (above, upper)]

@@ -4,9 +4,10 @@
 //! Each wall takes the whole number of bays nearest its width (so no window is cut at a
 //! corner) and the walls the whole number of levels nearest their height from the lowest
 //! ground to the eaves (so no row of windows is cut by the roof). Levels count from the lowest
-//! ground under the building, so the levels of its parts and its walls line up. Gables and
-//! the sides of a roof above the eaves show wall only: their corners sample the band of wall at
-//! the foot of a level. A wall too narrow for a window shows wall only too.
+//! ground under the building, so the levels of its parts and its walls line up. Gables and the
+//! sides of a roof above the eaves are drawn blank; a wall that reaches above the eaves samples
+//! the band of wall at the foot of a level there. A wall too narrow for a window shows wall
+//! only too.
 //!
 //! Texture `v` grows downwards in glTF, so `v` is minus the levels counted up: each texture is
 //! drawn as a level is seen, its top row at the top of the level.
@@ -59,10 +60,11 @@ impl Levels {
     }
 
     /// Texture `v` at an elevation (metres): minus the levels up from the floor, held in the
-    /// wall band over the eaves.
+    /// wall band over the eaves, and at the floor below it (the wall's foot is underground: one
+    /// value there compresses best).
     fn v(&self, elevation: f64) -> f64 {
         let up = (elevation - self.floor) / self.level_m;
-        -up.min(self.count + WALL_BAND)
+        -up.clamp(0.0, self.count + WALL_BAND)
     }
 }
 
@@ -116,14 +118,15 @@ impl Across {
     }
 }
 
-/// Texture coordinates held to whole texels of a 64-pixel texture: finer is invisible, and
-/// coordinates with few significant bits compress to a fraction of their size.
+/// Texture coordinates held to sixteenths of a repeat (20 cm on a bay of 3.2 m, where only
+/// a wall cut at a tile's edge lies between them): small whole numbers of steps compress to a
+/// fraction of the size of finer ones.
 pub fn snapped(uv: [f64; 2]) -> [f64; 2] {
-    uv.map(|c| (c * TEXELS).round() / TEXELS)
+    uv.map(|c| (c * STEPS).round() / STEPS)
 }
 
-/// Texels a repeat of every facade texture.
-const TEXELS: f64 = 64.0;
+/// Steps of a repeat texture coordinates are held to.
+pub const STEPS: f64 = 16.0;
 
 /// The pieces of a face below and above an elevation (either may be empty).
 pub fn split_at(face: &[[f64; 3]], elevation: f64) -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
@@ -214,10 +217,10 @@ mod tests {
             (sorted[0] - 0.0).abs() < 1e-9 && (sorted[3] - 3.0).abs() < 1e-9,
             "{us:?}"
         );
-        // The eaves are three levels up; the skirt under the floor reaches below it.
+        // The eaves are three levels up; the skirt under the floor is held at it.
         let vs: Vec<f64> = uvs.iter().map(|uv| uv[1]).collect();
         assert!(vs.iter().any(|v| (v + 3.0).abs() < 1e-9), "{vs:?}");
-        assert!(vs.iter().any(|v| *v > 0.0), "{vs:?}");
+        assert!(vs.contains(&0.0) && vs.iter().all(|v| *v <= 0.0), "{vs:?}");
     }
 
     #[test]

@@ -12,6 +12,9 @@ use crate::features::facades::Glazing;
 use crate::output::png::{self, Rgb};
 
 const SIDE: u32 = 64;
+/// Steps of a repeat the compressed texture coordinates count in: the mesh snaps them to these
+/// (`mesh::facades::STEPS`), so whole steps are exact.
+const STEPS: f64 = crate::mesh::facades::STEPS;
 const WALL: [u8; 3] = [255, 255, 255];
 
 /// The texture of a glazing in the tile being written, added with its image the first time.
@@ -64,7 +67,7 @@ pub(super) const TEXTURE_TRANSFORM: &str = "KHR_texture_transform";
 pub(super) fn texture_info(builder: &mut BinaryBuilder, glazing: Glazing) -> json::texture::Info {
     let index = texture(builder, glazing);
     let extensions = builder.fallback.is_some().then(|| {
-        let scale = 1.0 / f64::from(SIDE);
+        let scale = 1.0 / STEPS;
         json::extensions::texture::Info {
             others: [(
                 TEXTURE_TRANSFORM.to_string(),
@@ -91,7 +94,7 @@ pub(super) fn write_uvs(
 ) -> json::Index<json::Accessor> {
     let (bytes, stride, component_type) = if compressed {
         let texels = |c: f32| {
-            let texel = (f64::from(c) * f64::from(SIDE)).round();
+            let texel = (f64::from(c) * STEPS).round();
             (texel.clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16).to_le_bytes()
         };
         let bytes: Vec<u8> = uvs
