@@ -108,7 +108,7 @@ function showFeature(feature) {
     : `<a href="https://www.openstreetmap.org/${escapeHtml(type)}/${escapeHtml(id)}" target="_blank" rel="noopener">openstreetmap.org</a>`;
   document.getElementById('feature-body').innerHTML = `
     <div><strong>${escapeHtml(feature.getProperty('class') ?? '')}</strong>
-      ${escapeHtml(feature.getProperty('name') ?? '')}</div>
+      ${escapeHtml(tags.name ?? '')}</div>
     <div class="osm-id" data-osm-type="${escapeHtml(type)}" data-osm-id="${escapeHtml(id)}">${escapeHtml(type)} ${escapeHtml(id)} ${link}</div>
     <table>${rows}</table>`;
   panel.hidden = false;

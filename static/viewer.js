@@ -611,8 +611,14 @@ document.getElementById('feature-close').addEventListener('click', hideFeature);
 
 function showFeature(row) {
   featureBody.replaceChildren();
+  let tags = {};
+  try {
+    tags = JSON.parse(row.tags || '{}');
+  } catch (_) {
+    // A broken tag column shows no tags.
+  }
   const title = document.createElement('h3');
-  title.textContent = row.name || row.class;
+  title.textContent = tags.name || row.class;
   featureBody.append(title);
   const table = document.createElement('table');
   const line = (key, value) => {
@@ -631,12 +637,6 @@ function showFeature(row) {
     link.textContent = `${row.osm_type} ${row.osm_id}`;
     link.dataset.osmId = row.osm_id;
     line('OSM', link);
-  }
-  let tags = {};
-  try {
-    tags = JSON.parse(row.tags || '{}');
-  } catch (_) {
-    // A broken tag column shows no tags.
   }
   for (const [key, value] of Object.entries(tags).sort()) line(key, value);
   featureBody.append(table);

@@ -91,7 +91,11 @@ pub(super) fn add_roads(
         roads.push((feature, Paving::from_tags(&way.tags), width));
         // The lines painted on it are a feature of their own, shown and hidden apart.
         plans.push(markings::lane_plan(&way.tags).map(|plan| {
-            let painted = set.add_feature(Some(element), FeatureClass::Marking, &way.tags);
+            let painted = set.add_feature(
+                Some(element),
+                FeatureClass::Marking,
+                &markings::painting_tags(&way.tags),
+            );
             (painted, plan)
         }));
         if roads::is_steps(&way.tags) {

@@ -68,6 +68,16 @@ pub enum Paint {
     Crossing,
 }
 
+/// The tags of a road that decide its lines (its class, lanes, direction and overtaking): the
+/// lines' feature carries these, the road's own feature all of them.
+pub fn painting_tags(tags: &Tags) -> Tags {
+    Tags::from_pairs(tags.iter().filter(|(key, _)| {
+        matches!(*key, "highway" | "oneway" | "overtaking")
+            || key.starts_with("lanes")
+            || key.starts_with("turn:lanes")
+    }))
+}
+
 /// The lanes of a road from its tags; `None` for a road that gets no lines.
 pub fn lane_plan(tags: &Tags) -> Option<LanePlan> {
     let highway = tags.get("highway")?;

@@ -82,13 +82,6 @@ pub(super) fn write_property_table(builder: &mut BinaryBuilder, features: &[Feat
             })
             .collect(),
     );
-    let name = strings(
-        builder,
-        features
-            .iter()
-            .map(|f| f.name().unwrap_or("").to_string())
-            .collect(),
-    );
     let tags = strings(
         builder,
         features
@@ -140,8 +133,7 @@ pub(super) fn write_property_table(builder: &mut BinaryBuilder, features: &[Feat
                         "osm_type": {"type": "ENUM", "enumType": "osm_type", "description": "node, way, relation, or none for the default ground"},
                         "osm_id": {"type": "SCALAR", "componentType": "INT64", "description": "OSM element id (0 for the default ground)"},
                         "class": {"type": "ENUM", "enumType": "feature_class", "description": "terrain, road, railway, water, landcover, building, vegetation, barrier, object, bridge, tunnel or marking"},
-                        "name": {"type": "STRING", "description": "the name tag, empty if none"},
-                        "tags": {"type": "STRING", "description": "all OSM tags as a JSON object"},
+                        "tags": {"type": "STRING", "description": "all OSM tags as a JSON object (its name among them)"},
                         "inferred": {"type": "STRING", "description": "values the tags leave unsaid that were inferred, as a JSON object of the tags they stand for (roof:shape, building:levels, roof:colour, building:colour); empty when nothing was"}
                     }
                 }
@@ -155,7 +147,6 @@ pub(super) fn write_property_table(builder: &mut BinaryBuilder, features: &[Feat
                 "osm_type": osm_type,
                 "osm_id": {"values": ids_view.value()},
                 "class": class,
-                "name": name,
                 "tags": tags,
                 "inferred": inferred
             }

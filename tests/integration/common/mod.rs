@@ -495,19 +495,23 @@ pub fn read_features<'a>(
             .as_u64()
             .expect("ids") as usize,
     );
-    let (osm_type, class, name, tags) = (
-        enums("osm_type"),
-        enums("class"),
-        strings("name"),
-        strings("tags"),
-    );
+    let (osm_type, class, tags) = (enums("osm_type"), enums("class"), strings("tags"));
     (0..count)
-        .map(|i| Feature {
-            osm_type: osm_type[i].clone(),
-            osm_id: i64::from_le_bytes(ids[i * 8..i * 8 + 8].try_into().unwrap()),
-            class: class[i].clone(),
-            name: name[i].clone(),
-            tags: serde_json::from_str(&tags[i]).expect("tags are a JSON object"),
+        .map(|i| {
+            let tags: serde_json::Map<String, serde_json::Value> =
+                serde_json::from_str(&tags[i]).expect("tags are a JSON object");
+            Feature {
+                osm_type: osm_type[i].clone(),
+                osm_id: i64::from_le_bytes(ids[i * 8..i * 8 + 8].try_into().unwrap()),
+                class: class[i].clone(),
+                // The name tag, as viewers show it.
+                name: tags
+                    .get("name")
+                    .and_then(|n| n.as_str())
+                    .unwrap_or_default()
+                    .to_string(),
+                tags,
+            }
         })
         .collect()
 }
