@@ -6,7 +6,7 @@
 
 use std::collections::HashMap;
 
-use super::objects::ObjectKind;
+use super::objects::{ObjectKind, RoadSide};
 use super::road_network::{self, RoadLine};
 use super::roads::{self, Paving};
 use super::structures::is_off_ground;
@@ -160,18 +160,6 @@ pub(super) fn add_roads(
     let widths: Vec<f64> = roads.iter().map(|r| r.2).collect();
     add_crossings(set, (&lines, &widths, &traffic), nodes);
     road_sides(&lines, &widths, &traffic, nodes)
-}
-
-/// Where a signal, sign or bus stop mapped on a road's node stands: beside the road, facing the
-/// traffic it is for (a bus stop facing the road).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RoadSide {
-    pub node: i64,
-    /// Global tile units.
-    pub at: Point,
-    /// Rotation about the vertical of the local frame (counter-clockwise seen from above) that
-    /// turns a model facing north to face the oncoming traffic.
-    pub rotation: f64,
 }
 
 /// Clearance between a road's edge and a signal's pole, metres.

@@ -392,7 +392,7 @@ impl InferredRoof {
 /// (a compass bearing): one style for the row, without the variation drawn per building, so
 /// neighbours agree — flat where most of their kind are (or where size or height make them so),
 /// else gabled with its ridge across the shared walls, along the row, at the region's middle
-/// pitch.
+/// pitch (hipped where the outline does not take gables).
 pub fn row_roof(
     building: &str,
     footprint: &Footprint,
@@ -418,9 +418,19 @@ pub fn row_roof(
         return InferredRoof::FLAT;
     }
     let (low, range) = region.house_pitch_deg();
+    let pitch_deg = low + range / 2.0;
+    if !footprint.takes_gables() {
+        // A gable across an irregular outline would stand out of it: hipped, on its own
+        // outline.
+        return InferredRoof {
+            shape: RoofShape::Hipped,
+            pitch_deg,
+            direction_deg: None,
+        };
+    }
     InferredRoof {
         shape: RoofShape::Gabled,
-        pitch_deg: low + range / 2.0,
+        pitch_deg,
         // The faces look along the shared wall, to the street on either side.
         direction_deg: Some(wall_deg),
     }

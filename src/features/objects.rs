@@ -4,7 +4,6 @@
 //! towers, wind turbines. Mapped as nodes, drawn as instances of one model per kind. Signals,
 //! signs and bus stops mapped on a road stand at its edge ([`super::carriageways`] places them).
 
-use super::carriageways::RoadSide;
 use super::{FeatureClass, FeatureSet, Projection};
 use crate::geometry::{Point, Rect};
 use crate::osm::index::Selection;
@@ -174,6 +173,18 @@ impl ObjectKind {
             ObjectKind::GiveWaySign => ([0.80, 0.78, 0.76, 1.0], 0.5),
         }
     }
+}
+
+/// Where a signal, sign or bus stop mapped on a road's node stands: beside the road, facing the
+/// traffic it is for (a bus stop facing the road).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RoadSide {
+    pub node: i64,
+    /// Global tile units.
+    pub at: Point,
+    /// Rotation about the vertical of the local frame (counter-clockwise seen from above) that
+    /// turns a model facing north to face the oncoming traffic.
+    pub rotation: f64,
 }
 
 /// An object to stand on the ground.
