@@ -191,16 +191,9 @@ fn road_sides(
             let Some(&(kind, tags)) = kinds.get(id) else {
                 continue;
             };
-            let (before, after) = (
-                line.points[k.saturating_sub(1)],
-                line.points[(k + 1).min(line.points.len() - 1)],
-            );
-            let (dx, dy) = (after[0] - before[0], after[1] - before[1]);
-            let length = dx.hypot(dy);
-            if length <= 0.0 || !placed.insert(*id) {
+            let Some(forward) = direction_at(line, k).filter(|_| placed.insert(*id)) else {
                 continue;
-            }
-            let forward = [dx / length, dy / length];
+            };
             let tagged = tags
                 .get("traffic_signals:direction")
                 .or_else(|| tags.get("direction"));
@@ -264,15 +257,9 @@ fn add_crossings(
             let Some(paint) = crossings::paint(&node.tags, region) else {
                 continue;
             };
-            let (before, after) = (
-                line.points[k.saturating_sub(1)],
-                line.points[(k + 1).min(line.points.len() - 1)],
-            );
-            let (dx, dy) = (after[0] - before[0], after[1] - before[1]);
-            let length = dx.hypot(dy);
-            if length <= 0.0 || !painted.insert(*id) {
+            let Some(direction) = direction_at(line, k).filter(|_| painted.insert(*id)) else {
                 continue;
-            }
+            };
             let element = ElementRef {
                 element_type: ElementType::Node,
                 id: *id,
@@ -282,12 +269,24 @@ fn add_crossings(
                 feature,
                 paint,
                 line.points[k],
-                [dx / length, dy / length],
+                direction,
                 width,
                 line.metre,
             ));
         }
     }
+}
+
+/// The unit direction of a road's line at its `k`-th point (from the point before to the one
+/// after); `None` where the line has no length there.
+fn direction_at(line: &RoadLine, k: usize) -> Option<[f64; 2]> {
+    let (before, after) = (
+        line.points[k.saturating_sub(1)],
+        line.points[(k + 1).min(line.points.len() - 1)],
+    );
+    let (dx, dy) = (after[0] - before[0], after[1] - before[1]);
+    let length = dx.hypot(dy);
+    (length > 0.0).then(|| [dx / length, dy / length])
 }
 
 /// The point of a junction's node.

@@ -306,14 +306,7 @@ pub fn roof(
 ) -> InferredRoof {
     let flat = InferredRoof::FLAT;
     let kind = kind_of(building);
-    // Large, many-cornered or tall buildings are flat wherever they stand.
-    let large = match kind {
-        Kind::Farm | Kind::Church => footprint.area_m2 > 3000.0,
-        Kind::House if building == "yes" => footprint.area_m2 > 300.0,
-        _ => footprint.area_m2 > 1500.0,
-    };
-    let tall = height_m.is_some_and(|h| h > 20.0);
-    if kind == Kind::Flat || large || tall || footprint.corners > 12 || footprint.area_m2 < 12.0 {
+    if kind == Kind::Flat || flat_by_size(building, kind, footprint, height_m) {
         return flat;
     }
     let (low, range) = region.house_pitch_deg();
@@ -380,6 +373,18 @@ pub fn roof(
     }
 }
 
+/// Whether a building is flat-roofed by its size alone, whatever it is and where it stands:
+/// large, many-cornered, tall, or too small for a roof of its own.
+fn flat_by_size(building: &str, kind: Kind, footprint: &Footprint, height_m: Option<f64>) -> bool {
+    let large = match kind {
+        Kind::Farm | Kind::Church => footprint.area_m2 > 3000.0,
+        Kind::House if building == "yes" => footprint.area_m2 > 300.0,
+        _ => footprint.area_m2 > 1500.0,
+    };
+    let tall = height_m.is_some_and(|h| h > 20.0);
+    large || tall || footprint.corners > 12 || footprint.area_m2 < 12.0
+}
+
 impl InferredRoof {
     const FLAT: InferredRoof = InferredRoof {
         shape: RoofShape::Flat,
@@ -401,12 +406,6 @@ pub fn row_roof(
     wall_deg: f64,
 ) -> InferredRoof {
     let kind = kind_of(building);
-    let large = match kind {
-        Kind::Farm | Kind::Church => footprint.area_m2 > 3000.0,
-        Kind::House if building == "yes" => footprint.area_m2 > 300.0,
-        _ => footprint.area_m2 > 1500.0,
-    };
-    let tall = height_m.is_some_and(|h| h > 20.0);
     let mostly_flat = match kind {
         Kind::Flat | Kind::Small => true,
         Kind::Apartments | Kind::Other => {
@@ -414,7 +413,7 @@ pub fn row_roof(
         }
         Kind::House | Kind::Farm | Kind::Church => false,
     };
-    if mostly_flat || large || tall || footprint.corners > 12 || footprint.area_m2 < 12.0 {
+    if mostly_flat || flat_by_size(building, kind, footprint, height_m) {
         return InferredRoof::FLAT;
     }
     let (low, range) = region.house_pitch_deg();

@@ -333,8 +333,20 @@ mod tests {
                 .map(|p| p[1])
                 .fold(f32::MIN, f32::max);
             assert!(low <= 0.0 && high > 0.5, "{kind:?} from {low} to {high}");
-            for t in model.indices.chunks_exact(3) {
-                let [a, b, c] = [t[0], t[1], t[2]].map(|i| model.positions[i as usize]);
+            assert!(
+                windings(&model).iter().all(|&dot| dot >= 0.0),
+                "{kind:?}: a triangle faces inwards"
+            );
+        }
+    }
+
+    /// For each triangle, how far its winding agrees with the stored normal of its first
+    /// corner (positive: it faces the way its normal says).
+    fn windings(part: &MeshBuffers) -> Vec<f32> {
+        part.indices
+            .chunks_exact(3)
+            .map(|t| {
+                let [a, b, c] = [t[0], t[1], t[2]].map(|i| part.positions[i as usize]);
                 let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
                 let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
                 let n = [
@@ -342,11 +354,10 @@ mod tests {
                     e1[2] * e2[0] - e1[0] * e2[2],
                     e1[0] * e2[1] - e1[1] * e2[0],
                 ];
-                let stored = model.normals[t[0] as usize];
-                let dot = n[0] * stored[0] + n[1] * stored[1] + n[2] * stored[2];
-                assert!(dot >= 0.0, "{kind:?}: a triangle faces inwards");
-            }
-        }
+                let stored = part.normals[t[0] as usize];
+                n[0] * stored[0] + n[1] * stored[1] + n[2] * stored[2]
+            })
+            .collect()
     }
 
     #[test]
@@ -355,20 +366,11 @@ mod tests {
             let (trunk, crown) = tree(kind);
             for part in [&trunk, &crown] {
                 assert!(part.triangle_count() >= SIDES);
-                for t in part.indices.chunks_exact(3) {
-                    let [a, b, c] = [t[0], t[1], t[2]].map(|i| part.positions[i as usize]);
-                    let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-                    let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-                    let n = [
-                        e1[1] * e2[2] - e1[2] * e2[1],
-                        e1[2] * e2[0] - e1[0] * e2[2],
-                        e1[0] * e2[1] - e1[1] * e2[0],
-                    ];
-                    // The winding agrees with the stored normal of the first corner.
-                    let stored = part.normals[t[0] as usize];
-                    let dot = n[0] * stored[0] + n[1] * stored[1] + n[2] * stored[2];
-                    assert!(dot > 0.0, "{kind:?}: a triangle faces inwards");
-                }
+                // The winding agrees with the stored normal of the first corner.
+                assert!(
+                    windings(part).iter().all(|&dot| dot > 0.0),
+                    "{kind:?}: a triangle faces inwards"
+                );
             }
             // One unit tall, the trunk reaching below the ground.
             let top = crown
