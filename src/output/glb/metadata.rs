@@ -134,7 +134,7 @@ pub(super) fn write_property_table(builder: &mut BinaryBuilder, features: &[Feat
                         "osm_id": {"type": "SCALAR", "componentType": "INT64", "description": "OSM element id (0 for the default ground)"},
                         "class": {"type": "ENUM", "enumType": "feature_class", "description": "terrain, road, railway, water, landcover, building, vegetation, barrier, object, bridge, tunnel or marking"},
                         "tags": {"type": "STRING", "description": "all OSM tags as a JSON object (its name among them)"},
-                        "inferred": {"type": "STRING", "description": "values the tags leave unsaid that were inferred, as a JSON object of the tags they stand for (roof:shape, building:levels, roof:colour, building:colour); empty when nothing was"}
+                        "inferred": {"type": "STRING", "description": "values the tags leave unsaid that were inferred, as a JSON object of the tags they stand for (roof:shape, roof:direction, building:levels, roof:colour, building:colour); empty when nothing was"}
                     }
                 }
             }
