@@ -216,42 +216,55 @@ pub fn clip_to_rect<const N: usize>(polygon: &[[f64; N]], rect: &Rect) -> Vec<[f
     let mut output: Vec<[f64; N]> = polygon.to_vec();
     for axis in 0..2 {
         for (bound, keep_greater) in [(rect.min[axis], true), (rect.max[axis], false)] {
-            let inside = |p: &[f64; N]| {
-                if keep_greater {
-                    p[axis] >= bound
-                } else {
-                    p[axis] <= bound
-                }
-            };
-            let input = std::mem::take(&mut output);
-            let n = input.len();
-            for i in 0..n {
-                let current = input[i];
-                let previous = input[(i + n - 1) % n];
-                let crossing = || {
-                    let t = (bound - previous[axis]) / (current[axis] - previous[axis]);
-                    let mut p = [0.0; N];
-                    for (k, c) in p.iter_mut().enumerate() {
-                        *c = previous[k] + t * (current[k] - previous[k]);
-                    }
-                    p[axis] = bound;
-                    p
-                };
-                match (inside(&previous), inside(&current)) {
-                    (true, true) => output.push(current),
-                    (true, false) => output.push(crossing()),
-                    (false, true) => {
-                        output.push(crossing());
-                        output.push(current);
-                    }
-                    (false, false) => {}
-                }
-            }
+            output = clip_half_space(&output, axis, bound, keep_greater);
         }
     }
     output.dedup();
     while output.len() > 1 && output.first() == output.last() {
         output.pop();
+    }
+    output
+}
+
+/// One Sutherland–Hodgman pass: the part of a polygon whose coordinate `axis` is at least
+/// `bound` (`keep_greater`) or at most it, the other coordinates interpolated where an edge
+/// crosses it (and that coordinate set to `bound` there). Points may repeat in a row.
+pub fn clip_half_space<const N: usize>(
+    polygon: &[[f64; N]],
+    axis: usize,
+    bound: f64,
+    keep_greater: bool,
+) -> Vec<[f64; N]> {
+    let inside = |p: &[f64; N]| {
+        if keep_greater {
+            p[axis] >= bound
+        } else {
+            p[axis] <= bound
+        }
+    };
+    let n = polygon.len();
+    let mut output = Vec::with_capacity(n + 2);
+    for i in 0..n {
+        let current = polygon[i];
+        let previous = polygon[(i + n - 1) % n];
+        let crossing = || {
+            let t = (bound - previous[axis]) / (current[axis] - previous[axis]);
+            let mut p = [0.0; N];
+            for (k, c) in p.iter_mut().enumerate() {
+                *c = previous[k] + t * (current[k] - previous[k]);
+            }
+            p[axis] = bound;
+            p
+        };
+        match (inside(&previous), inside(&current)) {
+            (true, true) => output.push(current),
+            (true, false) => output.push(crossing()),
+            (false, true) => {
+                output.push(crossing());
+                output.push(current);
+            }
+            (false, false) => {}
+        }
     }
     output
 }

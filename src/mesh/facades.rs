@@ -13,6 +13,7 @@
 //! drawn as a level is seen, its top row at the top of the level.
 
 use crate::features::facades::Facade;
+use crate::geometry::clip_half_space;
 
 /// Where, in a level of every facade texture, the wall under the windows is (share of a level
 /// above its floor): gables sample it.
@@ -136,39 +137,11 @@ pub fn split_at(face: &[[f64; 3]], elevation: f64) -> (Vec<[f64; 3]>, Vec<[f64; 
     )
 }
 
-/// The part of a convex polygon below (or above) an elevation.
+/// The part of a convex polygon below (or above) an elevation, empty when it has no area.
 fn keep_side(face: &[[f64; 3]], elevation: f64, below: bool) -> Vec<[f64; 3]> {
-    let inside = |p: &[f64; 3]| {
-        if below {
-            p[2] <= elevation
-        } else {
-            p[2] >= elevation
-        }
-    };
-    let mut out = Vec::with_capacity(face.len() + 2);
-    for i in 0..face.len() {
-        let current = face[i];
-        let previous = face[(i + face.len() - 1) % face.len()];
-        let crossing = || {
-            let t = (elevation - previous[2]) / (current[2] - previous[2]);
-            [
-                previous[0] + t * (current[0] - previous[0]),
-                previous[1] + t * (current[1] - previous[1]),
-                elevation,
-            ]
-        };
-        match (inside(&previous), inside(&current)) {
-            (true, true) => out.push(current),
-            (true, false) => out.push(crossing()),
-            (false, true) => {
-                out.push(crossing());
-                out.push(current);
-            }
-            (false, false) => {}
-        }
-    }
+    let mut out = clip_half_space(face, 2, elevation, !below);
     out.dedup();
-    if out.len() >= 2 && out.first() == out.last() {
+    while out.len() > 1 && out.first() == out.last() {
         out.pop();
     }
     if out.len() < 3 {
