@@ -604,25 +604,24 @@ pub(super) fn add_area(
     let mut appearance = appearance(area.tags);
     let mut inferred = Vec::new();
     let mut levels = tagged_levels(area.tags);
-    if !part {
-        let outlines: Vec<&[crate::osm::LonLat]> =
-            area.polygons.iter().map(|p| p.outer.as_slice()).collect();
+    let largest = inference::largest(area.polygons.iter().map(|p| p.outer.as_slice()));
+    if let Some((outline, footprint)) = largest.as_ref().filter(|_| !part) {
         let tagged_height = tagged.then_some(height);
         let row = rows.get(&area.element).copied();
-        if let Some(guess) =
-            inference::building(area.tags, &outlines, tagged_height, area.element, row)
-        {
+        if let Some(guess) = inference::building(
+            area.tags,
+            (outline, footprint),
+            tagged_height,
+            area.element,
+            row,
+        ) {
             inferred = apply_inferred(&guess, area.tags, settings, (&mut height, &mut roof));
             appearance = appearance_or(area.tags, linear(guess.colours));
             levels = levels.or(guess.levels.map(f64::from));
         }
     }
-    let largest = area
-        .polygons
-        .iter()
-        .filter_map(|p| inference::Footprint::of(&p.outer))
-        .max_by(|a, b| a.area_m2.total_cmp(&b.area_m2));
-    let facade = facades::facade(area.tags, largest.as_ref(), levels, settings);
+    let footprint = largest.as_ref().map(|(_, footprint)| footprint);
+    let facade = facades::facade(area.tags, footprint, levels, settings);
     let min_height = min_height_m(area.tags, settings).min(height);
     let feature = set.add_feature(Some(area.element), FeatureClass::Building, area.tags);
     set.features[feature as usize].inferred = inferred;

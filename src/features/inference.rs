@@ -604,31 +604,36 @@ pub struct Inferred {
     pub colours: ([f64; 3], [f64; 3]),
 }
 
+/// The largest of a building's outlines that can be measured, with its footprint; `None` when
+/// every one is too small or degenerate to measure.
+pub fn largest<'a>(
+    outlines: impl Iterator<Item = &'a [LonLat]>,
+) -> Option<(&'a [LonLat], Footprint)> {
+    outlines
+        .filter_map(|outline| Some((outline, Footprint::of(outline)?)))
+        .max_by(|a, b| a.1.area_m2.total_cmp(&b.1.area_m2))
+}
+
 /// Infers what a building's tags leave unsaid from its `building` value, its outline (the
-/// largest, when it has several), the height tagged (if any), its element and, for a building
-/// in a row, the bearing of its shared wall; `None` for an outline too small or degenerate to
-/// measure.
+/// largest, when it has several: see [`largest`]) and its footprint, the height tagged (if any), its element and, for a building
+/// in a row, the bearing of its shared wall; `None` for an empty outline.
 pub fn building(
     tags: &Tags,
-    outlines: &[&[LonLat]],
+    (outline, footprint): (&[LonLat], &Footprint),
     tagged_height_m: Option<f64>,
     element: ElementRef,
     row: Option<f64>,
 ) -> Option<Inferred> {
-    let (outline, footprint) = outlines
-        .iter()
-        .filter_map(|outline| Some((*outline, Footprint::of(outline)?)))
-        .max_by(|a, b| a.1.area_m2.total_cmp(&b.1.area_m2))?;
     let region = Region::of(*outline.first()?);
     let kind = tags.get("building").unwrap_or("yes");
     let shape_tagged = tags.is_set("roof:shape") || tags.is_set("building:roof:shape");
     let levels_tagged = tags.is_set("building:levels");
     let levels = (tagged_height_m.is_none() && !levels_tagged)
-        .then(|| levels(kind, &footprint, region, row.is_none().then_some(element)))
+        .then(|| levels(kind, footprint, region, row.is_none().then_some(element)))
         .flatten();
     let roof = (!shape_tagged).then(|| match row {
-        Some(wall_deg) => row_roof(kind, &footprint, tagged_height_m, region, wall_deg),
-        None => roof(kind, &footprint, tagged_height_m, region, element),
+        Some(wall_deg) => row_roof(kind, footprint, tagged_height_m, region, wall_deg),
+        None => roof(kind, footprint, tagged_height_m, region, element),
     });
     let flat = roof.map_or(tags.get("roof:shape") == Some("flat"), |r| {
         r.shape == RoofShape::Flat
