@@ -91,7 +91,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let frame = tile.frame();
     let mut features = vec![FeatureInfo {
-        inferred: Vec::new(),
+        inferred: Default::default(),
         element: None,
         class: FeatureClass::Terrain,
         tags: Tags::default(),
@@ -120,7 +120,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 ("name", format!("{shape:?} on {name}")),
             ]);
             features.push(FeatureInfo {
-                inferred: Vec::new(),
+                inferred: Default::default(),
                 element: None,
                 class: FeatureClass::Building,
                 tags: tags.clone(),

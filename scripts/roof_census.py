@@ -87,12 +87,31 @@ def property_table(path):
         elif enum_type is not None:
             names = {v["value"]: v["name"] for v in schema["enums"][enum_type]["values"]}
             for i in range(count):
-                rows[i][name] = names.get(values[i], "")
+                found = names.get(values[i], "")
+                rows[i][name] = "" if found == declared[name].get("noData") else found
         else:
-            ids = struct.unpack_from(f"<{count}q", values, 0)
+            kind = {"INT64": "q", "UINT16": "H", "UINT8": "B"}[declared[name]["componentType"]]
+            width = {"SCALAR": 1, "VEC3": 3}[declared[name]["type"]]
+            numbers = struct.unpack_from(f"<{count * width}{kind}", values, 0)
+            no_data = declared[name].get("noData")
             for i in range(count):
-                rows[i][name] = ids[i]
+                value = numbers[i] if width == 1 else list(numbers[i * width : (i + 1) * width])
+                rows[i][name] = None if value == no_data else value
     return rows
+
+
+def inferred_of(row):
+    """The values a row's building inferred, as the tags they stand for."""
+    inferred = {}
+    if row.get("inferred_roof_shape"):
+        inferred["roof:shape"] = row["inferred_roof_shape"]
+    if row.get("inferred_building_levels") is not None:
+        inferred["building:levels"] = str(row["inferred_building_levels"])
+    for key in ("building:colour", "roof:colour"):
+        colour = row.get("inferred_" + key.replace(":", "_"))
+        if colour is not None:
+            inferred[key] = "#%02x%02x%02x" % tuple(colour)
+    return inferred
 
 
 class Areas(osmium.SimpleHandler):
@@ -132,7 +151,7 @@ def main():
                 continue
             buildings += 1
             tags = json.loads(row["tags"] or "{}")
-            inferred = json.loads(row.get("inferred") or "{}")
+            inferred = inferred_of(row)
             try:
                 levels = float(tags.get("building:levels") or inferred.get("building:levels"))
             except (TypeError, ValueError):

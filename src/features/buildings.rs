@@ -14,8 +14,8 @@ use std::collections::HashMap;
 use tracing::debug;
 
 use super::{
-    facades, inference, Area, BuildingShape, FeatureClass, FeatureSet, FeatureSettings, Projection,
-    Surface,
+    facades, inference, Area, BuildingShape, FeatureClass, FeatureSet, FeatureSettings,
+    InferredTags, Projection, Surface,
 };
 use crate::osm::units::{parse_count, parse_length_m};
 use crate::osm::{ElementRef, Relation, Tags};
@@ -540,38 +540,35 @@ fn apply_inferred(
     tags: &Tags,
     settings: &FeatureSettings,
     (height, roof): (&mut f64, &mut RoofSpec),
-) -> Vec<(&'static str, String)> {
-    let mut inferred = Vec::new();
+) -> InferredTags {
+    let mut inferred = InferredTags::default();
     if let Some(levels) = guess.levels {
         *height = f64::from(levels) * settings.level_height_m;
         // The walls are the levels; a pitched roof stands on them.
         roof.over_levels = true;
-        inferred.push(("building:levels", levels.to_string()));
+        inferred.levels = Some(levels);
     }
     if let Some(guessed) = guess.roof {
         roof.shape = guessed.shape;
         if !tags.is_set("roof:angle") && guessed.pitch_deg > 0.0 {
             roof.pitch = guessed.pitch_deg.to_radians().tan();
         }
-        inferred.push(("roof:shape", guessed.shape.tag().to_string()));
+        inferred.roof_shape = Some(guessed.shape);
         if let Some(direction) = guessed
             .direction_deg
             .filter(|_| roof.direction_deg.is_none())
         {
             roof.direction_deg = Some(direction);
-            inferred.push(("roof:direction", format!("{direction:.0}")));
+            inferred.roof_direction_deg = Some(direction);
         }
     }
     let untagged = |colour, material| !tags.is_set(colour) && !tags.is_set(material);
-    let hex = |c: [f64; 3]| {
-        let [r, g, b] = c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8);
-        format!("#{r:02x}{g:02x}{b:02x}")
-    };
+    let srgb = |c: [f64; 3]| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8);
     if untagged("building:colour", "building:material") {
-        inferred.push(("building:colour", hex(guess.colours.0)));
+        inferred.building_colour = Some(srgb(guess.colours.0));
     }
     if untagged("roof:colour", "roof:material") {
-        inferred.push(("roof:colour", hex(guess.colours.1)));
+        inferred.roof_colour = Some(srgb(guess.colours.1));
     }
     inferred
 }
@@ -602,7 +599,7 @@ pub(super) fn add_area(
     let basement = basement_m(area.tags, settings);
     let mut roof = roof_spec(area.tags, settings);
     let mut appearance = appearance(area.tags);
-    let mut inferred = Vec::new();
+    let mut inferred = InferredTags::default();
     let mut levels = tagged_levels(area.tags);
     let largest = inference::largest(area.polygons.iter().map(|p| p.outer.as_slice()));
     if let Some((outline, footprint)) = largest.as_ref().filter(|_| !part) {

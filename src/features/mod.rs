@@ -32,6 +32,7 @@ use crate::geometry::{Point, Polygon, Rect};
 use crate::osm::index::Selection;
 use crate::osm::{multipolygon::AreaPolygon, ElementRef, ElementType, LonLat, Tags};
 use crate::tile::{lon_lat_to_uv, mercator_scale, TileId};
+use roof_shape::RoofShape;
 
 /// What a feature is, as written in the feature table and used to name glTF nodes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -114,9 +115,24 @@ pub struct FeatureInfo {
     pub element: Option<ElementRef>,
     pub class: FeatureClass,
     pub tags: Tags,
-    /// Values its tags leave unsaid that were inferred, as the tags they stand for
-    /// (`roof:shape`, `building:levels`, …): what a viewer can show as guessed.
-    pub inferred: Vec<(&'static str, String)>,
+    /// Values its tags leave unsaid that were inferred: what a viewer can show as guessed.
+    pub inferred: InferredTags,
+}
+
+/// The values of a building's tags that were inferred where the tags are silent, each standing
+/// for the tag named beside it; `None` where the tag is mapped (or nothing was inferred).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct InferredTags {
+    /// `building:levels`.
+    pub levels: Option<u32>,
+    /// `roof:shape`.
+    pub roof_shape: Option<RoofShape>,
+    /// `roof:direction`, degrees.
+    pub roof_direction_deg: Option<f64>,
+    /// `building:colour` (sRGB).
+    pub building_colour: Option<[u8; 3]>,
+    /// `roof:colour` (sRGB).
+    pub roof_colour: Option<[u8; 3]>,
 }
 
 impl FeatureInfo {
@@ -276,7 +292,7 @@ impl FeatureSet {
             element,
             class,
             tags: tags.clone(),
-            inferred: Vec::new(),
+            inferred: InferredTags::default(),
         });
         (self.features.len() - 1) as u32
     }

@@ -311,6 +311,12 @@ fn an_untagged_house_gets_a_pitched_roof_with_its_ridge_along_its_long_side() {
             continue;
         }
         pitched += 1;
+        let house = &tile.features[building_row(&tile, "house") as usize];
+        assert!(
+            ["gabled", "hipped"].contains(&house.inferred_roof_shape.as_str()),
+            "the roof drawn is marked as inferred: {:?}",
+            house.inferred_roof_shape
+        );
         let ridge: Vec<&[f32; 3]> = roof.iter().filter(|v| v[1] > top - 0.05).collect();
         let spread = |axis: usize| {
             let values = ridge.iter().map(|v| v[axis]);
@@ -340,6 +346,11 @@ fn a_tagged_flat_roof_stays_flat() {
     let top = roof.iter().map(|v| v[1]).fold(f32::MIN, f32::max);
     let bottom = roof.iter().map(|v| v[1]).fold(f32::MAX, f32::min);
     assert!(!roof.is_empty() && top - bottom < 1e-3, "{bottom}..{top}");
+    let house = &tile.features[building_row(&tile, "house") as usize];
+    assert_eq!(
+        house.inferred_roof_shape, "",
+        "a mapped roof is not marked inferred"
+    );
 }
 
 /// The painted lines of a tile: for each line, its distance south of the tile's middle (metres

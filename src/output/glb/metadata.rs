@@ -4,7 +4,8 @@
 use serde_json::{json as value, Value};
 
 use super::BinaryBuilder;
-use crate::features::{FeatureClass, FeatureInfo};
+use crate::features::roof_shape::RoofShape;
+use crate::features::{FeatureClass, FeatureInfo, InferredTags};
 use crate::osm::ElementType;
 
 /// The element types of `osm_type`, by their enum values.
@@ -39,10 +40,83 @@ fn strings(builder: &mut BinaryBuilder, values: Vec<String>) -> Value {
     })
 }
 
-/// An enum column: one byte a row.
-fn enums(builder: &mut BinaryBuilder, values: Vec<u8>) -> Value {
+/// A column of fixed-size values (an enum's bytes, numbers, vectors), laid row after row.
+fn fixed(builder: &mut BinaryBuilder, values: Vec<u8>) -> Value {
     let view = builder.view(&values, 8, None);
     value!({ "values": view.value() })
+}
+
+/// What no inferred value is written as, in each of the inferred columns.
+const NOT_INFERRED_DIRECTION: u16 = u16::MAX;
+const NOT_INFERRED_LEVELS: u8 = 0;
+const NOT_INFERRED_COLOUR: [u8; 3] = [0, 0, 0];
+
+/// The columns of the values inferred where a building's tags are silent (named after the
+/// columns, with what a row that inferred nothing holds as their `noData`).
+fn inferred_columns(builder: &mut BinaryBuilder, features: &[FeatureInfo]) -> Value {
+    let inferred = || features.iter().map(|f| &f.inferred);
+    let shape = inferred()
+        .map(|i| {
+            i.roof_shape.map_or(0, |s| {
+                RoofShape::ALL.iter().position(|a| *a == s).unwrap_or(0) as u8 + 1
+            })
+        })
+        .collect();
+    let direction = inferred()
+        .flat_map(|i| {
+            i.roof_direction_deg
+                .map_or(NOT_INFERRED_DIRECTION, |d| {
+                    d.rem_euclid(360.0).round() as u16 % 360
+                })
+                .to_le_bytes()
+        })
+        .collect();
+    let levels = inferred()
+        .map(|i| {
+            i.levels.map_or(NOT_INFERRED_LEVELS, |l| {
+                l.clamp(1, u32::from(u8::MAX)) as u8
+            })
+        })
+        .collect();
+    let colour = |pick: fn(&InferredTags) -> Option<[u8; 3]>| -> Vec<u8> {
+        // A colour that happens to be the no-data black is written one step off it.
+        inferred()
+            .flat_map(|i| {
+                pick(i).map_or(NOT_INFERRED_COLOUR, |c| {
+                    if c == NOT_INFERRED_COLOUR {
+                        [0, 0, 1]
+                    } else {
+                        c
+                    }
+                })
+            })
+            .collect()
+    };
+    value!({
+        "inferred_roof_shape": fixed(builder, shape),
+        "inferred_roof_direction": fixed(builder, direction),
+        "inferred_building_levels": fixed(builder, levels),
+        "inferred_building_colour": fixed(builder, colour(|i| i.building_colour)),
+        "inferred_roof_colour": fixed(builder, colour(|i| i.roof_colour)),
+    })
+}
+
+/// The schema of the inferred columns.
+fn inferred_schema() -> Value {
+    let colour = |tag: &str| {
+        value!({"type": "VEC3", "componentType": "UINT8", "noData": NOT_INFERRED_COLOUR,
+            "description": format!("{tag} inferred (sRGB), where neither it nor a material is tagged")})
+    };
+    value!({
+        "inferred_roof_shape": {"type": "ENUM", "enumType": "roof_shape", "noData": "none",
+            "description": "roof:shape inferred, where it is not tagged"},
+        "inferred_roof_direction": {"type": "SCALAR", "componentType": "UINT16", "noData": NOT_INFERRED_DIRECTION,
+            "description": "roof:direction inferred (degrees, the compass direction the roof's faces look towards), where it is not tagged and the roof follows a row"},
+        "inferred_building_levels": {"type": "SCALAR", "componentType": "UINT8", "noData": NOT_INFERRED_LEVELS,
+            "description": "building:levels inferred, where neither it nor a height is tagged"},
+        "inferred_building_colour": colour("building:colour"),
+        "inferred_roof_colour": colour("roof:colour"),
+    })
 }
 
 /// An enum's definition: its names, valued by their order.
@@ -57,7 +131,7 @@ fn enum_of(names: &[&str], description: &str) -> Value {
 
 /// The schema and the one property table of `EXT_structural_metadata`.
 pub(super) fn write_property_table(builder: &mut BinaryBuilder, features: &[FeatureInfo]) -> Value {
-    let osm_type = enums(
+    let osm_type = fixed(
         builder,
         features
             .iter()
@@ -70,7 +144,7 @@ pub(super) fn write_property_table(builder: &mut BinaryBuilder, features: &[Feat
             })
             .collect(),
     );
-    let class = enums(
+    let class = fixed(
         builder,
         features
             .iter()
@@ -96,46 +170,41 @@ pub(super) fn write_property_table(builder: &mut BinaryBuilder, features: &[Feat
             })
             .collect(),
     );
-    let inferred = strings(
-        builder,
-        features
-            .iter()
-            .map(|f| {
-                if f.inferred.is_empty() {
-                    return String::new();
-                }
-                let object: serde_json::Map<String, Value> = f
-                    .inferred
-                    .iter()
-                    .map(|(k, v)| (k.to_string(), Value::String(v.clone())))
-                    .collect();
-                Value::Object(object).to_string()
-            })
-            .collect(),
-    );
     let ids: Vec<u8> = features
         .iter()
         .flat_map(|f| f.element.map_or(0i64, |e| e.id).to_le_bytes())
         .collect();
     let ids_view = builder.view(&ids, 8, None);
     let class_names: Vec<&str> = FeatureClass::ALL.iter().map(|c| c.as_str()).collect();
+    let shape_names: Vec<&str> = std::iter::once("none")
+        .chain(RoofShape::ALL.iter().map(|s| s.tag()))
+        .collect();
+    let mut declared = value!({
+        "osm_type": {"type": "ENUM", "enumType": "osm_type", "description": "node, way, relation, or none for the default ground"},
+        "osm_id": {"type": "SCALAR", "componentType": "INT64", "description": "OSM element id (0 for the default ground)"},
+        "class": {"type": "ENUM", "enumType": "feature_class", "description": "terrain, road, railway, water, landcover, building, vegetation, barrier, object, bridge, tunnel or marking"},
+        "tags": {"type": "STRING", "description": "all OSM tags as a JSON object (its name among them)"}
+    });
+    let mut columns = value!({
+        "osm_type": osm_type,
+        "osm_id": {"values": ids_view.value()},
+        "class": class,
+        "tags": tags
+    });
+    merge(&mut declared, inferred_schema());
+    merge(&mut columns, inferred_columns(builder, features));
     value!({
         "schema": {
             "id": "terrastitch",
             "enums": {
                 "osm_type": enum_of(&OSM_TYPES, "the type of an OSM element"),
                 "feature_class": enum_of(&class_names, "what a feature is drawn as"),
+                "roof_shape": enum_of(&shape_names, "a roof:shape value, or none"),
             },
             "classes": {
                 "osm_feature": {
                     "name": "OpenStreetMap feature",
-                    "properties": {
-                        "osm_type": {"type": "ENUM", "enumType": "osm_type", "description": "node, way, relation, or none for the default ground"},
-                        "osm_id": {"type": "SCALAR", "componentType": "INT64", "description": "OSM element id (0 for the default ground)"},
-                        "class": {"type": "ENUM", "enumType": "feature_class", "description": "terrain, road, railway, water, landcover, building, vegetation, barrier, object, bridge, tunnel or marking"},
-                        "tags": {"type": "STRING", "description": "all OSM tags as a JSON object (its name among them)"},
-                        "inferred": {"type": "STRING", "description": "values the tags leave unsaid that were inferred, as a JSON object of the tags they stand for (roof:shape, roof:direction, building:levels, roof:colour, building:colour); empty when nothing was"}
-                    }
+                    "properties": declared
                 }
             }
         },
@@ -143,13 +212,14 @@ pub(super) fn write_property_table(builder: &mut BinaryBuilder, features: &[Feat
             "name": "osm_features",
             "class": "osm_feature",
             "count": features.len(),
-            "properties": {
-                "osm_type": osm_type,
-                "osm_id": {"values": ids_view.value()},
-                "class": class,
-                "tags": tags,
-                "inferred": inferred
-            }
+            "properties": columns
         }]
     })
+}
+
+/// Adds the members of the object `more` to the object `into`.
+fn merge(into: &mut Value, more: Value) {
+    if let (Value::Object(into), Value::Object(more)) = (into, more) {
+        into.extend(more);
+    }
 }

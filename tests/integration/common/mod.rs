@@ -348,6 +348,8 @@ pub struct Feature {
     pub class: String,
     pub name: String,
     pub tags: serde_json::Map<String, serde_json::Value>,
+    /// The `roof:shape` inferred for it, empty where none was.
+    pub inferred_roof_shape: String,
 }
 
 #[derive(Debug)]
@@ -490,6 +492,7 @@ pub fn read_features<'a>(
             .map(|i| names[&u64::from(values[i])].clone())
             .collect()
     };
+    let shapes = enums("inferred_roof_shape");
     let ids = view_bytes(
         table["properties"]["osm_id"]["values"]
             .as_u64()
@@ -511,6 +514,9 @@ pub fn read_features<'a>(
                     .unwrap_or_default()
                     .to_string(),
                 tags,
+                inferred_roof_shape: Some(shapes[i].clone())
+                    .filter(|s| s != "none")
+                    .unwrap_or_default(),
             }
         })
         .collect()
