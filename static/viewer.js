@@ -183,6 +183,55 @@ function setView(view) {
   controls.update();
 }
 
+// Thin or hollow things the view does not stand on.
+const SKIPPED_NODES = /^(tunnel|power|barrier|marking)/;
+const downward = new THREE.Raycaster();
+
+/** The height of the top of what is drawn under a point of the world (the ground, or a roof:
+ *  the ground under a building is not drawn) in the finest loaded tiles, or null where none
+ *  is loaded. */
+function groundUnder(x, z) {
+  const ground = [];
+  for (const tile of tiles.values()) {
+    if (tile.state !== 'loaded' || !tile.group || tile.z !== ZOOM) continue;
+    const size = span(tile.z) * TILE_M;
+    const corner = tile.group.position;
+    if (x < corner.x || x > corner.x + size || z < corner.z || z > corner.z + size) continue;
+    tile.group.updateMatrixWorld();
+    tile.group.traverse((o) => {
+      if (o.isMesh && !o.isInstancedMesh && !SKIPPED_NODES.test(o.name) && !SKIPPED_NODES.test(o.parent?.name ?? '')) {
+        ground.push(o);
+      }
+    });
+  }
+  if (ground.length === 0) return null;
+  downward.set(new THREE.Vector3(x, 1e5, z), new THREE.Vector3(0, -1, 0));
+  return downward.intersectObjects(ground, false)[0]?.point.y ?? null;
+}
+
+/** Least height of the camera over the ground, metres. */
+const CAMERA_CLEARANCE = 2;
+
+/** Puts the view's target on the ground drawn under it, moving the camera with it, and keeps
+ *  the camera above the ground, so a view set or panned over high or steep ground does not
+ *  look at it from below. */
+function settleOnGround() {
+  const target = controls.target;
+  const ground = groundUnder(target.x, target.z);
+  if (ground === null) return;
+  const rise = ground - target.y;
+  if (Math.abs(rise) > 0.5) {
+    target.y += rise;
+    camera.position.y += rise;
+  }
+  const under = groundUnder(camera.position.x, camera.position.z);
+  if (under !== null && camera.position.y < under + CAMERA_CLEARANCE) {
+    camera.position.y = under + CAMERA_CLEARANCE;
+  }
+  controls.update();
+  invalidate();
+}
+
 function currentView() {
   const [lon, lat] = lonLatFromWorld(controls.target);
   const offset = camera.position.clone().sub(controls.target);
@@ -237,6 +286,7 @@ function jumpTo(view) {
     return;
   }
   setView(view);
+  settleOnGround();
   scheduleTiles();
 }
 
@@ -444,6 +494,7 @@ async function loadTile(tile) {
     applyToggles(group);
     scene.add(group);
     stats.loaded.push(keyOf(tile));
+    settleOnGround();
     if (layers.debug && tile.z === ZOOM) addDebug(tile);
     checkFirstView();
   } catch (error) {
@@ -522,6 +573,30 @@ function checkFirstView() {
 // ---------------------------------------------------------------------------------------
 // The feature table (EXT_structural_metadata) of a tile, read lazily row by row
 
+const NUMBER_ARRAYS = {
+  INT64: BigInt64Array,
+  UINT64: BigUint64Array,
+  UINT32: Uint32Array,
+  UINT16: Uint16Array,
+  UINT8: Uint8Array,
+  FLOAT32: Float32Array,
+  FLOAT64: Float64Array,
+};
+const COMPONENTS = { SCALAR: 1, VEC2: 2, VEC3: 3, VEC4: 4 };
+
+/** A column of numbers (a scalar or a vector a row), as strings; null where it holds noData. */
+function numberColumn(values, declared) {
+  const Numbers = NUMBER_ARRAYS[declared.componentType ?? 'INT64'];
+  const width = COMPONENTS[declared.type ?? 'SCALAR'];
+  if (!Numbers || !width) return () => null;
+  const numbers = new Numbers(values, 0, Math.floor(values.byteLength / Numbers.BYTES_PER_ELEMENT));
+  const noData = declared.noData === undefined ? null : String(declared.noData);
+  return (i) => {
+    const row = Array.from(numbers.subarray(i * width, (i + 1) * width), String).join(',');
+    return row === noData ? null : row;
+  };
+}
+
 async function propertyTable(parser) {
   const metadata = parser.json.extensions?.EXT_structural_metadata;
   const table = metadata?.propertyTables?.[0];
@@ -547,10 +622,13 @@ async function propertyTable(parser) {
     } else if (enumType !== undefined) {
       const names = new Map((schema.enums?.[enumType]?.values ?? []).map((v) => [v.value, v.name]));
       const bytes = new Uint8Array(values);
-      columns[name] = (i) => names.get(bytes[i]) ?? '';
+      const noData = classProperties[name]?.noData;
+      columns[name] = (i) => {
+        const found = names.get(bytes[i]) ?? '';
+        return found === noData ? null : found;
+      };
     } else {
-      const numbers = new BigInt64Array(values);
-      columns[name] = (i) => numbers[i].toString();
+      columns[name] = numberColumn(values, classProperties[name] ?? {});
     }
   }
   return {
@@ -639,8 +717,25 @@ function showFeature(row) {
     line('OSM', link);
   }
   for (const [key, value] of Object.entries(tags).sort()) line(key, value);
+  for (const [key, value] of Object.entries(inferredOf(row)).sort()) line(key, `${value} (inferred)`);
   featureBody.append(table);
   featureBox.hidden = false;
+}
+
+/** The values a row's tags leave unsaid that were inferred, as the tags they stand for. */
+function inferredOf(row) {
+  const inferred = {};
+  for (const [name, value] of Object.entries(row)) {
+    if (!name.startsWith('inferred_') || value === null || value === '') continue;
+    const key = name.slice('inferred_'.length).replace('_', ':');
+    if (key.endsWith('colour')) {
+      const hex = value.split(',').map((c) => Number(c).toString(16).padStart(2, '0')).join('');
+      inferred[key] = `#${hex}`;
+    } else {
+      inferred[key] = value;
+    }
+  }
+  return inferred;
 }
 
 function hideFeature() {
@@ -783,6 +878,7 @@ function resize() {
 window.addEventListener('resize', resize);
 
 let lastSchedule = 0;
+controls.addEventListener('end', settleOnGround);
 controls.addEventListener('change', () => {
   invalidate();
   writeHash();
