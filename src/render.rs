@@ -766,6 +766,7 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         frame,
         &settled,
     ));
+    mesh::sidewalks::build(&feature_set.sidewalks, frame, &settled, &mut parts);
     let drawn = mesh::instances::DrawnGround::new(ground, &vertex_y, frame, &settled);
     parts.insert(
         Part::Stairs,

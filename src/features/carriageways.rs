@@ -10,7 +10,7 @@ use super::objects::{ObjectKind, RoadSide};
 use super::road_network::{self, RoadLine};
 use super::roads::{self, Paving};
 use super::structures::is_off_ground;
-use super::{crossings, inference, markings};
+use super::{crossings, inference, markings, sidewalks};
 use super::{
     railways, widened_surface, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface,
 };
@@ -61,21 +61,29 @@ pub struct Stairs {
     pub metre: f64,
 }
 
+/// What the roads leave to be placed once the rest of the tile's features are known.
+pub(super) struct Carriageways {
+    /// Where the signals and signs mapped on the roads stand.
+    pub road_sides: Vec<RoadSide>,
+    /// The bands beside the carriageways that may be sidewalks.
+    pub bands: Vec<sidewalks::Candidate>,
+}
+
 /// Adds the roads among `ways` as one network: a surface per way, split and cut back where
 /// ways meet, and a surface per junction (traced to its OSM node). A way of steps is a road
 /// of the network (its ramp) and a flight of steps over it.
-/// Returns where the signals and signs mapped on these roads stand.
 pub(super) fn add_roads(
     set: &mut FeatureSet,
     ways: &[&Way],
     nodes: &[&Node],
     projection: &Projection,
     settings: &FeatureSettings,
-) -> Vec<RoadSide> {
+) -> Carriageways {
     let mut lines = Vec::new();
     let mut roads: Vec<(u32, Paving, f64)> = Vec::new();
     let mut plans = Vec::new();
     let mut traffic = Vec::new();
+    let mut walks = Vec::new();
     for way in ways {
         let Some(line) = road_line(way, projection, settings) else {
             continue;
@@ -89,6 +97,7 @@ pub(super) fn add_roads(
         };
         let feature = set.add_feature(Some(element), FeatureClass::Road, &way.tags);
         roads.push((feature, Paving::from_tags(&way.tags), width));
+        walks.push(sidewalks::plan(&way.tags));
         // The lines painted on it are a feature of their own, shown and hidden apart.
         plans.push(markings::lane_plan(&way.tags).map(|plan| {
             let painted = set.add_feature(
@@ -111,14 +120,21 @@ pub(super) fn add_roads(
         traffic.push(crossings::is_painted_road(&way.tags));
     }
     let network = road_network::build(&lines);
-    for (((feature, paving, _), road), (painted, line)) in roads
+    let mut bands = Vec::new();
+    for ((((feature, paving, width), road), (painted, line)), walk) in roads
         .iter()
         .zip(network.roads)
         .zip(plans.iter().zip(&lines))
+        .zip(&walks)
     {
         if let Some((painted, plan)) = painted {
             set.markings
                 .extend(markings::along(*painted, &road, plan, line.metre));
+        }
+        if let Some(walk) = walk {
+            bands.extend(sidewalks::candidates(
+                *feature, &road, walk, *width, line.metre,
+            ));
         }
         if let Some(mut surface) =
             Surface::from_parts(FeatureClass::Road, *feature, road.pieces, road.outline)
@@ -159,7 +175,10 @@ pub(super) fn add_roads(
     }
     let widths: Vec<f64> = roads.iter().map(|r| r.2).collect();
     add_crossings(set, (&lines, &widths, &traffic), nodes);
-    road_sides(&lines, &widths, &traffic, nodes)
+    Carriageways {
+        road_sides: road_sides(&lines, &widths, &traffic, nodes),
+        bands,
+    }
 }
 
 /// Clearance between a road's edge and a signal's pole, metres.

@@ -164,24 +164,14 @@ pub fn lane_plan(tags: &Tags) -> Option<LanePlan> {
 pub fn along(feature: u32, road: &RoadSurface, plan: &LanePlan, metre: f64) -> Vec<Marking> {
     let mut markings = Vec::new();
     for ((range, _), stations) in road.lines.iter().zip(&road.stations) {
-        let pieces = &road.pieces[range.clone()];
-        if pieces.is_empty()
-            || pieces.iter().any(|p| p.outer.len() != 4)
-            || stations.len() != pieces.len() + 1
-        {
+        if stations.len() != range.len() + 1 {
             continue;
         }
         for boundary in 1..plan.lanes {
             let share = f64::from(boundary) / f64::from(plan.lanes);
-            let across = |left: Point, right: Point| {
-                [
-                    left[0] + (right[0] - left[0]) * share,
-                    left[1] + (right[1] - left[1]) * share,
-                ]
+            let Some(line) = road.line_at(range.clone(), share) else {
+                continue;
             };
-            // A piece is [left start, left end, right end, right start].
-            let mut line = vec![across(pieces[0].outer[0], pieces[0].outer[3])];
-            line.extend(pieces.iter().map(|p| across(p.outer[1], p.outer[2])));
             let centre = boundary == plan.backward;
             markings.push(Marking {
                 feature,

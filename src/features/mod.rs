@@ -24,6 +24,7 @@ pub mod road_network;
 pub mod roads;
 pub mod roof_shape;
 pub mod rows;
+pub mod sidewalks;
 pub mod structures;
 pub mod vegetation;
 pub mod water;
@@ -276,6 +277,8 @@ pub struct FeatureSet {
     pub stairs: Vec<carriageways::Stairs>,
     /// Lines painted on the roads on the ground, along their surfaces as drawn.
     pub markings: Vec<markings::Marking>,
+    /// Sidewalks and verges beside the roads on the ground.
+    pub sidewalks: Vec<sidewalks::Band>,
     /// Outlines of the roads, railways and water near the tile, also those just outside it:
     /// they weigh the terrain error on both sides of a shared edge alike.
     pub nearby_outlines: Vec<Vec<Point>>,
@@ -357,8 +360,21 @@ impl FeatureSet {
             .retain(|l| Rect::around(&l.line).intersects(rect));
         self.stairs
             .retain(|s| Rect::around(&s.line).intersects(rect));
-        self.markings
-            .retain(|m| Rect::around(&m.line).intersects(rect));
+        // A line ending just outside the tile may still paint its width into it.
+        self.markings.retain(|m| {
+            let half = m.width_m * m.metre / 2.0;
+            let bounds = Rect::around(&m.line);
+            Rect {
+                min: [bounds.min[0] - half, bounds.min[1] - half],
+                max: [bounds.max[0] + half, bounds.max[1] + half],
+            }
+            .intersects(rect)
+        });
+        self.sidewalks.retain(|s| {
+            Rect::around(&s.outer)
+                .union(&Rect::around(&s.inner))
+                .intersects(rect)
+        });
         let mut used = vec![false; self.features.len()];
         used[0] = true;
         for feature in self
@@ -371,6 +387,7 @@ impl FeatureSet {
             .chain(self.power_lines.iter().map(|l| l.feature))
             .chain(self.stairs.iter().map(|s| s.feature))
             .chain(self.markings.iter().map(|m| m.feature))
+            .chain(self.sidewalks.iter().map(|s| s.feature))
         {
             used[feature as usize] = true;
         }
@@ -409,6 +426,9 @@ impl FeatureSet {
         }
         for marking in &mut self.markings {
             marking.feature = renumbered[marking.feature as usize];
+        }
+        for band in &mut self.sidewalks {
+            band.feature = renumbered[band.feature as usize];
         }
     }
 }
@@ -505,7 +525,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     set.add_feature(None, FeatureClass::Terrain, &Tags::default());
     let areas = areas_of(selection);
     let rows = rows::shared_walls(&areas);
-    let road_sides = carriageways::add_roads(
+    let carriageways = carriageways::add_roads(
         &mut set,
         &selection.ways,
         &selection.nodes,
@@ -527,6 +547,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     buildings::link_building_relations(&mut set, &selection.relations);
     buildings::replace_outlines_by_parts(&mut set);
     buildings::open_passages(&mut set);
+    sidewalks::place(&mut set, carriageways.bands, &selection.ways, &projection);
     set.nearby_outlines = set.weighing_outlines();
     add_sea(&mut set, selection, tile, &projection);
     water::drop_waterways_in_water_areas(&mut set);
@@ -536,7 +557,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         selection,
         &projection,
         &tile_rect(tile),
-        &road_sides,
+        &carriageways.road_sides,
     );
     vegetation::collect(
         &mut set,

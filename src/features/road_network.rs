@@ -49,6 +49,28 @@ pub struct RoadSurface {
     pub stations: Vec<Vec<f64>>,
 }
 
+impl RoadSurface {
+    /// The line at `share` of the width across the pieces of `run` (0 its left side, 1 its
+    /// right; below 0 or above 1 beside it), from the run's start to its end; `None` for a run
+    /// whose pieces are not quads.
+    pub fn line_at(&self, run: std::ops::Range<usize>, share: f64) -> Option<Vec<Point>> {
+        let pieces = self.pieces.get(run)?;
+        if pieces.is_empty() || pieces.iter().any(|p| p.outer.len() != 4) {
+            return None;
+        }
+        let across = |left: Point, right: Point| {
+            [
+                left[0] + (right[0] - left[0]) * share,
+                left[1] + (right[1] - left[1]) * share,
+            ]
+        };
+        // A piece is [left start, left end, right end, right start].
+        let mut line = vec![across(pieces[0].outer[0], pieces[0].outer[3])];
+        line.extend(pieces.iter().map(|p| across(p.outer[1], p.outer[2])));
+        Some(line)
+    }
+}
+
 /// A stretch's line as drawn: from node to node with its bends rounded, and for each point
 /// the distance along the way's own line (from the stretch's first node, tile units) it stands
 /// for: a rounded bend stands for the corner it replaces.

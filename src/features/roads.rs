@@ -37,10 +37,22 @@ pub enum Paving {
     Concrete,
     Stones,
     Unpaved,
+    /// A sidewalk's paving: the bands beside a carriageway, and ways mapped as sidewalks.
+    Sidewalk,
 }
 
 impl Paving {
     pub fn from_tags(tags: &Tags) -> Paving {
+        if super::sidewalks::is_separate_sidewalk(tags)
+            && !matches!(Paving::from_surface(tags), Paving::Unpaved)
+        {
+            return Paving::Sidewalk;
+        }
+        Paving::from_surface(tags)
+    }
+
+    /// The paving its `surface` tag (or, untagged, its class) says.
+    fn from_surface(tags: &Tags) -> Paving {
         match tags.get("surface") {
             Some("concrete" | "concrete:plates" | "concrete:lanes") => Paving::Concrete,
             Some(
@@ -65,6 +77,7 @@ impl Paving {
             Paving::Concrete => "road_concrete",
             Paving::Stones => "road_stones",
             Paving::Unpaved => "road_unpaved",
+            Paving::Sidewalk => "sidewalk",
         }
     }
 
@@ -75,6 +88,7 @@ impl Paving {
             Paving::Concrete => ([0.55, 0.55, 0.53, 1.0], 0.9),
             Paving::Stones => ([0.50, 0.44, 0.38, 1.0], 0.9),
             Paving::Unpaved => ([0.55, 0.46, 0.33, 1.0], 0.95),
+            Paving::Sidewalk => ([0.62, 0.61, 0.58, 1.0], 0.9),
         }
     }
 }

@@ -14,6 +14,7 @@ pub mod normals;
 pub mod passages;
 pub mod power;
 pub mod roofs;
+pub mod sidewalks;
 pub mod skeleton;
 pub mod stairs;
 pub mod structures;
@@ -49,6 +50,12 @@ pub enum Part {
     Marking,
     /// Pedestrian crossings painted on roads.
     Crossing,
+    /// The tops of raised sidewalks, paved as the ways mapped as sidewalks are.
+    Sidewalk,
+    /// The kerbs and ends of raised sidewalks.
+    Kerb,
+    /// Grass verges beside roads outside built-up land.
+    Verge,
     /// A bridge's deck: paved like its road, or a railway's bed.
     BridgeDeck(Option<Paving>),
     /// A bridge's sides, underside and piers.
@@ -69,7 +76,7 @@ impl Part {
     pub fn class(self) -> FeatureClass {
         match self {
             Part::Terrain => FeatureClass::Terrain,
-            Part::Road(_) => FeatureClass::Road,
+            Part::Road(_) | Part::Sidewalk | Part::Kerb | Part::Verge => FeatureClass::Road,
             Part::Marking | Part::Crossing => FeatureClass::Marking,
             Part::Railway => FeatureClass::Railway,
             Part::Water => FeatureClass::Water,
@@ -82,6 +89,15 @@ impl Part {
             Part::Object(_) | Part::PowerLine | Part::Stairs => FeatureClass::Object,
             Part::BridgeDeck(_) | Part::BridgeStructure => FeatureClass::Bridge,
             Part::TunnelFloor(_) | Part::TunnelLining | Part::TunnelPortal => FeatureClass::Tunnel,
+        }
+    }
+
+    /// The name of the node that draws the part: its class's, but for what stands along a
+    /// road's sides over its surface (`roadside`), which is not ground.
+    pub fn node(self) -> &'static str {
+        match self {
+            Part::Sidewalk | Part::Kerb | Part::Verge => "roadside",
+            _ => self.class().as_str(),
         }
     }
 
@@ -110,17 +126,22 @@ impl Part {
             Part::Stairs => "stairs",
             Part::Marking => "marking",
             Part::Crossing => "crossing",
+            Part::Sidewalk => "sidewalk",
+            Part::Kerb => "kerb",
+            Part::Verge => "verge",
             Part::BridgeDeck(None) => "bridge_deck_railway",
             Part::BridgeDeck(Some(Paving::Asphalt)) => "bridge_deck_asphalt",
             Part::BridgeDeck(Some(Paving::Concrete)) => "bridge_deck_concrete",
             Part::BridgeDeck(Some(Paving::Stones)) => "bridge_deck_stones",
             Part::BridgeDeck(Some(Paving::Unpaved)) => "bridge_deck_unpaved",
+            Part::BridgeDeck(Some(Paving::Sidewalk)) => "bridge_deck_sidewalk",
             Part::BridgeStructure => "bridge_structure",
             Part::TunnelFloor(None) => "tunnel_floor_railway",
             Part::TunnelFloor(Some(Paving::Asphalt)) => "tunnel_floor_asphalt",
             Part::TunnelFloor(Some(Paving::Concrete)) => "tunnel_floor_concrete",
             Part::TunnelFloor(Some(Paving::Stones)) => "tunnel_floor_stones",
             Part::TunnelFloor(Some(Paving::Unpaved)) => "tunnel_floor_unpaved",
+            Part::TunnelFloor(Some(Paving::Sidewalk)) => "tunnel_floor_sidewalk",
             Part::TunnelLining => "tunnel_lining",
             Part::TunnelPortal => "tunnel_portal",
             Part::TreeCrown(TreeKind::Broadleaved, 0) => "broadleaved_crown_0",

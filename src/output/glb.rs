@@ -1,7 +1,8 @@
 //! glTF binary (`.glb`) writer.
 //!
-//! One node per feature class, named after it, each with one mesh whose primitives are the
-//! class's [`Part`]s. Every primitive carries `POSITION`, `NORMAL` and `_FEATURE_ID_0`
+//! One node per feature class, named after it (and a `roadside` node for the sidewalks, kerbs
+//! and verges over the road surfaces), each with one mesh whose primitives are the class's
+//! [`Part`]s. Every primitive carries `POSITION`, `NORMAL` and `_FEATURE_ID_0`
 //! (`EXT_mesh_features`), and painted ones (buildings) `COLOR_0` under a white material; the
 //! feature ids index one property table (`EXT_structural_metadata`)
 //! of class `osm_feature` with the OSM type, id, class, name and all tags (as a JSON object) of
@@ -385,12 +386,12 @@ pub fn write(
     };
 
     let mut nodes = Vec::new();
-    for (class, class_parts) in parts_by_class(parts) {
+    for ((_, name), class_parts) in parts_by_node(parts) {
         nodes.push(write_class(
             &mut builder,
             description,
             variant,
-            class,
+            name,
             &class_parts,
         ));
     }
@@ -426,29 +427,30 @@ pub fn write(
     container(&json_bytes, &builder.bytes)
 }
 
-/// The non-empty parts grouped by the feature class whose node draws them.
-fn parts_by_class(
-    parts: &BTreeMap<Part, MeshBuffers>,
-) -> BTreeMap<FeatureClass, Vec<(Part, &MeshBuffers)>> {
-    let mut class_parts: BTreeMap<FeatureClass, Vec<(Part, &MeshBuffers)>> = BTreeMap::new();
+/// The parts a node draws, by the feature class it draws for and its name.
+type NodeParts<'a> = BTreeMap<(FeatureClass, &'static str), Vec<(Part, &'a MeshBuffers)>>;
+
+/// The non-empty parts grouped by the node that draws them, in the order of their classes.
+fn parts_by_node(parts: &BTreeMap<Part, MeshBuffers>) -> NodeParts<'_> {
+    let mut node_parts = NodeParts::new();
     for (&part, buffers) in parts {
         if !buffers.is_empty() {
-            class_parts
-                .entry(part.class())
+            node_parts
+                .entry((part.class(), part.node()))
                 .or_default()
                 .push((part, buffers));
         }
     }
-    class_parts
+    node_parts
 }
 
-/// A class's node: one mesh with a primitive per part, and with compressed positions of the
-/// flat frame, the translation and scale that carry the shared grid back to metres.
+/// A node named `name`: one mesh with a primitive per part, and with compressed positions of
+/// the flat frame, the translation and scale that carry the shared grid back to metres.
 fn write_class(
     builder: &mut BinaryBuilder,
     description: &TileDescription,
     variant: Variant,
-    class: FeatureClass,
+    name: &str,
     class_parts: &[(Part, &MeshBuffers)],
 ) -> json::Index<json::Node> {
     // Positions on the shared grid where the node's extent allows it.
@@ -467,7 +469,7 @@ fn write_class(
     let mesh = builder.root.push(json::Mesh {
         extensions: None,
         extras: Default::default(),
-        name: Some(class.as_str().to_string()),
+        name: Some(name.to_string()),
         primitives,
         weights: None,
     });
@@ -480,7 +482,7 @@ fn write_class(
     };
     builder.root.push(json::Node {
         mesh: Some(mesh),
-        name: Some(class.as_str().to_string()),
+        name: Some(name.to_string()),
         translation,
         scale,
         ..Default::default()

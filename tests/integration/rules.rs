@@ -584,3 +584,123 @@ fn a_terrace_of_touching_houses_shares_one_roof_style_with_its_ridges_along_the_
         assert!(f64::from(spread(2)) / scale() < 0.1, "one ridge line");
     }
 }
+
+/// One metre on the ground as a fraction of the tile, at the fixtures' latitude.
+fn metre() -> f64 {
+    1.0 / (40_075_016.686 * at(0.5, 0.5).lat.to_radians().cos() / 16384.0)
+}
+
+/// A residential street east–west across the tile's middle with houses along both sides of
+/// its middle stretch.
+fn street_between_houses(fixture: &mut Fixture) {
+    fixture.way(&[("highway", "residential")], &[(-0.2, 0.5), (1.2, 0.5)]);
+    let m = metre();
+    for k in 0..10 {
+        let east = 0.5 + (f64::from(k) - 5.0) * 20.0 * m;
+        for (near, far) in [(-8.0_f64, -18.0_f64), (8.0, 18.0)] {
+            fixture.area(
+                &[("building", "house")],
+                (east, 0.5 + near.min(far) * m),
+                (east + 12.0 * m, 0.5 + near.max(far) * m),
+            );
+        }
+    }
+}
+
+/// The heights over the road's middle (metres) of the vertices of `material` in the
+/// `roadside` node (or, for a way mapped as a sidewalk, the `road` node) within 10 m of the line `south` (a fraction of the tile), on its north and on its
+/// south side.
+fn beside(tile: &DecodedTile, material: &str, south: f64) -> (Vec<f64>, Vec<f64>) {
+    let size = tile.tile_size();
+    let road = heights(tile, "road", (0.5, south))
+        .into_iter()
+        .fold(f64::MAX, f64::min);
+    let (mut north, mut southern) = (Vec::new(), Vec::new());
+    let drawn = tile
+        .primitives("roadside")
+        .iter()
+        .chain(tile.primitives("road"));
+    for primitive in drawn {
+        if primitive.material != material {
+            continue;
+        }
+        for v in &primitive.positions {
+            let off = f64::from(v[2]) / size - south;
+            if off.abs() > 10.0 * metre() {
+                continue;
+            }
+            let over = f64::from(v[1]) / scale() - road;
+            if off < 0.0 {
+                north.push(over);
+            } else {
+                southern.push(over);
+            }
+        }
+    }
+    (north, southern)
+}
+
+fn highest(heights: &[f64]) -> f64 {
+    heights.iter().copied().fold(f64::MIN, f64::max)
+}
+
+#[test]
+fn a_street_between_houses_has_raised_sidewalks_and_a_road_in_open_country_verges() {
+    let mut fixture = Fixture::default();
+    street_between_houses(&mut fixture);
+    fixture.way(&[("highway", "tertiary")], &[(-0.2, 0.8), (1.2, 0.8)]);
+    let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+    let (north, south) = beside(&tile, "sidewalk", 0.5);
+    for side in [&north, &south] {
+        // A residential street's kerb is 12 cm.
+        assert!(
+            (highest(side) - 0.12).abs() < 0.02,
+            "sidewalk tops at {:.3} m over the road",
+            highest(side)
+        );
+    }
+    assert!(tile
+        .primitives("roadside")
+        .iter()
+        .any(|p| p.material == "kerb" && !p.indices.is_empty()));
+    let (north, south) = beside(&tile, "sidewalk", 0.8);
+    assert!(
+        north.is_empty() && south.is_empty(),
+        "no sidewalk in the fields"
+    );
+    let (north, south) = beside(&tile, "verge", 0.8);
+    assert!(
+        !north.is_empty() && !south.is_empty(),
+        "verges on both sides"
+    );
+    assert!(highest(&north) < 0.05 && highest(&south) < 0.05);
+}
+
+#[test]
+fn a_separately_mapped_sidewalk_is_not_drawn_twice() {
+    let mut fixture = Fixture::default();
+    street_between_houses(&mut fixture);
+    // The north sidewalk, mapped as its own way 4.5 m from the street's middle.
+    let north = 0.5 - 4.5 * metre();
+    fixture.way(
+        &[("highway", "footway"), ("footway", "sidewalk")],
+        &[(0.3, north), (0.7, north)],
+    );
+    let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+    let (north, south) = beside(&tile, "sidewalk", 0.5);
+    assert!(
+        highest(&south) > 0.1,
+        "the south sidewalk is raised: {:.3}",
+        highest(&south)
+    );
+    // On the north, only the mapped footway, drawn as sidewalk on the ground.
+    assert!(
+        !north.is_empty(),
+        "the mapped sidewalk is drawn as a sidewalk"
+    );
+    assert!(
+        highest(&north) < 0.05,
+        "no raised sidewalk beside the mapped one: {:.3}",
+        highest(&north)
+    );
+}

@@ -38,13 +38,13 @@ fn render(tile: (u32, u32), srtm: &Path, out: &Path, afresh: bool) -> Vec<u8> {
     }
 }
 
-/// Vertices of bridges, tunnels and painted lines on one side of a tile, as bit patterns of
-/// (y, along): a deck, a tube or a line crossing the edge is cut at the same points in both
-/// tiles.
+/// Vertices of bridges, tunnels, painted lines, sidewalks and verges on one side of a tile,
+/// as bit patterns of (y, along): a deck, a tube, a line or a sidewalk crossing the edge is
+/// cut at the same points in both tiles.
 fn structure_edge(tile: &DecodedTile, side: &str) -> BTreeSet<(u32, u32)> {
     let size = tile.tile_size() as f32;
     let mut vertices = BTreeSet::new();
-    for node in ["bridge", "tunnel", "marking"] {
+    for node in ["bridge", "tunnel", "marking", "roadside"] {
         for primitive in tile.primitives(node) {
             for p in &primitive.positions {
                 if let Some(along) = along_side(p, side, size) {

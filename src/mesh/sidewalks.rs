@@ -1,0 +1,240 @@
+//! Sidewalks and verges ([`crate::features::sidewalks`]) on the road surfaces they lie in: a
+//! sidewalk as a wedge on its band, its top at its kerb's height over the settled surface
+//! along the carriageway and falling to just above it at its outer edge (where the ground
+//! beside the road begins, so no step or gap shows there), a kerb face towards the
+//! carriageway and a face at each end; a verge as a strip just above the surface.
+//! Inside the tile, neighbouring stretches share their vertices; a stretch across an edge is
+//! clipped to the tile, so both tiles cut it along the edge at the same points.
+
+use std::collections::BTreeMap;
+
+use super::{MeshBuffers, Part};
+use crate::features::sidewalks::{Band, Look};
+use crate::features::tile_rect;
+use crate::geometry::{clip_segment, clip_to_rect, Point, Rect};
+use crate::terrain::Elevation;
+use crate::tile::TileFrame;
+
+/// Height of a verge, and of a sidewalk's outer edge, over the road surface, metres (as the
+/// paint of markings).
+const LIFT_M: f64 = 0.03;
+/// How far a sidewalk's faces reach down into the surface under them, metres, so no gap shows
+/// where the surface is interpolated between its vertices.
+const FOOT_M: f64 = 0.05;
+
+/// The sidewalks' tops, kerbs and the verges, added to `parts`.
+pub fn build(
+    bands: &[Band],
+    frame: &TileFrame,
+    ground: &dyn Elevation,
+    parts: &mut BTreeMap<Part, MeshBuffers>,
+) {
+    let rect = tile_rect(frame.tile);
+    for band in bands {
+        let n = band.inner.len().min(band.outer.len());
+        if n < 2 || !reaches(band, &rect) {
+            continue;
+        }
+        let placed = Placed::new(band, frame, ground, n);
+        match band.look {
+            Look::Verge => {
+                let buffers = parts.entry(Part::Verge).or_default();
+                placed.top(buffers, &rect, (LIFT_M, LIFT_M));
+            }
+            Look::Sidewalk { kerb_m } => {
+                let kerb_m = kerb_m.max(LIFT_M);
+                let top = parts.entry(Part::Sidewalk).or_default();
+                placed.top(top, &rect, (kerb_m, LIFT_M));
+                let kerb = parts.entry(Part::Kerb).or_default();
+                placed.kerb(kerb, &rect, kerb_m);
+                placed.ends(kerb, &rect, kerb_m);
+            }
+        }
+    }
+}
+
+fn reaches(band: &Band, rect: &Rect) -> bool {
+    Rect::around(&band.inner)
+        .union(&Rect::around(&band.outer))
+        .intersects(rect)
+}
+
+/// A band's points with the settled surface's elevation at each.
+struct Placed<'a> {
+    band: &'a Band,
+    frame: &'a TileFrame,
+    ground: &'a dyn Elevation,
+    n: usize,
+    inner: Vec<f64>,
+    outer: Vec<f64>,
+}
+
+impl<'a> Placed<'a> {
+    fn new(band: &'a Band, frame: &'a TileFrame, ground: &'a dyn Elevation, n: usize) -> Self {
+        let heights = |line: &[Point]| line[..n].iter().map(|&p| ground.elevation_uv(p)).collect();
+        Placed {
+            band,
+            frame,
+            ground,
+            n,
+            inner: heights(&band.inner),
+            outer: heights(&band.outer),
+        }
+    }
+
+    /// A point of the band at `lift` metres over the surface, in the tile's frame.
+    fn local(&self, p: Point, elevation: f64, lift: f64) -> [f64; 3] {
+        let (x, z) = self.frame.uv_to_local(p[0], p[1]);
+        let y = self.frame.elevation_to_y(elevation + lift, z);
+        [x, y, z]
+    }
+
+    /// The band's top, `inner` and `outer` metres over the surface on its edges: a strip
+    /// whose stretches inside the tile share their vertices, and clipped stretches where it
+    /// crosses an edge.
+    fn top(&self, buffers: &mut MeshBuffers, rect: &Rect, (inner, outer): (f64, f64)) {
+        let up = [0.0, 1.0, 0.0];
+        let feature = self.band.feature;
+        let mut previous: Option<[u32; 2]> = None;
+        for k in 1..self.n {
+            let quad = [
+                (self.band.inner[k - 1], self.inner[k - 1], inner),
+                (self.band.inner[k], self.inner[k], inner),
+                (self.band.outer[k], self.outer[k], outer),
+                (self.band.outer[k - 1], self.outer[k - 1], outer),
+            ];
+            let mut corner = |(p, h, lift): (Point, f64, f64)| {
+                buffers.push_vertex(self.local(p, h, lift), up, feature)
+            };
+            if quad.iter().all(|(p, ..)| rect.contains(*p)) {
+                let [a, b] = previous.unwrap_or_else(|| [quad[0], quad[3]].map(&mut corner));
+                let [c, d] = [quad[1], quad[2]].map(&mut corner);
+                push_quad(buffers, [a, c, d, b], up);
+                previous = Some([c, d]);
+                continue;
+            }
+            previous = None;
+            // The lift across the band goes with each corner through the clip.
+            let flat: Vec<[f64; 3]> = quad
+                .iter()
+                .map(|(p, _, lift)| [p[0], p[1], *lift])
+                .collect();
+            let clipped = clip_to_rect(&flat, rect);
+            if clipped.len() < 3 {
+                continue;
+            }
+            let corners: Vec<[f64; 3]> = clipped
+                .iter()
+                .map(|&[u, v, lift]| self.local([u, v], self.ground.elevation_uv([u, v]), lift))
+                .collect();
+            buffers.push_flat_polygon(&corners, up, feature);
+        }
+    }
+
+    /// The kerb: the vertical face along the inner edge, from under the surface up to the
+    /// top, facing the carriageway: a strip whose stretches inside the tile share their
+    /// vertices, and clipped stretches where it crosses an edge.
+    fn kerb(&self, buffers: &mut MeshBuffers, rect: &Rect, top: f64) {
+        let (line, heights) = (&self.band.inner[..self.n], &self.inner);
+        let other = &self.band.outer[..self.n];
+        let feature = self.band.feature;
+        // Towards the carriageway, for each stretch: square to it, on the side away from the
+        // outer edge.
+        let away: Vec<[f64; 2]> = (1..self.n)
+            .map(|k| {
+                let (a, b) = (line[k - 1], line[k]);
+                let (du, dv) = (b[0] - a[0], b[1] - a[1]);
+                let length = du.hypot(dv).max(f64::MIN_POSITIVE);
+                let square = [-dv / length, du / length];
+                let from_other = [
+                    a[0] + b[0] - other[k - 1][0] - other[k][0],
+                    a[1] + b[1] - other[k - 1][1] - other[k][1],
+                ];
+                let sign = if square[0] * from_other[0] + square[1] * from_other[1] < 0.0 {
+                    -1.0
+                } else {
+                    1.0
+                };
+                [square[0] * sign, square[1] * sign]
+            })
+            .collect();
+        // A point's normal is the mean of its stretches'.
+        let normal_at = |k: usize| {
+            let before = away[k.saturating_sub(1).min(away.len() - 1)];
+            let after = away[k.min(away.len() - 1)];
+            let (u, v) = (before[0] + after[0], before[1] + after[1]);
+            let length = u.hypot(v);
+            if length > 1e-9 {
+                [u / length, 0.0, v / length]
+            } else {
+                [after[0], 0.0, after[1]]
+            }
+        };
+        let mut previous: Option<[u32; 2]> = None;
+        for k in 1..self.n {
+            let facing = [away[k - 1][0], 0.0, away[k - 1][1]];
+            if rect.contains(line[k - 1]) && rect.contains(line[k]) {
+                let mut station = |j: usize| {
+                    let normal = normal_at(j);
+                    [-FOOT_M, top].map(|lift| {
+                        buffers.push_vertex(self.local(line[j], heights[j], lift), normal, feature)
+                    })
+                };
+                let [a, d] = previous.unwrap_or_else(|| station(k - 1));
+                let [b, c] = station(k);
+                push_quad(buffers, [a, b, c, d], facing);
+                previous = Some([b, c]);
+                continue;
+            }
+            previous = None;
+            let Some((a, b)) = clip_segment(line[k - 1], line[k], rect) else {
+                continue;
+            };
+            let (ha, hb) = (self.ground.elevation_uv(a), self.ground.elevation_uv(b));
+            let corners = [
+                self.local(a, ha, -FOOT_M),
+                self.local(b, hb, -FOOT_M),
+                self.local(b, hb, top),
+                self.local(a, ha, top),
+            ];
+            buffers.push_flat_polygon(&corners, facing, feature);
+        }
+    }
+
+    /// The faces across the band at its two ends, where they lie inside the tile.
+    fn ends(&self, buffers: &mut MeshBuffers, rect: &Rect, top: f64) {
+        let last = self.n - 1;
+        for (k, towards) in [(0, 1), (last, last - 1)] {
+            let (inner, outer) = (self.band.inner[k], self.band.outer[k]);
+            if !rect.contains(inner) || !rect.contains(outer) {
+                continue;
+            }
+            let corners = [
+                self.local(inner, self.inner[k], -FOOT_M),
+                self.local(outer, self.outer[k], -FOOT_M),
+                self.local(outer, self.outer[k], LIFT_M),
+                self.local(inner, self.inner[k], top),
+            ];
+            let along = self.band.inner[towards];
+            let facing = [inner[0] - along[0], 0.0, inner[1] - along[1]];
+            buffers.push_flat_polygon(&corners, facing, self.band.feature);
+        }
+    }
+}
+
+/// Two triangles over four vertices in order round a quad, wound to face `facing`.
+fn push_quad(buffers: &mut MeshBuffers, [a, b, c, d]: [u32; 4], facing: [f64; 3]) {
+    let p = |i: u32| buffers.positions[i as usize].map(f64::from);
+    let (pa, pb, pc) = (p(a), p(b), p(c));
+    let normal = [
+        (pb[1] - pa[1]) * (pc[2] - pa[2]) - (pb[2] - pa[2]) * (pc[1] - pa[1]),
+        (pb[2] - pa[2]) * (pc[0] - pa[0]) - (pb[0] - pa[0]) * (pc[2] - pa[2]),
+        (pb[0] - pa[0]) * (pc[1] - pa[1]) - (pb[1] - pa[1]) * (pc[0] - pa[0]),
+    ];
+    let dot = normal[0] * facing[0] + normal[1] * facing[1] + normal[2] * facing[2];
+    if dot >= 0.0 {
+        buffers.indices.extend_from_slice(&[a, b, c, a, c, d]);
+    } else {
+        buffers.indices.extend_from_slice(&[a, c, b, a, d, c]);
+    }
+}
