@@ -6,7 +6,7 @@
 
 use std::collections::HashMap;
 
-use super::objects::{ObjectKind, RoadSide};
+use super::objects::{LitWay, ObjectKind, RoadSide};
 use super::road_network::{self, RoadLine};
 use super::roads::{self, Paving};
 use super::structures::is_off_ground;
@@ -67,6 +67,8 @@ pub(super) struct Carriageways {
     pub road_sides: Vec<RoadSide>,
     /// The bands beside the carriageways that may be sidewalks.
     pub bands: Vec<sidewalks::Candidate>,
+    /// The lamps of the lit streets, where none are mapped.
+    pub lit: Vec<LitWay>,
 }
 
 /// Adds the roads among `ways` as one network: a surface per way, split and cut back where
@@ -84,6 +86,7 @@ pub(super) fn add_roads(
     let mut plans = Vec::new();
     let mut traffic = Vec::new();
     let mut walks = Vec::new();
+    let mut lit = Vec::new();
     for way in ways {
         let Some(line) = road_line(way, projection, settings) else {
             continue;
@@ -113,6 +116,13 @@ pub(super) fn add_roads(
                 feature,
                 line: line.points.clone(),
                 width_m: width,
+                metre: line.metre,
+            });
+        }
+        if lamps_inferred(&way.tags) {
+            lit.push(LitWay {
+                way: element,
+                places: lamps_along(&line, width),
                 metre: line.metre,
             });
         }
@@ -178,7 +188,63 @@ pub(super) fn add_roads(
     Carriageways {
         road_sides: road_sides(&lines, &widths, &traffic, nodes),
         bands,
+        lit,
     }
+}
+
+/// Spacing of the lamps of a lit street where none are mapped, metres.
+const LAMP_SPACING_M: f64 = 30.0;
+
+/// True for a street whose lamps are drawn where none are mapped beside it: `lit=yes` on a
+/// street of a town (not a motorway or a trunk road, whose lamps stand on the median).
+fn lamps_inferred(tags: &Tags) -> bool {
+    tags.get("lit") == Some("yes")
+        && matches!(
+            tags.get("highway"),
+            Some(
+                "primary"
+                    | "secondary"
+                    | "tertiary"
+                    | "primary_link"
+                    | "secondary_link"
+                    | "tertiary_link"
+                    | "residential"
+                    | "living_street"
+                    | "unclassified"
+                    | "pedestrian"
+            )
+        )
+}
+
+/// The lamps along a lit way `width_m` wide: one every [`LAMP_SPACING_M`] along its line from
+/// half a spacing past its first node, on the right of the way half a metre beyond its edge,
+/// facing the road.
+fn lamps_along(line: &RoadLine, width_m: f64) -> Vec<(Point, f64)> {
+    let stations = crate::geometry::distances_along(&line.points);
+    let Some(&length) = stations.last() else {
+        return Vec::new();
+    };
+    let spacing = LAMP_SPACING_M * line.metre;
+    let offset = (width_m / 2.0 + POLE_CLEARANCE_M) * line.metre;
+    let mut places = Vec::new();
+    let mut along = spacing / 2.0;
+    while along < length && spacing > 0.0 {
+        let (k, t) = crate::geometry::bracket(&stations, along);
+        let (a, b) = (line.points[k - 1], line.points[k]);
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let run = dx.hypot(dy);
+        along += spacing;
+        if run <= 0.0 {
+            continue;
+        }
+        let d = [dx / run, dy / run];
+        let p = [a[0] + dx * t, a[1] + dy * t];
+        // Right of the way (x east, y south): (-dy, dx); facing the road, left of that.
+        let at = [p[0] - d[1] * offset, p[1] + d[0] * offset];
+        let facing = [d[1], -d[0]];
+        places.push((at, -facing[0].atan2(-facing[1])));
+    }
+    places
 }
 
 /// Clearance between a road's edge and a signal's pole, metres.

@@ -557,7 +557,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         selection,
         &projection,
         &tile_rect(tile),
-        &carriageways.road_sides,
+        (&carriageways.road_sides, &carriageways.lit),
     );
     vegetation::collect(
         &mut set,

@@ -187,6 +187,19 @@ pub struct RoadSide {
     pub rotation: f64,
 }
 
+/// The lamps a lit street is drawn with where none are mapped beside it: their places (global
+/// tile units) and rotations, laid along the way so every tile lays the same.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LitWay {
+    pub way: ElementRef,
+    pub places: Vec<(Point, f64)>,
+    /// One metre in tile units where it lies.
+    pub metre: f64,
+}
+
+/// How near a mapped street lamp stands for a lamp a lit street would be drawn with, metres.
+const MAPPED_LAMP_REACH_M: f64 = 25.0;
+
 /// An object to stand on the ground.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PointObject {
@@ -217,8 +230,51 @@ fn direction(tags: &Tags) -> Option<f64> {
 
 /// Adds the objects mapped as nodes of `selection` that lie in `rect`; the signals and signs a
 /// road placed at its edges (`road_sides`) stand there instead, one feature for the places of a
-/// node.
+/// node. Then the lamps of `lit` streets that lie in `rect` and stand clear of every mapped
+/// street lamp, one feature a way (its element, tagged as the lamps it stands for).
 pub(super) fn collect(
+    set: &mut FeatureSet,
+    selection: &Selection<'_>,
+    projection: &Projection,
+    rect: &Rect,
+    (road_sides, lit): (&[RoadSide], &[LitWay]),
+) {
+    collect_mapped(set, selection, projection, rect, road_sides);
+    let mapped: Vec<Point> = selection
+        .nodes
+        .iter()
+        .filter(|n| ObjectKind::from_tags(&n.tags) == Some(ObjectKind::StreetLamp))
+        .map(|n| projection.point(n.position))
+        .collect();
+    let lamp_tags = Tags::from_pairs([("highway", "street_lamp")]);
+    for street in lit {
+        let reach = MAPPED_LAMP_REACH_M * street.metre;
+        let clear = |p: &Point| {
+            mapped
+                .iter()
+                .all(|m| (m[0] - p[0]).hypot(m[1] - p[1]) >= reach)
+        };
+        let places: Vec<&(Point, f64)> = street
+            .places
+            .iter()
+            .filter(|(at, _)| rect.owns(*at) && clear(at))
+            .collect();
+        if places.is_empty() {
+            continue;
+        }
+        let feature = set.add_feature(Some(street.way), FeatureClass::Object, &lamp_tags);
+        for &(at, rotation) in places {
+            set.objects.push(PointObject {
+                at,
+                kind: ObjectKind::StreetLamp,
+                rotation,
+                feature,
+            });
+        }
+    }
+}
+
+fn collect_mapped(
     set: &mut FeatureSet,
     selection: &Selection<'_>,
     projection: &Projection,

@@ -704,3 +704,57 @@ fn a_separately_mapped_sidewalk_is_not_drawn_twice() {
         highest(&north)
     );
 }
+
+#[test]
+fn a_lit_street_without_mapped_lamps_gets_them_along_one_side_and_a_mapped_one_stands_alone() {
+    let mut fixture = Fixture::default();
+    // Two lit streets 600 m long, one with a lamp mapped beside its middle; an unlit one.
+    let m = metre();
+    let (west, east) = (0.5 - 300.0 * m, 0.5 + 300.0 * m);
+    fixture.way(
+        &[("highway", "residential"), ("lit", "yes")],
+        &[(west, 0.3), (east, 0.3)],
+    );
+    fixture.way(
+        &[("highway", "residential"), ("lit", "yes")],
+        &[(west, 0.5), (east, 0.5)],
+    );
+    fixture.node(&[("highway", "street_lamp")], (0.5, 0.5 + 4.0 * m));
+    fixture.way(&[("highway", "residential")], &[(west, 0.7), (east, 0.7)]);
+    let index = index_osm(fixture.data(), TILE.z);
+    let selection = index.query(TILE, QUERY_MARGIN_DEG);
+    let set = terrastitch::features::collect(&selection, TILE, &Default::default());
+    let projection = terrastitch::features::Projection::new(TILE.z);
+    let metre = projection.metres(1.0, at(0.5, 0.5).lat);
+    let lamps_near = |south: f64| -> Vec<(f64, f64)> {
+        let line = projection.point(at(0.5, south));
+        set.objects
+            .iter()
+            .filter(|o| o.kind == ObjectKind::StreetLamp)
+            .map(|o| ((o.at[0] - line[0]) / metre, (o.at[1] - line[1]) / metre))
+            .filter(|(_, off)| off.abs() < 20.0)
+            .collect()
+    };
+    let first = lamps_near(0.3);
+    // Every 30 m from 15 m in: 20 lamps, all 3 m south (half the 5 m street and half a metre).
+    assert_eq!(first.len(), 20, "{first:?}");
+    assert!(
+        first.iter().all(|(_, off)| (off - 3.0).abs() < 0.01),
+        "{first:?}"
+    );
+    let mut along: Vec<f64> = first.iter().map(|(e, _)| *e).collect();
+    along.sort_by(f64::total_cmp);
+    assert!(along.windows(2).all(|w| (w[1] - w[0] - 30.0).abs() < 0.01));
+    // The mapped lamp stands where it is mapped, and no drawn one within 25 m of it.
+    let second = lamps_near(0.5);
+    let mapped: Vec<_> = second.iter().filter(|(e, _)| e.abs() < 1e-6).collect();
+    assert_eq!(mapped.len(), 1, "{second:?}");
+    assert!(
+        second
+            .iter()
+            .all(|(e, _)| e.abs() < 1e-6 || e.abs() >= 25.0),
+        "{second:?}"
+    );
+    assert_eq!(second.len(), 1 + 20 - 2, "{second:?}");
+    assert!(lamps_near(0.7).is_empty(), "an unlit street has none");
+}

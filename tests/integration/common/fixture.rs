@@ -81,6 +81,17 @@ impl Fixture {
         self
     }
 
+    /// A node of its own at `place`, on no way (a street lamp, say).
+    pub fn node(&mut self, tags: &[(&str, &str)], place: (f64, f64)) -> &mut Self {
+        self.next_node += 1;
+        self.nodes.push(Node {
+            id: self.next_node,
+            position: at(place.0, place.1),
+            tags: Tags::from_pairs(tags.iter().copied()),
+        });
+        self
+    }
+
     /// Tags the node the first way through `place` has there (a crossing on a road, say).
     pub fn tag_node(&mut self, place: (f64, f64), tags: &[(&str, &str)]) -> &mut Self {
         let position = at(place.0, place.1);
