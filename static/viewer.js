@@ -745,7 +745,7 @@ function hideFeature() {
 // ---------------------------------------------------------------------------------------
 // Layers
 
-const layers = { wireframe: false, 'terrain-only': false, debug: false, shadows: false };
+const layers = { wireframe: false, 'terrain-only': false, debug: false, shadows: false, inferred: false };
 const classes = new Map();
 const classBox = document.getElementById('classes');
 
@@ -778,6 +778,7 @@ function applyToggles(group) {
     const name = classOf(node);
     node.visible = layers['terrain-only'] ? name === 'terrain' : classes.get(name) !== false;
   }
+  paintInferred(group);
   group.traverse((o) => {
     const materials = Array.isArray(o.material) ? o.material : o.material ? [o.material] : [];
     for (const m of materials) m.wireframe = layers.wireframe;
@@ -786,6 +787,50 @@ function applyToggles(group) {
       o.castShadow = !/water/.test(`${o.name} ${o.parent?.name ?? ''}`);
       o.receiveShadow = true;
     }
+  });
+}
+
+// Shape (roof or levels) inferred; only colours inferred; everything mapped.
+const SHAPE_INFERRED = [1.0, 0.4, 0.05];
+const COLOURS_INFERRED = [0.95, 0.85, 0.3];
+const MAPPED = [0.1, 0.35, 0.9];
+
+/** For each row of a tile's feature table, the colour that says what of it was inferred. */
+function inferredColours(table) {
+  if (!table) return () => MAPPED;
+  if (!table.inferredColours) {
+    table.inferredColours = new Map();
+    for (let i = 0; i < table.count; i++) {
+      const keys = Object.keys(inferredOf(table.row(i)));
+      if (keys.some((k) => !k.endsWith('colour'))) table.inferredColours.set(i, SHAPE_INFERRED);
+      else if (keys.length > 0) table.inferredColours.set(i, COLOURS_INFERRED);
+    }
+  }
+  return (row) => table.inferredColours.get(row) ?? MAPPED;
+}
+
+/** Paints a tile's buildings by what is mapped and what is inferred while the toggle is on,
+ *  and gives them back their own colours when it is off. */
+function paintInferred(group) {
+  const table = group.userData.tile?.table;
+  group.traverse((o) => {
+    const colours = o.geometry?.getAttribute?.('color');
+    const ids = o.geometry?.getAttribute?.('_feature_id_0');
+    if (!o.isMesh || o.isInstancedMesh || !colours || !ids) return;
+    if (!o.userData.ownColours) {
+      if (!layers.inferred) return;
+      o.userData.ownColours = colours.array.slice();
+    }
+    if (layers.inferred) {
+      const colourOf = inferredColours(table);
+      for (let i = 0; i < colours.count; i++) {
+        const [r, g, b] = colourOf(ids.getX(i));
+        colours.setXYZ(i, r, g, b);
+      }
+    } else {
+      colours.array.set(o.userData.ownColours);
+    }
+    colours.needsUpdate = true;
   });
 }
 
