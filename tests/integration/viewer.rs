@@ -63,8 +63,20 @@ async fn the_viewer_streams_tiles_and_shows_what_is_clicked() {
     let without = report["shadows"]["brightnessWithout"].as_f64().unwrap();
     let with = report["shadows"]["brightnessWith"].as_f64().unwrap();
     assert!(with < without - 0.005, "{text}");
-    // The click on the known building shows it.
+    // The mapped / inferred toggle paints the buildings whose shape was inferred, and gives
+    // them back their colours.
+    let orange = |key: &str| report["inferred"][key].as_f64().unwrap();
+    assert!(orange("on") > orange("before") + 0.02, "{text}");
+    assert!((orange("off") - orange("before")).abs() < 0.005, "{text}");
+    // The click on the known building shows it, with what was inferred of it.
     assert_eq!(report["click"]["panelVisible"], true, "{text}");
+    assert!(
+        report["click"]["text"]
+            .as_str()
+            .unwrap_or_default()
+            .contains("(inferred)"),
+        "{text}"
+    );
     assert_eq!(
         report["click"]["osmIds"],
         serde_json::json!([KNOWN_BUILDING]),

@@ -88,6 +88,25 @@ try {
   await page.click('[data-toggle="shadows"]');
   await frames(3);
 
+  // Mapped / inferred: on, buildings whose roof or levels were inferred turn orange; off, they
+  // take their own colours back.
+  const orange = () => page.evaluate(() => {
+    const data = window.canvasPixels(document.querySelector('#map canvas'));
+    let count = 0;
+    for (let i = 0; i < data.length; i += 4) {
+      if (data[i] > 150 && data[i + 1] > 40 && data[i + 1] < 130 && data[i + 2] < 60) count++;
+    }
+    return count / (data.length / 4);
+  });
+  result.inferred = { before: await orange() };
+  await page.click('[data-toggle="inferred"]');
+  await frames(3);
+  result.inferred.on = await orange();
+  await page.screenshot({ path: join(outDir, 'viewer-inferred.png') });
+  await page.click('[data-toggle="inferred"]');
+  await frames(3);
+  result.inferred.off = await orange();
+
   // Click on a known building and read the panel.
   const spot = await page.evaluate((id) => window.terrastitchViewer.locate(id), osmId);
   result.click = { spot };
