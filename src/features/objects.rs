@@ -274,6 +274,7 @@ pub(super) fn collect(
     }
 }
 
+/// The objects mapped as nodes: at their node, or where `road_sides` places them.
 fn collect_mapped(
     set: &mut FeatureSet,
     selection: &Selection<'_>,
