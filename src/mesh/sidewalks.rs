@@ -1,8 +1,8 @@
-//! Sidewalks and verges ([`crate::features::sidewalks`]) on the road surfaces they lie in: a
-//! sidewalk as a wedge on its band, its top at its kerb's height over the settled surface
-//! along the carriageway and falling to just above it at its outer edge (where the ground
-//! beside the road begins, so no step or gap shows there), a kerb face towards the
-//! carriageway and a face at each end; a verge as a strip just above the surface.
+//! Sidewalks and verges ([`crate::features::sidewalks`]) on the ground beside the roads: a
+//! sidewalk as a wedge on its band, its top at its kerb's height over the road's settled edge
+//! along the kerb and just above the settled ground at its outer edge (so no step or gap shows
+//! there, whether the ground rises or falls), a kerb face towards the road and a face at each
+//! end; a verge as a strip just above the ground.
 //! Inside the tile, neighbouring stretches share their vertices; a stretch across an edge is
 //! clipped to the tile, so both tiles cut it along the edge at the same points.
 
@@ -15,11 +15,11 @@ use crate::geometry::{clip_segment, clip_to_rect, Point, Rect};
 use crate::terrain::Elevation;
 use crate::tile::TileFrame;
 
-/// Height of a verge, and of a sidewalk's outer edge, over the road surface, metres (as the
-/// paint of markings).
+/// Height of a verge, and of a sidewalk's outer edge, over the ground, metres (as the paint
+/// of markings over a road).
 const LIFT_M: f64 = 0.03;
-/// How far a sidewalk's faces reach down into the surface under them, metres, so no gap shows
-/// where the surface is interpolated between its vertices.
+/// How far a sidewalk's faces reach down into the road and ground under them, metres, so no
+/// gap shows where the ground is interpolated between its vertices.
 const FOOT_M: f64 = 0.05;
 
 /// The sidewalks' tops, kerbs and the verges, added to `parts`.
@@ -59,7 +59,7 @@ fn reaches(band: &Band, rect: &Rect) -> bool {
         .intersects(rect)
 }
 
-/// A band's points with the settled surface's elevation at each.
+/// A band's points with the settled ground's elevation at each (the road's on its inner edge).
 struct Placed<'a> {
     band: &'a Band,
     frame: &'a TileFrame,
@@ -82,14 +82,14 @@ impl<'a> Placed<'a> {
         }
     }
 
-    /// A point of the band at `lift` metres over the surface, in the tile's frame.
+    /// A point of the band at `lift` metres over the ground, in the tile's frame.
     fn local(&self, p: Point, elevation: f64, lift: f64) -> [f64; 3] {
         let (x, z) = self.frame.uv_to_local(p[0], p[1]);
         let y = self.frame.elevation_to_y(elevation + lift, z);
         [x, y, z]
     }
 
-    /// The band's top, `inner` and `outer` metres over the surface on its edges: a strip
+    /// The band's top, `inner` and `outer` metres over the ground on its edges: a strip
     /// whose stretches inside the tile share their vertices, and clipped stretches where it
     /// crosses an edge.
     fn top(&self, buffers: &mut MeshBuffers, rect: &Rect, (inner, outer): (f64, f64)) {
@@ -131,7 +131,7 @@ impl<'a> Placed<'a> {
         }
     }
 
-    /// The kerb: the vertical face along the inner edge, from under the surface up to the
+    /// The kerb: the vertical face along the inner edge, from under the road up to the
     /// top, facing the carriageway: a strip whose stretches inside the tile share their
     /// vertices, and clipped stretches where it crosses an edge.
     fn kerb(&self, buffers: &mut MeshBuffers, rect: &Rect, top: f64) {
