@@ -164,26 +164,29 @@ pub struct Candidate {
     pub metre: f64,
 }
 
-/// The bands of a road's surface: for each run of its pieces and each side with a band, the
-/// edges of the band, with a point at least every [`PIECE_M`].
+/// The bands beside a road's surface `road_m` wide: for each run of its pieces and each side
+/// with a band, the edges of the band (along the surface's edge and outside it), with a point
+/// at least every [`PIECE_M`].
 pub fn candidates(
     feature: u32,
     road: &RoadSurface,
     plan: &SidewalkPlan,
-    carriageway_m: f64,
+    road_m: f64,
     metre: f64,
 ) -> Vec<Candidate> {
-    let total = carriageway_m + 2.0 * plan.width_m;
-    let share = plan.width_m / total;
+    if road_m <= 0.0 {
+        return Vec::new();
+    }
+    let share = plan.width_m / road_m;
     let mut found = Vec::new();
     for (range, _) in &road.lines {
-        for (side, edge, kerb) in [(plan.left, 0.0, share), (plan.right, 1.0, 1.0 - share)] {
+        for (side, edge, beyond) in [(plan.left, 0.0, -share), (plan.right, 1.0, 1.0 + share)] {
             if side == Side::None {
                 continue;
             }
-            let (Some(outer), Some(inner)) = (
+            let (Some(inner), Some(outer)) = (
                 road.line_at(range.clone(), edge),
-                road.line_at(range.clone(), kerb),
+                road.line_at(range.clone(), beyond),
             ) else {
                 continue;
             };
