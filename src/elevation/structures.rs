@@ -29,7 +29,7 @@ use crate::elevation::settled::{Level, Rule, Stations};
 use crate::elevation::solutions::Solutions;
 use crate::features::structures::{self as tags, WayTraits};
 use crate::features::{widened_surface, FeatureClass, FeatureSettings, Projection, Surface};
-use crate::geometry::{Point, Polygon, Rect};
+use crate::geometry::{distance, Point, Polygon, Rect};
 use crate::osm::structures::{Chain, Crossed, Crossing, Group, StructureKind};
 use crate::osm::Way;
 use crate::terrain::Elevation;

@@ -238,7 +238,7 @@ fn lamps_along(line: &RoadLine, width_m: f64) -> Vec<(Point, f64)> {
             continue;
         }
         let d = [dx / run, dy / run];
-        let p = [a[0] + dx * t, a[1] + dy * t];
+        let p = crate::geometry::lerp(a, b, t);
         // Right of the way (x east, y south): (-dy, dx); facing the road, left of that.
         let at = [p[0] - d[1] * offset, p[1] + d[0] * offset];
         let facing = [d[1], -d[0]];

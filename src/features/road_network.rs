@@ -14,7 +14,7 @@
 
 use std::collections::HashMap;
 
-use crate::geometry::{self, Point, Polygon, Ring};
+use crate::geometry::{self, distance, Point, Polygon, Ring};
 
 /// One road way on the ground, as the network sees it.
 #[derive(Debug, Clone)]
@@ -759,10 +759,6 @@ fn simplified(ring: Ring, tiny: f64) -> Option<Ring> {
 /// Longest the mitre on the outer side of a bend may reach beyond the cap corners, in half
 /// widths of the wider arm.
 const MITRE_LIMIT: f64 = 2.0;
-
-fn distance(a: Point, b: Point) -> f64 {
-    (b[0] - a[0]).hypot(b[1] - a[1])
-}
 
 /// Where the edge of arm `a` on the side of `b` meets the edge of `b` on the side of `a`, when
 /// that point lies inward of both caps (and, on the outer side of a bend, not too far out).

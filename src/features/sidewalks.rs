@@ -15,7 +15,7 @@
 
 use super::road_network::RoadSurface;
 use super::{landcover::Cover, FeatureClass, FeatureSet};
-use crate::geometry::{distance_to_segment, ring_contains, Point, Rect};
+use crate::geometry::{distance, distance_to_segment, lerp, ring_contains, Point, Rect};
 use crate::osm::units::parse_length_m;
 use crate::osm::{Tags, Way};
 
@@ -226,14 +226,6 @@ fn densified(
     dense
 }
 
-fn lerp(a: Point, b: Point, t: f64) -> Point {
-    [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]
-}
-
-fn distance(a: Point, b: Point) -> f64 {
-    (b[0] - a[0]).hypot(b[1] - a[1])
-}
-
 /// What lies around the bands: the buildings' corners, the built-up land's outlines and the
 /// separately mapped sidewalks.
 struct Surroundings {
@@ -315,11 +307,6 @@ impl Surroundings {
             .take(BUILT_UP_BUILDINGS)
             .count();
         near >= BUILT_UP_BUILDINGS
-    }
-
-    /// True where the ground at `p` is water, a railway or a road other than `feature`.
-    fn taken_at(&self, p: Point, feature: u32) -> bool {
-        self.taken.at(p, feature)
     }
 
     fn mapped_apart_at(&self, p: Point, metre: f64) -> bool {
@@ -433,7 +420,7 @@ fn runs(candidate: &Candidate, around: &Surroundings, out: &mut Vec<Band>) {
         // Its middle and its outer corners must all lie on free ground.
         let taken = [middle, candidate.outer[k - 1], candidate.outer[k]]
             .into_iter()
-            .any(|p| around.taken_at(p, candidate.feature));
+            .any(|p| around.taken.at(p, candidate.feature));
         let look = if taken || around.mapped_apart_at(middle, metre) {
             None
         } else if candidate.side == Side::Mapped || around.built_up_at(middle, metre) {

@@ -324,6 +324,16 @@ pub fn share_along_segment(p: Point, a: Point, b: Point) -> f64 {
     }
 }
 
+/// Distance between two points.
+pub fn distance(a: Point, b: Point) -> f64 {
+    (b[0] - a[0]).hypot(b[1] - a[1])
+}
+
+/// The point `t` of the way from `a` to `b` (0 at `a`, 1 at `b`).
+pub fn lerp(a: Point, b: Point, t: f64) -> Point {
+    [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]
+}
+
 /// Distance from `p` to the segment `a`–`b`.
 pub fn distance_to_segment(p: Point, a: Point, b: Point) -> f64 {
     let d = [b[0] - a[0], b[1] - a[1]];

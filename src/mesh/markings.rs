@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use super::{MeshBuffers, Part};
 use crate::features::markings::{Marking, Paint, Pattern};
 use crate::features::tile_rect;
-use crate::geometry::{bracket, clip_to_rect, Point, Rect};
+use crate::geometry::{bracket, clip_to_rect, distance, lerp, Point, Rect};
 use crate::terrain::Elevation;
 use crate::tile::TileFrame;
 
@@ -84,18 +84,13 @@ fn painted(marking: &Marking) -> Vec<Vec<Point>> {
 fn part_of(line: &[Point], stations: &[f64], (from, to): (f64, f64)) -> Vec<Point> {
     let at = |d: f64| {
         let (k, t) = bracket(stations, d);
-        let (a, b) = (line[k - 1], line[k]);
-        [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]
+        lerp(line[k - 1], line[k], t)
     };
     let inside = stations.partition_point(|&s| s <= from)..stations.partition_point(|&s| s < to);
     let mut part = vec![at(from)];
     part.extend_from_slice(&line[inside]);
     part.push(at(to));
     part
-}
-
-fn distance(a: Point, b: Point) -> f64 {
-    (b[0] - a[0]).hypot(b[1] - a[1])
 }
 
 /// One strip piece from `a` to `b` (global tile units), as wide as the marking and level

@@ -12,7 +12,7 @@
 
 use super::skeleton::{skeleton, Skeleton, SkeletonError};
 use crate::geometry::constrained::triangulate_polygon;
-use crate::geometry::{convex_hull, dedup_ring, signed_area2, Point, Polygon};
+use crate::geometry::{convex_hull, dedup_ring, lerp, signed_area2, Point, Polygon};
 
 /// How the end of a wing is finished, where a hipped roof has a triangular hip.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -214,10 +214,6 @@ fn finish_ends(
             }
         }
     }
-}
-
-fn lerp(a: Point, b: Point, t: f64) -> Point {
-    [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]
 }
 
 /// Puts `node` between the two ends of an arc in every face that runs along it.

@@ -8,7 +8,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{MeshBuffers, Part};
+use super::{dot, triangle_normal, MeshBuffers, Part};
 use crate::features::sidewalks::{Band, Look};
 use crate::features::tile_rect;
 use crate::geometry::{clip_segment, clip_to_rect, Point, Rect};
@@ -224,15 +224,9 @@ impl<'a> Placed<'a> {
 
 /// Two triangles over four vertices in order round a quad, wound to face `facing`.
 fn push_quad(buffers: &mut MeshBuffers, [a, b, c, d]: [u32; 4], facing: [f64; 3]) {
-    let p = |i: u32| buffers.positions[i as usize].map(f64::from);
-    let (pa, pb, pc) = (p(a), p(b), p(c));
-    let normal = [
-        (pb[1] - pa[1]) * (pc[2] - pa[2]) - (pb[2] - pa[2]) * (pc[1] - pa[1]),
-        (pb[2] - pa[2]) * (pc[0] - pa[0]) - (pb[0] - pa[0]) * (pc[2] - pa[2]),
-        (pb[0] - pa[0]) * (pc[1] - pa[1]) - (pb[1] - pa[1]) * (pc[0] - pa[0]),
-    ];
-    let dot = normal[0] * facing[0] + normal[1] * facing[1] + normal[2] * facing[2];
-    if dot >= 0.0 {
+    let corner = |i: u32| buffers.positions[i as usize].map(f64::from);
+    let normal = triangle_normal([corner(a), corner(b), corner(c)]);
+    if dot(normal, facing) >= 0.0 {
         buffers.indices.extend_from_slice(&[a, b, c, a, c, d]);
     } else {
         buffers.indices.extend_from_slice(&[a, c, b, a, d, c]);

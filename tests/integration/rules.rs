@@ -293,7 +293,7 @@ fn roof_vertices(tile: &DecodedTile) -> Vec<[f32; 3]> {
 #[test]
 fn an_untagged_house_gets_a_pitched_roof_with_its_ridge_along_its_long_side() {
     // A 16 m × 8 m house, its long side east–west; ground metres as fractions of the tile.
-    let metre = 1.0 / (40_075_016.686 * at(0.5, 0.5).lat.to_radians().cos() / 16384.0);
+    let metre = metre();
     let mut pitched = 0;
     for padding in 0..6 {
         // Ways before it change the house's id, and so the variation drawn from it.
@@ -547,7 +547,7 @@ fn signals_on_a_road_stand_at_both_edges_a_stop_sign_and_a_bus_stop_at_one() {
 fn a_terrace_of_touching_houses_shares_one_roof_style_with_its_ridges_along_the_row() {
     // Three houses 6 m wide and 10 m deep side by side east–west, sharing their walls: alone,
     // each would have its ridge along its long side, north–south.
-    let metre = 1.0 / (40_075_016.686 * at(0.5, 0.5).lat.to_radians().cos() / 16384.0);
+    let metre = metre();
     let south = 0.5 + 10.0 * metre;
     for padding in 0..4 {
         let mut fixture = Fixture::default();

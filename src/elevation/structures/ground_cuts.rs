@@ -244,7 +244,3 @@ enum Reshape {
     /// approach of another way beside or across it).
     Guard,
 }
-
-fn distance(a: Point, b: Point) -> f64 {
-    (b[0] - a[0]).hypot(b[1] - a[1])
-}
