@@ -10,7 +10,7 @@ use super::objects::{LitWay, ObjectKind, RoadSide};
 use super::road_network::{self, RoadLine};
 use super::roads::{self, Paving};
 use super::structures::is_off_ground;
-use super::{crossings, inference, markings, sidewalks};
+use super::{crossings, inference, markings, sidewalks, stop_lines};
 use super::{
     railways, widened_surface, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface,
 };
@@ -87,6 +87,7 @@ pub(super) fn add_roads(
     let mut traffic = Vec::new();
     let mut walks = Vec::new();
     let mut lit = Vec::new();
+    let mut tags_of = Vec::new();
     for way in ways {
         let Some(line) = road_line(way, projection, settings) else {
             continue;
@@ -128,18 +129,29 @@ pub(super) fn add_roads(
         }
         lines.push(line);
         traffic.push(crossings::is_painted_road(&way.tags));
+        tags_of.push(&way.tags);
     }
     let network = road_network::build(&lines);
+    let by_id: HashMap<i64, &Node> = nodes.iter().map(|n| (n.id, *n)).collect();
+    let mut halts = Halts {
+        nodes: &by_id,
+        features: HashMap::new(),
+    };
     let mut bands = Vec::new();
-    for ((((feature, paving, width), road), (painted, line)), walk) in roads
+    for (r, ((((feature, paving, width), road), (painted, line)), walk)) in roads
         .iter()
         .zip(network.roads)
         .zip(plans.iter().zip(&lines))
         .zip(&walks)
+        .enumerate()
     {
         if let Some((painted, plan)) = painted {
             set.markings
-                .extend(markings::along(*painted, &road, plan, line.metre));
+                .extend(markings::along(*painted, &road, plan, (*width, line.metre)));
+        }
+        if traffic[r] {
+            let plan = painted.as_ref().map(|p| &p.1);
+            halts.paint(set, (&road, line, *width), tags_of[r], plan);
         }
         if let Some(walk) = walk {
             bands.extend(sidewalks::candidates(
@@ -154,7 +166,6 @@ pub(super) fn add_roads(
             set.surfaces.push(surface);
         }
     }
-    let node_tags: HashMap<i64, &Tags> = nodes.iter().map(|n| (n.id, &n.tags)).collect();
     let no_tags = Tags::default();
     for junction in network.junctions {
         let centre = network_centre(&lines, &junction);
@@ -162,7 +173,7 @@ pub(super) fn add_roads(
             element_type: ElementType::Node,
             id: junction.node,
         };
-        let tags = node_tags.get(&junction.node).copied().unwrap_or(&no_tags);
+        let tags = by_id.get(&junction.node).map_or(&no_tags, |n| &n.tags);
         let feature = set.add_feature(Some(element), FeatureClass::Road, tags);
         // The junction is paved like the widest road that meets there.
         let paving = junction
@@ -189,6 +200,75 @@ pub(super) fn add_roads(
         road_sides: road_sides(&lines, &widths, &traffic, nodes),
         bands,
         lit,
+    }
+}
+
+/// The stop and give-way lines of the roads: the tags of the nodes, and the feature row of
+/// each node that has lines (one however many ways pass it).
+struct Halts<'a> {
+    nodes: &'a HashMap<i64, &'a Node>,
+    features: HashMap<i64, u32>,
+}
+
+impl Halts<'_> {
+    /// Paints the lines before the halts on one road (its surface, line and width in metres)
+    /// with these tags and lanes.
+    fn paint(
+        &mut self,
+        set: &mut FeatureSet,
+        (road, line, width): (&road_network::RoadSurface, &RoadLine, f64),
+        tags: &Tags,
+        plan: Option<&markings::LanePlan>,
+    ) {
+        let found: Vec<(usize, stop_lines::Halt, &Tags)> = line
+            .nodes
+            .iter()
+            .enumerate()
+            .filter_map(|(k, id)| {
+                let tags = &self.nodes.get(id)?.tags;
+                Some((k, stop_lines::Halt::from_tags(tags)?, tags))
+            })
+            .collect();
+        if found.is_empty() {
+            return;
+        }
+        let stations = crate::geometry::distances_along(&line.points);
+        let crossings: Vec<_> = line
+            .nodes
+            .iter()
+            .zip(&stations)
+            .filter_map(|(id, &station)| {
+                let node = self.nodes.get(id)?;
+                let paint = crossings::paint(&node.tags, inference::Region::of(node.position))?;
+                Some((station, paint))
+            })
+            .collect();
+        let split = plan.map_or(0.5, |p| p.centre_share(width));
+        let flow = stop_lines::Flow::of(tags, split);
+        for (k, halt, node_tags) in found {
+            let at = stop_lines::HaltAt {
+                halt,
+                tags: node_tags,
+                k,
+                count: line.nodes.len(),
+                station: stations[k],
+            };
+            let ends = stop_lines::lines(road, flow, &at, &crossings, (width, line.metre));
+            if ends.is_empty() {
+                continue;
+            }
+            let feature = *self.features.entry(line.nodes[k]).or_insert_with(|| {
+                let element = ElementRef {
+                    element_type: ElementType::Node,
+                    id: line.nodes[k],
+                };
+                set.add_feature(Some(element), FeatureClass::Marking, node_tags)
+            });
+            set.markings.extend(
+                ends.into_iter()
+                    .map(|e| stop_lines::marking(feature, halt, e, line.metre)),
+            );
+        }
     }
 }
 

@@ -87,6 +87,14 @@ pub fn paint(tags: &Tags, region: Region) -> Option<CrossingPaint> {
     }
 }
 
+/// How far a crossing's paint reaches along the road either side of its node, metres.
+pub fn depth_m(paint: CrossingPaint) -> f64 {
+    match paint {
+        CrossingPaint::Zebra => ZEBRA_LENGTH_M / 2.0,
+        CrossingPaint::Lines => (LINES_APART_M + LINE_M) / 2.0,
+    }
+}
+
 /// The strips a crossing paints at `at` (tile units) on a road running along `direction` (a
 /// unit vector) `width_m` wide, `metre` tile units a metre there.
 pub fn strips(

@@ -7,7 +7,11 @@
 //! elsewhere. Traffic keeps to the right, so a way's backward lanes lie on its left. A road of
 //! tertiary class or above that is not one-way and tags no `lanes` has two, so a centre line;
 //! service roads, tracks, paths, living streets and residential streets without `lanes` get
-//! none. The lines follow the road's surface as drawn (pieces cut back at junctions, bends
+//! none. Motorways and trunk roads (and their links) have a solid edge line along each side.
+//! A cycle lane (`cycleway`, `cycleway:both|left|right` = `lane`, `opposite_lane`) is marked off
+//! by a line its width (`…:width`, else 1.5 m) inside the edge — solid, or dashed where
+//! `…:lane=advisory` — and the lanes for motor traffic share what is left between them. The
+//! lines follow the road's surface as drawn (pieces cut back at junctions, bends
 //! rounded), so they stop where a junction begins; dashes are laid by the distance along the way, so
 //! every tile that draws a way lays the same dashes.
 
@@ -20,6 +24,15 @@ use crate::osm::Tags;
 pub const LANE_LINE_M: f64 = 0.12;
 /// Width of a centre line, metres.
 pub const CENTRE_LINE_M: f64 = 0.15;
+/// Width of an edge line, and the distance of its middle from the road's edge, metres.
+pub const EDGE_LINE_M: f64 = 0.2;
+const EDGE_INSET_M: f64 = 0.3;
+/// Width of the line marking off a cycle lane: solid, and dashed (advisory), metres.
+const CYCLE_LINE_M: f64 = 0.25;
+const ADVISORY_LINE_M: f64 = 0.12;
+/// Width of a cycle lane whose tags give none, and the range of widths taken as meant, metres.
+const CYCLE_LANE_M: f64 = 1.5;
+const CYCLE_LANE_RANGE_M: std::ops::RangeInclusive<f64> = 0.8..=3.0;
 /// Most lanes a road is drawn with; a tag above it is taken as a mistake.
 const MAX_LANES: u32 = 12;
 
@@ -42,6 +55,40 @@ pub struct LanePlan {
     pub backward: u32,
     pub centre: Pattern,
     pub lane: Pattern,
+    /// Whether the lines between the lanes are painted (not on a street that tags no `lanes`
+    /// and is painted only for its cycle lanes).
+    pub lined: bool,
+    /// Whether a solid line runs along each edge.
+    pub edges: bool,
+    /// The cycle lanes on the left and the right of the way.
+    pub cycle: [Option<CycleLane>; 2],
+}
+
+/// A cycle lane along one edge of a road.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CycleLane {
+    pub width_m: f64,
+    pub line: Pattern,
+}
+
+impl LanePlan {
+    /// The shares of a road `width_m` wide, from its left side, where its lanes for motor
+    /// traffic begin and end (inside its cycle lanes).
+    fn motor_lanes(&self, width_m: f64) -> (f64, f64) {
+        let share = |lane: Option<CycleLane>| lane.map_or(0.0, |l| l.width_m / width_m.max(1.0));
+        let (left, right) = (share(self.cycle[0]), share(self.cycle[1]));
+        if left + right >= 0.9 {
+            return (0.0, 1.0);
+        }
+        (left, 1.0 - right)
+    }
+
+    /// The share of the width of a road `width_m` wide, from its left side, where the lanes
+    /// against the way end: its centre line.
+    pub fn centre_share(&self, width_m: f64) -> f64 {
+        let (from, to) = self.motor_lanes(width_m);
+        from + (to - from) * f64::from(self.backward) / f64::from(self.lanes.max(1))
+    }
 }
 
 /// One painted line: its points (global tile units, along the road), how it is painted, its
@@ -75,6 +122,7 @@ pub fn painting_tags(tags: &Tags) -> Tags {
         matches!(*key, "highway" | "oneway" | "overtaking")
             || key.starts_with("lanes")
             || key.starts_with("turn:lanes")
+            || key.starts_with("cycleway")
     }))
 }
 
@@ -114,12 +162,17 @@ pub fn lane_plan(tags: &Tags) -> Option<LanePlan> {
     if tags.get("lanes").is_some() && tagged.is_none() {
         tracing::debug!(lanes = tags.get("lanes"), "lanes not a count; no lines");
     }
-    let lanes = match tagged {
-        Some(n) => n,
-        None if major && !oneway => 2,
-        None => return None,
+    let edges = matches!(
+        highway,
+        "motorway" | "trunk" | "motorway_link" | "trunk_link"
+    );
+    let cycle = cycle_lanes(tags, oneway);
+    let (lanes, lined) = match tagged {
+        Some(n) => (n, n >= 2),
+        None if major && !oneway => (2, true),
+        None => (if oneway { 1 } else { 2 }, false),
     };
-    if lanes < 2 {
+    if !lined && !edges && cycle == [None, None] {
         return None;
     }
     let backward = if oneway {
@@ -156,29 +209,107 @@ pub fn lane_plan(tags: &Tags) -> Option<LanePlan> {
         backward,
         centre,
         lane,
+        lined,
+        edges,
+        cycle,
     })
 }
 
-/// The lines of `plan` on a road's surface: one per line a stretch of it holds, at its share of
-/// the width between the left and right sides of the stretch's pieces.
-pub fn along(feature: u32, road: &RoadSurface, plan: &LanePlan, metre: f64) -> Vec<Marking> {
+/// The cycle lanes a road's tags map, left and right of the way: `cycleway` (`lane` on both
+/// sides, on the right alone of a one-way road; `opposite_lane` on the left), then
+/// `cycleway:both`, `cycleway:left`, `cycleway:right`.
+fn cycle_lanes(tags: &Tags, oneway: bool) -> [Option<CycleLane>; 2] {
+    let mut sides = [false, false];
+    match tags.get("cycleway") {
+        Some("lane") if oneway => sides[1] = true,
+        Some("lane") => sides = [true, true],
+        Some("opposite_lane") => sides[0] = true,
+        _ => {}
+    }
+    if tags.get("cycleway:both") == Some("lane") {
+        sides = [true, true];
+    }
+    for (k, side) in ["left", "right"].iter().enumerate() {
+        match tags.get(&format!("cycleway:{side}")) {
+            Some("lane" | "opposite_lane") => sides[k] = true,
+            Some(_) => sides[k] = false,
+            None => {}
+        }
+    }
+    let lane = |side: &str| {
+        let key = |rest: &str| {
+            tags.get(&format!("cycleway:{side}:{rest}"))
+                .or_else(|| tags.get(&format!("cycleway:both:{rest}")))
+                .or_else(|| tags.get(&format!("cycleway:{rest}")))
+        };
+        let width_m = key("width")
+            .and_then(crate::osm::units::parse_length_m)
+            .filter(|w| CYCLE_LANE_RANGE_M.contains(w))
+            .unwrap_or(CYCLE_LANE_M);
+        let line = match key("lane") {
+            Some("advisory") => Pattern::Dashed {
+                dash_m: 1.0,
+                gap_m: 1.0,
+            },
+            _ => Pattern::Solid,
+        };
+        CycleLane { width_m, line }
+    };
+    [
+        sides[0].then(|| lane("left")),
+        sides[1].then(|| lane("right")),
+    ]
+}
+
+/// The lines of `plan` on a road's surface `width_m` wide: one per line a stretch of it holds,
+/// at its share of the width between the left and right sides of the stretch's pieces.
+pub fn along(
+    feature: u32,
+    road: &RoadSurface,
+    plan: &LanePlan,
+    (width_m, metre): (f64, f64),
+) -> Vec<Marking> {
+    let mut lines: Vec<(f64, Pattern, f64)> = Vec::new();
+    let (from, to) = plan.motor_lanes(width_m);
+    if plan.lined {
+        for boundary in 1..plan.lanes {
+            let share = from + (to - from) * f64::from(boundary) / f64::from(plan.lanes);
+            lines.push(if boundary == plan.backward {
+                (share, plan.centre, CENTRE_LINE_M)
+            } else {
+                (share, plan.lane, LANE_LINE_M)
+            });
+        }
+    }
+    for (lane, share) in plan.cycle.iter().zip([from, to]) {
+        if let Some(lane) = lane {
+            let width = match lane.line {
+                Pattern::Solid => CYCLE_LINE_M,
+                Pattern::Dashed { .. } => ADVISORY_LINE_M,
+            };
+            lines.push((share, lane.line, width));
+        }
+    }
+    if plan.edges && width_m > 4.0 * EDGE_INSET_M {
+        let inset = EDGE_INSET_M / width_m;
+        lines.push((inset, Pattern::Solid, EDGE_LINE_M));
+        lines.push((1.0 - inset, Pattern::Solid, EDGE_LINE_M));
+    }
     let mut markings = Vec::new();
     for ((range, _), stations) in road.lines.iter().zip(&road.stations) {
         if stations.len() != range.len() + 1 {
             continue;
         }
-        for boundary in 1..plan.lanes {
-            let share = f64::from(boundary) / f64::from(plan.lanes);
+        for &(share, pattern, width_m) in &lines {
             let Some(line) = road.line_at(range.clone(), share) else {
                 continue;
             };
-            let centre = boundary == plan.backward;
             markings.push(Marking {
                 feature,
                 line,
                 stations: stations.clone(),
-                pattern: if centre { plan.centre } else { plan.lane },
-                width_m: if centre { CENTRE_LINE_M } else { LANE_LINE_M },
+                pattern,
+                width_m,
                 metre,
                 paint: Paint::Line,
             });
@@ -237,6 +368,48 @@ mod tests {
         );
         assert_eq!(
             lane_plan(&tags(&[("highway", "tertiary"), ("oneway", "yes")])),
+            None
+        );
+    }
+
+    #[test]
+    fn cycle_lanes_take_their_width_from_the_motor_lanes_and_motorways_get_edge_lines() {
+        let plan = lane_plan(&tags(&[
+            ("highway", "residential"),
+            ("cycleway:right", "lane"),
+            ("cycleway:right:lane", "advisory"),
+        ]))
+        .unwrap();
+        assert!(!plan.lined && !plan.edges);
+        assert_eq!(plan.cycle[0], None);
+        let right = plan.cycle[1].unwrap();
+        assert_eq!(right.width_m, 1.5);
+        assert!(matches!(right.line, Pattern::Dashed { .. }));
+        // 10 m wide: the motor lanes between 0 and 8.5 m, the centre in their middle.
+        assert!((plan.centre_share(10.0) - 0.425).abs() < 1e-9);
+        let plan = lane_plan(&tags(&[
+            ("highway", "secondary"),
+            ("cycleway", "lane"),
+            ("cycleway:width", "2"),
+        ]))
+        .unwrap();
+        assert!(plan.lined);
+        assert_eq!(
+            plan.cycle.map(|c| c.map(|c| c.width_m)),
+            [Some(2.0), Some(2.0)]
+        );
+        let one_way = lane_plan(&tags(&[
+            ("highway", "residential"),
+            ("oneway", "yes"),
+            ("cycleway", "lane"),
+            ("cycleway:left", "no"),
+        ]))
+        .unwrap();
+        assert_eq!(one_way.cycle.map(|c| c.is_some()), [false, true]);
+        let motorway = lane_plan(&tags(&[("highway", "motorway"), ("lanes", "1")])).unwrap();
+        assert!(motorway.edges && !motorway.lined);
+        assert_eq!(
+            lane_plan(&tags(&[("highway", "residential"), ("cycleway", "track")])),
             None
         );
     }

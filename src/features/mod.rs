@@ -25,6 +25,7 @@ pub mod roads;
 pub mod roof_shape;
 pub mod rows;
 pub mod sidewalks;
+pub mod stop_lines;
 pub mod structures;
 pub mod vegetation;
 pub mod water;

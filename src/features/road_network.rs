@@ -69,6 +69,41 @@ impl RoadSurface {
         line.extend(pieces.iter().map(|p| across(p.outer[1], p.outer[2])));
         Some(line)
     }
+
+    /// The points at `shares` of the width across the surface where it stands for `station`
+    /// (a distance along the way's own line); `None` where no run of quads covers it (inside
+    /// a junction, or off the drawn part of the way).
+    pub fn across_at(&self, station: f64, shares: [f64; 2]) -> Option<[Point; 2]> {
+        self.lines
+            .iter()
+            .zip(&self.stations)
+            .find_map(|((range, _), stations)| {
+                let (&first, &last) = (stations.first()?, stations.last()?);
+                if station < first || station > last || stations.len() != range.len() + 1 {
+                    return None;
+                }
+                let (k, t) = crate::geometry::bracket(stations, station);
+                let piece = self.pieces.get(range.start + k - 1)?;
+                if piece.outer.len() != 4 {
+                    return None;
+                }
+                let left = crate::geometry::lerp(piece.outer[0], piece.outer[1], t);
+                let right = crate::geometry::lerp(piece.outer[3], piece.outer[2], t);
+                Some(shares.map(|share| crate::geometry::lerp(left, right, share)))
+            })
+    }
+
+    /// The end of the drawn surface nearest `station` on the side `sense` comes from (−1:
+    /// lower stations, the way's traffic approaching forward; 1: higher ones), within `reach`:
+    /// where a surface cut back before a junction at `station` ends.
+    pub fn drawn_end_before(&self, station: f64, sense: f64, reach: f64) -> Option<f64> {
+        let ends = self.stations.iter().filter_map(|s| {
+            let end = if sense < 0.0 { *s.last()? } else { *s.first()? };
+            let gap = (station - end) * -sense;
+            (-1e-9..=reach).contains(&gap).then_some((gap, end))
+        });
+        ends.min_by(|a, b| a.0.total_cmp(&b.0)).map(|(_, end)| end)
+    }
 }
 
 /// A stretch's line as drawn: from node to node with its bends rounded, and for each point

@@ -758,3 +758,177 @@ fn a_lit_street_without_mapped_lamps_gets_them_along_one_side_and_a_mapped_one_s
     assert_eq!(second.len(), 1 + 20 - 2, "{second:?}");
     assert!(lamps_near(0.7).is_empty(), "an unlit street has none");
 }
+
+/// A stop or give-way line: its node's id, the middle of the line and its two ends in metres
+/// east and south of the node, and whether it is dashed.
+type HaltLine = (i64, (f64, f64), [(f64, f64); 2], bool);
+
+/// The stop and give-way lines of `set`.
+fn halt_lines(set: &terrastitch::features::FeatureSet, fixture: &Fixture) -> Vec<HaltLine> {
+    use terrastitch::features::markings::{Paint, Pattern};
+    let projection = terrastitch::features::Projection::new(TILE.z);
+    let positions: std::collections::HashMap<i64, terrastitch::osm::LonLat> = fixture
+        .data()
+        .nodes
+        .iter()
+        .map(|n| (n.id, n.position))
+        .collect();
+    set.markings
+        .iter()
+        .filter(|m| m.paint == Paint::Line && m.width_m == 0.5)
+        .map(|m| {
+            let id = set.features[m.feature as usize]
+                .element
+                .expect("a line's node")
+                .id;
+            let centre = projection.point(positions[&id]);
+            let off = |p: [f64; 2]| ((p[0] - centre[0]) / m.metre, (p[1] - centre[1]) / m.metre);
+            let (a, b) = (off(m.line[0]), off(m.line[1]));
+            let middle = ((a.0 + b.0) / 2.0, (a.1 + b.1) / 2.0);
+            (
+                id,
+                middle,
+                [a, b],
+                matches!(m.pattern, Pattern::Dashed { .. }),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn stop_lines_stand_before_signals_crossings_and_junctions_across_the_lanes_they_halt() {
+    let mut fixture = Fixture::default();
+    let street = [("highway", "residential"), ("width", "7")];
+    fixture
+        .way(
+            &street,
+            &[
+                (-0.2, 0.5),
+                (0.3, 0.5),
+                (0.5, 0.5),
+                (0.7, 0.5),
+                (0.9, 0.5),
+                (1.2, 0.5),
+            ],
+        )
+        .way(&street, &[(0.9, 0.8), (0.9, 0.5)])
+        .join((0.9, 0.5))
+        .tag_node((0.3, 0.5), &[("highway", "traffic_signals")])
+        .tag_node(
+            (0.5, 0.5),
+            &[
+                ("highway", "crossing"),
+                ("crossing", "traffic_signals"),
+                ("crossing:markings", "zebra"),
+            ],
+        )
+        .tag_node(
+            (0.7, 0.5),
+            &[("highway", "give_way"), ("direction", "backward")],
+        )
+        .tag_node((0.9, 0.5), &[("highway", "traffic_signals")]);
+    let index = index_osm(fixture.data(), TILE.z);
+    let selection = index.query(TILE, QUERY_MARGIN_DEG);
+    let set = terrastitch::features::collect(&selection, TILE, &Default::default());
+    let lines = halt_lines(&set, &fixture);
+    let node_at = |place: (f64, f64)| {
+        let position = at(place.0, place.1);
+        fixture
+            .data()
+            .nodes
+            .iter()
+            .find(|n| n.position == position)
+            .expect("a tagged node")
+            .id
+    };
+    let of = |place| -> Vec<_> { lines.iter().filter(|l| l.0 == node_at(place)).collect() };
+    // A line spans the half of the 7 m road its traffic drives on, clear of the edge and the
+    // centre by 0.15 m: eastward traffic keeps to the south half.
+    let spans_half = |ends: &[(f64, f64); 2], south_half: bool| {
+        let (low, high) = (ends[0].1.min(ends[1].1), ends[0].1.max(ends[1].1));
+        let (near, far) = if south_half {
+            (low, high)
+        } else {
+            (-high, -low)
+        };
+        (near - 0.15).abs() < 0.01 && (far - 3.35).abs() < 0.01
+    };
+    // Signals: a line each way, 1.25 m before the node (a metre clear, half the line's width).
+    let signals = of((0.3, 0.5));
+    assert_eq!(signals.len(), 2, "{lines:?}");
+    for (_, (east, _), ends, dashed) in &signals {
+        assert!(!dashed && (east.abs() - 1.25).abs() < 0.01, "{signals:?}");
+        assert!(spans_half(ends, *east < 0.0), "{signals:?}");
+    }
+    // A signal crossing's zebra reaches 2 m either side: the lines stand a metre before it.
+    let crossing = of((0.5, 0.5));
+    assert_eq!(crossing.len(), 2, "{lines:?}");
+    for (_, (east, _), ends, _) in &crossing {
+        assert!((east.abs() - 3.25).abs() < 0.01, "{crossing:?}");
+        assert!(spans_half(ends, *east < 0.0), "{crossing:?}");
+    }
+    // A give-way sign for the westward traffic: one dashed line east of it, on the north half.
+    let give_way = of((0.7, 0.5));
+    assert_eq!(give_way.len(), 1, "{lines:?}");
+    let (_, (east, _), ends, dashed) = give_way[0];
+    assert!(*dashed && (east - 1.25).abs() < 0.01 && spans_half(ends, false));
+    // Signals at a junction: every road that comes to it halts where its surface is cut back,
+    // outside the other road's 7 m and within 25 m.
+    let junction = of((0.9, 0.5));
+    assert_eq!(junction.len(), 3, "{lines:?}");
+    for (_, (east, south), _, _) in &junction {
+        let away = east.abs().max(south.abs());
+        assert!((3.5..25.0).contains(&away), "{junction:?}");
+    }
+    assert!(
+        junction
+            .iter()
+            .any(|(_, (east, south), ends, _)| *south > 3.5
+                && east.abs() < 3.5
+                && ends.iter().all(|e| e.0 > 0.0)),
+        "the side road's northward traffic keeps to its east half: {junction:?}"
+    );
+}
+
+#[test]
+fn cycle_lanes_are_marked_off_inside_the_edges_and_a_motorway_has_edge_lines() {
+    let mut fixture = Fixture::default();
+    fixture.way(
+        &[
+            ("highway", "secondary"),
+            ("width", "10"),
+            ("cycleway", "lane"),
+        ],
+        &[(-0.2, 0.3), (1.2, 0.3)],
+    );
+    fixture.way(
+        &[("highway", "motorway"), ("width", "8"), ("lanes", "2")],
+        &[(-0.2, 0.7), (1.2, 0.7)],
+    );
+    let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+    let lines = painted_lines(&tile);
+    // The lines' distances (metres) from the middle of the road `south` of the tile's middle,
+    // triangles of one line within 0.3 m taken together.
+    let across = |south: f64| {
+        let mut offsets: Vec<f64> = lines
+            .iter()
+            .map(|l| l.0 - (south - 0.5) * tile.tile_size() / scale())
+            .filter(|o| o.abs() < 6.0)
+            .collect();
+        offsets.dedup_by(|b, a| (*b - *a).abs() < 0.3);
+        offsets
+    };
+    let street = across(0.3);
+    // The cycle lanes' lines 1.5 m inside each edge of the 10 m street, the centre line
+    // between them.
+    assert_eq!(street.len(), 3, "{lines:?}");
+    for (off, expected) in street.iter().zip([-3.5, 0.0, 3.5]) {
+        assert!((off - expected).abs() < 0.15, "{street:?}");
+    }
+    // The motorway: a lane line in the middle and an edge line 0.3 m inside each edge.
+    let motorway = across(0.7);
+    assert_eq!(motorway.len(), 3, "{lines:?}");
+    for (off, expected) in motorway.iter().zip([-3.7, 0.0, 3.7]) {
+        assert!((off - expected).abs() < 0.15, "{motorway:?}");
+    }
+}
