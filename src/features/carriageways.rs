@@ -10,7 +10,7 @@ use super::objects::{LitWay, ObjectKind, RoadSide};
 use super::road_network::{self, RoadLine};
 use super::roads::{self, Paving};
 use super::structures::is_off_ground;
-use super::{crossings, inference, markings, sidewalks, stop_lines};
+use super::{crossings, inference, markings, sidewalks, stop_lines, turn_arrows};
 use super::{
     railways, widened_surface, FeatureClass, FeatureSet, FeatureSettings, Projection, Surface,
 };
@@ -148,6 +148,16 @@ pub(super) fn add_roads(
         if let Some((painted, plan)) = painted {
             set.markings
                 .extend(markings::along(*painted, &road, plan, (*width, line.metre)));
+            let length = crate::geometry::distances_along(&line.points)
+                .last()
+                .copied()
+                .unwrap_or(0.0);
+            set.markings.extend(turn_arrows::of_plan(
+                *painted,
+                &road,
+                plan,
+                (*width, length, line.metre),
+            ));
         }
         if traffic[r] {
             let plan = painted.as_ref().map(|p| &p.1);

@@ -120,6 +120,7 @@ pub fn strips(
         width_m,
         metre,
         paint: Paint::Crossing,
+        tip: false,
     };
     match paint {
         CrossingPaint::Zebra => {

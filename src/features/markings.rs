@@ -48,7 +48,7 @@ pub enum Pattern {
 }
 
 /// The lanes of a road and how the lines between them are painted.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct LanePlan {
     pub lanes: u32,
     /// Lanes against the way's direction, on its left.
@@ -62,6 +62,9 @@ pub struct LanePlan {
     pub edges: bool,
     /// The cycle lanes on the left and the right of the way.
     pub cycle: [Option<CycleLane>; 2],
+    /// The turns of the lanes against the way and along it, each direction's left to right
+    /// as its traffic sees them.
+    pub turns: [Option<Vec<Vec<Turn>>>; 2],
 }
 
 /// A cycle lane along one edge of a road.
@@ -74,7 +77,7 @@ pub struct CycleLane {
 impl LanePlan {
     /// The shares of a road `width_m` wide, from its left side, where its lanes for motor
     /// traffic begin and end (inside its cycle lanes).
-    fn motor_lanes(&self, width_m: f64) -> (f64, f64) {
+    pub fn motor_lanes(&self, width_m: f64) -> (f64, f64) {
         let share = |lane: Option<CycleLane>| lane.map_or(0.0, |l| l.width_m / width_m.max(1.0));
         let (left, right) = (share(self.cycle[0]), share(self.cycle[1]));
         if left + right >= 0.9 {
@@ -104,6 +107,8 @@ pub struct Marking {
     pub width_m: f64,
     pub metre: f64,
     pub paint: Paint,
+    /// Whether the line narrows to a point at its end (an arrow's head).
+    pub tip: bool,
 }
 
 /// What a marking paints: each is a glTF material of its own.
@@ -167,12 +172,20 @@ pub fn lane_plan(tags: &Tags) -> Option<LanePlan> {
         "motorway" | "trunk" | "motorway_link" | "trunk_link"
     );
     let cycle = cycle_lanes(tags, oneway);
-    let (lanes, lined) = match tagged {
+    let turns = lane_turns(tags, highway == "motorway");
+    let turned = match (&turns[0], &turns[1]) {
+        (Some(b), Some(f)) => Some(b.len() + f.len()),
+        (None, Some(f)) if oneway => Some(f.len()),
+        _ => None,
+    }
+    .and_then(|n| u32::try_from(n).ok())
+    .filter(|n| (2..=MAX_LANES).contains(n));
+    let (lanes, lined) = match tagged.or(turned) {
         Some(n) => (n, n >= 2),
         None if major && !oneway => (2, true),
         None => (if oneway { 1 } else { 2 }, false),
     };
-    if !lined && !edges && cycle == [None, None] {
+    if !lined && !edges && cycle == [None, None] && turns == [None, None] {
         return None;
     }
     let backward = if oneway {
@@ -212,7 +225,59 @@ pub fn lane_plan(tags: &Tags) -> Option<LanePlan> {
         lined,
         edges,
         cycle,
+        turns,
     })
+}
+
+/// A way to leave the lane, by its angle from straight on (degrees, negative to the left).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Turn(pub f64);
+
+/// The turns of each lane of one direction, left to right; `None` when the value says nothing
+/// to paint.
+pub fn parse_turns(value: &str) -> Option<Vec<Vec<Turn>>> {
+    let lanes: Vec<Vec<Turn>> = value
+        .split('|')
+        .map(|lane| lane.split(';').filter_map(turn).collect())
+        .collect();
+    lanes.iter().any(|l| !l.is_empty()).then_some(lanes)
+}
+
+fn turn(value: &str) -> Option<Turn> {
+    let angle = match value.trim() {
+        "through" => 0.0,
+        "slight_left" => -35.0,
+        "left" => -65.0,
+        "sharp_left" => -100.0,
+        "slight_right" => 35.0,
+        "right" => 65.0,
+        "sharp_right" => 100.0,
+        "" | "none" | "reverse" | "merge_to_left" | "merge_to_right" => return None,
+        other => {
+            tracing::debug!(turn = other, "unknown turn in turn:lanes; not painted");
+            return None;
+        }
+    };
+    Some(Turn(angle))
+}
+
+/// The turns of a road's lanes, against the way and along it: `turn:lanes:backward` and
+/// `turn:lanes:forward`, or `turn:lanes` on a road one-way along the way.
+fn lane_turns(tags: &Tags, motorway: bool) -> [Option<Vec<Vec<Turn>>>; 2] {
+    let oneway = match tags.get("oneway") {
+        Some("yes" | "1" | "true") => true,
+        Some(_) => false,
+        None => motorway,
+    };
+    let forward = tags
+        .get("turn:lanes:forward")
+        .or_else(|| tags.get("turn:lanes").filter(|_| oneway));
+    [
+        tags.get("turn:lanes:backward")
+            .filter(|_| !oneway)
+            .and_then(parse_turns),
+        forward.and_then(parse_turns),
+    ]
 }
 
 /// The cycle lanes a road's tags map, left and right of the way: `cycleway` (`lane` on both
@@ -312,6 +377,7 @@ pub fn along(
                 width_m,
                 metre,
                 paint: Paint::Line,
+                tip: false,
             });
         }
     }

@@ -27,6 +27,7 @@ pub mod rows;
 pub mod sidewalks;
 pub mod stop_lines;
 pub mod structures;
+pub mod turn_arrows;
 pub mod vegetation;
 pub mod water;
 

@@ -175,6 +175,7 @@ pub fn marking(feature: u32, halt: Halt, [a, b]: [Point; 2], metre: f64) -> Mark
         width_m: HALT_LINE_M,
         metre,
         paint: Paint::Line,
+        tip: false,
     }
 }
 

@@ -41,9 +41,11 @@ pub fn build(
         };
         let buffers = parts.entry(part).or_default();
         for run in painted(marking) {
-            for pair in run.windows(2) {
+            let last = run.len().saturating_sub(2);
+            for (k, pair) in run.windows(2).enumerate() {
                 if Rect::around(pair).intersects(&reach) {
-                    strip(buffers, frame, ground, marking, (pair[0], pair[1]));
+                    let tip = marking.tip && k == last;
+                    strip(buffers, frame, ground, marking, (pair[0], pair[1]), tip);
                 }
             }
         }
@@ -94,7 +96,7 @@ fn part_of(line: &[Point], stations: &[f64], (from, to): (f64, f64)) -> Vec<Poin
 }
 
 /// One strip piece from `a` to `b` (global tile units), as wide as the marking and level
-/// across, clipped to the tile: a piece across an edge is cut along it, at the same points in
+/// across (a triangle narrowing to `b` when `tip`), clipped to the tile: a piece across an edge is cut along it, at the same points in
 /// both tiles.
 fn strip(
     buffers: &mut MeshBuffers,
@@ -102,6 +104,7 @@ fn strip(
     ground: &dyn Elevation,
     marking: &Marking,
     (a, b): (Point, Point),
+    tip: bool,
 ) {
     let length = distance(a, b);
     if length <= 0.0 {
@@ -112,13 +115,17 @@ fn strip(
         -(b[1] - a[1]) / length * half,
         (b[0] - a[0]) / length * half,
     );
-    let quad = [
-        [a[0] + nu, a[1] + nv],
-        [b[0] + nu, b[1] + nv],
-        [b[0] - nu, b[1] - nv],
-        [a[0] - nu, a[1] - nv],
-    ];
-    let clipped = clip_to_rect(&quad, &tile_rect(frame.tile));
+    let outline = if tip {
+        vec![[a[0] + nu, a[1] + nv], b, [a[0] - nu, a[1] - nv]]
+    } else {
+        vec![
+            [a[0] + nu, a[1] + nv],
+            [b[0] + nu, b[1] + nv],
+            [b[0] - nu, b[1] - nv],
+            [a[0] - nu, a[1] - nv],
+        ]
+    };
+    let clipped = clip_to_rect(&outline, &tile_rect(frame.tile));
     if clipped.len() < 3 {
         return;
     }
@@ -143,6 +150,7 @@ mod tests {
             line: vec![[0.0, 0.0], [length / 2.0, 0.0], [length, 0.0]],
             stations: vec![0.0, length / 2.0, length],
             paint: Paint::Line,
+            tip: false,
             pattern,
             width_m: 0.12,
             metre: 1.0,

@@ -932,3 +932,64 @@ fn cycle_lanes_are_marked_off_inside_the_edges_and_a_motorway_has_edge_lines() {
         assert!((off - expected).abs() < 0.15, "{motorway:?}");
     }
 }
+
+#[test]
+fn turn_lanes_paint_an_arrow_in_each_lane_before_the_junction() {
+    let mut fixture = Fixture::default();
+    fixture
+        .way(
+            &[
+                ("highway", "primary"),
+                ("oneway", "yes"),
+                ("turn:lanes", "left|through|through;right"),
+            ],
+            &[(-0.2, 0.5), (0.5, 0.5)],
+        )
+        .way(
+            &[("highway", "primary"), ("width", "7")],
+            &[(0.5, 0.3), (0.5, 0.5), (0.5, 0.7)],
+        )
+        .join((0.5, 0.5));
+    let index = index_osm(fixture.data(), TILE.z);
+    let selection = index.query(TILE, QUERY_MARGIN_DEG);
+    let set = terrastitch::features::collect(&selection, TILE, &Default::default());
+    let projection = terrastitch::features::Projection::new(TILE.z);
+    let centre = projection.point(at(0.5, 0.5));
+    let metre = projection.metres(1.0, at(0.5, 0.5).lat);
+    // The heads' tips, metres east and south of the junction's node.
+    let mut tips: Vec<(f64, f64)> = set
+        .markings
+        .iter()
+        .filter(|m| m.tip)
+        .map(|m| {
+            let tip = m.line[m.line.len() - 1];
+            ((tip[0] - centre[0]) / metre, (tip[1] - centre[1]) / metre)
+        })
+        .collect();
+    tips.sort_by(|a, b| a.1.total_cmp(&b.1));
+    assert_eq!(tips.len(), 4, "{tips:?}");
+    // Three lanes of 3.5 m (taken from the turns' count): their middles 3.5 m apart. The
+    // left lane's head bends north, the right one's south of its lane, the others run east.
+    let lane_of = |south: f64| ((south + 5.25) / 3.5).floor() as i32;
+    assert!(
+        tips[0].1 < -3.5 - 0.5,
+        "the left turn bends north: {tips:?}"
+    );
+    assert_eq!(lane_of(tips[1].1), 1, "{tips:?}");
+    assert_eq!(lane_of(tips[2].1), 2, "{tips:?}");
+    assert!(
+        tips[3].1 > 3.5 + 0.5,
+        "the right turn bends south: {tips:?}"
+    );
+    // All before the junction: past the other road's half width and within 25 m.
+    for (east, _) in &tips {
+        assert!((-25.0..-3.5).contains(east), "{tips:?}");
+    }
+    // Lane lines between the three lanes come with them.
+    let lines = set
+        .markings
+        .iter()
+        .filter(|m| !m.tip && m.width_m == 0.12)
+        .count();
+    assert!(lines >= 2, "{lines} lane lines");
+}
