@@ -981,10 +981,11 @@ function locate(osmId) {
         const hit = raycaster.intersectObject(tile.group, true).find((h) => h.object.visible);
         if (!hit || hit.object !== o || ids.getX(hit.face.a) !== ids.getX(index.getX(i))) continue;
         const rect = renderer.domElement.getBoundingClientRect();
-        found = {
-          x: rect.left + ((ndc.x + 1) / 2) * rect.width,
-          y: rect.top + ((1 - ndc.y) / 2) * rect.height,
-        };
+        const x = rect.left + ((ndc.x + 1) / 2) * rect.width;
+        const y = rect.top + ((1 - ndc.y) / 2) * rect.height;
+        // Not where the panel or the search box covers the map: a click there is theirs.
+        if (document.elementFromPoint(x, y) !== renderer.domElement) continue;
+        found = { x, y };
         return;
       }
     });

@@ -11,7 +11,7 @@ const result = { consoleErrors: [], pageErrors: [], failedRequests: [], steps: {
 
 const browser = await launch();
 try {
-  const page = await browser.newPage({ viewport: { width: 800, height: 600 } });
+  const page = await browser.newPage({ viewport: { width: 480, height: 360 } });
   watch(page, result);
   const answers = [];
   page.on('response', (response) => answers.push([response.status(), response.url().replace(base, '/')]));

@@ -92,7 +92,7 @@ window.check = {
 const types = { '.js': 'text/javascript', '.mjs': 'text/javascript', '.json': 'application/json' };
 const browser = await launch();
 try {
-  const context = await browser.newContext({ viewport: { width: 800, height: 600 } });
+  const context = await browser.newContext({ viewport: { width: 480, height: 360 } });
   await context.route(`${prefix}/**`, async (route) => {
     const path = new URL(route.request().url()).pathname.replace(/^\/tiles3d-check/, '');
     if (path === '/' || path === '') {

@@ -22,7 +22,7 @@ const HUNG_MS = 240000;
 
 const browser = await launch();
 try {
-  const page = await browser.newPage({ viewport: { width: 800, height: 600 } });
+  const page = await browser.newPage({ viewport: { width: 480, height: 360 } });
   page.setDefaultTimeout(HUNG_MS);
   watch(page, result);
   await addPixelReader(page);
