@@ -15,7 +15,9 @@
 
 use super::road_network::RoadSurface;
 use super::{landcover::Cover, FeatureClass, FeatureSet};
-use crate::geometry::{distance, distance_to_segment, lerp, ring_contains, Point, Rect};
+use crate::geometry::{
+    distance, distance_to_segment, lerp, ring_contains, segments_meet, Point, Rect,
+};
 use crate::osm::units::parse_length_m;
 use crate::osm::{Tags, Way};
 
@@ -237,7 +239,7 @@ struct Surroundings {
     taken: Taken,
 }
 
-/// Areas indexed by the cells of a grid their bounds meet, for finding those at a point.
+/// Areas indexed by the cells of a grid their bounds meet, for finding those a stretch meets.
 struct Taken {
     areas: Vec<(Rect, Vec<Point>, u32)>,
     cells: std::collections::HashMap<(i64, i64), Vec<usize>>,
@@ -275,18 +277,40 @@ impl Taken {
         }
     }
 
-    /// True where `p` lies in an area of a feature other than `feature`.
-    fn at(&self, p: Point, feature: u32) -> bool {
-        let key = (
-            (p[0] / TAKEN_CELL).floor() as i64,
-            (p[1] / TAKEN_CELL).floor() as i64,
-        );
-        let listed = self.cells.get(&key).map_or(&[][..], Vec::as_slice);
-        listed.iter().chain(&self.large).any(|&i| {
-            let (bounds, ring, f) = &self.areas[i];
-            *f != feature && bounds.contains(p) && ring_contains(ring, p)
-        })
+    /// True where the quad `corners` meets an area of a feature other than `feature`: a corner
+    /// of one inside the other, or their edges crossing (a stream narrower than the quad).
+    fn meets(&self, corners: &[Point; 4], feature: u32) -> bool {
+        let bounds = Rect::around(corners);
+        let cell = |v: f64| (v / TAKEN_CELL).floor() as i64;
+        let mut listed = std::collections::BTreeSet::new();
+        for u in cell(bounds.min[0])..=cell(bounds.max[0]) {
+            for v in cell(bounds.min[1])..=cell(bounds.max[1]) {
+                if let Some(areas) = self.cells.get(&(u, v)) {
+                    listed.extend(areas.iter().copied());
+                }
+            }
+        }
+        listed
+            .into_iter()
+            .chain(self.large.iter().copied())
+            .any(|i| {
+                let (area_bounds, ring, f) = &self.areas[i];
+                *f != feature && area_bounds.intersects(&bounds) && overlaps(ring, corners)
+            })
     }
+}
+
+/// True where a ring and a quad overlap.
+fn overlaps(ring: &[Point], quad: &[Point; 4]) -> bool {
+    quad.iter().any(|&p| ring_contains(ring, p))
+        || ring.iter().any(|&p| ring_contains(quad, p))
+        || edges(ring).any(|(a, b)| edges(quad).any(|(c, d)| segments_meet(a, b, c, d)))
+}
+
+/// The edges of a ring, the closing one included.
+fn edges(points: &[Point]) -> impl Iterator<Item = (Point, Point)> + '_ {
+    let n = points.len();
+    (0..n).map(move |k| (points[k], points[(k + 1) % n]))
 }
 
 impl Surroundings {
@@ -417,10 +441,16 @@ fn runs(candidate: &Candidate, around: &Surroundings, out: &mut Vec<Band>) {
             lerp(candidate.outer[k - 1], candidate.outer[k], 0.5),
             0.5,
         );
-        // Its middle and its outer corners must all lie on free ground.
-        let taken = [middle, candidate.outer[k - 1], candidate.outer[k]]
-            .into_iter()
-            .any(|p| around.taken.at(p, candidate.feature));
+        // All of it but the quarter along the road's edge (where the road's own junctions
+        // touch it) must lie on free ground.
+        let near = |k: usize| lerp(candidate.inner[k], candidate.outer[k], 0.25);
+        let far = [
+            near(k - 1),
+            near(k),
+            candidate.outer[k],
+            candidate.outer[k - 1],
+        ];
+        let taken = around.taken.meets(&far, candidate.feature);
         let look = if taken || around.mapped_apart_at(middle, metre) {
             None
         } else if candidate.side == Side::Mapped || around.built_up_at(middle, metre) {

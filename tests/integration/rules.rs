@@ -993,3 +993,35 @@ fn turn_lanes_paint_an_arrow_in_each_lane_before_the_junction() {
         .count();
     assert!(lines >= 2, "{lines} lane lines");
 }
+
+#[test]
+fn a_sidewalk_keeps_clear_of_a_narrow_stream_crossing_its_street() {
+    // A stream 2 m wide across the street between the houses, at one place after another
+    // along a stretch of the band: wherever it crosses, no sidewalk lies over the water.
+    let m = metre();
+    for d in 0..12 {
+        let east = 0.5 + (f64::from(d) * 1.7 - 10.0) * m;
+        let mut fixture = Fixture::default();
+        street_between_houses(&mut fixture);
+        fixture.way(
+            &[("waterway", "stream"), ("width", "2")],
+            &[(east, 0.45), (east, 0.55)],
+        );
+        let tile = drawn(&fixture, &terrain(|_, _| 100.0));
+        assert!(
+            !tile.primitives("roadside").is_empty(),
+            "the street has its sidewalks"
+        );
+        for k in 4..=16 {
+            let off = f64::from(k) * 0.5 * m;
+            for south in [0.5 - off, 0.5 + off] {
+                let over = heights(&tile, "roadside", (east, south));
+                assert!(
+                    over.is_empty(),
+                    "roadside over the stream {:.1} m east of the middle: {over:?}",
+                    (east - 0.5) / m
+                );
+            }
+        }
+    }
+}
