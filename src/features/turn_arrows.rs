@@ -23,6 +23,11 @@ const HEAD_M: f64 = 0.6;
 /// Length of a head, and of a bent shaft past the bend, metres.
 const HEAD_LENGTH_M: f64 = 1.2;
 const BENT_M: f64 = 0.3;
+/// How far before the straight head a turn's shaft bends off, metres.
+const BEND_BEFORE_M: f64 = 0.6;
+/// Farthest the drawn surface may end short of the way's node for its lanes to get arrows,
+/// metres.
+const REACH_M: f64 = 30.0;
 
 /// The arrows painted in the lanes of `plan` on a road's surface `width_m` wide whose way's
 /// line is `length` long (tile units), `metre` one metre there.
@@ -76,7 +81,7 @@ pub fn arrows(
     metre: f64,
 ) -> Vec<Marking> {
     let sense = lanes.sense;
-    let Some(drawn_end) = road.drawn_end_before(end, -sense, 30.0 * metre) else {
+    let Some(drawn_end) = road.drawn_end_before(end, -sense, REACH_M * metre) else {
         return Vec::new();
     };
     let tip = drawn_end - sense * TIP_CLEAR_M * metre;
@@ -126,7 +131,7 @@ fn glyph(feature: u32, from: Point, to: Point, turns: &[Turn], metre: f64) -> Ve
         tip,
     };
     let straight = ARROW_M - HEAD_LENGTH_M;
-    let bend = ARROW_M - HEAD_LENGTH_M - BENT_M - 0.6;
+    let bend = ARROW_M - HEAD_LENGTH_M - BENT_M - BEND_BEFORE_M;
     let mut out = Vec::new();
     let through = turns.iter().any(|t| t.0 == 0.0);
     let shaft_end = if through { straight } else { bend };
