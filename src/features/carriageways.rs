@@ -148,10 +148,7 @@ pub(super) fn add_roads(
         if let Some((painted, plan)) = painted {
             set.markings
                 .extend(markings::along(*painted, &road, plan, (*width, line.metre)));
-            let length = crate::geometry::distances_along(&line.points)
-                .last()
-                .copied()
-                .unwrap_or(0.0);
+            let length = crate::geometry::polyline_length(&line.points);
             set.markings.extend(turn_arrows::of_plan(
                 *painted,
                 &road,

@@ -252,11 +252,15 @@ const TAKEN_CELL: f64 = 1.0 / 128.0;
 /// Most cells an area is listed in.
 const TAKEN_MOST_CELLS: i64 = 256;
 
+/// The row or column of [`Taken`]'s grid a coordinate falls in.
+fn cell(v: f64) -> i64 {
+    (v / TAKEN_CELL).floor() as i64
+}
+
 impl Taken {
     fn new(areas: Vec<(Rect, Vec<Point>, u32)>) -> Taken {
         let mut cells: std::collections::HashMap<(i64, i64), Vec<usize>> = Default::default();
         let mut large = Vec::new();
-        let cell = |v: f64| (v / TAKEN_CELL).floor() as i64;
         for (i, (bounds, ..)) in areas.iter().enumerate() {
             let (u0, u1) = (cell(bounds.min[0]), cell(bounds.max[0]));
             let (v0, v1) = (cell(bounds.min[1]), cell(bounds.max[1]));
@@ -281,7 +285,6 @@ impl Taken {
     /// of one inside the other, or their edges crossing (a stream narrower than the quad).
     fn meets(&self, corners: &[Point; 4], feature: u32) -> bool {
         let bounds = Rect::around(corners);
-        let cell = |v: f64| (v / TAKEN_CELL).floor() as i64;
         let mut listed = std::collections::BTreeSet::new();
         for u in cell(bounds.min[0])..=cell(bounds.max[0]) {
             for v in cell(bounds.min[1])..=cell(bounds.max[1]) {

@@ -52,7 +52,7 @@ pub fn of_plan(
         let lanes = Lanes {
             sense,
             shares,
-            turns: turns.clone(),
+            turns,
         };
         out.extend(arrows(feature, road, &lanes, end, metre));
     }
@@ -61,13 +61,13 @@ pub fn of_plan(
 
 /// The lanes of one direction of a road and their turns.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Lanes {
+pub struct Lanes<'a> {
     /// 1 along the way, −1 against it.
     pub sense: f64,
     /// The shares of the width (from the way's left) the direction's lanes lie between, the
     /// first one the lanes' left as their traffic sees it.
     pub shares: [f64; 2],
-    pub turns: Vec<Vec<Turn>>,
+    pub turns: &'a [Vec<Turn>],
 }
 
 /// The arrows of `lanes` on a road's surface, as strips of `feature`; `end` the station
@@ -76,7 +76,7 @@ pub struct Lanes {
 pub fn arrows(
     feature: u32,
     road: &RoadSurface,
-    lanes: &Lanes,
+    lanes: &Lanes<'_>,
     end: f64,
     metre: f64,
 ) -> Vec<Marking> {
