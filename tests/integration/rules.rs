@@ -607,3 +607,57 @@ fn a_sidewalk_keeps_clear_of_a_narrow_stream_crossing_its_street() {
         }
     }
 }
+
+#[test]
+fn the_ground_under_a_deck_stays_below_it_beside_a_road_held_higher() {
+    // A bridge east–west on a slope rising 50 % to the north, level along its line; a street
+    // on the ground beside it, 7 m uphill and held level across at its centre line's
+    // terrain, its edge a metre from the deck's. The ground under the deck is lowered, and
+    // where it climbs to the street it starts climbing at the deck's edge, not under it.
+    let m = metre();
+    let middle = at(0.5, 0.5).lat;
+    let mosaic = terrain(move |_, lat| 100.0 + 0.5 * (lat - middle) * 111_195.0);
+    let mut fixture = Fixture::default();
+    fixture
+        .way(
+            &[
+                ("highway", "tertiary"),
+                ("bridge", "yes"),
+                ("layer", "1"),
+                ("width", "7"),
+            ],
+            &[(0.5 - 40.0 * m, 0.5), (0.5 + 40.0 * m, 0.5)],
+        )
+        .way(
+            &[("highway", "residential"), ("width", "5")],
+            &[
+                (0.5 - 80.0 * m, 0.5 - 7.0 * m),
+                (0.5 + 80.0 * m, 0.5 - 7.0 * m),
+            ],
+        );
+    let tile = drawn(&fixture, &mosaic);
+    let street = heights(&tile, "road", (0.5, 0.5 - 7.0 * m));
+    assert!(
+        street.iter().any(|h| (h - 103.5).abs() < 0.5),
+        "the street on its terrain: {street:?}"
+    );
+    for east in [-20.0, -10.0, 0.0, 10.0, 20.0] {
+        for north in [-3.4, -2.0, 0.0, 2.0, 3.0, 3.4] {
+            let place = (0.5 + east * m, 0.5 - north * m);
+            let deck = heights(&tile, "bridge", place)
+                .into_iter()
+                .fold(f64::MIN, f64::max);
+            let ground = heights(&tile, "terrain", place)
+                .into_iter()
+                .fold(f64::MIN, f64::max);
+            assert!(
+                deck > 99.0,
+                "the deck over {east} m east, {north} m north: {deck}"
+            );
+            assert!(
+                ground < deck - 1.0,
+                "{east} m east, {north} m north: the ground at {ground:.2} m under a deck at {deck:.2} m"
+            );
+        }
+    }
+}

@@ -218,7 +218,14 @@ fn trough_under(
     let width = traits.iter().map(|t| t.width_m).fold(0.0, f64::max);
     let floor_half = projection.metres(width / 2.0 + TROUGH_BEYOND_M, lat);
     let side = projection.metres(TROUGH_SIDE_M, lat);
-    let floor = widened_surface(FeatureClass::Terrain, 0, &line, floor_half)?;
+    let mut floor = widened_surface(FeatureClass::Terrain, 0, &line, floor_half)?;
+    // The deck's own edges are edges of the ground too: every vertex under the deck is then
+    // one the ceiling holds down, and a slope up to a road held higher beside the deck (two
+    // legs of a hairpin) starts at the deck's edge, not under it.
+    let deck_half = projection.metres(width / 2.0, lat);
+    if let Some(deck) = widened_surface(FeatureClass::Terrain, 0, &line, deck_half) {
+        floor.outline.extend(deck.outline);
+    }
     let band = widened_surface(FeatureClass::Terrain, 0, &line, floor_half + side)?;
     let rule = Rule::Trough {
         stations: Stations::new(&line),
