@@ -5,8 +5,9 @@
 //!   size) before the feature families read it, so a way is simplified alike in every tile it
 //!   crosses, and neighbours' edges meet where its outline crosses them;
 //! * land cover and water areas and rivers, as at the served zoom, without the areas smaller
-//!   than the level can show; the sea as the union of the seas the served-zoom tiles under the
-//!   tile find, over the part of it the OSM data covers;
+//!   than the level can show; the sea decided from the coastline over the part of the tile the
+//!   OSM data covers, as a served-zoom tile decides its own (the union of the seas the
+//!   served-zoom tiles under it find where the extract cuts a coastline open inside that part);
 //! * major roads and railways (fewer classes the coarser the level), widened to at least one and
 //!   a half tolerances so they stay visible, draped on the ground;
 //! * buildings merged into blocks: the footprints of one height band are closed (grown by a
@@ -158,10 +159,12 @@ pub fn collect(selection: &Selection<'_>, level: Level, settings: &FeatureSettin
     set
 }
 
-/// The sea of the tile: the union of the seas its served-zoom tiles find, each decided as that
-/// tile decides it (so a parent shows the sea its children show, also where the extract cuts a
-/// coastline open), over the part of the tile the data covers. Cells wholly at sea along a row
-/// are joined into one piece; the coast's runs are the outline.
+/// The sea of the tile, decided over the part of it the data covers as a served-zoom tile
+/// decides its own: from the coastline across the whole of it. Where the extract cuts a
+/// coastline open inside that part (its end lies inside, so no side of it is known there), the
+/// sea is instead the union of the seas the served-zoom tiles under it find, each decided as
+/// that tile decides it, so the open end only misleads the cells near it. The coast's runs are
+/// the outline.
 fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, level: Level, projection: &Projection) {
     let Some(rect) = level.sea_rect(projection) else {
         return;
@@ -178,6 +181,48 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, level: Level, projec
         return;
     }
     let all = coastline::chains(&selection.coastlines, &project);
+    let tile = tile_rect(level.tile);
+    let strictly_inside = |p: &Point| (0..2).all(|k| rect.min[k] < p[k] && p[k] < rect.max[k]);
+    let cut_open_inside = near.iter().any(|c| {
+        !c.closed
+            && (c.points.first().is_some_and(strictly_inside)
+                || c.points.last().is_some_and(strictly_inside))
+    });
+    let (pieces, mut coast) = if cut_open_inside {
+        sea_by_cells(&near, &all, rect, level)
+    } else {
+        let sea = coastline::sea(&near, &|| all.clone(), &rect);
+        (sea.polygons, sea.coast)
+    };
+    set.nearby_outlines
+        .extend(near.into_iter().map(|c| c.points));
+    if pieces.is_empty() {
+        return;
+    }
+    // Where the data ends inside the tile, the sea ends along it: the sides of its pieces there.
+    coast.extend(sides_on(&pieces, &data_edges(&rect, &tile)));
+    let tags = Tags::from_pairs([("natural", "sea")]);
+    let feature = set.add_feature(None, FeatureClass::Water, &tags);
+    match super::Surface::from_parts(FeatureClass::Water, feature, pieces, coast) {
+        Some(mut surface) => {
+            surface.water = Some(water::WaterBody::of(&tags));
+            set.surfaces.push(surface);
+        }
+        None => {
+            set.features.pop();
+        }
+    }
+}
+
+/// The sea of `rect` as the union of the seas of the served-zoom tiles under `level`'s tile
+/// (each cell decided alone, the first and last of a row or column reaching out to `rect`),
+/// cells wholly at sea along a row joined into one piece; and the coast's runs.
+fn sea_by_cells(
+    near: &[coastline::Chain],
+    all: &[coastline::Chain],
+    rect: Rect,
+    level: Level,
+) -> (Vec<Polygon>, Vec<Vec<Point>>) {
     let near_bounds: Vec<Rect> = near.iter().map(|c| Rect::around(&c.points)).collect();
     let cells = 1u32 << level.levels_above.min(MAX_SEA_LEVELS);
     let tile = tile_rect(level.tile);
@@ -202,7 +247,7 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, level: Level, projec
                 .filter(|(_, b)| b.intersects(&cell))
                 .map(|(c, _)| c.clone())
                 .collect();
-            let sea = coastline::sea(&crossing, &|| all.clone(), &cell);
+            let sea = coastline::sea(&crossing, &|| all.to_vec(), &cell);
             coast.extend(sea.coast);
             let whole = sea.polygons.len() == 1
                 && sea.polygons[0].holes.is_empty()
@@ -230,24 +275,7 @@ fn add_sea(set: &mut FeatureSet, selection: &Selection<'_>, level: Level, projec
             pieces.push(rectangle(&run));
         }
     }
-    set.nearby_outlines
-        .extend(near.into_iter().map(|c| c.points));
-    if pieces.is_empty() {
-        return;
-    }
-    // Where the data ends inside the tile, the sea ends along it: the sides of its pieces there.
-    coast.extend(sides_on(&pieces, &data_edges(&rect, &tile)));
-    let tags = Tags::from_pairs([("natural", "sea")]);
-    let feature = set.add_feature(None, FeatureClass::Water, &tags);
-    match super::Surface::from_parts(FeatureClass::Water, feature, pieces, coast) {
-        Some(mut surface) => {
-            surface.water = Some(water::WaterBody::of(&tags));
-            set.surfaces.push(surface);
-        }
-        None => {
-            set.features.pop();
-        }
-    }
+    (pieces, coast)
 }
 
 /// Sea cells along one axis at most this many levels below the tile (a 64 × 64 grid).

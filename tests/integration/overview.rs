@@ -1,7 +1,7 @@
 //! Tiles for far views: the glb parents at zooms 13, 12, 10 and 8, generalised from the same
 //! data as the zoom-14 content. Neighbours at one level share their edges exactly, as at 14;
 //! every level stays within its size budget; a parent holds fewer, coarser things than its
-//! children together.
+//! children together, and its sea lies where theirs does.
 
 use crate::common;
 
@@ -82,8 +82,28 @@ fn height_m(tile: &str, decoded: &DecodedTile, vertex: [f32; 3]) -> f64 {
     f64::from(vertex[1]) * latitude.cos()
 }
 
+/// Places (zoom-14 tile coordinates) the zoom-14 tiles find on land, inland of where the
+/// extract cuts the coastline open west and east of Monaco, and one they find at sea.
+const LAND_WEST: (f64, f64) = (8528.5, 5974.5);
+const LAND_EAST: (f64, f64) = (8530.5, 5972.5);
+const SEA_SOUTH: (f64, f64) = (8530.5, 5975.5);
+
+/// Whether `tile` ("Z/X/Y") draws water at `place` (zoom-14 tile coordinates); `None` when the
+/// place lies outside it.
+fn water_at(tile: &str, decoded: &DecodedTile, place: (f64, f64)) -> Option<bool> {
+    let parts: Vec<f64> = tile.split('/').map(|p| p.parse().unwrap()).collect();
+    let shrink = 2f64.powf(14.0 - parts[0]);
+    let (east, south) = (place.0 / shrink - parts[1], place.1 / shrink - parts[2]);
+    if !(0.0..1.0).contains(&east) || !(0.0..1.0).contains(&south) {
+        return None;
+    }
+    let size = decoded.tile_size();
+    let water = common::GroundLocator::new(common::corners(decoded.primitives("water")), size);
+    Some(!water.heights_at(east * size, south * size, 1e-9).is_empty())
+}
+
 #[test]
-fn every_level_of_far_views_stays_within_its_budget_and_is_coarser_than_the_next() {
+fn every_level_of_far_views_stays_within_its_budget_coarser_than_the_next_with_the_childrens_sea() {
     let dir = tempfile::tempdir().unwrap();
     // The tile over Monaco at each level, finest first.
     let levels = [
@@ -123,6 +143,12 @@ fn every_level_of_far_views_stays_within_its_budget_and_is_coarser_than_the_next
             "{tile} has {buildings} buildings, the level below {buildings_before}"
         );
         buildings_before = buildings;
+        // The sea where the zoom-14 tiles find it, none on the land between coast and hills.
+        for (place, sea) in [(LAND_WEST, false), (LAND_EAST, false), (SEA_SOUTH, true)] {
+            if let Some(found) = water_at(tile, &plain, place) {
+                assert_eq!(found, sea, "{tile}: water at {place:?}: {found}");
+            }
+        }
         // Blocks have flat roofs: each block's upward faces lie at one height.
         let mut roofs: std::collections::BTreeMap<u32, (f32, f32)> = Default::default();
         for primitive in plain.primitives("building") {
