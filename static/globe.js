@@ -59,7 +59,10 @@ if (ownTerrain) {
 } else {
   stats.terrain = 'ellipsoid';
 }
-viewer.scene.globe.baseColor = Cesium.Color.fromCssColorString('#28435f');
+// No imagery: the server's terrain reaches over every SRTM file it has (the layer's bounds),
+// past the content's box, and shows there in the colour of bare ground in the content, not as
+// a dark void.
+viewer.scene.globe.baseColor = Cesium.Color.fromCssColorString('#adbf95');
 viewer.scene.globe.depthTestAgainstTerrain = false;
 
 function showError(message) {
@@ -176,6 +179,24 @@ async function dataCentre() {
 // Where the URL says, else over the server's data, else Monte-Carlo (the bundled sample).
 const start = viewFromHash() ?? (await dataCentre()) ?? { lat: 43.7384, lon: 7.4246, height: 1500 };
 lookAt(start.lat, start.lon, start.height, start.pitch ?? -45);
+
+/** The direction of a light from the south-west, 50° up, over a place (what travels from the
+ *  light to the scene, in the world's frame). */
+function lightOver(lat, lon) {
+  const frame = Cesium.Transforms.eastNorthUpToFixedFrame(Cesium.Cartesian3.fromDegrees(lon, lat));
+  const up = Math.sin(Cesium.Math.toRadians(50));
+  const across = Math.cos(Cesium.Math.toRadians(50)) / Math.SQRT2;
+  const towards = new Cesium.Cartesian3(across, across, -up);
+  const world = Cesium.Matrix4.multiplyByPointAsVector(frame, towards, new Cesium.Cartesian3());
+  return Cesium.Cartesian3.normalize(world, world);
+}
+// One fixed light rather than the sun of the clock's hour: the ground beyond the content is
+// shaded by its relief (the globe lit as the content is), and nothing goes dark at night.
+viewer.scene.light = new Cesium.DirectionalLight({
+  direction: lightOver(start.lat, start.lon),
+  intensity: 2.0, // as bright as the default sun
+});
+viewer.scene.globe.enableLighting = true;
 
 window.terrastitchGlobe = {
   viewer,

@@ -283,9 +283,10 @@ impl Plan {
             .filter_map(|&t| self.entry(t, None, up, heights))
             .collect();
         let region = enclosing(None, &children).unwrap_or([0.0; 6]);
-        let error = tiles
-            .first()
-            .map_or(0.0, |&t| 4.0 * self.geometric_error(top + LEVEL_STEP, t));
+        // The root has no content: while it is not opened nothing is drawn. Its error is a
+        // top tile's whole ground size, so it opens while that tile is more than a few pixels
+        // on screen (about 150 km away for a zoom-12 tile on a 600-pixel-high view).
+        let error = tiles.first().map_or(0.0, |&t| ground_size(top, t));
         Self::document(region, error, None, children)
     }
 
@@ -433,6 +434,18 @@ mod tests {
 
     fn flat(_: TileId) -> Option<(f64, f64)> {
         Some((0.0, 160.0))
+    }
+
+    /// The root has no content of its own: a client that does not open it draws nothing. At
+    /// CesiumJS's and 3DTilesRendererJS's default of 16 pixels, on a 600-pixel-high view with
+    /// a 60° field, it opens from 100 km away.
+    #[test]
+    fn the_root_opens_from_as_far_as_its_top_tiles_show() {
+        let root = monaco().root(&flat, Root::Top);
+        let error = root["root"]["geometricError"].as_f64().unwrap();
+        let distance: f64 = 100_000.0;
+        let pixels = error * 600.0 / (distance * 2.0 * 30f64.to_radians().tan());
+        assert!(pixels > 16.0, "{pixels} pixels at {distance} m");
     }
 
     #[test]
