@@ -45,7 +45,7 @@ pub fn ground_parts(
             }
             None => Some((Part::Terrain, 0)),
         };
-        let Some((part, feature)) = part else {
+        let Some((mut part, feature)) = part else {
             continue;
         };
         // Counter-clockwise in (x, z) faces down in a Y-up frame: reverse to face up.
@@ -54,6 +54,9 @@ pub fn ground_parts(
             let [x, z] = ground.vertices[v as usize];
             [x, vertex_y[v as usize], z]
         });
+        if part == Part::Terrain && too_steep_for_soil(corners) {
+            part = Part::Rock;
+        }
         if !covers_in_f32(corners) {
             slivers += 1;
             continue;
@@ -78,6 +81,24 @@ pub fn ground_parts(
         vertex_y,
         slivers,
     }
+}
+
+/// The steepest bare ground that keeps its soil and grass, as the cosine of its slope (40°,
+/// about the angle of repose of soil): the terrain, an approximation of 30 m SRTM samples,
+/// rounds cliffs off, so a face steeper than this is mostly rock in the land it stands for.
+const SOIL_HOLDS_COS: f64 = 0.766;
+
+/// The least area of a face of bare rock, square metres (of the local frame): smaller steep
+/// faces are where the ground meets what stands on it (a road's profile off the terrain, a
+/// cut) rather than the land's own slope.
+const ROCK_FACE_M2: f64 = 60.0;
+
+/// Whether a ground triangle (local `(x, y, z)`, the Mercator scale the same across and up)
+/// is a face of the land too steep for soil.
+fn too_steep_for_soil(corners: [[f64; 3]; 3]) -> bool {
+    let normal = triangle_normal(corners);
+    let length = dot(normal, normal).sqrt();
+    0.5 * length >= ROCK_FACE_M2 && normal[1].abs() < SOIL_HOLDS_COS * length
 }
 
 /// The least area, in square metres, of a ground triangle that stands almost upright (where

@@ -33,6 +33,8 @@ use crate::features::FeatureClass;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Part {
     Terrain,
+    /// Bare terrain too steep for soil, where nothing is mapped: rock.
+    Rock,
     Road(Paving),
     Railway,
     Water,
@@ -75,7 +77,7 @@ impl Part {
     /// The feature class (and glTF node) the part belongs to.
     pub fn class(self) -> FeatureClass {
         match self {
-            Part::Terrain => FeatureClass::Terrain,
+            Part::Terrain | Part::Rock => FeatureClass::Terrain,
             Part::Road(_) | Part::Sidewalk | Part::Kerb | Part::Verge => FeatureClass::Road,
             Part::Marking | Part::Crossing => FeatureClass::Marking,
             Part::Railway => FeatureClass::Railway,
@@ -105,6 +107,7 @@ impl Part {
     pub fn name(self) -> &'static str {
         match self {
             Part::Terrain => "terrain",
+            Part::Rock => "terrain_rock",
             Part::Road(paving) => paving.as_str(),
             Part::Railway => "railway",
             Part::Water => "water",

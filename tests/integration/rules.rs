@@ -661,3 +661,59 @@ fn the_ground_under_a_deck_stays_below_it_beside_a_road_held_higher() {
         }
     }
 }
+
+/// Whether the ground at a place of the tile (fractions east and south) is drawn in
+/// `material`.
+fn ground_material_at(tile: &DecodedTile, material: &str, (east, south): (f64, f64)) -> bool {
+    let size = tile.tile_size();
+    let drawn: Vec<Primitive> = tile
+        .primitives("terrain")
+        .iter()
+        .filter(|p| p.material == material)
+        .cloned()
+        .collect();
+    !GroundLocator::new(corners(&drawn), size)
+        .heights_at(east * size, south * size, 1e-9)
+        .is_empty()
+}
+
+#[test]
+fn bare_ground_too_steep_for_soil_is_rock_and_gentler_ground_and_mapped_cover_are_not() {
+    // Flat in the west, a 25 % slope, then a 150 % one (56°) rising east, 300 m of each; a
+    // meadow mapped over part of the steep slope.
+    let m = metre();
+    let middle = at(0.5, 0.5).lon;
+    let east_m = move |lon: f64| (lon - middle) * 111_195.0 * at(0.5, 0.5).lat.to_radians().cos();
+    let mosaic = terrain(move |lon, _| {
+        let x = east_m(lon);
+        100.0 + 0.25 * x.clamp(0.0, 300.0) + 1.5 * (x - 300.0).clamp(0.0, 300.0)
+    });
+    let mut fixture = Fixture::default();
+    fixture.area(
+        &[("landuse", "meadow")],
+        (0.5 + 400.0 * m, 0.3),
+        (0.5 + 500.0 * m, 0.4),
+    );
+    let tile = drawn(&fixture, &mosaic);
+    for south in [0.45, 0.55, 0.6] {
+        let steep = (0.5 + 450.0 * m, south);
+        assert!(
+            ground_material_at(&tile, "terrain_rock", steep),
+            "rock at {steep:?}"
+        );
+        for gentle in [(0.5 - 100.0 * m, south), (0.5 + 150.0 * m, south)] {
+            assert!(
+                ground_material_at(&tile, "terrain", gentle),
+                "soil at {gentle:?}"
+            );
+            assert!(
+                !ground_material_at(&tile, "terrain_rock", gentle),
+                "rock at {gentle:?}"
+            );
+        }
+    }
+    // The meadow mapped on the steep slope stays meadow.
+    let mapped = (0.5 + 450.0 * m, 0.35);
+    assert!(!ground_material_at(&tile, "terrain_rock", mapped));
+    assert!(!heights(&tile, "landcover", mapped).is_empty());
+}
