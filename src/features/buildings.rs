@@ -651,9 +651,7 @@ pub(super) fn add_area(
 mod tests {
     use super::*;
 
-    fn tags(pairs: &[(&str, &str)]) -> Tags {
-        Tags::from_pairs(pairs.iter().copied())
-    }
+    use crate::osm::tags;
 
     #[test]
     fn height_from_tags_levels_or_default() {

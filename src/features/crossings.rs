@@ -155,9 +155,7 @@ pub fn strips(
 mod tests {
     use super::*;
 
-    fn tags(pairs: &[(&str, &str)]) -> Tags {
-        Tags::from_pairs(pairs.iter().copied())
-    }
+    use crate::osm::tags;
 
     #[test]
     fn the_markings_tag_wins_then_the_kind_of_crossing_and_the_region() {

@@ -253,9 +253,7 @@ fn level_m(tags: &Tags, building: &str, settings: &FeatureSettings) -> f64 {
 mod tests {
     use super::*;
 
-    fn tags(pairs: &[(&str, &str)]) -> Tags {
-        Tags::from_pairs(pairs.iter().copied())
-    }
+    use crate::osm::tags;
 
     fn house(area_m2: f64) -> Footprint {
         Footprint {

@@ -388,9 +388,7 @@ pub fn along(
 mod tests {
     use super::*;
 
-    fn tags(pairs: &[(&str, &str)]) -> Tags {
-        Tags::from_pairs(pairs.iter().copied())
-    }
+    use crate::osm::tags;
 
     #[test]
     fn a_four_lane_road_has_three_lines_with_a_solid_centre() {

@@ -493,9 +493,7 @@ fn runs(candidate: &Candidate, around: &Surroundings, out: &mut Vec<Band>) {
 mod tests {
     use super::*;
 
-    fn tags(pairs: &[(&str, &str)]) -> Tags {
-        Tags::from_pairs(pairs.iter().copied())
-    }
+    use crate::osm::tags;
 
     fn sides(pairs: &[(&str, &str)]) -> Option<(Side, Side)> {
         plan(&tags(pairs)).map(|p| (p.left, p.right))

@@ -213,9 +213,7 @@ fn stand(
 mod tests {
     use super::*;
 
-    fn tags(pairs: &[(&str, &str)]) -> Tags {
-        Tags::from_pairs(pairs.iter().copied())
-    }
+    use crate::osm::tags;
 
     #[test]
     fn signals_halt_both_ways_a_sign_the_traffic_towards_its_junction() {

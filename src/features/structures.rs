@@ -352,9 +352,7 @@ pub fn add_cut_row(
 mod tests {
     use super::*;
 
-    fn tags(pairs: &[(&str, &str)]) -> Tags {
-        Tags::from_pairs(pairs.iter().copied())
-    }
+    use crate::osm::tags;
 
     #[test]
     fn bridges_and_tunnels_take_their_layers() {

@@ -102,9 +102,7 @@ pub fn is_area(tags: &Tags) -> bool {
 mod tests {
     use super::*;
 
-    fn tags(pairs: &[(&str, &str)]) -> Tags {
-        Tags::from_pairs(pairs.iter().copied())
-    }
+    use crate::osm::tags;
 
     #[test]
     fn tags_decide_between_area_and_closed_line() {

@@ -13,6 +13,12 @@ pub mod units;
 
 pub use index::{Joints, OsmIndex, RoadGraph};
 
+/// Tags written out as literal pairs, as the unit tests write them.
+#[cfg(test)]
+pub fn tags(pairs: &[(&str, &str)]) -> Tags {
+    Tags::from_pairs(pairs.iter().copied())
+}
+
 /// An element's tags, sorted by key so lookups are a binary search and iteration is deterministic.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Tags(Vec<(String, String)>);
