@@ -53,12 +53,7 @@ fn a_four_lane_road_has_three_lines_and_a_solid_centre() {
         );
     }
     // The paint lies just above the road.
-    let road = ground_at(&tile, (0.3, 0.5));
-    let (low, high) = height_range(&tile, "marking", "marking");
-    assert!(
-        low > road && high < road + 0.1,
-        "paint at {low}..{high} over {road}"
-    );
+    assert_paint_just_above_the_road(&tile, "marking");
 }
 
 #[test]
@@ -129,12 +124,7 @@ fn a_zebra_crossing_draws_stripes_across_the_road_and_an_unmarked_one_none() {
         (east - 0.5).abs() < 1e-3 && (south - 0.5).abs() < 1e-3,
         "at {east}, {south}"
     );
-    let road = ground_at(&tile, (0.3, 0.5));
-    let (low, high) = height_range(&tile, "marking", "crossing");
-    assert!(
-        low > road && high < road + 0.1,
-        "paint at {low}..{high} over {road}"
-    );
+    assert_paint_just_above_the_road(&tile, "crossing");
 }
 
 #[test]
@@ -420,4 +410,15 @@ fn turn_lanes_paint_an_arrow_in_each_lane_before_the_junction() {
         .filter(|m| !m.tip && m.width_m == 0.12)
         .count();
     assert!(lines >= 2, "{lines} lane lines");
+}
+
+/// The paint drawn in `material` lies just above the road (its surface at a place west of the
+/// middle, on the tile's east–west centre line): over it, less than 10 cm up.
+fn assert_paint_just_above_the_road(tile: &DecodedTile, material: &str) {
+    let road = ground_at(tile, (0.3, 0.5));
+    let (low, high) = height_range(tile, "marking", material);
+    assert!(
+        low > road && high < road + 0.1,
+        "{material} paint at {low}..{high} over {road}"
+    );
 }
