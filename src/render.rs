@@ -780,8 +780,9 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         projection: &projection,
         settings: feature_settings,
         surface_margin_m: *surface_margin_m,
+        lines: &feature_set.structure_lines,
     };
-    parts.extend(mesh::structures::build(structures, &context));
+    mesh::structures::build(structures, &context, &mut parts);
     parts.insert(
         Part::PowerLine,
         mesh::power::build(&feature_set.power_lines, frame, &settled),

@@ -326,6 +326,54 @@ fn cycle_lanes(tags: &Tags, oneway: bool) -> [Option<CycleLane>; 2] {
     ]
 }
 
+/// One line of a lane plan across a road: where it runs (a share of the road's width from its
+/// left side), how it is painted and how wide it is, metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlanLine {
+    pub share: f64,
+    pub pattern: Pattern,
+    pub width_m: f64,
+}
+
+impl LanePlan {
+    /// The lines of the plan on a road `width_m` wide: between the lanes, beside the cycle
+    /// lanes and along the edges.
+    pub fn lines(&self, width_m: f64) -> Vec<PlanLine> {
+        let line = |share, pattern, width_m| PlanLine {
+            share,
+            pattern,
+            width_m,
+        };
+        let mut lines = Vec::new();
+        let (from, to) = self.motor_lanes(width_m);
+        if self.lined {
+            for boundary in 1..self.lanes {
+                let share = from + (to - from) * f64::from(boundary) / f64::from(self.lanes);
+                lines.push(if boundary == self.backward {
+                    line(share, self.centre, CENTRE_LINE_M)
+                } else {
+                    line(share, self.lane, LANE_LINE_M)
+                });
+            }
+        }
+        for (lane, share) in self.cycle.iter().zip([from, to]) {
+            if let Some(lane) = lane {
+                let width = match lane.line {
+                    Pattern::Solid => CYCLE_LINE_M,
+                    Pattern::Dashed { .. } => ADVISORY_LINE_M,
+                };
+                lines.push(line(share, lane.line, width));
+            }
+        }
+        if self.edges && width_m > 4.0 * EDGE_INSET_M {
+            let inset = EDGE_INSET_M / width_m;
+            lines.push(line(inset, Pattern::Solid, EDGE_LINE_M));
+            lines.push(line(1.0 - inset, Pattern::Solid, EDGE_LINE_M));
+        }
+        lines
+    }
+}
+
 /// The lines of `plan` on a road's surface `width_m` wide: one per line a stretch of it holds,
 /// at its share of the width between the left and right sides of the stretch's pieces.
 pub fn along(
@@ -334,47 +382,22 @@ pub fn along(
     plan: &LanePlan,
     (width_m, metre): (f64, f64),
 ) -> Vec<Marking> {
-    let mut lines: Vec<(f64, Pattern, f64)> = Vec::new();
-    let (from, to) = plan.motor_lanes(width_m);
-    if plan.lined {
-        for boundary in 1..plan.lanes {
-            let share = from + (to - from) * f64::from(boundary) / f64::from(plan.lanes);
-            lines.push(if boundary == plan.backward {
-                (share, plan.centre, CENTRE_LINE_M)
-            } else {
-                (share, plan.lane, LANE_LINE_M)
-            });
-        }
-    }
-    for (lane, share) in plan.cycle.iter().zip([from, to]) {
-        if let Some(lane) = lane {
-            let width = match lane.line {
-                Pattern::Solid => CYCLE_LINE_M,
-                Pattern::Dashed { .. } => ADVISORY_LINE_M,
-            };
-            lines.push((share, lane.line, width));
-        }
-    }
-    if plan.edges && width_m > 4.0 * EDGE_INSET_M {
-        let inset = EDGE_INSET_M / width_m;
-        lines.push((inset, Pattern::Solid, EDGE_LINE_M));
-        lines.push((1.0 - inset, Pattern::Solid, EDGE_LINE_M));
-    }
+    let lines = plan.lines(width_m);
     let mut markings = Vec::new();
     for ((range, _), stations) in road.lines.iter().zip(&road.stations) {
         if stations.len() != range.len() + 1 {
             continue;
         }
-        for &(share, pattern, width_m) in &lines {
-            let Some(line) = road.line_at(range.clone(), share) else {
+        for plan_line in &lines {
+            let Some(line) = road.line_at(range.clone(), plan_line.share) else {
                 continue;
             };
             markings.push(Marking {
                 feature,
                 line,
                 stations: stations.clone(),
-                pattern,
-                width_m,
+                pattern: plan_line.pattern,
+                width_m: plan_line.width_m,
                 metre,
                 paint: Paint::Line,
                 tip: false,

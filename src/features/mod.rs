@@ -279,6 +279,9 @@ pub struct FeatureSet {
     pub stairs: Vec<carriageways::Stairs>,
     /// Lines painted on the roads on the ground, along their surfaces as drawn.
     pub markings: Vec<markings::Marking>,
+    /// The lines painted on the bridge decks and tunnel floors: by structure way (index into
+    /// all ways), the feature row of its lines and their plan.
+    pub structure_lines: std::collections::HashMap<u32, (u32, markings::LanePlan)>,
     /// Sidewalks and verges beside the roads on the ground.
     pub sidewalks: Vec<sidewalks::Band>,
     /// Outlines of the roads, railways and water near the tile, also those just outside it:

@@ -290,8 +290,9 @@ pub fn is_off_ground(tags: &Tags) -> bool {
 /// metres.
 const STRUCTURE_REACH_M: f64 = 30.0;
 
-/// Adds a feature row for each bridge or tunnel way that reaches into the tile; returns the
-/// rows by way index.
+/// Adds a feature row for each bridge or tunnel way that reaches into the tile, and one for
+/// the lines painted on it where its tags call for any ([`super::markings::lane_plan`]);
+/// returns the rows by way index.
 pub fn rows(
     set: &mut FeatureSet,
     groups: &[&Group],
@@ -329,6 +330,14 @@ pub fn rows(
                         chain_way.way,
                         set.add_feature(Some(element), class, &way.tags),
                     );
+                    if let Some(plan) = super::markings::lane_plan(&way.tags) {
+                        let painted = set.add_feature(
+                            Some(element),
+                            FeatureClass::Marking,
+                            &super::markings::painting_tags(&way.tags),
+                        );
+                        set.structure_lines.insert(chain_way.way, (painted, plan));
+                    }
                 }
             }
         }

@@ -23,6 +23,19 @@ pub fn build(
     frame: &TileFrame,
     ground: &dyn Elevation,
 ) -> BTreeMap<Part, MeshBuffers> {
+    let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
+    paint(&mut parts, markings, frame, ground);
+    parts
+}
+
+/// Adds the strips of `markings` to `parts`, just above the surface `surface` gives the
+/// height of.
+pub fn paint(
+    parts: &mut BTreeMap<Part, MeshBuffers>,
+    markings: &[Marking],
+    frame: &TileFrame,
+    surface: &dyn Elevation,
+) {
     let rect = tile_rect(frame.tile);
     // A piece whose line stays this far outside the tile may still reach into it.
     let margin = markings
@@ -33,7 +46,6 @@ pub fn build(
         min: [rect.min[0] - margin, rect.min[1] - margin],
         max: [rect.max[0] + margin, rect.max[1] + margin],
     };
-    let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
     for marking in markings {
         let part = match marking.paint {
             Paint::Line => Part::Marking,
@@ -45,12 +57,11 @@ pub fn build(
             for (k, pair) in run.windows(2).enumerate() {
                 if Rect::around(pair).intersects(&reach) {
                     let tip = marking.tip && k == last;
-                    strip(buffers, frame, ground, marking, (pair[0], pair[1]), tip);
+                    strip(buffers, frame, surface, marking, (pair[0], pair[1]), tip);
                 }
             }
         }
     }
-    parts
 }
 
 /// The painted runs of a marking's line: the whole line when solid, else each dash, laid by

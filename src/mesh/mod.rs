@@ -17,6 +17,7 @@ pub mod roofs;
 pub mod sidewalks;
 pub mod skeleton;
 pub mod stairs;
+pub mod structure_lines;
 pub mod structures;
 pub mod tin;
 

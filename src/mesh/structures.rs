@@ -10,8 +10,9 @@
 
 use std::collections::{BTreeMap, HashMap};
 
-use super::{MeshBuffers, Part};
+use super::{markings, structure_lines, MeshBuffers, Part};
 use crate::elevation::structures::{plan_tunnel, tube_heights, Profile, Settled, Station};
+use crate::features::markings::LanePlan;
 use crate::features::structures::{WayTraits, TUNNEL_ROOF_M};
 use crate::features::{FeatureSettings, Projection};
 use crate::geometry::{clip_to_rect, offset_polyline, Point, Rect};
@@ -43,16 +44,19 @@ pub struct Context<'a> {
     pub settings: &'a FeatureSettings,
     /// The mesh's error bound, metres.
     pub surface_margin_m: f64,
+    /// The feature row and plan of the lines painted on each structure way that has any (by
+    /// index into `ways`).
+    pub lines: &'a HashMap<u32, (u32, LanePlan)>,
 }
 
-/// Draws every bridge and tunnel of the settled groups that reaches into the tile.
-pub fn build(settled: &[Settled], context: &Context<'_>) -> BTreeMap<Part, MeshBuffers> {
-    let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
+/// Draws every bridge and tunnel of the settled groups that reaches into the tile into
+/// `parts` (the lines on their tops after those on the ground).
+pub fn build(settled: &[Settled], context: &Context<'_>, parts: &mut BTreeMap<Part, MeshBuffers>) {
     let rect = crate::features::tile_rect(context.frame.tile);
     let mut drawer = Drawer {
         context,
         rect,
-        parts: &mut parts,
+        parts,
     };
     for profile in settled.iter().flat_map(|s| &s.profiles) {
         match profile.kind {
@@ -60,7 +64,6 @@ pub fn build(settled: &[Settled], context: &Context<'_>) -> BTreeMap<Part, MeshB
             StructureKind::Tunnel => drawer.tunnel(profile),
         }
     }
-    parts
 }
 
 struct Drawer<'a, 'b> {
@@ -207,8 +210,30 @@ impl Drawer<'_, '_> {
                     run.feature,
                 );
             }
+            self.lines(&run);
         }
         self.piers(profile);
+    }
+
+    /// The lines painted on a run's top (a deck, a tunnel's floor) where its way has any.
+    fn lines(&mut self, run: &Run) {
+        let Some((feature, plan)) = self.context.lines.get(&run.way) else {
+            return;
+        };
+        let way = &self.context.ways[run.way as usize];
+        let width = self.traits(way).width_m;
+        let centre: Vec<Point> = run.stations.iter().map(|s| s.point).collect();
+        let elevations: Vec<f64> = run.stations.iter().map(|s| s.elevation).collect();
+        let top = structure_lines::Top {
+            centre: &centre,
+            left: &run.left,
+            right: &run.right,
+            elevations: &elevations,
+        };
+        let way_line = self.context.projection.points(&way.positions);
+        let metre = self.in_units(way, 1.0);
+        let lines = structure_lines::lines(*feature, plan, &top, &way_line, (width, metre));
+        markings::paint(self.parts, &lines, self.context.frame, &top);
     }
 
     fn piers(&mut self, profile: &Profile) {
@@ -307,6 +332,13 @@ impl Drawer<'_, '_> {
                         );
                     }
                 }
+                self.lines(&run);
+            }
+        }
+        // The ramps are cut in the ground down to the floor's profile: their lines too.
+        for &(from, to) in &plan.ramps {
+            for run in self.runs(&profile.stretch(from, to)) {
+                self.lines(&run);
             }
         }
         // The opening at each portal, facing out along the ramp.

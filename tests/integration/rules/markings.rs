@@ -422,3 +422,106 @@ fn assert_paint_just_above_the_road(tile: &DecodedTile, material: &str) {
         "{material} paint at {low}..{high} over {road}"
     );
 }
+
+/// A painted triangle: its middle (fractions of the tile east and south), its distance south
+/// of a place (metres) and its middle's height (metres).
+struct Painted {
+    middle: (f64, f64),
+    south_m: f64,
+    height: f64,
+}
+
+/// The marking triangles of a tile whose middles lie within `reach_m` of a place (fractions
+/// east and south).
+fn marking_near(tile: &DecodedTile, (east, south): (f64, f64), reach_m: f64) -> Vec<Painted> {
+    let size = tile.tile_size();
+    let mut found = Vec::new();
+    for primitive in tile.primitives("marking") {
+        for t in primitive.indices.chunks_exact(3) {
+            let corners = [0, 1, 2].map(|k| primitive.positions[t[k] as usize]);
+            let middle =
+                |axis: usize| corners.iter().map(|c| f64::from(c[axis])).sum::<f64>() / 3.0;
+            let (x_m, z_m) = (
+                (middle(0) - east * size) / scale(),
+                (middle(2) - south * size) / scale(),
+            );
+            if x_m.hypot(z_m) <= reach_m {
+                found.push(Painted {
+                    middle: (middle(0) / size, middle(2) / size),
+                    south_m: z_m,
+                    height: middle(1) / scale(),
+                });
+            }
+        }
+    }
+    found
+}
+
+/// The distinct lines among painted triangles (by their distance south, to 0.5 m).
+fn lines_of(painted: &[Painted]) -> std::collections::BTreeSet<i64> {
+    painted
+        .iter()
+        .map(|p| (p.south_m * 2.0).round() as i64)
+        .collect()
+}
+
+#[test]
+fn a_bridge_deck_and_a_tunnel_floor_carry_their_roads_lines_just_above_them() {
+    // A four-lane bridge 120 m long over a river, and a four-lane tunnel 600 m long under a
+    // hill 60 m high, each between roads on the ground.
+    let m = metre();
+    let hill = at(0.5, 0.7);
+    let mosaic = terrain(move |lon, lat| {
+        let east = 111_195.0 * hill.lat.to_radians().cos();
+        let (dx, dy) = ((lon - hill.lon) * east, (lat - hill.lat) * 111_195.0);
+        100.0 + 60.0 * (-(dx * dx + dy * dy) / (2.0 * 150.0 * 150.0)).exp()
+    });
+    let road = [("highway", "primary"), ("lanes", "4")];
+    let mut fixture = Fixture::default();
+    for (south, structure, layer, half_m) in [
+        (0.3, ("bridge", "yes"), "1", 60.0),
+        (0.7, ("tunnel", "yes"), "-1", 300.0),
+    ] {
+        let (west, east) = (0.5 - half_m * m, 0.5 + half_m * m);
+        fixture
+            .way(&road, &[(west - 300.0 * m, south), (west, south)])
+            .way(
+                &[road[0], road[1], structure, ("layer", layer)],
+                &[(west, south), (east, south)],
+            )
+            .way(&road, &[(east, south), (east + 300.0 * m, south)]);
+    }
+    fixture.way(
+        &[("waterway", "river"), ("width", "20")],
+        &[(0.5, 0.2), (0.5, 0.4)],
+    );
+    let tile = drawn(&fixture, &mosaic);
+    for (south, node) in [(0.3, "bridge"), (0.7, "tunnel")] {
+        for east_m in [-40.0, 0.0, 40.0] {
+            let place = (0.5 + east_m * m, south);
+            let paint = marking_near(&tile, place, 12.0);
+            // Three lines, but a lane line's dash may miss the place.
+            let lines = lines_of(&paint);
+            assert!(
+                lines.len() >= 2 && lines.iter().all(|l| (l.abs() as f64) / 2.0 < 7.0),
+                "{node} {east_m} m east: lines {lines:?}"
+            );
+            for painted in &paint {
+                // The deck's top is its highest face there, the tunnel's floor its lowest.
+                let faces = heights(&tile, node, painted.middle).into_iter();
+                let top = if node == "bridge" {
+                    faces.fold(f64::MIN, f64::max)
+                } else {
+                    faces.fold(f64::MAX, f64::min)
+                };
+                assert!(
+                    painted.height > top && painted.height < top + 0.1,
+                    "{node} {east_m} m east: paint at {:.2} over {top:.2}",
+                    painted.height
+                );
+            }
+        }
+        let along = marking_near(&tile, (0.5, south), 60.0);
+        assert_eq!(lines_of(&along).len(), 3, "{node}: {:?}", lines_of(&along));
+    }
+}
