@@ -426,6 +426,12 @@ fn prepare_overview<'a>(
     })
 }
 
+/// The depth of the skirts under the ground's sides, in error bounds of the tile's level (local
+/// units, which are metres times the Mercator scale): a neighbour of the next zoom up or down
+/// meets a side within the two levels' error bounds, three of this level's at most, or a road
+/// settled off the terrain at the side a little more.
+const SKIRT_ERRORS: f64 = 6.0;
+
 /// Points below this many are read on the calling thread.
 const POINTS_PER_THREAD: usize = 8_192;
 /// Most threads one tile's points are spread over.
@@ -743,7 +749,13 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         mut parts,
         vertex_y,
         slivers,
-    } = mesh::ground_parts::ground_parts(ground, &feature_set.surfaces, normals, frame);
+    } = mesh::ground_parts::ground_parts(
+        ground,
+        &feature_set.surfaces,
+        normals,
+        frame,
+        SKIRT_ERRORS * surface_margin_m,
+    );
     timings.ground = started.elapsed();
 
     let started = Instant::now();

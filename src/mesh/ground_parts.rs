@@ -20,12 +20,14 @@ pub struct GroundParts {
     pub slivers: usize,
 }
 
-/// Sorts `ground`'s triangles into parts; `normals` holds a normal per ground vertex.
+/// Sorts `ground`'s triangles into parts; `normals` holds a normal per ground vertex. Along the
+/// tile's sides the ground hangs a skirt `skirt_y` deep (local units; none when 0).
 pub fn ground_parts(
     ground: &Ground,
     surfaces: &[Surface],
     normals: &[[f64; 3]],
     frame: &TileFrame,
+    skirt_y: f64,
 ) -> GroundParts {
     let vertex_y: Vec<f64> = ground
         .vertices
@@ -35,6 +37,11 @@ pub fn ground_parts(
         .collect();
     let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
     let mut vertex_slots: rustc_hash::FxHashMap<(Part, u32, u32), u32> = Default::default();
+    let mut skirt = Skirt {
+        size: frame.size_m,
+        depth: skirt_y,
+        edges: Vec::new(),
+    };
     let mut slivers = 0;
     for triangle in &ground.triangles {
         let part = match triangle.surface {
@@ -75,11 +82,70 @@ pub fn ground_parts(
                 });
             buffers.indices.push(slot);
         }
+        skirt.collect([a, c, b], ground);
+    }
+    if skirt_y > 0.0 && !skirt.edges.is_empty() {
+        parts.insert(Part::Skirt, skirt.build(ground, &vertex_y, normals));
     }
     GroundParts {
         parts,
         vertex_y,
         slivers,
+    }
+}
+
+/// The ground's skirt: under each edge of a ground triangle that lies along a side of the
+/// tile, a strip straight down, so where a neighbour of another zoom (another error bound)
+/// meets the side higher or lower, no crack opens between them. One part of its own, so the
+/// ground's parts stay surfaces and a viewer may hide it. Its top vertices are the ground's
+/// edge vertices (same normals); the bottom ones copy them a fixed depth under the `f32` top,
+/// so two neighbours hang the same skirt along their side.
+struct Skirt {
+    size: f64,
+    depth: f64,
+    /// The edges along the sides, as ground vertex pairs in the order their triangle faces up.
+    edges: Vec<(u32, u32)>,
+}
+
+impl Skirt {
+    /// Keeps the edges of a ground triangle (its vertices in the order it faces up) that lie
+    /// along a side of the tile.
+    fn collect(&mut self, vertices: [u32; 3], ground: &Ground) {
+        for k in 0..3 {
+            let (a, b) = (vertices[k], vertices[(k + 1) % 3]);
+            let (p, q) = (ground.vertices[a as usize], ground.vertices[b as usize]);
+            let along = |axis: usize| {
+                (p[axis] == 0.0 && q[axis] == 0.0) || (p[axis] == self.size && q[axis] == self.size)
+            };
+            if p != q && (along(0) || along(1)) {
+                self.edges.push((a, b));
+            }
+        }
+    }
+
+    /// The skirt's buffers: a strip under each edge kept, facing out of the tile.
+    fn build(&self, ground: &Ground, vertex_y: &[f64], normals: &[[f64; 3]]) -> MeshBuffers {
+        let mut buffers = MeshBuffers::default();
+        let mut slots: rustc_hash::FxHashMap<u32, [u32; 2]> = Default::default();
+        for &(a, b) in &self.edges {
+            let [[top_a, bottom_a], [top_b, bottom_b]] = [a, b].map(|v| {
+                *slots.entry(v).or_insert_with(|| {
+                    let [x, z] = ground.vertices[v as usize];
+                    let y = f64::from(vertex_y[v as usize] as f32);
+                    let normal = normals[v as usize];
+                    [
+                        buffers.push_vertex([x, y, z], normal, 0),
+                        buffers.push_vertex([x, y - self.depth, z], normal, 0),
+                    ]
+                })
+            });
+            // The strip unfolded outwards across the edge would face up: folded down, it
+            // faces out of the tile.
+            buffers
+                .indices
+                .extend_from_slice(&[top_b, top_a, bottom_a, top_b, bottom_a, bottom_b]);
+        }
+        buffers
     }
 }
 

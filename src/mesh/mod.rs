@@ -36,6 +36,8 @@ pub enum Part {
     Terrain,
     /// Bare terrain too steep for soil, where nothing is mapped: rock.
     Rock,
+    /// The strip hanging under the ground's edges along the tile's sides.
+    Skirt,
     Road(Paving),
     Railway,
     Water,
@@ -78,7 +80,7 @@ impl Part {
     /// The feature class (and glTF node) the part belongs to.
     pub fn class(self) -> FeatureClass {
         match self {
-            Part::Terrain | Part::Rock => FeatureClass::Terrain,
+            Part::Terrain | Part::Rock | Part::Skirt => FeatureClass::Terrain,
             Part::Road(_) | Part::Sidewalk | Part::Kerb | Part::Verge => FeatureClass::Road,
             Part::Marking | Part::Crossing => FeatureClass::Marking,
             Part::Railway => FeatureClass::Railway,
@@ -109,6 +111,7 @@ impl Part {
         match self {
             Part::Terrain => "terrain",
             Part::Rock => "terrain_rock",
+            Part::Skirt => "terrain_skirt",
             Part::Road(paving) => paving.as_str(),
             Part::Railway => "railway",
             Part::Water => "water",

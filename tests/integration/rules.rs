@@ -4,7 +4,7 @@
 //! the roads is in [`markings`]. Fast: no extract is read.
 
 use crate::common::fixture::{at, terrain, Fixture, TILE};
-use crate::common::{corners, decode, DecodedTile, Feature, GroundLocator, Primitive};
+use crate::common::{along_side, corners, decode, DecodedTile, Feature, GroundLocator, Primitive};
 
 use terrastitch::features::objects::ObjectKind;
 use terrastitch::mesh::passages::HEADROOM_M;
@@ -16,10 +16,15 @@ mod markings;
 
 /// The glb of [`TILE`] made from `fixture` on `mosaic`, decoded.
 fn drawn(fixture: &Fixture, mosaic: &Mosaic) -> DecodedTile {
-    let index = index_osm(fixture.data(), TILE.z);
-    let selection = index.query(TILE, QUERY_MARGIN_DEG);
+    drawn_tile(fixture, mosaic, TILE)
+}
+
+/// The glb of `tile` made from `fixture` on `mosaic`, decoded.
+fn drawn_tile(fixture: &Fixture, mosaic: &Mosaic, tile: terrastitch::TileId) -> DecodedTile {
+    let index = index_osm(fixture.data(), tile.z);
+    let selection = index.query(tile, QUERY_MARGIN_DEG);
     let rendered =
-        render(TILE, &selection, mosaic, &RenderSettings::default()).expect("the fixture renders");
+        render(tile, &selection, mosaic, &RenderSettings::default()).expect("the fixture renders");
     decode(&rendered.glb)
 }
 
@@ -716,4 +721,74 @@ fn bare_ground_too_steep_for_soil_is_rock_and_gentler_ground_and_mapped_cover_ar
     let mapped = (0.5 + 450.0 * m, 0.35);
     assert!(!ground_material_at(&tile, "terrain_rock", mapped));
     assert!(!heights(&tile, "landcover", mapped).is_empty());
+}
+
+#[test]
+fn the_ground_hangs_a_skirt_along_its_sides_as_its_neighbour_does_facing_out() {
+    // Rolling ground and a road across the shared side of two tiles.
+    let mosaic = terrain(|lon, lat| 100.0 + 30.0 * (lon * 900.0).sin() * (lat * 700.0).cos());
+    let mut fixture = Fixture::default();
+    fixture.way(&[("highway", "primary")], &[(0.5, 0.4), (1.5, 0.6)]);
+    let west = drawn(&fixture, &mosaic);
+    let east_tile = terrastitch::TileId {
+        x: TILE.x + 1,
+        ..TILE
+    };
+    let east = drawn_tile(&fixture, &mosaic, east_tile);
+    let size = west.tile_size() as f32;
+    // 6 error bounds of 1 m, in the local frame's units.
+    let depth = 6.0;
+    let skirt_along = |tile: &DecodedTile, side: &str| {
+        let skirt: Vec<&Primitive> = tile
+            .primitives("terrain")
+            .iter()
+            .filter(|p| p.material == "terrain_skirt")
+            .collect();
+        assert_eq!(skirt.len(), 1, "one skirt");
+        let mut strips = std::collections::BTreeSet::new();
+        for t in skirt[0].triangles() {
+            let corners = t.map(|k| skirt[0].positions[k]);
+            if !corners.iter().all(|c| along_side(c, side, size).is_some()) {
+                continue;
+            }
+            // Facing out: its normal points away from the tile's middle.
+            let (u, v) = (
+                [0, 1, 2].map(|a| corners[1][a] - corners[0][a]),
+                [0, 1, 2].map(|a| corners[2][a] - corners[0][a]),
+            );
+            let normal = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
+            let outwards = match side {
+                "west" => -normal[0],
+                "east" => normal[0],
+                "north" => -normal[2],
+                _ => normal[2],
+            };
+            assert!(outwards > 0.0, "{side}: {corners:?} faces in");
+            for c in corners {
+                strips.insert((c[1].to_bits(), c[2].to_bits()));
+            }
+        }
+        strips
+    };
+    for side in ["west", "east", "north", "south"] {
+        assert!(!skirt_along(&west, side).is_empty(), "no skirt {side}");
+    }
+    // The shared side's skirt is the same from both tiles, and hangs `depth` under the edge.
+    let shared = skirt_along(&west, "east");
+    assert_eq!(shared, skirt_along(&east, "west"));
+    let edge = crate::common::ground_edge(&west, "east");
+    let tops: std::collections::BTreeSet<(u32, u32)> =
+        edge.iter().map(|&(y, along, _)| (y, along)).collect();
+    for &(y, along) in &shared {
+        let y = f32::from_bits(y);
+        let top = (y + depth).to_bits();
+        assert!(
+            tops.contains(&(y.to_bits(), along)) || tops.contains(&(top, along)),
+            "a skirt vertex at {y} neither on the edge nor {depth} under it"
+        );
+    }
 }

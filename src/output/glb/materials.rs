@@ -18,6 +18,7 @@ pub(super) fn material_of(part: Part) -> ([f32; 4], f32) {
     match part {
         Part::Terrain => ([0.42, 0.52, 0.30, 1.0], 0.95),
         Part::Rock => Cover::BareRock.material(),
+        Part::Skirt => material_of(Part::Terrain),
         Part::Road(paving) => paving.material(),
         Part::Railway => ([0.45, 0.40, 0.35, 1.0], 0.95),
         Part::Water => ([0.16, 0.36, 0.62, 1.0], 0.15),
