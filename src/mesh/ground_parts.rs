@@ -69,6 +69,10 @@ pub fn ground_parts(
             continue;
         }
         let buffers = parts.entry(part).or_default();
+        // Water lies level, or all but: straight up is its normal. The ground vertex's own,
+        // averaged with the banks and cliffs that share it, would streak a sea kilometres
+        // wide with the coast's slopes.
+        let up = part == Part::Water;
         for vertex in [a, c, b] {
             let slot = *vertex_slots
                 .entry((part, vertex, feature))
@@ -76,7 +80,11 @@ pub fn ground_parts(
                     let [x, z] = ground.vertices[vertex as usize];
                     buffers.push_vertex(
                         [x, vertex_y[vertex as usize], z],
-                        normals[vertex as usize],
+                        if up {
+                            [0.0, 1.0, 0.0]
+                        } else {
+                            normals[vertex as usize]
+                        },
                         feature,
                     )
                 });

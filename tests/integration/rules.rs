@@ -792,3 +792,20 @@ fn the_ground_hangs_a_skirt_along_its_sides_as_its_neighbour_does_facing_out() {
         );
     }
 }
+
+#[test]
+fn the_sea_is_lit_as_level_water_whatever_slopes_its_coast() {
+    // A coast rising 50 % from the shore: the sea's vertices along it are the land's too.
+    let middle = at(0.5, 0.5).lat;
+    let mosaic = terrain(move |_, lat| (2.0 + 0.5 * (lat - middle) * 111_195.0).max(0.0));
+    let mut fixture = Fixture::default();
+    fixture.way(&[("natural", "coastline")], &[(-0.2, 0.5), (1.2, 0.5)]);
+    let tile = drawn(&fixture, &mosaic);
+    let water = tile.primitives("water");
+    assert!(!water.is_empty(), "the sea is drawn");
+    for primitive in water {
+        for normal in &primitive.normals {
+            assert_eq!(*normal, [0.0, 1.0, 0.0], "a sea vertex leans");
+        }
+    }
+}
