@@ -55,10 +55,12 @@ fn water_lies_flat_and_meets_its_shore_and_waterways_run_down() {
                 }
             }
         }
-        // The shore: ground vertices of other surfaces where the water's vertices are.
+        // The shore: ground vertices of other surfaces where the water's vertices are (the
+        // skirt under the tile's sides is no surface).
         let mut shore = 0;
         for node in GROUND_NODES.iter().filter(|n| **n != "water") {
-            for primitive in tile.primitives(node) {
+            let surfaces = tile.primitives(node).iter();
+            for primitive in surfaces.filter(|p| p.material != "terrain_skirt") {
                 for &p in &primitive.positions {
                     if let Some(&level) = levels.get(&[p[0].to_bits(), p[2].to_bits()]) {
                         shore += 1;
