@@ -335,6 +335,29 @@ pub struct PlanLine {
     pub width_m: f64,
 }
 
+impl PlanLine {
+    /// The line painted along `line` (global tile units), whose points stand for `stations`
+    /// along the way, `metre` tile units to the metre there.
+    pub fn painted(
+        &self,
+        feature: u32,
+        line: Vec<Point>,
+        stations: Vec<f64>,
+        metre: f64,
+    ) -> Marking {
+        Marking {
+            feature,
+            line,
+            stations,
+            pattern: self.pattern,
+            width_m: self.width_m,
+            metre,
+            paint: Paint::Line,
+            tip: false,
+        }
+    }
+}
+
 impl LanePlan {
     /// The lines of the plan on a road `width_m` wide: between the lanes, beside the cycle
     /// lanes and along the edges.
@@ -392,16 +415,7 @@ pub fn along(
             let Some(line) = road.line_at(range.clone(), plan_line.share) else {
                 continue;
             };
-            markings.push(Marking {
-                feature,
-                line,
-                stations: stations.clone(),
-                pattern: plan_line.pattern,
-                width_m: plan_line.width_m,
-                metre,
-                paint: Paint::Line,
-                tip: false,
-            });
+            markings.push(plan_line.painted(feature, line, stations.clone(), metre));
         }
     }
     markings

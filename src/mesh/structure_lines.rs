@@ -4,7 +4,7 @@
 //! first node, as on the ground, so a line keeps its rhythm from the road onto the deck and
 //! every tile lays the same dashes.
 
-use crate::features::markings::{LanePlan, Marking, Paint};
+use crate::features::markings::{LanePlan, Marking};
 use crate::geometry::{distance, distances_along, lerp, share_along_segment, Point};
 use crate::terrain::Elevation;
 
@@ -80,16 +80,7 @@ pub fn lines(
             if reversed {
                 line.reverse();
             }
-            Marking {
-                feature,
-                line,
-                stations: stations.clone(),
-                pattern: plan_line.pattern,
-                width_m: plan_line.width_m,
-                metre,
-                paint: Paint::Line,
-                tip: false,
-            }
+            plan_line.painted(feature, line, stations.clone(), metre)
         })
         .collect()
 }
@@ -116,32 +107,55 @@ mod tests {
     use crate::osm::tags;
 
     /// A straight run 100 units long from west to east, 10 wide, rising 1 per 10 units.
-    fn run() -> (Vec<Point>, Vec<Point>, Vec<Point>, Vec<f64>) {
-        let centre: Vec<Point> = (0..=10).map(|k| [f64::from(k) * 10.0, 0.0]).collect();
-        // Left of the direction of travel, in a plane whose second axis points south.
-        let left = centre.iter().map(|p| [p[0], p[1] - 5.0]).collect();
-        let right = centre.iter().map(|p| [p[0], p[1] + 5.0]).collect();
-        let elevations = (0..=10).map(f64::from).collect();
-        (centre, left, right, elevations)
+    struct Run {
+        centre: Vec<Point>,
+        left: Vec<Point>,
+        right: Vec<Point>,
+        elevations: Vec<f64>,
     }
 
-    #[test]
-    fn a_deck_carries_its_ways_lines_at_their_shares_and_heights() {
-        let (centre, left, right, elevations) = run();
-        let top = Top {
-            centre: &centre,
-            left: &left,
-            right: &right,
-            elevations: &elevations,
-        };
-        // Two lanes forward, one backward: the centre line a third of the way from the left.
-        let plan = lane_plan(&tags(&[
+    impl Run {
+        fn new() -> Run {
+            let centre: Vec<Point> = (0..=10).map(|k| [f64::from(k) * 10.0, 0.0]).collect();
+            // Left of the direction of travel, in a plane whose second axis points south.
+            let left = centre.iter().map(|p| [p[0], p[1] - 5.0]).collect();
+            let right = centre.iter().map(|p| [p[0], p[1] + 5.0]).collect();
+            let elevations = (0..=10).map(f64::from).collect();
+            Run {
+                centre,
+                left,
+                right,
+                elevations,
+            }
+        }
+
+        fn top(&self) -> Top<'_> {
+            Top {
+                centre: &self.centre,
+                left: &self.left,
+                right: &self.right,
+                elevations: &self.elevations,
+            }
+        }
+    }
+
+    /// Two lanes forward, one backward: the centre line a third of the way from the way's
+    /// left.
+    fn three_lanes() -> LanePlan {
+        lane_plan(&tags(&[
             ("highway", "primary"),
             ("lanes", "3"),
             ("lanes:forward", "2"),
             ("lanes:backward", "1"),
         ]))
-        .unwrap();
+        .unwrap()
+    }
+
+    #[test]
+    fn a_deck_carries_its_ways_lines_at_their_shares_and_heights() {
+        let run = Run::new();
+        let top = run.top();
+        let plan = three_lanes();
         let way_line = vec![[-50.0, 0.0], [200.0, 0.0]];
         let lines = lines(7, &plan, &top, &way_line, (10.0, 1.0));
         assert_eq!(lines.len(), 2);
@@ -158,23 +172,10 @@ mod tests {
 
     #[test]
     fn a_run_against_its_way_puts_the_lines_on_the_ways_sides_and_its_dashes_in_order() {
-        let (centre, left, right, elevations) = run();
-        let top = Top {
-            centre: &centre,
-            left: &left,
-            right: &right,
-            elevations: &elevations,
-        };
-        let plan = lane_plan(&tags(&[
-            ("highway", "primary"),
-            ("lanes", "3"),
-            ("lanes:forward", "2"),
-            ("lanes:backward", "1"),
-        ]))
-        .unwrap();
+        let run = Run::new();
         // The way runs east to west: its left is the run's right (south, +v).
         let way_line = vec![[200.0, 0.0], [-50.0, 0.0]];
-        let lines = lines(7, &plan, &top, &way_line, (10.0, 1.0));
+        let lines = lines(7, &three_lanes(), &run.top(), &way_line, (10.0, 1.0));
         let centre_line = lines.iter().find(|m| m.width_m > 0.14).unwrap();
         let offset = centre_line.line[0][1];
         assert!((offset - (5.0 - 10.0 / 3.0)).abs() < 1e-9, "{offset}");
