@@ -215,7 +215,10 @@ impl Drawer<'_, '_> {
         self.piers(profile);
     }
 
-    /// The lines painted on a run's top (a deck, a tunnel's floor) where its way has any.
+    /// The lines painted on a run's top (a deck, a tunnel's floor) where its way has any. A
+    /// tunnel's ramps, cut into the ground and drawn as it is, get none: the ground's roads
+    /// meet them there, and their lines would need cutting back at those junctions as the
+    /// road network's are.
     fn lines(&mut self, run: &Run) {
         let Some((feature, plan)) = self.context.lines.get(&run.way) else {
             return;
@@ -332,12 +335,6 @@ impl Drawer<'_, '_> {
                         );
                     }
                 }
-                self.lines(&run);
-            }
-        }
-        // The ramps are cut in the ground down to the floor's profile: their lines too.
-        for &(from, to) in &plan.ramps {
-            for run in self.runs(&profile.stretch(from, to)) {
                 self.lines(&run);
             }
         }
