@@ -4,8 +4,9 @@
 //! first node, as on the ground, so a line keeps its rhythm from the road onto the deck and
 //! every tile lays the same dashes.
 
+use crate::elevation::settled::Stations;
 use crate::features::markings::{LanePlan, Marking};
-use crate::geometry::{distance, distances_along, lerp, share_along_segment, Point};
+use crate::geometry::{distance, distances_along, interpolate, lerp, share_along_segment, Point};
 use crate::terrain::Elevation;
 
 /// The top of a run of stations: level across, linear in elevation between its stations.
@@ -16,24 +17,37 @@ pub struct Top<'a> {
     pub left: &'a [Point],
     pub right: &'a [Point],
     pub elevations: &'a [f64],
+    /// Where a point lies along the centre: in the band between two stations' bisectors, as
+    /// the deck's faces between them are.
+    along: Stations,
+    /// The station of each point of the centre.
+    starts: Vec<f64>,
+}
+
+impl<'a> Top<'a> {
+    pub fn new(
+        centre: &'a [Point],
+        (left, right): (&'a [Point], &'a [Point]),
+        elevations: &'a [f64],
+    ) -> Top<'a> {
+        Top {
+            centre,
+            left,
+            right,
+            elevations,
+            along: Stations::new(centre),
+            starts: distances_along(centre),
+        }
+    }
 }
 
 impl Elevation for Top<'_> {
-    /// The elevation of the station line where it passes nearest `p`.
+    /// The elevation of the station line at the station of `p`.
     fn elevation_uv(&self, p: [f64; 2]) -> f64 {
-        let mut best = (
-            f64::INFINITY,
-            self.elevations.first().copied().unwrap_or(0.0),
-        );
-        for (k, pair) in self.centre.windows(2).enumerate() {
-            let t = share_along_segment(p, pair[0], pair[1]);
-            let gap = distance(p, lerp(pair[0], pair[1], t));
-            if gap < best.0 {
-                let (e0, e1) = (self.elevations[k], self.elevations[k + 1]);
-                best = (gap, e0 + (e1 - e0) * t);
-            }
+        if self.starts.len() < 2 || self.elevations.len() != self.starts.len() {
+            return self.elevations.first().copied().unwrap_or(0.0);
         }
-        best.1
+        interpolate(&self.starts, self.elevations, self.along.at(p))
     }
 }
 
@@ -130,12 +144,7 @@ mod tests {
         }
 
         fn top(&self) -> Top<'_> {
-            Top {
-                centre: &self.centre,
-                left: &self.left,
-                right: &self.right,
-                elevations: &self.elevations,
-            }
+            Top::new(&self.centre, (&self.left, &self.right), &self.elevations)
         }
     }
 

@@ -227,12 +227,7 @@ impl Drawer<'_, '_> {
         let width = self.traits(way).width_m;
         let centre: Vec<Point> = run.stations.iter().map(|s| s.point).collect();
         let elevations: Vec<f64> = run.stations.iter().map(|s| s.elevation).collect();
-        let top = structure_lines::Top {
-            centre: &centre,
-            left: &run.left,
-            right: &run.right,
-            elevations: &elevations,
-        };
+        let top = structure_lines::Top::new(&centre, (&run.left, &run.right), &elevations);
         let way_line = self.context.projection.points(&way.positions);
         let metre = self.in_units(way, 1.0);
         let lines = structure_lines::lines(*feature, plan, &top, &way_line, (width, metre));
