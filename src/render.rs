@@ -773,13 +773,14 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         frame,
         &settled,
     ));
-    parts.extend(mesh::markings::build(
-        &feature_set.markings,
+    let drawn = mesh::drawn_ground::DrawnGround::new(
+        (ground, &feature_set.surfaces),
+        &vertex_y,
         frame,
         &settled,
-    ));
+    );
+    parts.extend(mesh::markings::build(&feature_set.markings, frame, &drawn));
     mesh::sidewalks::build(&feature_set.sidewalks, frame, &settled, &mut parts);
-    let drawn = mesh::instances::DrawnGround::new(ground, &vertex_y, frame, &settled);
     parts.insert(
         Part::Stairs,
         mesh::stairs::build(&feature_set.stairs, frame, &drawn),
@@ -793,6 +794,7 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         settings: feature_settings,
         surface_margin_m: *surface_margin_m,
         lines: &feature_set.structure_lines,
+        ground: &drawn,
     };
     mesh::structures::build(structures, &context, &mut parts);
     parts.insert(

@@ -6,14 +6,13 @@
 
 use std::collections::BTreeMap;
 
-use super::ground::{Ground, GroundTriangle};
+use super::drawn_ground::DrawnGround;
 use super::models::Model;
 use crate::elevation::structures::Profile;
 use crate::features::objects::PointObject;
 use crate::features::vegetation::{Tree, TreeKind};
 use crate::features::{FeatureClass, FeatureSet};
-use crate::geometry::{grid_cell, Point, Rect};
-use crate::tile::TileFrame;
+use crate::geometry::{Point, Rect};
 
 /// The instances of one model.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -68,110 +67,6 @@ struct Placement {
     feature: u32,
     /// The surface that must be the ground at the foot (a forest tree's own forest).
     on: Option<u32>,
-}
-
-/// Ground triangles in buckets, to find the triangle under a point.
-struct Locator<'a> {
-    ground: &'a Ground,
-    cells: usize,
-    size: f64,
-    buckets: Vec<Vec<u32>>,
-}
-
-impl<'a> Locator<'a> {
-    fn new(ground: &'a Ground, size: f64) -> Locator<'a> {
-        let cells = 64;
-        let mut buckets = vec![Vec::new(); cells * cells];
-        let cell = |v: f64| grid_cell(v, 0.0, size, cells);
-        for (index, triangle) in ground.triangles.iter().enumerate() {
-            let corners = triangle.vertices.map(|v| ground.vertices[v as usize]);
-            let (x0, x1) = min_max(corners.map(|p| p[0]));
-            let (z0, z1) = min_max(corners.map(|p| p[1]));
-            for row in cell(z0)..=cell(z1) {
-                for column in cell(x0)..=cell(x1) {
-                    buckets[row * cells + column].push(index as u32);
-                }
-            }
-        }
-        Locator {
-            ground,
-            cells,
-            size,
-            buckets,
-        }
-    }
-
-    /// The triangle holding `(x, z)` and the barycentric weights of its corners.
-    fn locate(&self, x: f64, z: f64) -> Option<(usize, [f64; 3])> {
-        let cell = |v: f64| grid_cell(v, 0.0, self.size, self.cells);
-        self.buckets[cell(z) * self.cells + cell(x)]
-            .iter()
-            .find_map(|&index| {
-                let t = &self.ground.triangles[index as usize];
-                let [a, b, c] = t.vertices.map(|v| self.ground.vertices[v as usize]);
-                let det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
-                if det == 0.0 {
-                    return None;
-                }
-                let l1 = ((x - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (z - a[1])) / det;
-                let l2 = ((b[0] - a[0]) * (z - a[1]) - (x - a[0]) * (b[1] - a[1])) / det;
-                let l0 = 1.0 - l1 - l2;
-                (l0 >= 0.0 && l1 >= 0.0 && l2 >= 0.0).then_some((index as usize, [l0, l1, l2]))
-            })
-    }
-}
-
-/// The ground as the tile draws it: the elevation of its ground mesh under a point, and off
-/// the tile the ground model's.
-pub struct DrawnGround<'a> {
-    locator: Locator<'a>,
-    vertex_y: &'a [f64],
-    frame: &'a TileFrame,
-    model: &'a dyn crate::terrain::Elevation,
-}
-
-impl<'a> DrawnGround<'a> {
-    /// `vertex_y` holds the `y` of each of `ground`'s vertices in the local frame.
-    pub fn new(
-        ground: &'a Ground,
-        vertex_y: &'a [f64],
-        frame: &'a TileFrame,
-        model: &'a dyn crate::terrain::Elevation,
-    ) -> DrawnGround<'a> {
-        DrawnGround {
-            locator: Locator::new(ground, frame.size_m),
-            vertex_y,
-            frame,
-            model,
-        }
-    }
-
-    /// The ground triangle under local `(x, z)` and the `y` of the mesh there.
-    fn under(&self, x: f64, z: f64) -> Option<(&GroundTriangle, f64)> {
-        let (index, weights) = self.locator.locate(x, z)?;
-        let triangle = &self.locator.ground.triangles[index];
-        let y = (0..3)
-            .map(|k| weights[k] * self.vertex_y[triangle.vertices[k] as usize])
-            .sum();
-        Some((triangle, y))
-    }
-}
-
-impl crate::terrain::Elevation for DrawnGround<'_> {
-    fn elevation_uv(&self, p: [f64; 2]) -> f64 {
-        let (x, z) = self.frame.uv_to_local(p[0], p[1]);
-        match self.under(x, z) {
-            Some((_, y)) => y / self.frame.scale_at(z),
-            None => self.model.elevation_uv(p),
-        }
-    }
-}
-
-fn min_max(values: [f64; 3]) -> (f64, f64) {
-    (
-        values.iter().copied().fold(f64::INFINITY, f64::min),
-        values.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-    )
 }
 
 /// How far from a bridge's line a point still lies on it, tile units (a fraction of a

@@ -1,15 +1,23 @@
 //! The lines painted on roads ([`crate::features::markings`]) as thin strips just above the
-//! settled road surface: a solid line as a strip along each of its segments, a dashed one as
+//! road surface as drawn: a solid line as a strip along each of its segments, a dashed one as
 //! such strips along each dash.
 //! Each strip piece is clipped to the tile, so a line crossing an edge is cut along it by both
-//! tiles at the same points, from the same dashes.
+//! tiles at the same points, from the same dashes, at the settled surface's heights (which
+//! both tiles know alike). A piece inside the tile is cut again where the surface it is
+//! painted on bends under it (from one flat face to the next), and takes the surface's heights
+//! as drawn at its corners, so the paint neither floats over the surface's creases nor sinks
+//! into them.
 
 use std::collections::BTreeMap;
 
-use super::{MeshBuffers, Part};
+use super::drawn_ground::DrawnGround;
+use super::structure_lines::Top;
+use super::{triangle_normal, MeshBuffers, Part};
 use crate::features::markings::{Marking, Paint, Pattern};
 use crate::features::tile_rect;
-use crate::geometry::{bracket, clip_to_rect, distance, lerp, Point, Rect};
+use crate::geometry::{
+    bracket, clip_half_space, clip_to_rect, distance, lerp, simplified_indices, Point, Rect,
+};
 use crate::terrain::Elevation;
 use crate::tile::TileFrame;
 
@@ -17,24 +25,71 @@ use crate::tile::TileFrame;
 /// where it is interpolated between its vertices, too little to be seen as a step.
 const LIFT_M: f64 = 0.03;
 
+/// How far the surface under a strip may bend away from it before the strip is cut to follow,
+/// metres: well inside the lift, so the paint neither sinks nor is seen to float.
+const FIT_M: f64 = 0.02;
+
+/// The normal of the paint: it is lit as level ground, whatever the slope it lies on.
+const UP: [f64; 3] = [0.0, 1.0, 0.0];
+
+/// What lines are painted on: its height under a point, and where a straight piece of line
+/// crosses from one of its flat faces to the next.
+pub trait Canvas: Elevation {
+    /// The height of the surface drawn at `p`, if it is drawn there (metres).
+    fn drawn_at(&self, p: Point) -> Option<f64> {
+        Some(self.elevation_uv(p))
+    }
+
+    /// The height of the surface `p` lies on as every tile knows it, whichever draws it.
+    fn settled_uv(&self, p: Point) -> f64 {
+        self.elevation_uv(p)
+    }
+
+    /// The shares of the way from `a` to `b` (global tile units) where it crosses from one
+    /// face to the next: rising, strictly between 0 and 1.
+    fn creases(&self, a: Point, b: Point) -> Vec<f64>;
+}
+
+/// The ground is not drawn under a building, and nothing is painted there.
+impl Canvas for DrawnGround<'_> {
+    fn drawn_at(&self, p: Point) -> Option<f64> {
+        DrawnGround::drawn_at(self, p)
+    }
+
+    fn settled_uv(&self, p: Point) -> f64 {
+        self.model().elevation_uv(p)
+    }
+
+    fn creases(&self, a: Point, b: Point) -> Vec<f64> {
+        DrawnGround::creases(self, a, b)
+    }
+}
+
+/// A deck's or a tunnel floor's top is flat between its stations, at which the lines along it
+/// have points of their own.
+impl Canvas for Top<'_> {
+    fn creases(&self, _: Point, _: Point) -> Vec<f64> {
+        Vec::new()
+    }
+}
+
 /// The strips of every marking: the lines along roads as one part, the crossings as another.
 pub fn build(
     markings: &[Marking],
     frame: &TileFrame,
-    ground: &dyn Elevation,
+    ground: &dyn Canvas,
 ) -> BTreeMap<Part, MeshBuffers> {
     let mut parts: BTreeMap<Part, MeshBuffers> = BTreeMap::new();
     paint(&mut parts, markings, frame, ground);
     parts
 }
 
-/// Adds the strips of `markings` to `parts`, just above the surface `surface` gives the
-/// height of.
+/// Adds the strips of `markings` to `parts`, just above `surface`.
 pub fn paint(
     parts: &mut BTreeMap<Part, MeshBuffers>,
     markings: &[Marking],
     frame: &TileFrame,
-    surface: &dyn Elevation,
+    surface: &dyn Canvas,
 ) {
     let rect = tile_rect(frame.tile);
     // A piece whose line stays this far outside the tile may still reach into it.
@@ -107,12 +162,13 @@ fn part_of(line: &[Point], stations: &[f64], (from, to): (f64, f64)) -> Vec<Poin
 }
 
 /// One strip piece from `a` to `b` (global tile units), as wide as the marking and level
-/// across (a triangle narrowing to `b` when `tip`), clipped to the tile: a piece across an edge is cut along it, at the same points in
-/// both tiles.
+/// across (a triangle narrowing to `b` when `tip`): inside the tile, in parts between the cuts
+/// where `surface` bends; a piece across the tile's edge is clipped to it whole, at the same
+/// points and heights in both tiles.
 fn strip(
     buffers: &mut MeshBuffers,
     frame: &TileFrame,
-    ground: &dyn Elevation,
+    surface: &dyn Canvas,
     marking: &Marking,
     (a, b): (Point, Point),
     tip: bool,
@@ -122,33 +178,176 @@ fn strip(
         return;
     }
     let half = marking.width_m * marking.metre / 2.0;
-    let (nu, nv) = (
+    let across = [
         -(b[1] - a[1]) / length * half,
         (b[0] - a[0]) / length * half,
-    );
-    let outline = if tip {
-        vec![[a[0] + nu, a[1] + nv], b, [a[0] - nu, a[1] - nv]]
-    } else {
-        vec![
-            [a[0] + nu, a[1] + nv],
-            [b[0] + nu, b[1] + nv],
-            [b[0] - nu, b[1] - nv],
-            [a[0] - nu, a[1] - nv],
+    ];
+    let side = |p: Point, share: f64| {
+        // A tip narrows to nothing at `b`.
+        let w = if tip { 1.0 - share } else { 1.0 };
+        (
+            [p[0] + across[0] * w, p[1] + across[1] * w],
+            [p[0] - across[0] * w, p[1] - across[1] * w],
+        )
+    };
+    // The piece's outline between two shares of it: from its left side at the first to its
+    // right side there, a triangle to the tip at `b`.
+    let outline = |t0: f64, t1: f64| {
+        let ((left0, right0), (left1, right1)) =
+            (side(lerp(a, b, t0), t0), side(lerp(a, b, t1), t1));
+        if tip && t1 >= 1.0 {
+            vec![left0, b, right0]
+        } else {
+            vec![left0, left1, right1, right0]
+        }
+    };
+    let local = |p: Point, height: f64| {
+        let (x, z) = frame.uv_to_local(p[0], p[1]);
+        [
+            x,
+            frame.elevation_to_y(height, z) + LIFT_M * frame.scale_at(z),
+            z,
         ]
     };
-    let clipped = clip_to_rect(&outline, &tile_rect(frame.tile));
-    if clipped.len() < 3 {
+    let feature = marking.feature;
+    let whole = outline(0.0, 1.0);
+    let rect = tile_rect(frame.tile);
+    let shares = cuts(surface, (a, b), length / marking.metre);
+    if !whole.iter().all(|&p| rect.contains(p)) {
+        across_edge(
+            buffers,
+            (frame, surface),
+            marking,
+            (&whole, &shares),
+            &outline,
+        );
         return;
     }
-    let corners: Vec<[f64; 3]> = clipped
+    // The parts share their vertices, a pair across each cut.
+    let mut previous: Option<[u32; 2]> = None;
+    for pair in shares.windows(2) {
+        let part = outline(pair[0], pair[1]);
+        // Nothing is painted where the surface is not drawn.
+        let Some(corners) = part
+            .iter()
+            .map(|&p| Some(local(p, surface.drawn_at(p)?)))
+            .collect::<Option<Vec<_>>>()
+        else {
+            previous = None;
+            continue;
+        };
+        let mut push = |c: [f64; 3]| buffers.push_vertex(c, UP, feature);
+        let n = corners.len();
+        let [l0, r0] = previous.unwrap_or_else(|| [corners[0], corners[n - 1]].map(&mut push));
+        if n == 3 {
+            let t = push(corners[1]);
+            push_facing_up(buffers, &[l0, t, r0]);
+            previous = None;
+        } else {
+            let [l1, r1] = [corners[1], corners[2]].map(&mut push);
+            push_facing_up(buffers, &[l0, l1, r1, r0]);
+            previous = Some([l1, r1]);
+        }
+    }
+}
+
+/// The parts of a strip piece whose outline `whole` crosses the tile's edge: the outline
+/// clipped to the tile, then cut at those of `shares` whose cut lies inside the tile
+/// (`outline` gives the outline between two shares). Where it is cut along the tile's edge its
+/// corners stand at the settled surface's heights, which both tiles know alike, so both make
+/// the same vertices there; elsewhere at the heights of the surface as drawn.
+fn across_edge(
+    buffers: &mut MeshBuffers,
+    (frame, surface): (&TileFrame, &dyn Canvas),
+    marking: &Marking,
+    (whole, shares): (&[Point], &[f64]),
+    outline: &dyn Fn(f64, f64) -> Vec<Point>,
+) {
+    let rect = tile_rect(frame.tile);
+    let on_edge = |p: [f64; 3]| {
+        p[0] == rect.min[0] || p[0] == rect.max[0] || p[1] == rect.min[1] || p[1] == rect.max[1]
+    };
+    // Each corner with its share along the piece, which the clipping carries along.
+    let at_share = |points: Vec<Point>, t0: f64, t1: f64| -> Vec<[f64; 3]> {
+        let n = points.len();
+        points
+            .into_iter()
+            .enumerate()
+            .map(|(k, p)| [p[0], p[1], if k == 0 || k == n - 1 { t0 } else { t1 }])
+            .collect()
+    };
+    let clipped = clip_to_rect(&at_share(whole.to_vec(), 0.0, 1.0), &rect);
+    let inner: Vec<f64> = shares
         .iter()
-        .map(|&p| {
-            let (x, z) = frame.uv_to_local(p[0], p[1]);
-            let lift = LIFT_M * frame.scale_at(z);
-            [x, frame.elevation_to_y(ground.elevation_uv(p), z) + lift, z]
+        .copied()
+        .filter(|&t| {
+            t > 0.0
+                && t < 1.0
+                && outline(t, t)
+                    .iter()
+                    .all(|&p| rect.contains(p) && !on_edge([p[0], p[1], 0.0]))
         })
         .collect();
-    buffers.push_flat_polygon(&corners, [0.0, 1.0, 0.0], marking.feature);
+    let bounds: Vec<f64> = std::iter::once(0.0)
+        .chain(inner)
+        .chain(std::iter::once(1.0))
+        .collect();
+    for band in bounds.windows(2) {
+        let mut part = clip_half_space(&clipped, 2, band[0], true);
+        part = clip_half_space(&part, 2, band[1], false);
+        part.dedup();
+        let corners: Vec<u32> = part
+            .into_iter()
+            .map(|p| {
+                let point = [p[0], p[1]];
+                let height = if on_edge(p) {
+                    surface.settled_uv(point)
+                } else {
+                    surface
+                        .drawn_at(point)
+                        .unwrap_or_else(|| surface.settled_uv(point))
+                };
+                let (x, z) = frame.uv_to_local(p[0], p[1]);
+                let y = frame.elevation_to_y(height, z) + LIFT_M * frame.scale_at(z);
+                buffers.push_vertex([x, y, z], UP, marking.feature)
+            })
+            .collect();
+        push_facing_up(buffers, &corners);
+    }
+}
+
+/// The shares of the way from `a` to `b` (`length_m` long) at which a strip piece is cut:
+/// its ends, and the creases of `surface` under it where it bends away from the straight line
+/// between the cuts on either side by more than [`FIT_M`].
+fn cuts(surface: &dyn Canvas, (a, b): (Point, Point), length_m: f64) -> Vec<f64> {
+    let mut shares = vec![0.0];
+    shares.extend(surface.creases(a, b));
+    shares.push(1.0);
+    let profile: Vec<Point> = shares
+        .iter()
+        .map(|&t| [t * length_m, surface.elevation_uv(lerp(a, b, t))])
+        .collect();
+    simplified_indices(&profile, FIT_M)
+        .into_iter()
+        .map(|k| shares[k])
+        .collect()
+}
+
+/// A fan of triangles over the convex polygon of the vertices `corners` (pushed, in order
+/// round it), each wound to face up; none over fewer than three.
+fn push_facing_up(buffers: &mut MeshBuffers, corners: &[u32]) {
+    let at = |i: u32| buffers.positions[i as usize].map(f64::from);
+    let mut triangles = Vec::with_capacity(3 * corners.len());
+    for k in 1..corners.len().saturating_sub(1) {
+        let (a, b, c) = (corners[0], corners[k], corners[k + 1]);
+        let normal = triangle_normal([at(a), at(b), at(c)]);
+        if normal[1] > 0.0 {
+            triangles.extend_from_slice(&[a, b, c]);
+        } else if normal[1] < 0.0 {
+            triangles.extend_from_slice(&[a, c, b]);
+        }
+    }
+    buffers.indices.extend(triangles);
 }
 
 #[cfg(test)]

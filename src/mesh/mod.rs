@@ -3,6 +3,7 @@
 
 pub mod barriers;
 pub mod buildings;
+pub mod drawn_ground;
 pub mod facades;
 pub mod flatten;
 pub mod ground;
@@ -349,6 +350,18 @@ impl MeshBuffers {
             let (b, c) = if reversed { (i + 1, i) } else { (i, i + 1) };
             self.indices
                 .extend_from_slice(&[first, first + b, first + c]);
+        }
+    }
+
+    /// Two triangles over four vertices already pushed, in order round a quad, wound to face
+    /// `facing`.
+    pub fn push_quad(&mut self, [a, b, c, d]: [u32; 4], facing: [f64; 3]) {
+        let corner = |i: u32| self.positions[i as usize].map(f64::from);
+        let normal = triangle_normal([corner(a), corner(b), corner(c)]);
+        if dot(normal, facing) >= 0.0 {
+            self.indices.extend_from_slice(&[a, b, c, a, c, d]);
+        } else {
+            self.indices.extend_from_slice(&[a, c, b, a, d, c]);
         }
     }
 

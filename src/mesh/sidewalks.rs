@@ -8,7 +8,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{dot, triangle_normal, MeshBuffers, Part};
+use super::{MeshBuffers, Part};
 use crate::features::sidewalks::{Band, Look};
 use crate::features::tile_rect;
 use crate::geometry::{clip_segment, clip_to_rect, Point, Rect};
@@ -109,7 +109,7 @@ impl<'a> Placed<'a> {
             if quad.iter().all(|(p, ..)| rect.contains(*p)) {
                 let [a, b] = previous.unwrap_or_else(|| [quad[0], quad[3]].map(&mut corner));
                 let [c, d] = [quad[1], quad[2]].map(&mut corner);
-                push_quad(buffers, [a, c, d, b], up);
+                buffers.push_quad([a, c, d, b], up);
                 previous = Some([c, d]);
                 continue;
             }
@@ -182,7 +182,7 @@ impl<'a> Placed<'a> {
                 };
                 let [a, d] = previous.unwrap_or_else(|| station(k - 1));
                 let [b, c] = station(k);
-                push_quad(buffers, [a, b, c, d], facing);
+                buffers.push_quad([a, b, c, d], facing);
                 previous = Some([b, c]);
                 continue;
             }
@@ -219,16 +219,5 @@ impl<'a> Placed<'a> {
             let facing = [inner[0] - along[0], 0.0, inner[1] - along[1]];
             buffers.push_flat_polygon(&corners, facing, self.band.feature);
         }
-    }
-}
-
-/// Two triangles over four vertices in order round a quad, wound to face `facing`.
-fn push_quad(buffers: &mut MeshBuffers, [a, b, c, d]: [u32; 4], facing: [f64; 3]) {
-    let corner = |i: u32| buffers.positions[i as usize].map(f64::from);
-    let normal = triangle_normal([corner(a), corner(b), corner(c)]);
-    if dot(normal, facing) >= 0.0 {
-        buffers.indices.extend_from_slice(&[a, b, c, a, c, d]);
-    } else {
-        buffers.indices.extend_from_slice(&[a, c, b, a, d, c]);
     }
 }

@@ -10,6 +10,7 @@
 
 use std::collections::{BTreeMap, HashMap};
 
+use super::drawn_ground::DrawnGround;
 use super::{markings, structure_lines, MeshBuffers, Part};
 use crate::elevation::structures::{plan_tunnel, tube_heights, Profile, Settled, Station};
 use crate::features::markings::LanePlan;
@@ -47,6 +48,8 @@ pub struct Context<'a> {
     /// The feature row and plan of the lines painted on each structure way that has any (by
     /// index into `ways`).
     pub lines: &'a HashMap<u32, (u32, LanePlan)>,
+    /// The ground as drawn, into which a tunnel's ramps are cut.
+    pub ground: &'a DrawnGround<'a>,
 }
 
 /// Draws every bridge and tunnel of the settled groups that reaches into the tile into
@@ -210,16 +213,15 @@ impl Drawer<'_, '_> {
                     run.feature,
                 );
             }
-            self.lines(&run);
+            self.lines(&run, false);
         }
         self.piers(profile);
     }
 
-    /// The lines painted on a run's top (a deck, a tunnel's floor) where its way has any. A
-    /// tunnel's ramps, cut into the ground and drawn as it is, get none: the ground's roads
-    /// meet them there, and their lines would need cutting back at those junctions as the
-    /// road network's are.
-    fn lines(&mut self, run: &Run) {
+    /// The lines painted on a run's top (a deck, a tunnel's floor) where its way has any, or
+    /// on a tunnel's ramp (`ramp`), which is cut into the ground and drawn as part of it: its
+    /// lines lie on the ground as drawn, as the ground roads' do.
+    fn lines(&mut self, run: &Run, ramp: bool) {
         let Some((feature, plan)) = self.context.lines.get(&run.way) else {
             return;
         };
@@ -231,7 +233,8 @@ impl Drawer<'_, '_> {
         let way_line = self.context.projection.points(&way.positions);
         let metre = self.in_units(way, 1.0);
         let lines = structure_lines::lines(*feature, plan, &top, &way_line, (width, metre));
-        markings::paint(self.parts, &lines, self.context.frame, &top);
+        let surface: &dyn markings::Canvas = if ramp { self.context.ground } else { &top };
+        markings::paint(self.parts, &lines, self.context.frame, surface);
     }
 
     fn piers(&mut self, profile: &Profile) {
@@ -330,7 +333,12 @@ impl Drawer<'_, '_> {
                         );
                     }
                 }
-                self.lines(&run);
+                self.lines(&run, false);
+            }
+        }
+        for &(from, to) in &plan.ramps {
+            for run in self.runs(&profile.stretch(from, to)) {
+                self.lines(&run, true);
             }
         }
         // The opening at each portal, facing out along the ramp.

@@ -423,6 +423,55 @@ fn assert_paint_just_above_the_road(tile: &DecodedTile, material: &str) {
     );
 }
 
+#[test]
+fn paint_lies_just_above_the_road_as_drawn_over_rolling_ground() {
+    // A four-lane road with a zebra crossing over ground that rises and falls 20 m every
+    // 340 m or so: the road as drawn leaves its settled profile by up to the mesh's error bound.
+    let mut fixture = Fixture::default();
+    fixture
+        .way(
+            &[("highway", "primary"), ("lanes", "4")],
+            &[(-0.2, 0.5), (0.45, 0.5), (1.2, 0.5)],
+        )
+        .tag_node(
+            (0.45, 0.5),
+            &[("highway", "crossing"), ("crossing", "zebra")],
+        );
+    let tile = drawn(
+        &fixture,
+        &terrain(|lon, _| 100.0 + 20.0 * (lon * 1500.0).sin()),
+    );
+    let size = tile.tile_size();
+    let road = GroundLocator::new(corners(tile.primitives("road")), size);
+    let (mut checked, mut off) = (0, Vec::new());
+    for primitive in tile.primitives("marking") {
+        for t in primitive.indices.chunks_exact(3) {
+            let corners = [0, 1, 2].map(|k| primitive.positions[t[k] as usize].map(f64::from));
+            let middle = |axis: usize| corners.iter().map(|c| c[axis]).sum::<f64>() / 3.0;
+            let (x, y, z) = (middle(0), middle(1), middle(2));
+            let Some(lift) = road
+                .heights_at(x, z, 1e-9)
+                .into_iter()
+                .map(|h| (y - h) / scale())
+                .min_by(|a, b| a.abs().total_cmp(&b.abs()))
+            else {
+                continue;
+            };
+            checked += 1;
+            if !(0.005..0.06).contains(&lift) {
+                off.push((primitive.material.clone(), x / size, lift));
+            }
+        }
+    }
+    assert!(checked > 500, "{checked} painted triangles over the road");
+    assert!(
+        off.is_empty(),
+        "{} of {checked} painted triangles off the road: {:?}",
+        off.len(),
+        &off[..off.len().min(8)]
+    );
+}
+
 /// A painted triangle: its middle (fractions of the tile east and south), its distance south
 /// of a place (metres) and its middle's height (metres).
 struct Painted {
