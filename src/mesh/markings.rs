@@ -223,28 +223,38 @@ fn strip(
         );
         return;
     }
-    // The parts share their vertices, a pair across each cut.
+    // The parts share their vertices, a pair across each cut, and nothing is painted where the
+    // surface is not drawn.
+    let at = |p: Point| Some(local(p, surface.drawn_at(p)?));
     let mut previous: Option<[u32; 2]> = None;
     for pair in shares.windows(2) {
         let part = outline(pair[0], pair[1]);
-        // Nothing is painted where the surface is not drawn.
-        let Some(corners) = part
+        let n = part.len();
+        let Some(ahead) = part[1..n - 1]
             .iter()
-            .map(|&p| Some(local(p, surface.drawn_at(p)?)))
+            .map(|&p| at(p))
             .collect::<Option<Vec<_>>>()
         else {
             previous = None;
             continue;
         };
+        // The start's corners are the previous part's end, where it was drawn.
+        let [l0, r0] = match previous {
+            Some(pushed) => pushed,
+            None => {
+                let (Some(left), Some(right)) = (at(part[0]), at(part[n - 1])) else {
+                    continue;
+                };
+                [left, right].map(|c| buffers.push_vertex(c, UP, feature))
+            }
+        };
         let mut push = |c: [f64; 3]| buffers.push_vertex(c, UP, feature);
-        let n = corners.len();
-        let [l0, r0] = previous.unwrap_or_else(|| [corners[0], corners[n - 1]].map(&mut push));
         if n == 3 {
-            let t = push(corners[1]);
+            let t = push(ahead[0]);
             push_facing_up(buffers, &[l0, t, r0]);
             previous = None;
         } else {
-            let [l1, r1] = [corners[1], corners[2]].map(&mut push);
+            let [l1, r1] = [ahead[0], ahead[1]].map(&mut push);
             push_facing_up(buffers, &[l0, l1, r1, r0]);
             previous = Some([l1, r1]);
         }
