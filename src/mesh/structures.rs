@@ -75,6 +75,15 @@ struct Drawer<'a, 'b> {
     parts: &'a mut BTreeMap<Part, MeshBuffers>,
 }
 
+/// A quad of a strip along a structure, in (u, v, elevation): from one cross-section's edge
+/// to the next (the corners of each edge in the same order), with the normal at each
+/// (in the same axes).
+struct Quad {
+    from: [[f64; 3]; 2],
+    to: [[f64; 3]; 2],
+    normals: [[f64; 3]; 2],
+}
+
 /// A run of stations on one way, widened.
 struct Run {
     feature: u32,
@@ -153,6 +162,48 @@ impl Drawer<'_, '_> {
         }
     }
 
+    /// Adds a quad of a strip (see [`Quad`]) to `part`: inside the tile it shares the
+    /// vertices of its `from` edge with the quad before it (`previous`, the last quad's `to`
+    /// vertices, updated), each vertex with its station's normal; across the tile's edge it
+    /// is clipped and drawn flat, and the strip starts again after it.
+    fn strip_quad(
+        &mut self,
+        (part, feature): (Part, u32),
+        previous: &mut Option<[u32; 2]>,
+        quad: &Quad,
+    ) {
+        let corners = [quad.from[0], quad.to[0], quad.to[1], quad.from[1]];
+        let facing = {
+            let [n0, n1] = quad.normals;
+            [n0[0] + n1[0], n0[1] + n1[1], n0[2] + n1[2]]
+        };
+        let inside = |c: &[f64; 3]| self.rect.contains([c[0], c[1]]);
+        if !corners.iter().all(inside) {
+            *previous = None;
+            self.face(part, &corners, facing, feature);
+            return;
+        }
+        let frame = self.context.frame;
+        let local = |[u, v, elevation]: [f64; 3]| {
+            let (x, z) = frame.uv_to_local(u, v);
+            [x, frame.elevation_to_y(elevation, z), z]
+        };
+        let normal = |n: [f64; 3]| {
+            let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+                .sqrt()
+                .max(f64::MIN_POSITIVE);
+            [n[0] / length, n[2] / length, n[1] / length]
+        };
+        let buffers = self.parts.entry(part).or_default();
+        let mut edge = |edge: [[f64; 3]; 2], n: [f64; 3]| {
+            edge.map(|c| buffers.push_vertex(local(c), normal(n), feature))
+        };
+        let [a, d] = previous.unwrap_or_else(|| edge(quad.from, quad.normals[0]));
+        let [b, c] = edge(quad.to, quad.normals[1]);
+        buffers.push_quad([a, b, c, d], normal(facing));
+        *previous = Some([b, c]);
+    }
+
     fn bridge(&mut self, profile: &Profile) {
         let n = profile.points.len();
         let length = profile.along_m[n - 1];
@@ -163,32 +214,39 @@ impl Drawer<'_, '_> {
             let thickness = traits.deck_thickness_m;
             let deck = Part::BridgeDeck(traits.paving);
             let s = &run.stations;
+            let at = |p: Point, e: f64| [p[0], p[1], e];
+            // The deck's top, its underside and each side: strips as a tunnel's are.
+            let mut strips = [None; 4];
+            let out = |k: usize, side: &[Point]| {
+                let (c, p) = (s[k].point, side[k]);
+                [p[0] - c[0], p[1] - c[1], 0.0]
+            };
             for k in 0..s.len() - 1 {
                 let (e0, e1) = (s[k].elevation, s[k + 1].elevation);
+                let (b0, b1) = (e0 - thickness, e1 - thickness);
                 let (l0, l1, r0, r1) =
                     (run.left[k], run.left[k + 1], run.right[k], run.right[k + 1]);
-                let at = |p: Point, e: f64| [p[0], p[1], e];
-                self.face(
-                    deck,
-                    &[at(l0, e0), at(l1, e1), at(r1, e1), at(r0, e0)],
-                    [0.0, 0.0, 1.0],
-                    run.feature,
-                );
-                let (b0, b1) = (e0 - thickness, e1 - thickness);
-                self.face(
-                    Part::BridgeStructure,
-                    &[at(l0, b0), at(l1, b1), at(r1, b1), at(r0, b0)],
-                    [0.0, 0.0, -1.0],
-                    run.feature,
-                );
-                for (p0, p1, centre) in [(l0, l1, s[k].point), (r0, r1, s[k].point)] {
-                    let out = [p0[0] - centre[0], p0[1] - centre[1], 0.0];
-                    self.face(
-                        Part::BridgeStructure,
-                        &[at(p0, e0), at(p1, e1), at(p1, b1), at(p0, b0)],
-                        out,
-                        run.feature,
-                    );
+                let quad = Quad {
+                    from: [at(l0, e0), at(r0, e0)],
+                    to: [at(l1, e1), at(r1, e1)],
+                    normals: [[0.0, 0.0, 1.0]; 2],
+                };
+                self.strip_quad((deck, run.feature), &mut strips[0], &quad);
+                let quad = Quad {
+                    from: [at(l0, b0), at(r0, b0)],
+                    to: [at(l1, b1), at(r1, b1)],
+                    normals: [[0.0, 0.0, -1.0]; 2],
+                };
+                let part = (Part::BridgeStructure, run.feature);
+                self.strip_quad(part, &mut strips[1], &quad);
+                for (side, strip) in [(&run.left, 2), (&run.right, 3)] {
+                    let (p0, p1) = (side[k], side[k + 1]);
+                    let quad = Quad {
+                        from: [at(p0, e0), at(p0, b0)],
+                        to: [at(p1, e1), at(p1, b1)],
+                        normals: [out(k, side), out(k + 1, side)],
+                    };
+                    self.strip_quad(part, &mut strips[strip], &quad);
                 }
             }
             // Ends of the deck.
@@ -305,32 +363,39 @@ impl Drawer<'_, '_> {
                 let floor = Part::TunnelFloor(traits.paving);
                 let s = &run.stations;
                 let at = |p: Point, e: f64| [p[0], p[1], e];
+                // The floor, the ceiling and each wall: strips whose quads inside the tile share
+                // their cross-sections, lit as one smooth surface along the tube.
+                let mut strips = [None; 4];
+                let inward = |k: usize, side: &[Point]| {
+                    let (c, p) = (s[k].point, side[k]);
+                    [c[0] - p[0], c[1] - p[1], 0.0]
+                };
                 for k in 0..s.len() - 1 {
                     let (e0, e1) = (s[k].elevation, s[k + 1].elevation);
                     let (c0, c1) = (e0 + height, e1 + height);
                     let (l0, l1, r0, r1) =
                         (run.left[k], run.left[k + 1], run.right[k], run.right[k + 1]);
-                    self.face(
-                        floor,
-                        &[at(l0, e0), at(l1, e1), at(r1, e1), at(r0, e0)],
-                        [0.0, 0.0, 1.0],
-                        run.feature,
-                    );
-                    self.face(
-                        Part::TunnelLining,
-                        &[at(l0, c0), at(l1, c1), at(r1, c1), at(r0, c0)],
-                        [0.0, 0.0, -1.0],
-                        run.feature,
-                    );
-                    for (p0, p1) in [(l0, l1), (r0, r1)] {
-                        let centre = s[k].point;
-                        let inward = [centre[0] - p0[0], centre[1] - p0[1], 0.0];
-                        self.face(
-                            Part::TunnelLining,
-                            &[at(p0, e0), at(p1, e1), at(p1, c1), at(p0, c0)],
-                            inward,
-                            run.feature,
-                        );
+                    let quad = Quad {
+                        from: [at(l0, e0), at(r0, e0)],
+                        to: [at(l1, e1), at(r1, e1)],
+                        normals: [[0.0, 0.0, 1.0]; 2],
+                    };
+                    self.strip_quad((floor, run.feature), &mut strips[0], &quad);
+                    let quad = Quad {
+                        from: [at(l0, c0), at(r0, c0)],
+                        to: [at(l1, c1), at(r1, c1)],
+                        normals: [[0.0, 0.0, -1.0]; 2],
+                    };
+                    self.strip_quad((Part::TunnelLining, run.feature), &mut strips[1], &quad);
+                    for (side, strip) in [(&run.left, 2), (&run.right, 3)] {
+                        let (p0, p1) = (side[k], side[k + 1]);
+                        let quad = Quad {
+                            from: [at(p0, e0), at(p0, c0)],
+                            to: [at(p1, e1), at(p1, c1)],
+                            normals: [inward(k, side), inward(k + 1, side)],
+                        };
+                        let part = (Part::TunnelLining, run.feature);
+                        self.strip_quad(part, &mut strips[strip], &quad);
                     }
                 }
                 self.lines(&run, false);

@@ -537,7 +537,8 @@ fn bridge_decks_stand_clear_of_the_ground_under_and_beside_them() {
         buried_share * 100.0,
         clear_share * 100.0
     );
-    assert!(mid_span > 1000, "only {mid_span} deck vertices");
+    // A deck's top is a strip: consecutive quads share their vertices.
+    assert!(mid_span > 500, "only {mid_span} deck vertices");
     assert!(buried_share <= 0.01);
     assert!(clear_share >= 0.99);
 }
