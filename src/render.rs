@@ -751,7 +751,7 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         slivers,
     } = mesh::ground_parts::ground_parts(
         ground,
-        &feature_set.surfaces,
+        (&feature_set.surfaces, &feature_set.features),
         normals,
         frame,
         SKIRT_ERRORS * surface_margin_m,

@@ -5,8 +5,9 @@
 use std::collections::BTreeMap;
 
 use super::ground::Ground;
+use super::ground_look::{GroundLook, Site};
 use super::{dot, triangle_normal, MeshBuffers, Part};
-use crate::features::Surface;
+use crate::features::{FeatureClass, FeatureInfo, Surface};
 use crate::tile::TileFrame;
 
 /// The ground drawn as parts.
@@ -24,7 +25,7 @@ pub struct GroundParts {
 /// tile's sides the ground hangs a skirt `skirt_y` deep (local units; none when 0).
 pub fn ground_parts(
     ground: &Ground,
-    surfaces: &[Surface],
+    (surfaces, features): (&[Surface], &[FeatureInfo]),
     normals: &[[f64; 3]],
     frame: &TileFrame,
     skirt_y: f64,
@@ -43,6 +44,8 @@ pub fn ground_parts(
         edges: Vec::new(),
     };
     let mut slivers = 0;
+    let look = GroundLook::new(frame);
+    let at_building = building_outlines(ground, surfaces);
     for triangle in &ground.triangles {
         let part = match triangle.surface {
             Some(index) => {
@@ -69,6 +72,14 @@ pub fn ground_parts(
             continue;
         }
         let buffers = parts.entry(part).or_default();
+        let varies = GroundLook::varies(part);
+        let (element, large) = match triangle.surface {
+            Some(index) => (
+                features.get(feature as usize).and_then(|f| f.element),
+                spans_parcels(&surfaces[index as usize], frame.size_m),
+            ),
+            None => (None, true),
+        };
         // Water lies level, or all but: straight up is its normal. The ground vertex's own,
         // averaged with the banks and cliffs that share it, would streak a sea kilometres
         // wide with the coast's slopes.
@@ -78,6 +89,17 @@ pub fn ground_parts(
                 .entry((part, vertex, feature))
                 .or_insert_with(|| {
                     let [x, z] = ground.vertices[vertex as usize];
+                    if varies {
+                        let site = Site {
+                            at: [x, z],
+                            elevation_m: ground.elevations[vertex as usize],
+                            up: normals[vertex as usize][1],
+                            element,
+                            at_building: at_building[vertex as usize],
+                            large,
+                        };
+                        buffers.paint(look.colour(part, &site));
+                    }
                     buffers.push_vertex(
                         [x, vertex_y[vertex as usize], z],
                         if up {
@@ -100,6 +122,33 @@ pub fn ground_parts(
         vertex_y,
         slivers,
     }
+}
+
+/// Whether a surface spans more than a couple of the land's parcels (its bounds in global
+/// tile units, `size` map metres to the unit).
+fn spans_parcels(surface: &Surface, size: f64) -> bool {
+    let (w, h) = (
+        surface.bounds.max[0] - surface.bounds.min[0],
+        surface.bounds.max[1] - surface.bounds.min[1],
+    );
+    w.max(h) * size > super::ground_look::FIELD_M
+}
+
+/// Which ground vertices lie on a building's outline: the corners of the triangles under a
+/// building's footprint (which the tile leaves out) that the ground around it shares.
+fn building_outlines(ground: &Ground, surfaces: &[Surface]) -> Vec<bool> {
+    let mut outline = vec![false; ground.vertices.len()];
+    for triangle in &ground.triangles {
+        let under_building = triangle
+            .surface
+            .is_some_and(|index| surfaces[index as usize].class == FeatureClass::Building);
+        if under_building {
+            for v in triangle.vertices {
+                outline[v as usize] = true;
+            }
+        }
+    }
+    outline
 }
 
 /// The ground's skirt: under each edge of a ground triangle that lies along a side of the

@@ -7,6 +7,7 @@ pub mod drawn_ground;
 pub mod facades;
 pub mod flatten;
 pub mod ground;
+pub mod ground_look;
 pub mod ground_parts;
 pub mod instances;
 pub mod markings;

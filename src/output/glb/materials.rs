@@ -16,7 +16,7 @@ pub(super) fn metallic_of(part: Part) -> f32 {
 /// Base colour, roughness per part.
 pub(super) fn material_of(part: Part) -> ([f32; 4], f32) {
     match part {
-        Part::Terrain => ([0.42, 0.52, 0.30, 1.0], 0.95),
+        Part::Terrain => (crate::mesh::ground_look::TERRAIN, 0.95),
         Part::Rock => Cover::BareRock.material(),
         Part::Skirt => material_of(Part::Terrain),
         Part::Road(paving) => paving.material(),

@@ -330,6 +330,8 @@ pub struct Primitive {
     pub indices: Vec<u32>,
     /// Texture coordinates, where the primitive is textured.
     pub uvs: Vec<[f32; 2]>,
+    /// Colours (linear RGBA), where its vertices carry their own.
+    pub colours: Vec<[u8; 4]>,
 }
 
 impl Primitive {
@@ -427,6 +429,10 @@ pub fn decode(bytes: &[u8]) -> DecodedTile {
                 .read_tex_coords(0)
                 .map(|t| t.into_f32().collect())
                 .unwrap_or_default();
+            let colours: Vec<[u8; 4]> = reader
+                .read_colors(0)
+                .map(|c| c.into_rgba_u8().collect())
+                .unwrap_or_default();
             primitives.push(Primitive {
                 material: primitive.material().name().unwrap_or_default().to_string(),
                 positions,
@@ -434,6 +440,7 @@ pub fn decode(bytes: &[u8]) -> DecodedTile {
                 feature_ids,
                 indices,
                 uvs,
+                colours,
             });
         }
         nodes.insert(name, primitives);
