@@ -1,8 +1,9 @@
 //! Objects of street level a simple model describes well enough (paper 001 §4.3): street lamps,
 //! benches, bollards, waste baskets, post boxes, fire hydrants, bus stops and shelters, bicycle
 //! stands, flagpoles, memorials, traffic signals and stop and give-way signs, power poles and
-//! towers, wind turbines. Mapped as nodes, drawn as instances of one model per kind. Signals,
-//! signs and bus stops mapped on a road stand at its edge ([`super::carriageways`] places them).
+//! towers, wind turbines, and doors at the entrances mapped on a building's outline. Mapped as
+//! nodes, drawn as instances of one model per kind. Signals, signs and bus stops mapped on a
+//! road stand at its edge ([`super::carriageways`] places them).
 
 use super::{FeatureClass, FeatureSet, Projection};
 use crate::geometry::{Point, Rect};
@@ -32,10 +33,12 @@ pub enum ObjectKind {
     TrafficSignals,
     StopSign,
     GiveWaySign,
+    /// A door in a building's wall, at an `entrance=*` node of its outline.
+    Door,
 }
 
 impl ObjectKind {
-    pub const ALL: [ObjectKind; 17] = [
+    pub const ALL: [ObjectKind; 18] = [
         ObjectKind::StreetLamp,
         ObjectKind::Bench,
         ObjectKind::Bollard,
@@ -53,6 +56,7 @@ impl ObjectKind {
         ObjectKind::TrafficSignals,
         ObjectKind::StopSign,
         ObjectKind::GiveWaySign,
+        ObjectKind::Door,
     ];
 
     pub fn from_tags(tags: &Tags) -> Option<ObjectKind> {
@@ -148,6 +152,7 @@ impl ObjectKind {
             ObjectKind::TrafficSignals => "traffic_signals",
             ObjectKind::StopSign => "stop_sign",
             ObjectKind::GiveWaySign => "give_way_sign",
+            ObjectKind::Door => "door",
         }
     }
 
@@ -171,6 +176,7 @@ impl ObjectKind {
             ObjectKind::TrafficSignals => ([0.10, 0.10, 0.11, 1.0], 0.5),
             ObjectKind::StopSign => ([0.62, 0.04, 0.04, 1.0], 0.5),
             ObjectKind::GiveWaySign => ([0.80, 0.78, 0.76, 1.0], 0.5),
+            ObjectKind::Door => ([0.17, 0.11, 0.07, 1.0], 0.7),
         }
     }
 }
@@ -240,6 +246,7 @@ pub(super) fn collect(
     (road_sides, lit): (&[RoadSide], &[LitWay]),
 ) {
     collect_mapped(set, selection, projection, rect, road_sides);
+    collect_doors(set, selection, projection, rect);
     let mapped: Vec<Point> = selection
         .nodes
         .iter()
@@ -317,6 +324,99 @@ fn collect_mapped(
             });
         }
     }
+}
+
+/// How far a door's foot stands out of its wall, metres: on the ground outside the building.
+const DOOR_OUT_M: f64 = 0.05;
+
+/// Whether a node's tags map a way into a building.
+fn is_entrance(tags: &Tags) -> bool {
+    tags.get("entrance").is_some_and(|v| v != "no") || tags.get("door").is_some_and(|v| v != "no")
+}
+
+/// Adds a door at each entrance node of a building's outline that lies in `rect`, in the wall
+/// there and facing out of the building; an entrance on no building's outline has none.
+fn collect_doors(
+    set: &mut FeatureSet,
+    selection: &Selection<'_>,
+    projection: &Projection,
+    rect: &Rect,
+) {
+    let entrances: std::collections::BTreeMap<i64, &crate::osm::Node> = selection
+        .nodes
+        .iter()
+        .filter(|n| is_entrance(&n.tags) && rect.owns(projection.point(n.position)))
+        .map(|n| (n.id, *n))
+        .collect();
+    if entrances.is_empty() {
+        return;
+    }
+    let mut placed = std::collections::BTreeSet::new();
+    for way in &selection.ways {
+        let closed = way.nodes.len() >= 4 && way.nodes.first() == way.nodes.last();
+        if !closed || !way.tags.is_set("building") || way.nodes.len() != way.positions.len() {
+            continue;
+        }
+        let ring: Vec<Point> = way.positions[..way.positions.len() - 1]
+            .iter()
+            .map(|&p| projection.point(p))
+            .collect();
+        for (k, id) in way.nodes[..ring.len()].iter().enumerate() {
+            let Some(node) = entrances.get(id) else {
+                continue;
+            };
+            if placed.contains(id) {
+                continue;
+            }
+            let metre = projection.metres(1.0, node.position.lat);
+            let Some((at, rotation)) = door_in(&ring, k, metre) else {
+                continue;
+            };
+            placed.insert(*id);
+            let element = ElementRef {
+                element_type: ElementType::Node,
+                id: *id,
+            };
+            let feature = set.add_feature(Some(element), FeatureClass::Object, &node.tags);
+            set.objects.push(PointObject {
+                at,
+                kind: ObjectKind::Door,
+                rotation,
+                feature,
+            });
+        }
+    }
+}
+
+/// Where a door at corner `k` of a building's `ring` (global tile units, `metre` of them to
+/// a metre) stands and how it turns: just outside the wall, facing out, square to the wall
+/// from the corner before it to the one after.
+fn door_in(ring: &[Point], k: usize, metre: f64) -> Option<(Point, f64)> {
+    let n = ring.len();
+    let (before, after) = (ring[(k + n - 1) % n], ring[(k + 1) % n]);
+    let (du, dv) = (after[0] - before[0], after[1] - before[1]);
+    let length = du.hypot(dv);
+    if length <= 0.0 || metre <= 0.0 {
+        return None;
+    }
+    let mut out = [dv / length, -du / length];
+    let probe = |sign: f64| {
+        let at = ring[k];
+        [at[0] + sign * out[0] * metre, at[1] + sign * out[1] * metre]
+    };
+    if crate::geometry::ring_contains(ring, probe(0.5)) {
+        out = [-out[0], -out[1]];
+    } else if !crate::geometry::ring_contains(ring, probe(-0.5)) {
+        // Neither side is inside: a corner too sharp to stand a door in.
+        return None;
+    }
+    let at = ring[k];
+    let foot = [
+        at[0] + out[0] * DOOR_OUT_M * metre,
+        at[1] + out[1] * DOOR_OUT_M * metre,
+    ];
+    // A model faces north (-z); turned by θ about the vertical it faces (-sin θ, -cos θ).
+    Some((foot, (-out[0]).atan2(-out[1])))
 }
 
 #[cfg(test)]

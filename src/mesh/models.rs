@@ -199,6 +199,11 @@ fn furniture(b: &mut MeshBuffers, kind: ObjectKind) {
                 .collect();
             plate(b, &corners, 0.02);
         }
+        ObjectKind::Door => {
+            // A door leaf in its frame, 1 m by 2.1 m, facing north out of a wall just behind
+            // the foot (at z = 0.05), standing 6 cm out of it.
+            cuboid(b, [-0.5, -0.15, -0.01], [0.5, 2.1, 0.1]);
+        }
         ObjectKind::GiveWaySign => {
             lathe(b, &[(0.03, -0.3), (0.03, 2.2)]);
             // A triangle point down, 0.8 m a side, facing north.

@@ -1,7 +1,7 @@
 //! Rules of what a tile draws, each on a hand-written fixture rendered whole, as the server
 //! renders a tile: the sea on its side of a coastline, a river's width, a roof's tagged height,
 //! a passage through a building, the windows of its facade, sidewalks and lamps; what is painted on
-//! the roads is in [`markings`], how the ground looks in [`ground`]. Fast: no extract is read.
+//! the roads is in [`markings`], how the ground looks in [`ground`], where doors stand in [`doors`]. Fast: no extract is read.
 
 use crate::common::fixture::{at, terrain, Fixture, TILE};
 use crate::common::{along_side, corners, decode, DecodedTile, Feature, GroundLocator, Primitive};
@@ -12,6 +12,7 @@ use terrastitch::provider::inputs::{index_osm, QUERY_MARGIN_DEG};
 use terrastitch::render::{render, RenderSettings};
 use terrastitch::terrain::Mosaic;
 
+mod doors;
 mod ground;
 mod markings;
 
