@@ -184,6 +184,7 @@ def main():
                 "two_levels_or_more": len(windows),
                 "of_them_with_windows": sum(1 for _, has in windows.values() if has),
                 "without_windows_by_type": dict(unglazed.most_common()),
+                "without_windows": sorted(i for i, (_, has) in windows.items() if not has),
                 "shapes_by_type": {
                     k: dict(v.most_common())
                     for k, v in sorted(by_type.items(), key=lambda kv: -sum(kv[1].values()))

@@ -459,7 +459,7 @@ pub fn levels(
         Kind::House if footprint.area_m2 <= 300.0 => {
             let (fewest, more) = region.house_levels();
             // Very small footprints are sheds and annexes, not two-storey houses.
-            if footprint.area_m2 < 40.0 {
+            if footprint.area_m2 < SMALLEST_TWO_STOREYS_M2 {
                 return Some(1);
             }
             Some(fewest + extra(more))
@@ -474,10 +474,17 @@ pub fn levels(
         } else {
             4 + extra(2)
         }),
+        // A field barn or a hut of a few square metres is one storey; farm buildings are
+        // one or two.
+        Kind::Farm if footprint.area_m2 < SMALLEST_TWO_STOREYS_M2 => Some(1),
         Kind::Farm => Some(1 + extra(1)),
         _ => None,
     }
 }
+
+/// The least footprint, square metres, of a house or farm building inferred to have a second
+/// storey: smaller ones are sheds, annexes and field barns.
+const SMALLEST_TWO_STOREYS_M2: f64 = 40.0;
 
 const SALT_ROOF_COLOUR: u64 = 4;
 const SALT_WALL_COLOUR: u64 = 5;

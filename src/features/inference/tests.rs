@@ -216,6 +216,25 @@ fn houses_have_levels_by_region_and_sheds_keep_their_type_height() {
 }
 
 #[test]
+fn a_field_barn_of_a_few_square_metres_has_one_storey_and_a_farm_building_one_or_two() {
+    let hut = Footprint::of(&rectangle(BAVARIA, 4.5, 4.0)).unwrap();
+    let barn = Footprint::of(&rectangle(BAVARIA, 20.0, 12.0)).unwrap();
+    let mut two = 0;
+    for id in 1..=100 {
+        for building in ["barn", "stable"] {
+            assert_eq!(
+                levels(building, &hut, Region::Alpine, Some(way(id))),
+                Some(1)
+            );
+            let n = levels(building, &barn, Region::Alpine, Some(way(id))).unwrap();
+            assert!((1..=2).contains(&n), "{n}");
+            two += usize::from(n == 2);
+        }
+    }
+    assert!(two > 0);
+}
+
+#[test]
 fn a_row_takes_one_style_without_variation_and_its_ridge_along_the_row() {
     let house = Footprint::of(&rectangle(BAVARIA, 6.0, 10.0)).unwrap();
     let roofs: Vec<InferredRoof> = (0..3)
