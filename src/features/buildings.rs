@@ -17,6 +17,7 @@ use super::{
     facades, inference, Area, BuildingShape, FeatureClass, FeatureSet, FeatureSettings,
     InferredTags, Projection, Surface,
 };
+use crate::geometry::Point;
 use crate::osm::units::{parse_count, parse_length_m};
 use crate::osm::{ElementRef, Relation, Tags};
 
@@ -580,7 +581,7 @@ pub(super) fn add_area(
     area: &Area<'_>,
     projection: &Projection,
     settings: &FeatureSettings,
-    rows: &HashMap<ElementRef, f64>,
+    (rows, shops): (&HashMap<ElementRef, f64>, &[Point]),
 ) {
     let part = is_building_part(area.tags);
     if !is_building(area.tags) && !part {
@@ -618,7 +619,16 @@ pub(super) fn add_area(
         }
     }
     let footprint = largest.as_ref().map(|(_, footprint)| footprint);
-    let facade = facades::facade(area.tags, footprint, levels, settings);
+    let mut facade = facades::facade(area.tags, footprint, levels, settings);
+    let lat = area
+        .polygons
+        .first()
+        .and_then(|p| p.outer.first())
+        .map_or(0.0, |p| p.lat);
+    let widest = projection.metres(facades::WIDEST_WITH_SHOP_NODES_M, lat);
+    if !part && facades::has_shop_inside(&footprints, shops, widest) {
+        facade = facade.with_shop_inside();
+    }
     let min_height = min_height_m(area.tags, settings).min(height);
     let feature = set.add_feature(Some(area.element), FeatureClass::Building, area.tags);
     set.features[feature as usize].inferred = inferred;

@@ -10,6 +10,7 @@
 
 use super::inference::Footprint;
 use super::FeatureSettings;
+use crate::geometry::{ring_contains, Point, Polygon, Rect};
 use crate::osm::units::{parse_count, parse_length_m};
 use crate::osm::Tags;
 
@@ -161,8 +162,12 @@ fn is_worship(building: &str) -> bool {
 
 /// Whether the ground floor is a shop, a café or a bank: shop windows.
 fn has_shop(tags: &Tags, building: &str) -> bool {
-    matches!(building, "retail" | "supermarket" | "kiosk" | "commercial")
-        || tags.is_set("shop")
+    matches!(building, "retail" | "supermarket" | "kiosk" | "commercial") || is_shop(tags)
+}
+
+/// Whether tags (a building's, or a node's inside one) map a shop, a café, a bank…
+pub fn is_shop(tags: &Tags) -> bool {
+    tags.is_set("shop")
         || matches!(
             tags.get("amenity"),
             Some(
@@ -176,6 +181,49 @@ fn has_shop(tags: &Tags, building: &str) -> bool {
                     | "ice_cream"
             )
         )
+}
+
+impl Facade {
+    /// The facade of a building with a shop mapped inside it (a node): shop windows on its
+    /// ground floor, where its walls have windows at all and are not glass.
+    pub fn with_shop_inside(mut self) -> Facade {
+        if self.ground.is_none() && matches!(self.upper, Some(Glazing::Punched | Glazing::Ribbon)) {
+            self.ground = Some(Glazing::Shopfront);
+        }
+        self
+    }
+}
+
+/// The widest building, metres across its bounds, whose shops mapped as nodes inside it give
+/// it shop windows: every tile that draws a building this small reads the nodes inside it (a
+/// tile reads the nodes within `QUERY_MARGIN_DEG`, 160 m and more, of its edges), so all
+/// agree on its facade.
+pub const WIDEST_WITH_SHOP_NODES_M: f64 = 150.0;
+
+/// Whether a shop node (`shops`, global tile units) lies inside one of a building's
+/// `footprints`, when the building is at most `widest` (tile units) across, small enough for
+/// every tile that draws it to see them.
+pub fn has_shop_inside(footprints: &[Polygon], shops: &[Point], widest: f64) -> bool {
+    if shops.is_empty() {
+        return false;
+    }
+    let bounds = footprints
+        .iter()
+        .map(|f| Rect::around(&f.outer))
+        .reduce(|a, b| a.union(&b));
+    let Some(bounds) = bounds else {
+        return false;
+    };
+    let across = (bounds.max[0] - bounds.min[0]).max(bounds.max[1] - bounds.min[1]);
+    if across > widest {
+        return false;
+    }
+    shops.iter().any(|&p| {
+        bounds.contains(p)
+            && footprints
+                .iter()
+                .any(|f| ring_contains(&f.outer, p) && !f.holes.iter().any(|h| ring_contains(h, p)))
+    })
 }
 
 /// The facade of a building (or part) from its tags and its footprint (`None` when it could
@@ -399,5 +447,51 @@ mod tests {
             CHURCH_LEVEL_M
         );
         assert_eq!(level(&[("building", "house")]), s.level_height_m);
+    }
+
+    #[test]
+    fn a_shop_node_inside_a_small_building_gives_it_shop_windows() {
+        let square = |x0: f64, side: f64| Polygon {
+            outer: vec![[x0, 0.0], [x0 + side, 0.0], [x0 + side, side], [x0, side]],
+            holes: Vec::new(),
+        };
+        let courtyard = Polygon {
+            outer: square(0.0, 10.0).outer,
+            holes: vec![square(4.0, 2.0)
+                .outer
+                .iter()
+                .map(|p| [p[0], p[1] + 4.0])
+                .collect()],
+        };
+        let widest = 50.0;
+        assert!(has_shop_inside(&[square(0.0, 10.0)], &[[5.0, 5.0]], widest));
+        assert!(!has_shop_inside(
+            &[square(0.0, 10.0)],
+            &[[15.0, 5.0]],
+            widest
+        ));
+        assert!(!has_shop_inside(&[courtyard], &[[5.0, 5.0]], widest));
+        // Too wide for every tile drawing it to see the node.
+        assert!(!has_shop_inside(
+            &[square(0.0, 60.0)],
+            &[[5.0, 5.0]],
+            widest
+        ));
+        let s = FeatureSettings::default();
+        let flats = facade(
+            &tags(&[("building", "apartments")]),
+            Some(&house(400.0)),
+            None,
+            &s,
+        );
+        assert_eq!(flats.ground, None);
+        assert_eq!(flats.with_shop_inside().ground, Some(Glazing::Shopfront));
+        let garage = facade(
+            &tags(&[("building", "garage")]),
+            Some(&house(40.0)),
+            None,
+            &s,
+        );
+        assert_eq!(garage.with_shop_inside().ground, None);
     }
 }

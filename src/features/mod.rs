@@ -530,6 +530,12 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     set.add_feature(None, FeatureClass::Terrain, &Tags::default());
     let areas = areas_of(selection);
     let rows = rows::shared_walls(&areas);
+    let shops: Vec<Point> = selection
+        .nodes
+        .iter()
+        .filter(|n| facades::is_shop(&n.tags))
+        .map(|n| projection.point(n.position))
+        .collect();
     let carriageways = carriageways::add_roads(
         &mut set,
         &selection.ways,
@@ -547,7 +553,7 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
         roads::add_area(&mut set, area, &projection);
         water::add_area(&mut set, area, &projection);
         landcover::add_area(&mut set, area, &projection);
-        buildings::add_area(&mut set, area, &projection, settings, &rows);
+        buildings::add_area(&mut set, area, &projection, settings, (&rows, &shops));
     }
     buildings::link_building_relations(&mut set, &selection.relations);
     buildings::replace_outlines_by_parts(&mut set);
