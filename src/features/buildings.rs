@@ -625,7 +625,9 @@ pub(super) fn add_area(
         .first()
         .and_then(|p| p.outer.first())
         .map_or(0.0, |p| p.lat);
-    let widest = projection.metres(facades::WIDEST_WITH_SHOP_NODES_M, lat);
+    let widest = projection
+        .metres(facades::WIDEST_WITH_SHOP_NODES_M, lat)
+        .min(facades::WIDEST_WITH_SHOP_NODES_DEG / 360.0 * projection.tiles_per_axis());
     if !part && facades::has_shop_inside(&footprints, shops, widest) {
         facade = facade.with_shop_inside();
     }

@@ -194,11 +194,12 @@ impl Facade {
     }
 }
 
-/// The widest building, metres across its bounds, whose shops mapped as nodes inside it give
-/// it shop windows: every tile that draws a building this small reads the nodes inside it (a
-/// tile reads the nodes within `QUERY_MARGIN_DEG`, 160 m and more, of its edges), so all
-/// agree on its facade.
+/// The widest building, metres and degrees of longitude across its bounds, whose shops mapped
+/// as nodes inside it give it shop windows: every tile that draws a building this small reads
+/// the nodes inside it (a tile reads the nodes within `QUERY_MARGIN_DEG`, 0.002°, of its
+/// edges), so all agree on its facade.
 pub const WIDEST_WITH_SHOP_NODES_M: f64 = 150.0;
+pub const WIDEST_WITH_SHOP_NODES_DEG: f64 = 0.0018;
 
 /// Whether a shop node (`shops`, global tile units) lies inside one of a building's
 /// `footprints`, when the building is at most `widest` (tile units) across, small enough for
