@@ -84,6 +84,16 @@ struct Quad {
     normals: [[f64; 3]; 2],
 }
 
+/// A box section drawn along a run: a surface facing up at the stations' elevation (a deck's
+/// top, a tunnel's floor), one facing down `down_m` metres from it (the deck's underside, the
+/// tunnel's ceiling) and the sides between, facing out of the box or into it.
+struct Section {
+    /// The parts of the surface facing up, the one facing down and the sides.
+    parts: [Part; 3],
+    down_m: f64,
+    sides_out: bool,
+}
+
 /// A run of stations on one way, widened.
 struct Run {
     feature: u32,
@@ -162,6 +172,47 @@ impl Drawer<'_, '_> {
         }
     }
 
+    /// Draws a run's box section (see [`Section`]) as four strips along its stations: the
+    /// surface facing up, the one facing down and each side; quads inside the tile share
+    /// their cross-sections, lit as one smooth surface along the way.
+    fn strips(&mut self, run: &Run, section: &Section) {
+        let s = &run.stations;
+        let at = |p: Point, e: f64| [p[0], p[1], e];
+        let [up, down, sides] = section.parts.map(|part| (part, run.feature));
+        let facing = |k: usize, side: &[Point]| {
+            let (c, p) = (s[k].point, side[k]);
+            let (from, to) = if section.sides_out { (c, p) } else { (p, c) };
+            [to[0] - from[0], to[1] - from[1], 0.0]
+        };
+        let mut strips = [None; 4];
+        for k in 0..s.len() - 1 {
+            let (e0, e1) = (s[k].elevation, s[k + 1].elevation);
+            let (d0, d1) = (e0 + section.down_m, e1 + section.down_m);
+            let (l0, l1, r0, r1) = (run.left[k], run.left[k + 1], run.right[k], run.right[k + 1]);
+            let quad = Quad {
+                from: [at(l0, e0), at(r0, e0)],
+                to: [at(l1, e1), at(r1, e1)],
+                normals: [[0.0, 0.0, 1.0]; 2],
+            };
+            self.strip_quad(up, &mut strips[0], &quad);
+            let quad = Quad {
+                from: [at(l0, d0), at(r0, d0)],
+                to: [at(l1, d1), at(r1, d1)],
+                normals: [[0.0, 0.0, -1.0]; 2],
+            };
+            self.strip_quad(down, &mut strips[1], &quad);
+            for (side, strip) in [(&run.left, 2), (&run.right, 3)] {
+                let (p0, p1) = (side[k], side[k + 1]);
+                let quad = Quad {
+                    from: [at(p0, e0), at(p0, d0)],
+                    to: [at(p1, e1), at(p1, d1)],
+                    normals: [facing(k, side), facing(k + 1, side)],
+                };
+                self.strip_quad(sides, &mut strips[strip], &quad);
+            }
+        }
+    }
+
     /// Adds a quad of a strip (see [`Quad`]) to `part`: inside the tile it shares the
     /// vertices of its `from` edge with the quad before it (`previous`, the last quad's `to`
     /// vertices, updated), each vertex with its station's normal; across the tile's edge it
@@ -214,41 +265,13 @@ impl Drawer<'_, '_> {
             let thickness = traits.deck_thickness_m;
             let deck = Part::BridgeDeck(traits.paving);
             let s = &run.stations;
-            let at = |p: Point, e: f64| [p[0], p[1], e];
-            // The deck's top, its underside and each side: strips as a tunnel's are.
-            let mut strips = [None; 4];
-            let out = |k: usize, side: &[Point]| {
-                let (c, p) = (s[k].point, side[k]);
-                [p[0] - c[0], p[1] - c[1], 0.0]
+            // The deck's top, its underside and each side.
+            let section = Section {
+                parts: [deck, Part::BridgeStructure, Part::BridgeStructure],
+                down_m: -thickness,
+                sides_out: true,
             };
-            for k in 0..s.len() - 1 {
-                let (e0, e1) = (s[k].elevation, s[k + 1].elevation);
-                let (b0, b1) = (e0 - thickness, e1 - thickness);
-                let (l0, l1, r0, r1) =
-                    (run.left[k], run.left[k + 1], run.right[k], run.right[k + 1]);
-                let quad = Quad {
-                    from: [at(l0, e0), at(r0, e0)],
-                    to: [at(l1, e1), at(r1, e1)],
-                    normals: [[0.0, 0.0, 1.0]; 2],
-                };
-                self.strip_quad((deck, run.feature), &mut strips[0], &quad);
-                let quad = Quad {
-                    from: [at(l0, b0), at(r0, b0)],
-                    to: [at(l1, b1), at(r1, b1)],
-                    normals: [[0.0, 0.0, -1.0]; 2],
-                };
-                let part = (Part::BridgeStructure, run.feature);
-                self.strip_quad(part, &mut strips[1], &quad);
-                for (side, strip) in [(&run.left, 2), (&run.right, 3)] {
-                    let (p0, p1) = (side[k], side[k + 1]);
-                    let quad = Quad {
-                        from: [at(p0, e0), at(p0, b0)],
-                        to: [at(p1, e1), at(p1, b1)],
-                        normals: [out(k, side), out(k + 1, side)],
-                    };
-                    self.strip_quad(part, &mut strips[strip], &quad);
-                }
-            }
+            self.strips(&run, &section);
             // Ends of the deck.
             let last = s.len() - 1;
             for (k, inner) in [(0, 1), (last, last - 1)] {
@@ -361,43 +384,13 @@ impl Drawer<'_, '_> {
                 let traits = self.traits(way);
                 let height = traits.tunnel_height_m;
                 let floor = Part::TunnelFloor(traits.paving);
-                let s = &run.stations;
-                let at = |p: Point, e: f64| [p[0], p[1], e];
-                // The floor, the ceiling and each wall: strips whose quads inside the tile share
-                // their cross-sections, lit as one smooth surface along the tube.
-                let mut strips = [None; 4];
-                let inward = |k: usize, side: &[Point]| {
-                    let (c, p) = (s[k].point, side[k]);
-                    [c[0] - p[0], c[1] - p[1], 0.0]
+                // The floor, the ceiling and each wall.
+                let section = Section {
+                    parts: [floor, Part::TunnelLining, Part::TunnelLining],
+                    down_m: height,
+                    sides_out: false,
                 };
-                for k in 0..s.len() - 1 {
-                    let (e0, e1) = (s[k].elevation, s[k + 1].elevation);
-                    let (c0, c1) = (e0 + height, e1 + height);
-                    let (l0, l1, r0, r1) =
-                        (run.left[k], run.left[k + 1], run.right[k], run.right[k + 1]);
-                    let quad = Quad {
-                        from: [at(l0, e0), at(r0, e0)],
-                        to: [at(l1, e1), at(r1, e1)],
-                        normals: [[0.0, 0.0, 1.0]; 2],
-                    };
-                    self.strip_quad((floor, run.feature), &mut strips[0], &quad);
-                    let quad = Quad {
-                        from: [at(l0, c0), at(r0, c0)],
-                        to: [at(l1, c1), at(r1, c1)],
-                        normals: [[0.0, 0.0, -1.0]; 2],
-                    };
-                    self.strip_quad((Part::TunnelLining, run.feature), &mut strips[1], &quad);
-                    for (side, strip) in [(&run.left, 2), (&run.right, 3)] {
-                        let (p0, p1) = (side[k], side[k + 1]);
-                        let quad = Quad {
-                            from: [at(p0, e0), at(p0, c0)],
-                            to: [at(p1, e1), at(p1, c1)],
-                            normals: [inward(k, side), inward(k + 1, side)],
-                        };
-                        let part = (Part::TunnelLining, run.feature);
-                        self.strip_quad(part, &mut strips[strip], &quad);
-                    }
-                }
+                self.strips(&run, &section);
                 self.lines(&run, false);
             }
         }
