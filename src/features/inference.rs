@@ -231,10 +231,17 @@ pub fn draw(element: ElementRef, salt: u64) -> f64 {
         ElementType::Relation => 3,
     };
     // splitmix64 over the id, the kind and the salt.
-    let mut z = (element.id as u64)
-        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        .wrapping_add(kind << 56)
-        .wrapping_add(salt.wrapping_mul(0xD1B5_4A32_D192_ED03));
+    unit(
+        (element.id as u64)
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .wrapping_add(kind << 56)
+            .wrapping_add(salt.wrapping_mul(0xD1B5_4A32_D192_ED03)),
+    )
+}
+
+/// splitmix64's finalizer over `z` (a mix of what the number is drawn from), as a number in
+/// `[0, 1)`, the same on every machine.
+pub fn unit(mut z: u64) -> f64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^= z >> 31;

@@ -6,7 +6,7 @@
 //! from the vertex's place and the OSM element it belongs to: a vertex on a tile's edge has
 //! the same colour in both tiles, and a tile the same bytes on every machine.
 
-use crate::features::inference::draw;
+use crate::features::inference::{draw, unit};
 use crate::features::landcover::Cover;
 use crate::mesh::Part;
 use crate::osm::ElementRef;
@@ -69,9 +69,10 @@ const ALPINE: [f64; 3] = [0.46, 0.44, 0.38];
 /// Where alpine ground begins and where nothing but it is left, metres above the sea.
 const ALPINE_FROM_M: f64 = 1900.0;
 const ALPINE_FULL_M: f64 = 2700.0;
-/// The slopes (cosines) over which soil thins: from 25° to 40°.
+/// The slopes (cosines) over which soil thins: from 25° to 40°, where bare ground turns to
+/// rock.
 const THINNING_FROM_COS: f64 = 0.906;
-const THINNING_FULL_COS: f64 = 0.766;
+const THINNING_FULL_COS: f64 = super::ground_parts::SOIL_HOLDS_COS;
 
 const SALT_SEED_U: u64 = 0x51;
 const SALT_SEED_V: u64 = 0x52;
@@ -188,14 +189,12 @@ fn mix(a: [f64; 3], b: [f64; 3], t: f64) -> [f64; 3] {
 
 /// A number in `[0, 1)` for a lattice point: splitmix64 over its coordinates and the salt.
 fn lattice((i, j): (i64, i64), salt: u64) -> f64 {
-    let mut z = (i as u64)
-        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        .wrapping_add((j as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F))
-        .wrapping_add(salt.wrapping_mul(0xD1B5_4A32_D192_ED03));
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^= z >> 31;
-    (z >> 11) as f64 / (1u64 << 53) as f64
+    unit(
+        (i as u64)
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .wrapping_add((j as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F))
+            .wrapping_add(salt.wrapping_mul(0xD1B5_4A32_D192_ED03)),
+    )
 }
 
 #[cfg(test)]

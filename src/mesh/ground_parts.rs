@@ -209,7 +209,7 @@ impl Skirt {
 /// The steepest bare ground that keeps its soil and grass, as the cosine of its slope (40°,
 /// about the angle of repose of soil): the terrain, an approximation of 30 m SRTM samples,
 /// rounds cliffs off, so a face steeper than this is mostly rock in the land it stands for.
-const SOIL_HOLDS_COS: f64 = 0.766;
+pub(super) const SOIL_HOLDS_COS: f64 = 0.766;
 
 /// The least area of a face of bare rock, square metres (of the local frame): smaller steep
 /// faces are where the ground meets what stands on it (a road's profile off the terrain, a
