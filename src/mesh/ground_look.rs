@@ -69,10 +69,15 @@ const ALPINE: [f64; 3] = [0.46, 0.44, 0.38];
 /// Where alpine ground begins and where nothing but it is left, metres above the sea.
 const ALPINE_FROM_M: f64 = 1900.0;
 const ALPINE_FULL_M: f64 = 2700.0;
+/// The steepest bare ground that keeps its soil and grass, as the cosine of its slope (40°,
+/// about the angle of repose of soil): the terrain, an approximation of 30 m SRTM samples,
+/// rounds cliffs off, so a face steeper than this is mostly rock in the land it stands for.
+pub(super) const SOIL_HOLDS_COS: f64 = 0.766;
+
 /// The slopes (cosines) over which soil thins: from 25° to 40°, where bare ground turns to
 /// rock.
 const THINNING_FROM_COS: f64 = 0.906;
-const THINNING_FULL_COS: f64 = super::ground_parts::SOIL_HOLDS_COS;
+const THINNING_FULL_COS: f64 = SOIL_HOLDS_COS;
 
 const SALT_SEED_U: u64 = 0x51;
 const SALT_SEED_V: u64 = 0x52;

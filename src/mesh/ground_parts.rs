@@ -206,11 +206,6 @@ impl Skirt {
     }
 }
 
-/// The steepest bare ground that keeps its soil and grass, as the cosine of its slope (40°,
-/// about the angle of repose of soil): the terrain, an approximation of 30 m SRTM samples,
-/// rounds cliffs off, so a face steeper than this is mostly rock in the land it stands for.
-pub(super) const SOIL_HOLDS_COS: f64 = 0.766;
-
 /// The least area of a face of bare rock, square metres (of the local frame): smaller steep
 /// faces are where the ground meets what stands on it (a road's profile off the terrain, a
 /// cut) rather than the land's own slope.
@@ -221,7 +216,7 @@ const ROCK_FACE_M2: f64 = 60.0;
 fn too_steep_for_soil(corners: [[f64; 3]; 3]) -> bool {
     let normal = triangle_normal(corners);
     let length = dot(normal, normal).sqrt();
-    0.5 * length >= ROCK_FACE_M2 && normal[1].abs() < SOIL_HOLDS_COS * length
+    0.5 * length >= ROCK_FACE_M2 && normal[1].abs() < super::ground_look::SOIL_HOLDS_COS * length
 }
 
 /// The least area, in square metres, of a ground triangle that stands almost upright (where
