@@ -121,7 +121,8 @@ pub fn paint(
 
 /// The painted runs of a marking's line: the whole line when solid, else each dash, laid by
 /// the distance along the way (a dash every dash and gap, from half a gap past the way's first
-/// node), so a line cut at a junction or a tile edge keeps its rhythm.
+/// node), so a line cut at a junction or a tile edge keeps its rhythm; a piece of the way
+/// that falls between two dashes has one dash at its middle.
 fn painted(marking: &Marking) -> Vec<Vec<Point>> {
     let (dash, gap) = match marking.pattern {
         Pattern::Solid => return vec![marking.line.clone()],
@@ -143,6 +144,16 @@ fn painted(marking: &Marking) -> Vec<Vec<Point>> {
             runs.push(part_of(&marking.line, stations, (from, to)));
         }
         start += period;
+    }
+    if runs.is_empty() {
+        // A piece shorter than a gap that fell in one still shows its line: one dash at
+        // its middle, as long as a dash or half the piece.
+        let (middle, half) = ((first + last) / 2.0, dash.min((last - first) / 2.0) / 2.0);
+        runs.push(part_of(
+            &marking.line,
+            stations,
+            (middle - half, middle + half),
+        ));
     }
     runs
 }
@@ -401,6 +412,27 @@ mod tests {
         let runs = painted(&cut);
         assert_eq!(runs[0], vec![[0.0, 0.0], [2.0, 0.0]]);
         assert_eq!(runs[1].first(), Some(&[8.0, 0.0]));
+    }
+
+    #[test]
+    fn a_piece_between_two_dashes_has_one_at_its_middle() {
+        let dashed = Pattern::Dashed {
+            dash_m: 3.0,
+            gap_m: 6.0,
+        };
+        // A piece 4 m long from 6.5 m along its way lies in the gap from 6 m to 12 m.
+        let mut short = marking(dashed, 4.0);
+        short.stations = short.stations.iter().map(|s| s + 6.5).collect();
+        assert_eq!(
+            painted(&short),
+            vec![vec![[1.0, 0.0], [2.0, 0.0], [3.0, 0.0]]]
+        );
+        // A piece that holds part of a dash keeps only that part.
+        short.stations = short.stations.iter().map(|s| s + 4.5).collect();
+        assert_eq!(
+            painted(&short),
+            vec![vec![[1.0, 0.0], [2.0, 0.0], [4.0, 0.0]]]
+        );
     }
 
     #[test]
