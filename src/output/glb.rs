@@ -760,7 +760,7 @@ fn write_normals(
         return builder.float_vec3(normals, None);
     }
     let units: Vec<[f32; 4]> = normals.iter().map(|n| [n[0], n[1], n[2], 0.0]).collect();
-    let bytes: Vec<u8> = meshopt::encode_filter_oct::<i8>(&units, 8)
+    let bytes: Vec<u8> = meshopt::encode_filter_oct::<i8>(&units, 7)
         .into_iter()
         .flatten()
         .map(|v| v as u8)
