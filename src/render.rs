@@ -361,10 +361,10 @@ fn triangulated(
             &|points, _, settled| points.iter().map(|&p| settled.elevation_uv(p)).collect(),
         )
     };
-    let mut ground = ground::triangulate(
+    let mut ground = ground::triangulate_lines(
         frame,
         &settings.mesh,
-        &feature_set.surfaces,
+        (&feature_set.surfaces, settled.roads.edges()),
         &feature_set.nearby_outlines,
         settled,
         &sample,
@@ -780,7 +780,7 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         &settled,
     );
     parts.extend(mesh::markings::build(&feature_set.markings, frame, &drawn));
-    mesh::sidewalks::build(&feature_set.sidewalks, frame, &settled, &mut parts);
+    mesh::sidewalks::build(&feature_set.sidewalks, frame, &drawn, &mut parts);
     parts.insert(
         Part::Stairs,
         mesh::stairs::build(&feature_set.stairs, frame, &drawn),

@@ -9,12 +9,18 @@
 //! left and right corners of a cross-section). A junction lies at the terrain under its node,
 //! which is where the profiles of the roads that meet there start. All of it is computed from
 //! whole ways, so tiles that share a road draw it the same.
+//!
+//! The ground under a raised sidewalk lies level with its kerb's top across its band, at the
+//! road's edge beside it: where the land beside the road rises or falls, it does so beyond the
+//! sidewalk's outer edge (a cutting or an embankment up to the next vertex of the ground),
+//! never under the sidewalk. The outer edges are stitched into the ground's mesh.
 
 use std::collections::HashMap;
 
 use super::road_profiles::RoadProfiles;
 use super::settled::{samples_along, Level, Rule, Sections, Stations};
 use crate::features::road_network::StretchLine;
+use crate::features::sidewalks::{Band, Look};
 use crate::features::{FeatureClass, FeatureSet};
 use crate::geometry::{Point, Polygon, Rect};
 use crate::osm::ElementType;
@@ -23,6 +29,11 @@ use crate::terrain::Elevation;
 /// Spacing of the terrain samples along a road's centre line, metres.
 pub const PROFILE_STEP_M: f64 = 5.0;
 
+/// How far the terrain at a sidewalk's outer edge must lie above or below the sidewalk's top,
+/// metres, somewhere along its band, for the ground under the band to be levelled: less, and
+/// the sidewalk lies on the ground as it is.
+const LEVEL_APART_M: f64 = 0.25;
+
 /// Cells per tile unit of the grid that finds the levels under a point.
 const CELLS_PER_UNIT: f64 = 64.0;
 
@@ -30,35 +41,57 @@ const CELLS_PER_UNIT: f64 = 64.0;
 #[derive(Debug, Default)]
 pub struct RoadLevels {
     levels: Vec<Level>,
-    /// Junction levels win over the roads that meet them.
-    junction: Vec<bool>,
+    /// What each level is: junction levels win over the roads that meet them, and roads over
+    /// the sidewalks beside them.
+    kinds: Vec<Kind>,
     grid: HashMap<(i64, i64), Vec<u32>>,
+    /// The lines the ground bends along: each sidewalk band's ends and outer edge.
+    edges: Vec<Vec<Point>>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Junction,
+    Road,
+    Sidewalk,
 }
 
 impl RoadLevels {
     /// The elevation of a road or junction at `p`, if one covers it: a junction's first, else
-    /// the lowest of the road stretches there.
+    /// the lowest of the road stretches there, else the lowest of the sidewalks' bands.
     pub fn elevation(&self, p: Point) -> Option<f64> {
         let cell = cell_of(p);
         let candidates = self.grid.get(&cell)?;
-        let mut road: Option<f64> = None;
+        let (mut road, mut side): (Option<f64>, Option<f64>) = (None, None);
         for &i in candidates {
             let level = &self.levels[i as usize];
             if !level.covers(p) {
                 continue;
             }
             let h = level.rule.elevation(p);
-            if self.junction[i as usize] {
-                return Some(h);
+            let lowest = |now: Option<f64>| Some(now.map_or(h, |r: f64| r.min(h)));
+            match self.kinds[i as usize] {
+                Kind::Junction => return Some(h),
+                Kind::Road => road = lowest(road),
+                Kind::Sidewalk => side = lowest(side),
             }
-            road = Some(road.map_or(h, |r: f64| r.min(h)));
         }
-        road
+        road.or(side)
+    }
+
+    /// The lines along which the ground these levels settle bends away from a level: the ends
+    /// and outer edges of the sidewalks' bands (global tile units).
+    pub fn edges(&self) -> &[Vec<Point>] {
+        &self.edges
     }
 
     /// The surfaces (indices into the feature set) whose vertices these levels settle.
     pub fn surfaces(&self) -> impl Iterator<Item = u32> + '_ {
-        self.levels.iter().map(|l| l.surface)
+        self.levels
+            .iter()
+            .zip(&self.kinds)
+            .filter(|(_, &kind)| kind != Kind::Sidewalk)
+            .map(|(l, _)| l.surface)
     }
 
     pub fn len(&self) -> usize {
@@ -69,7 +102,7 @@ impl RoadLevels {
         self.levels.is_empty()
     }
 
-    fn push(&mut self, level: Level, junction: bool) {
+    fn push(&mut self, level: Level, kind: Kind) {
         let index = self.levels.len() as u32;
         let Rect { min, max } = level.bounds;
         let (a, b) = (cell_of(min), cell_of(max));
@@ -79,7 +112,7 @@ impl RoadLevels {
             }
         }
         self.levels.push(level);
-        self.junction.push(junction);
+        self.kinds.push(kind);
     }
 }
 
@@ -114,7 +147,7 @@ pub fn levels(
                     surface.bounds,
                     Rule::Level(terrain.elevation_uv(node)),
                 ),
-                true,
+                Kind::Junction,
             );
             continue;
         }
@@ -155,10 +188,73 @@ pub fn levels(
                     profile: profile(line, &line.points),
                 },
             };
-            out.push(Level::new(index as u32, pieces, bounds, rule), false);
+            out.push(Level::new(index as u32, pieces, bounds, rule), Kind::Road);
         }
     }
+    let sidewalks: Vec<(Level, Vec<Point>)> = set
+        .sidewalks
+        .iter()
+        .filter_map(|band| sidewalk_level(band, &out, terrain))
+        .collect();
+    for (level, edge) in sidewalks {
+        out.push(level, Kind::Sidewalk);
+        out.edges.push(edge);
+    }
     out
+}
+
+/// The level of a raised sidewalk's band: across it, the road's elevation at the inner point
+/// of its cross-section and the kerb's height; with the line of its ends and outer edge. The
+/// band is no surface of the feature set: its level carries its road's feature row, and
+/// [`RoadLevels::surfaces`] leaves it out.
+fn sidewalk_level(
+    band: &Band,
+    roads: &RoadLevels,
+    terrain: &dyn Elevation,
+) -> Option<(Level, Vec<Point>)> {
+    let Look::Sidewalk { kerb_m } = band.look else {
+        return None;
+    };
+    let n = band.inner.len().min(band.outer.len());
+    if n < 2 {
+        return None;
+    }
+    let (inner, outer) = (&band.inner[..n], &band.outer[..n]);
+    let pieces: Vec<Polygon> = (1..n)
+        .map(|k| Polygon {
+            outer: vec![inner[k - 1], inner[k], outer[k], outer[k - 1]],
+            holes: Vec::new(),
+        })
+        .collect();
+    let sections = Sections::from_quads(&pieces)?;
+    let bounds = pieces
+        .iter()
+        .map(Polygon::bounds)
+        .reduce(|a, b| a.union(&b))?;
+    let profile: Vec<(f64, f64)> = sections
+        .starts()
+        .iter()
+        .zip(inner)
+        .map(|(&along, &p)| {
+            let road = roads
+                .elevation(p)
+                .unwrap_or_else(|| terrain.elevation_uv(p));
+            (along, road + kerb_m.max(0.0))
+        })
+        .collect();
+    // Where the land beside it lies at the sidewalk's level anyway, the ground is left alone.
+    let apart = |(&(_, level), &p): (&(f64, f64), &Point)| {
+        (terrain.elevation_uv(p) - level).abs() > LEVEL_APART_M
+    };
+    if !profile.iter().zip(outer).any(apart) {
+        return None;
+    }
+    let rule = Rule::Across { sections, profile };
+    let mut edge = Vec::with_capacity(n + 2);
+    edge.push(inner[0]);
+    edge.extend_from_slice(outer);
+    edge.push(inner[n - 1]);
+    Some((Level::new(band.feature, pieces, bounds, rule), edge))
 }
 
 /// The terrain along a line: at its vertices and every `step` (tile units) between them.

@@ -158,6 +158,11 @@ impl Sections {
         (sections.len() >= 2).then_some(Sections { sections, starts })
     }
 
+    /// The station of each cross-section, in order.
+    pub fn starts(&self) -> &[f64] {
+        &self.starts
+    }
+
     /// The line through the sections' midpoints.
     pub fn centre_line(&self) -> Vec<Point> {
         self.sections

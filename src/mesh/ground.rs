@@ -229,6 +229,28 @@ pub fn triangulate(
     terrain: &dyn Elevation,
     sample: &Sampler<'_>,
 ) -> Result<Ground, GroundError> {
+    let stitched = (surfaces, &[][..]);
+    triangulate_lines(
+        frame,
+        settings,
+        stitched,
+        weighting_outlines,
+        terrain,
+        sample,
+    )
+}
+
+/// Triangulates the ground of a tile as [`triangulate`] does, with `lines` (global tile
+/// units) stitched in as well as the surfaces' outlines: where the ground changes its slope
+/// along a line rather than inside a triangle (the outer edge of a sidewalk's level band).
+pub fn triangulate_lines(
+    frame: &TileFrame,
+    settings: &MeshSettings,
+    (surfaces, lines): (&[Surface], &[Vec<Point>]),
+    weighting_outlines: &[Vec<Point>],
+    terrain: &dyn Elevation,
+    sample: &Sampler<'_>,
+) -> Result<Ground, GroundError> {
     let tile = frame.tile;
     let rect = crate::features::tile_rect(tile);
     let n = settings.sample_cells.max(2) as usize;
@@ -257,7 +279,8 @@ pub fn triangulate(
         weights: Some(weights),
     };
 
-    let segments = clipped_outlines(surfaces, &rect);
+    let mut segments = clipped_outlines(surfaces, &rect);
+    segments.extend(clipped_lines(lines, &rect));
 
     // 2. The edges.
     let to_local = |p: Point| {
@@ -366,14 +389,24 @@ pub fn triangulate(
 
 /// The outline segments of `surfaces` clipped to the tile's `rect`, in global tile units.
 fn clipped_outlines(surfaces: &[Surface], rect: &Rect) -> Vec<(Point, Point)> {
+    let outlines = surfaces
+        .iter()
+        .filter(|s| s.bounds.intersects(rect))
+        .flat_map(|s| &s.outline);
+    clipped_lines(outlines, rect)
+}
+
+/// The segments of `lines` clipped to `rect`, in global tile units.
+fn clipped_lines<'a>(
+    lines: impl IntoIterator<Item = &'a Vec<Point>>,
+    rect: &Rect,
+) -> Vec<(Point, Point)> {
     let mut segments = Vec::new();
-    for surface in surfaces.iter().filter(|s| s.bounds.intersects(rect)) {
-        for polyline in &surface.outline {
-            for pair in polyline.windows(2) {
-                if let Some((a, b)) = clip_segment(pair[0], pair[1], rect) {
-                    if a != b {
-                        segments.push((a, b));
-                    }
+    for polyline in lines {
+        for pair in polyline.windows(2) {
+            if let Some((a, b)) = clip_segment(pair[0], pair[1], rect) {
+                if a != b {
+                    segments.push((a, b));
                 }
             }
         }

@@ -1,18 +1,20 @@
 //! Sidewalks and verges ([`crate::features::sidewalks`]) on the ground beside the roads: a
-//! sidewalk as a wedge on its band, its top at its kerb's height over the road's settled edge
-//! along the kerb and just above the settled ground at its outer edge (so no step or gap shows
-//! there, whether the ground rises or falls), a kerb face towards the road and a face at each
-//! end; a verge as a strip just above the ground.
+//! sidewalk as a wedge on its band, its top at its kerb's height over the road's edge along
+//! the kerb and just above the ground at its outer edge (so no step or gap shows there,
+//! whether the ground rises or falls), a kerb face towards the road and a face at each end; a
+//! verge as a strip just above the ground. Heights are the ground's as the tile draws it (its
+//! mesh lies within the error bound of the settled ground, above it or below), and on the
+//! tile's edge the settled ground's, which both tiles know alike.
 //! Inside the tile, neighbouring stretches share their vertices; a stretch across an edge is
 //! clipped to the tile, so both tiles cut it along the edge at the same points.
 
 use std::collections::BTreeMap;
 
+use super::markings::Canvas;
 use super::{MeshBuffers, Part};
 use crate::features::sidewalks::{Band, Look};
 use crate::features::tile_rect;
 use crate::geometry::{clip_segment, clip_to_rect, Point, Rect};
-use crate::terrain::Elevation;
 use crate::tile::TileFrame;
 
 /// Height of a verge, and of a sidewalk's outer edge, over the ground, metres (as the paint
@@ -26,7 +28,7 @@ const FOOT_M: f64 = 0.05;
 pub fn build(
     bands: &[Band],
     frame: &TileFrame,
-    ground: &dyn Elevation,
+    ground: &dyn Canvas,
     parts: &mut BTreeMap<Part, MeshBuffers>,
 ) {
     let rect = tile_rect(frame.tile);
@@ -59,27 +61,43 @@ fn reaches(band: &Band, rect: &Rect) -> bool {
         .intersects(rect)
 }
 
-/// A band's points with the settled ground's elevation at each (the road's on its inner edge).
+/// A band's points with the ground's elevation at each (the road's on its inner edge).
 struct Placed<'a> {
     band: &'a Band,
     frame: &'a TileFrame,
-    ground: &'a dyn Elevation,
+    ground: &'a dyn Canvas,
+    rect: Rect,
     n: usize,
     inner: Vec<f64>,
     outer: Vec<f64>,
 }
 
 impl<'a> Placed<'a> {
-    fn new(band: &'a Band, frame: &'a TileFrame, ground: &'a dyn Elevation, n: usize) -> Self {
-        let heights = |line: &[Point]| line[..n].iter().map(|&p| ground.elevation_uv(p)).collect();
-        Placed {
+    fn new(band: &'a Band, frame: &'a TileFrame, ground: &'a dyn Canvas, n: usize) -> Self {
+        let mut placed = Placed {
             band,
             frame,
             ground,
+            rect: tile_rect(frame.tile),
             n,
-            inner: heights(&band.inner),
-            outer: heights(&band.outer),
+            inner: Vec::new(),
+            outer: Vec::new(),
+        };
+        placed.inner = band.inner[..n].iter().map(|&p| placed.height(p)).collect();
+        placed.outer = band.outer[..n].iter().map(|&p| placed.height(p)).collect();
+        placed
+    }
+
+    /// The ground's height at `p`: as drawn inside the tile, as settled on its edge, off it and
+    /// where no ground is drawn (under a building).
+    fn height(&self, p: Point) -> f64 {
+        let Rect { min, max } = self.rect;
+        if p[0] <= min[0] || p[0] >= max[0] || p[1] <= min[1] || p[1] >= max[1] {
+            return self.ground.settled_uv(p);
         }
+        self.ground
+            .drawn_at(p)
+            .unwrap_or_else(|| self.ground.settled_uv(p))
     }
 
     /// A point of the band at `lift` metres over the ground, in the tile's frame.
@@ -125,7 +143,7 @@ impl<'a> Placed<'a> {
             }
             let corners: Vec<[f64; 3]> = clipped
                 .iter()
-                .map(|&[u, v, lift]| self.local([u, v], self.ground.elevation_uv([u, v]), lift))
+                .map(|&[u, v, lift]| self.local([u, v], self.height([u, v]), lift))
                 .collect();
             buffers.push_flat_polygon(&corners, up, feature);
         }
@@ -190,7 +208,7 @@ impl<'a> Placed<'a> {
             let Some((a, b)) = clip_segment(line[k - 1], line[k], rect) else {
                 continue;
             };
-            let (ha, hb) = (self.ground.elevation_uv(a), self.ground.elevation_uv(b));
+            let (ha, hb) = (self.height(a), self.height(b));
             let corners = [
                 self.local(a, ha, -FOOT_M),
                 self.local(b, hb, -FOOT_M),

@@ -15,6 +15,7 @@ use terrastitch::terrain::Mosaic;
 mod doors;
 mod ground;
 mod markings;
+mod sidewalks;
 
 /// The glb of [`TILE`] made from `fixture` on `mosaic`, decoded.
 fn drawn(fixture: &Fixture, mosaic: &Mosaic) -> DecodedTile {
