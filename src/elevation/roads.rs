@@ -166,11 +166,7 @@ pub fn levels(
                 continue;
             };
             let pieces: Vec<Polygon> = pieces.to_vec();
-            let Some(bounds) = pieces
-                .iter()
-                .map(Polygon::bounds)
-                .reduce(|a, b| a.union(&b))
-            else {
+            let Some(bounds) = bounds_of(&pieces) else {
                 continue;
             };
             // Stations by cross-section; where the strip is not a row of quads (it always
@@ -227,10 +223,7 @@ fn sidewalk_level(
         })
         .collect();
     let sections = Sections::from_quads(&pieces)?;
-    let bounds = pieces
-        .iter()
-        .map(Polygon::bounds)
-        .reduce(|a, b| a.union(&b))?;
+    let bounds = bounds_of(&pieces)?;
     let profile: Vec<(f64, f64)> = sections
         .starts()
         .iter()
@@ -255,6 +248,14 @@ fn sidewalk_level(
     edge.extend_from_slice(outer);
     edge.push(inner[n - 1]);
     Some((Level::new(band.feature, pieces, bounds, rule), edge))
+}
+
+/// The box around all of `pieces`; `None` for none.
+fn bounds_of(pieces: &[Polygon]) -> Option<Rect> {
+    pieces
+        .iter()
+        .map(Polygon::bounds)
+        .reduce(|a, b| a.union(&b))
 }
 
 /// The terrain along a line: at its vertices and every `step` (tile units) between them.

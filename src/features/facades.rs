@@ -10,7 +10,7 @@
 
 use super::inference::Footprint;
 use super::FeatureSettings;
-use crate::geometry::{ring_contains, Point, Polygon, Rect};
+use crate::geometry::{Point, Polygon};
 use crate::osm::units::{parse_count, parse_length_m};
 use crate::osm::Tags;
 
@@ -210,7 +210,7 @@ pub fn has_shop_inside(footprints: &[Polygon], shops: &[Point], widest: f64) -> 
     }
     let bounds = footprints
         .iter()
-        .map(|f| Rect::around(&f.outer))
+        .map(Polygon::bounds)
         .reduce(|a, b| a.union(&b));
     let Some(bounds) = bounds else {
         return false;
@@ -219,12 +219,9 @@ pub fn has_shop_inside(footprints: &[Polygon], shops: &[Point], widest: f64) -> 
     if across > widest {
         return false;
     }
-    shops.iter().any(|&p| {
-        bounds.contains(p)
-            && footprints
-                .iter()
-                .any(|f| ring_contains(&f.outer, p) && !f.holes.iter().any(|h| ring_contains(h, p)))
-    })
+    shops
+        .iter()
+        .any(|&p| bounds.contains(p) && footprints.iter().any(|f| f.contains(p)))
 }
 
 /// The facade of a building (or part) from its tags and its footprint (`None` when it could
