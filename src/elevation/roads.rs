@@ -15,10 +15,10 @@
 //! sidewalk's outer edge (a cutting or an embankment up to the next vertex of the ground),
 //! never under the sidewalk. The outer edges are stitched into the ground's mesh.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use super::road_profiles::RoadProfiles;
-use super::settled::{samples_along, Level, Rule, Sections, Stations};
+use super::settled::{samples_along, Level, Rule, Sections, Stations, ON_OUTLINE};
 use crate::features::road_network::StretchLine;
 use crate::features::sidewalks::{Band, Look};
 use crate::features::{FeatureClass, FeatureSet};
@@ -44,7 +44,9 @@ pub struct RoadLevels {
     /// What each level is: junction levels win over the roads that meet them, and roads over
     /// the sidewalks beside them.
     kinds: Vec<Kind>,
-    grid: HashMap<(i64, i64), Vec<u32>>,
+    /// For each cell, the levels that may cover a point of it, in order, each with the box of
+    /// its pieces in the cell, so most are passed over without being read.
+    grid: FxHashMap<(i64, i64), Vec<(u32, Rect)>>,
     /// The lines the ground bends along: each sidewalk band's ends and outer edge.
     edges: Vec<Vec<Point>>,
 }
@@ -63,7 +65,10 @@ impl RoadLevels {
         let cell = cell_of(p);
         let candidates = self.grid.get(&cell)?;
         let (mut road, mut side): (Option<f64>, Option<f64>) = (None, None);
-        for &i in candidates {
+        for &(i, bounds) in candidates {
+            if !bounds.contains(p) {
+                continue;
+            }
             let level = &self.levels[i as usize];
             if !level.covers(p) {
                 continue;
@@ -104,11 +109,23 @@ impl RoadLevels {
 
     fn push(&mut self, level: Level, kind: Kind) {
         let index = self.levels.len() as u32;
-        let Rect { min, max } = level.bounds;
-        let (a, b) = (cell_of(min), cell_of(max));
-        for x in a.0..=b.0 {
-            for y in a.1..=b.1 {
-                self.grid.entry((x, y)).or_default().push(index);
+        // Each piece's cells, not the whole level's box: a long road's box holds many cells
+        // it does not touch.
+        for piece in &level.pieces {
+            let Rect { min, max } = piece.bounds();
+            let near = Rect {
+                min: [min[0] - ON_OUTLINE, min[1] - ON_OUTLINE],
+                max: [max[0] + ON_OUTLINE, max[1] + ON_OUTLINE],
+            };
+            let (a, b) = (cell_of(near.min), cell_of(near.max));
+            for x in a.0..=b.0 {
+                for y in a.1..=b.1 {
+                    let listed = self.grid.entry((x, y)).or_default();
+                    match listed.last_mut() {
+                        Some((last, bounds)) if *last == index => *bounds = bounds.union(&near),
+                        _ => listed.push((index, near)),
+                    }
+                }
             }
         }
         self.levels.push(level);

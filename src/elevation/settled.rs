@@ -2,11 +2,12 @@
 //! terrain (water lying flat, a cut down to a tunnel's portal, ground raised over a tunnel's
 //! roof), as areas with their rule. [`super::ground`] puts them together.
 
-use crate::geometry::{distance_to_segment, Point, Polygon, Rect};
+use crate::geometry::cells::{Cell, CellIndex};
+use crate::geometry::{distance_to_segment, ring_contains, Point, Polygon, Rect};
 
 /// A point this close to a settled surface's outline (global tile units: a few micrometres at zoom
 /// 14) takes its rule: vertices on the outline belong to the surface as well as to what is around it.
-const ON_OUTLINE: f64 = 1e-9;
+pub(super) const ON_OUTLINE: f64 = 1e-9;
 
 /// One surface and the elevation the ground takes on it.
 #[derive(Debug, Clone)]
@@ -177,41 +178,54 @@ impl Sections {
         // neighbour, so the quad that holds a point there is ambiguous).
         if let Some(k) = (0..self.sections.len()).find(|&k| {
             let (l, r) = self.sections[k];
-            distance_to_segment(p, l, r) <= ON_OUTLINE
+            on_segment(p, l, r)
         }) {
             return self.starts[k];
         }
-        let mut best: Option<(f64, f64)> = None;
+        // The quad that holds `p`, else the nearest; a quad whose box lies further than the
+        // nearest so far is passed over unmeasured.
+        let mut best: Option<(f64, usize)> = None;
         for k in 0..self.sections.len() - 1 {
             let (l0, r0) = self.sections[k];
             let (l1, r1) = self.sections[k + 1];
-            let quad = Polygon {
-                outer: vec![l0, l1, r1, r0],
-                holes: Vec::new(),
-            };
-            let d0 = distance_to_segment(p, l0, r0);
-            let d1 = distance_to_segment(p, l1, r1);
-            let share = if d0 + d1 > 0.0 { d0 / (d0 + d1) } else { 0.0 };
-            let along = self.starts[k] + share * (self.starts[k + 1] - self.starts[k]);
-            let outside = if quad.contains(p) {
+            let ring = [l0, l1, r1, r0];
+            if let Some((d, _)) = best {
+                if box_distance(&ring, p) > d * (1.0 + 1e-9) {
+                    continue;
+                }
+            }
+            let outside = if ring_contains(&ring, p) {
                 0.0
             } else {
-                quad.rings()
-                    .flat_map(|ring| {
-                        (0..ring.len()).map(move |i| (ring[i], ring[(i + 1) % ring.len()]))
-                    })
-                    .map(|(a, b)| distance_to_segment(p, a, b))
+                (0..4)
+                    .map(|i| distance_to_segment(p, ring[i], ring[(i + 1) % 4]))
                     .fold(f64::INFINITY, f64::min)
             };
             if best.is_none_or(|(d, _)| outside < d) {
-                best = Some((outside, along));
+                best = Some((outside, k));
                 if outside == 0.0 {
                     break;
                 }
             }
         }
-        best.map_or(0.0, |(_, along)| along)
+        best.map_or(0.0, |(_, k)| {
+            let (l0, r0) = self.sections[k];
+            let (l1, r1) = self.sections[k + 1];
+            let d0 = distance_to_segment(p, l0, r0);
+            let d1 = distance_to_segment(p, l1, r1);
+            let share = if d0 + d1 > 0.0 { d0 / (d0 + d1) } else { 0.0 };
+            self.starts[k] + share * (self.starts[k + 1] - self.starts[k])
+        })
     }
+}
+
+/// How far `p` lies from the box of `points`: no further than from any of them or the
+/// segments between them.
+fn box_distance(points: &[Point], p: Point) -> f64 {
+    let b = Rect::around(points);
+    let dx = (b.min[0] - p[0]).max(p[0] - b.max[0]).max(0.0);
+    let dy = (b.min[1] - p[1]).max(p[1] - b.max[1]).max(0.0);
+    dx.hypot(dy)
 }
 
 /// Stations along a polyline: how far along it (tile units) a point lies. Within the band of
@@ -312,120 +326,15 @@ impl Stations {
     }
 }
 
-/// Cells per side of the grid that answers "is this point on the water" quickly.
-const CELLS: usize = 48;
-
-/// The area's bounds in a grid of cells, each wholly inside, wholly outside, or crossed by
-/// the outline (with the segments that cross it).
-#[derive(Debug, Clone)]
-struct CellIndex {
-    bounds: Rect,
-    /// Cells per side: more for outlines of more segments, at most [`CELLS`].
-    side: usize,
-    cells: Vec<Cell>,
-}
-
-#[derive(Debug, Clone)]
-enum Cell {
-    Inside,
-    Outside,
-    /// Segments of the outline near the cell (`(a, b)` pairs) and the pieces whose bounds
-    /// meet it.
-    Crossed(Vec<(Point, Point)>, Vec<u32>),
-}
-
-impl CellIndex {
-    fn new(pieces: &[Polygon], bounds: Rect) -> CellIndex {
-        let bounds = Rect {
-            min: [bounds.min[0] - ON_OUTLINE, bounds.min[1] - ON_OUTLINE],
-            max: [bounds.max[0] + ON_OUTLINE, bounds.max[1] + ON_OUTLINE],
-        };
-        let segments: usize = pieces.iter().flat_map(Polygon::rings).map(Vec::len).sum();
-        let side = ((segments as f64).sqrt().ceil() as usize * 2).clamp(4, CELLS);
-        let size = [
-            (bounds.max[0] - bounds.min[0]) / side as f64,
-            (bounds.max[1] - bounds.min[1]) / side as f64,
-        ];
-        let cell_span = |lo: f64, hi: f64, axis: usize| {
-            let cell = |v: f64| {
-                (((v - bounds.min[axis]) / size[axis]).floor().max(0.0) as usize).min(side - 1)
-            };
-            cell(lo)..=cell(hi)
-        };
-        let mut crossed: Vec<Vec<(Point, Point)>> = vec![Vec::new(); side * side];
-        let mut touching: Vec<Vec<u32>> = vec![Vec::new(); side * side];
-        for (k, piece) in pieces.iter().enumerate() {
-            let b = piece.bounds();
-            for row in cell_span(b.min[1], b.max[1], 1) {
-                for column in cell_span(b.min[0], b.max[0], 0) {
-                    touching[row * side + column].push(k as u32);
-                }
-            }
-        }
-        for ring in pieces.iter().flat_map(Polygon::rings) {
-            for i in 0..ring.len() {
-                let (a, b) = (ring[i], ring[(i + 1) % ring.len()]);
-                let span = |axis: usize| {
-                    cell_span(
-                        a[axis].min(b[axis]) - ON_OUTLINE,
-                        a[axis].max(b[axis]) + ON_OUTLINE,
-                        axis,
-                    )
-                };
-                for row in span(1) {
-                    for column in span(0) {
-                        crossed[row * side + column].push((a, b));
-                    }
-                }
-            }
-        }
-        let cells = crossed
-            .into_iter()
-            .zip(touching)
-            .enumerate()
-            .map(|(k, (segments, near))| {
-                if !segments.is_empty() {
-                    return Cell::Crossed(segments, near);
-                }
-                // No outline in the cell: its centre tells for all of it.
-                let centre = [
-                    bounds.min[0] + ((k % side) as f64 + 0.5) * size[0],
-                    bounds.min[1] + ((k / side) as f64 + 0.5) * size[1],
-                ];
-                if near.iter().any(|&i| pieces[i as usize].contains(centre)) {
-                    Cell::Inside
-                } else {
-                    Cell::Outside
-                }
-            })
-            .collect();
-        CellIndex {
-            bounds,
-            side,
-            cells,
-        }
-    }
-
-    fn cell(&self, p: Point) -> Option<&Cell> {
-        if !self.bounds.contains(p) {
-            return None;
-        }
-        let side = self.side;
-        let index = |axis: usize| {
-            let size = (self.bounds.max[axis] - self.bounds.min[axis]) / side as f64;
-            (((p[axis] - self.bounds.min[axis]) / size).floor().max(0.0) as usize).min(side - 1)
-        };
-        self.cells.get(index(1) * side + index(0))
-    }
-}
-
 /// Which of a list of levels may cover a point: a grid over their bounds, each cell listing in
 /// order the levels whose bounds meet it, so a lookup reads a few levels rather than all.
 #[derive(Debug, Clone, Default)]
 pub struct LevelGrid {
     bounds: Option<Rect>,
     side: usize,
-    cells: Vec<Vec<u32>>,
+    /// Each cell's levels with their bounds, so a level whose bounds miss a point is passed
+    /// over without being read.
+    cells: Vec<Vec<(u32, Rect)>>,
 }
 
 /// Cells per side of a [`LevelGrid`], at most.
@@ -433,7 +342,7 @@ const LEVEL_CELLS: usize = 64;
 
 impl LevelGrid {
     pub fn new(levels: &[Level]) -> LevelGrid {
-        let mut all = levels.iter().map(|l| l.cells.bounds);
+        let mut all = levels.iter().map(|l| l.cells.bounds());
         let Some(first) = all.next() else {
             return LevelGrid::default();
         };
@@ -448,11 +357,11 @@ impl LevelGrid {
             cells: vec![Vec::new(); side * side],
         };
         for (k, level) in levels.iter().enumerate() {
-            let b = level.cells.bounds;
+            let b = level.cells.bounds();
             let (lo, hi) = (grid.index(b.min), grid.index(b.max));
             for row in lo[1]..=hi[1] {
                 for column in lo[0]..=hi[0] {
-                    grid.cells[row * side + column].push(k as u32);
+                    grid.cells[row * side + column].push((k as u32, b));
                 }
             }
         }
@@ -477,8 +386,8 @@ impl LevelGrid {
         [at(0), at(1)]
     }
 
-    /// The levels that may cover `p`, in the order they were given.
-    pub fn near(&self, p: Point) -> &[u32] {
+    /// The levels that may cover `p` with their bounds, in the order they were given.
+    fn near(&self, p: Point) -> &[(u32, Rect)] {
         match self.bounds {
             Some(bounds) if bounds.contains(p) => {
                 let [column, row] = self.index(p);
@@ -496,14 +405,15 @@ impl LevelGrid {
     ) -> impl Iterator<Item = &'a Level> {
         self.near(p)
             .iter()
-            .map(move |&k| &levels[k as usize])
+            .filter(move |(_, bounds)| bounds.contains(p))
+            .map(move |&(k, _)| &levels[k as usize])
             .filter(move |l| l.covers(p))
     }
 }
 
 impl Level {
     pub fn new(surface: u32, pieces: Vec<Polygon>, bounds: Rect, rule: Rule) -> Level {
-        let cells = CellIndex::new(&pieces, bounds);
+        let cells = CellIndex::new(&pieces, bounds, ON_OUTLINE);
         Level {
             surface,
             pieces,
@@ -546,13 +456,20 @@ impl Level {
             None | Some(Cell::Outside) => false,
             Some(Cell::Inside) => true,
             Some(Cell::Crossed(segments, near)) => {
-                segments
-                    .iter()
-                    .any(|&(a, b)| distance_to_segment(p, a, b) <= ON_OUTLINE)
+                segments.iter().any(|&(a, b)| on_segment(p, a, b))
                     || near.iter().any(|&i| self.pieces[i as usize].contains(p))
             }
         }
     }
+}
+
+/// True for `p` within [`ON_OUTLINE`] of the segment from `a` to `b`; a point outside the
+/// segment's box widened by that much is not, and is answered without the distance.
+fn on_segment(p: Point, a: Point, b: Point) -> bool {
+    let outside = |axis: usize| {
+        p[axis] < a[axis].min(b[axis]) - ON_OUTLINE || p[axis] > a[axis].max(b[axis]) + ON_OUTLINE
+    };
+    !outside(0) && !outside(1) && distance_to_segment(p, a, b) <= ON_OUTLINE
 }
 
 #[cfg(test)]

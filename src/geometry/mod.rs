@@ -6,6 +6,7 @@
 //! tiles that share the edge. [`constrained`] triangulates with constraint edges that may
 //! cross, and polygons with holes.
 
+pub mod cells;
 pub mod constrained;
 
 /// A point `[u, v]` (or `[x, z]` once local).

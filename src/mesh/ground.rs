@@ -20,6 +20,7 @@ use spade::{Point2, Triangulation};
 
 use super::tin::{refine, HeightGrid, RefineLimits};
 use crate::features::{FeatureClass, Surface};
+use crate::geometry::cells::{Cell, CellIndex};
 use crate::geometry::constrained::Cdt;
 use crate::geometry::{clip_segment, distance_to_segment, grid_cell, Point, Polygon, Rect};
 use crate::terrain::Elevation;
@@ -85,13 +86,21 @@ pub struct Ground {
 }
 
 /// The pieces of the surfaces in buckets over the tile, so a centroid is tested against the
-/// few pieces near it (a road has a piece per segment) rather than whole surfaces.
+/// few pieces near it (a road has a piece per segment) rather than whole surfaces; a piece of
+/// many corners (a land cover, a coast) also has a [`CellIndex`] of its own.
 struct SurfaceBuckets {
     rect: Rect,
     cells: usize,
-    /// (surface, piece, piece bounds) per bucket.
-    buckets: Vec<Vec<(u32, u32, Rect)>>,
+    /// (surface, piece, piece bounds, the piece's index in `indexes` or `u32::MAX`) per bucket.
+    buckets: Vec<Vec<(u32, u32, Rect, u32)>>,
+    indexes: Vec<CellIndex>,
 }
+
+/// A piece with at least this many corners is tested through a [`CellIndex`].
+const INDEXED_CORNERS: usize = 32;
+
+/// How near an outline a point is in a cell the outline crosses (global tile units).
+const NEAR_OUTLINE: f64 = 1e-9;
 
 impl SurfaceBuckets {
     fn new(rect: Rect, cells: usize, surfaces: &[Surface]) -> SurfaceBuckets {
@@ -99,6 +108,7 @@ impl SurfaceBuckets {
             rect,
             cells,
             buckets: vec![Vec::new(); cells * cells],
+            indexes: Vec::new(),
         };
         for (index, surface) in surfaces.iter().enumerate() {
             if !surface.bounds.intersects(&rect) {
@@ -109,6 +119,14 @@ impl SurfaceBuckets {
                 if !bounds.intersects(&rect) {
                     continue;
                 }
+                let corners: usize = piece.rings().map(Vec::len).sum();
+                let indexed = if corners >= INDEXED_CORNERS {
+                    let one = std::slice::from_ref(piece);
+                    grid.indexes.push(CellIndex::new(one, bounds, NEAR_OUTLINE));
+                    grid.indexes.len() as u32 - 1
+                } else {
+                    u32::MAX
+                };
                 let (c0, c1) = (grid.cell(bounds.min[0], 0), grid.cell(bounds.max[0], 0));
                 let (r0, r1) = (grid.cell(bounds.min[1], 1), grid.cell(bounds.max[1], 1));
                 for row in r0..=r1 {
@@ -117,6 +135,7 @@ impl SurfaceBuckets {
                             index as u32,
                             piece_index as u32,
                             bounds,
+                            indexed,
                         ));
                     }
                 }
@@ -139,11 +158,17 @@ impl SurfaceBuckets {
     ) -> impl Iterator<Item = u32> + 'a {
         self.buckets[self.cell(p[1], 1) * self.cells + self.cell(p[0], 0)]
             .iter()
-            .filter(move |(surface, piece, bounds)| {
+            .filter(move |&&(surface, piece, bounds, indexed)| {
+                let contains = || surfaces[surface as usize].pieces[piece as usize].contains(p);
                 bounds.contains(p)
-                    && surfaces[*surface as usize].pieces[*piece as usize].contains(p)
+                    && match self.indexes.get(indexed as usize).map(|i| i.cell(p)) {
+                        None => contains(),
+                        Some(None | Some(Cell::Outside)) => false,
+                        Some(Some(Cell::Inside)) => true,
+                        Some(Some(Cell::Crossed(..))) => contains(),
+                    }
             })
-            .map(|&(surface, _, _)| surface)
+            .map(|&(surface, _, _, _)| surface)
     }
 }
 
