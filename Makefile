@@ -8,7 +8,7 @@ NPM ?= npm
 # the cores keeps the cores busy.
 TEST_THREADS ?= 4
 
-.PHONY: run test check lint bench bench-hardening bench-terrain bench-roofs bench-elevation bench-scale bench-cluster clean-cache
+.PHONY: run test check lint bench bench-hardening bench-terrain bench-roofs bench-tile bench-elevation bench-scale bench-cluster clean-cache
 
 run: static/vendor/.installed
 	$(CARGO) run --release -- serve
@@ -110,6 +110,12 @@ bench-roofs:
 	done
 
 # Elevation LP figures: solve times on problems shaped like a tile's, 1k to 50k stations.
+# The cost of one tile: the densest tile cold and warm by stage, every tile of the bundled
+# extract cold (mean, p95). BASE=path/to/another/terrastitch measures it alongside.
+bench-tile:
+	$(CARGO) build --release
+	python3 scripts/bench_tile.py $(if $(BASE),--base $(BASE))
+
 bench-elevation:
 	$(CARGO) build --release --examples
 	target/release/examples/lp_bench
