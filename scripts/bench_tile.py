@@ -5,7 +5,9 @@ Prints, for the release binary (and, with --base, for another binary, runs alter
 busy machine weighs on both alike):
   1. the densest bundled tile rendered cold (a process each) and warm (rendered a second
      time in the same process, with `--after`), median and least of each stage;
-  2. every zoom-14 tile of the bundled extract rendered cold: mean, p95 and most.
+  2. every zoom-14 tile of the bundled extract rendered cold: mean, p95 and most;
+  3. cold tiles asked of the server (`serve`, a fresh cache): the answer's time against the
+     render's, as the server logs it, by coding asked for.
 
 Usage: scripts/bench_tile.py [--runs N] [--base OTHER_BINARY] [--tile Z/X/Y] [--pin]
 (from the repository root, after a release build). --pin runs every render on one core.
@@ -13,12 +15,14 @@ Usage: scripts/bench_tile.py [--runs N] [--base OTHER_BINARY] [--tile Z/X/Y] [--
 
 import argparse
 import math
+import os
 import re
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+import urllib.request
 
 BINARY = "target/release/terrastitch"
 DENSEST = "14/8529/5974"
@@ -82,6 +86,56 @@ def table(title, names, results):
         print(row)
 
 
+ANSI = re.compile(r"\x1b\[[0-9;]*m")
+RENDERED = re.compile(r"rendered.*tile=(\S+).*\bms=(\d+)")
+# Cold tiles asked of the server, and how: (tile, Accept-Encoding, query).
+ASKED = [
+    ("14/8529/5973", "identity", ""),
+    ("14/8530/5973", "br", ""),
+    ("14/8528/5973", "gzip", ""),
+    ("14/8528/5974", "identity", "?compress=meshopt"),
+]
+
+
+def cold_answers(binary, port):
+    """Each tile of ASKED asked once of a server with an empty cache: (tile, coding, query,
+    answer ms, render ms as logged)."""
+    with tempfile.TemporaryDirectory() as scratch:
+        log = open(os.path.join(scratch, "serve.log"), "w+")
+        server = subprocess.Popen(
+            [binary, "serve", "--listen", f"127.0.0.1:{port}", "--cache", os.path.join(scratch, "c.sqlite")],
+            stdout=subprocess.DEVNULL,
+            stderr=log,
+        )
+        try:
+            base = f"http://127.0.0.1:{port}"
+            for _ in range(300):
+                try:
+                    urllib.request.urlopen(base + "/ready", timeout=1).read()
+                    break
+                except OSError:
+                    time.sleep(0.1)
+            answers = []
+            for tile, coding, query in ASKED:
+                request = urllib.request.Request(
+                    f"{base}/tiles/{tile}.glb{query}", headers={"Accept-Encoding": coding}
+                )
+                started = time.monotonic()
+                with urllib.request.urlopen(request, timeout=120) as response:
+                    response.read()
+                answers.append((tile, coding, query, (time.monotonic() - started) * 1000.0))
+        finally:
+            server.terminate()
+            server.wait()
+        log.seek(0)
+        rendered = {}
+        for line in log:
+            m = RENDERED.search(ANSI.sub("", line))
+            if m:
+                rendered.setdefault(m.group(1), float(m.group(2)))
+    return [(t, c, q, a, rendered.get(t, float("nan"))) for t, c, q, a in answers]
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--runs", type=int, default=5)
@@ -101,6 +155,14 @@ def main():
                 results[n].append(render(b, args.tile, args.pin, warm))
         how = "warm (rendered again in the same process)" if warm else "cold (a process each)"
         table(f"{args.tile} {how}, {args.runs} runs, ms", names, results)
+
+    print("== cold tiles asked of the server: answer against render, ms")
+    for n, b in binaries.items():
+        for tile, coding, query, answer, rendered in cold_answers(b, 18190):
+            print(
+                f"{n}: {tile}{query} Accept-Encoding {coding}: answered in {answer:.0f}, "
+                f"rendered in {rendered:.0f}, {answer - rendered:.0f} after the render"
+            )
 
     tiles = tiles_of(EXTRACT)
     print(f"== every tile of the bundled extract cold ({len(tiles)} tiles), render ms (without loading)")
