@@ -455,9 +455,11 @@ impl Level {
         match self.cells.cell(p) {
             None | Some(Cell::Outside) => false,
             Some(Cell::Inside) => true,
+            // Inside a piece first: most points a level is asked about lie inside it, and
+            // need not be measured against the outline.
             Some(Cell::Crossed(segments, near)) => {
-                segments.iter().any(|&(a, b)| on_segment(p, a, b))
-                    || near.iter().any(|&i| self.pieces[i as usize].contains(p))
+                near.iter().any(|&i| self.pieces[i as usize].contains(p))
+                    || segments.iter().any(|&(a, b)| on_segment(p, a, b))
             }
         }
     }

@@ -5,7 +5,7 @@
 use super::{Point, Polygon, Rect};
 
 /// Cells per side of an index, at most.
-const CELLS: usize = 48;
+const CELLS: usize = 96;
 
 /// The area's bounds in a grid of cells, each wholly inside, wholly outside, or crossed by
 /// the outline (with the segments that cross it). A cell is one byte and its lists are runs of
