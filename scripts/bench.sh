@@ -69,7 +69,7 @@ bounds=$(curl -fsS "http://127.0.0.1:$port/tiles.json" | python3 -c 'import json
 stop_server
 
 echo "== 4. seed of the extract's area ($bounds)"
-"$bin" seed --bbox "$bounds" --format glb --cache "$out/seed.sqlite" 2>&1 | grep -E 'tiles in the box|made [0-9]+ tiles'
+"$bin" seed --bbox "$bounds" --format glb --cache "$out/seed.sqlite" 2>&1 | grep -E 'tiles in the box|made [0-9]+ tiles|time in each stage'
 
 echo "== 5. export of that area to MBTiles"
 "$bin" export --bbox "$bounds" --cache "$out/seed.sqlite" -o "$out/area.mbtiles" 2>&1 | grep -E '^exported'

@@ -243,6 +243,18 @@ fn print_report(report: &seed::SeedReport, solutions: &Solutions) {
         solved,
         found
     );
+    if report.made > 0 {
+        let stages = crate::provider::StageTimings::NAMES
+            .iter()
+            .zip(report.stages.stages())
+            .map(|(name, time)| format!("{name} {:.2}", time.as_secs_f64()))
+            .collect::<Vec<_>>()
+            .join(", ");
+        eprintln!(
+            "time in each stage, seconds summed over the tiles made: {stages}; compressing {:.2}",
+            report.compressing.as_secs_f64()
+        );
+    }
     for (key, error) in &report.failed {
         eprintln!("  {} ({}): {error}", key.tile, key.format.as_str());
     }

@@ -25,7 +25,7 @@ use crate::cache::{
     etag_of, unix_now, Provenance, StoreError, StoredTile, TileFilter, TileReader, TileStore,
 };
 use crate::format::{Format, TileKey};
-use crate::provider::{Availability, Deadline, Offer, Solutions, TileProvider};
+use crate::provider::{Availability, Deadline, Offer, Solutions, StageTimings, TileProvider};
 use crate::tile::{LonLatBounds, TileId, TileRange};
 
 /// The `i`-th of `n` shares of a box's tiles (`1 ≤ i ≤ n`).
@@ -184,6 +184,11 @@ pub struct SeedReport {
     /// Bytes stored (compressed as kept).
     pub stored_bytes: u64,
     pub elapsed: Duration,
+    /// The time the tiles made spent in each stage of their renders, summed over the tiles
+    /// (over all threads: it may exceed `elapsed`).
+    pub stages: StageTimings,
+    /// The time spent compressing the tiles made, summed likewise.
+    pub compressing: Duration,
 }
 
 impl SeedReport {
@@ -210,7 +215,9 @@ const IDLE_LOOK: Duration = Duration::from_millis(500);
 
 /// What became of one row.
 enum Outcome {
-    Made(u64),
+    /// Made and stored: its bytes stored, and the work it took (given with one format of a
+    /// tile made in several).
+    Made(u64, Work),
     /// Current in the store already.
     Current,
     /// Another process is making it: handed back.
@@ -296,9 +303,11 @@ impl Tally {
     ) {
         let mut report = self.report.lock().unwrap_or_else(|p| p.into_inner());
         match outcome {
-            Outcome::Made(bytes) => {
+            Outcome::Made(bytes, work) => {
                 report.made += 1;
                 report.stored_bytes += bytes;
+                report.stages += work.stages;
+                report.compressing += work.compressing;
             }
             Outcome::Failed(error, true) => report.failed.push((key, error)),
             Outcome::Current => {}
@@ -412,12 +421,12 @@ impl Workers<'_> {
     fn keep(
         &self,
         keys: &[TileKey],
-        made: Result<Vec<StoredTile>, String>,
+        made: Result<(Vec<StoredTile>, Work), String>,
         outcomes: &mut Vec<(TileKey, Outcome)>,
     ) -> Result<(), StoreError> {
         let (store, coordinator) = (self.store, self.coordinator);
-        let tiles = match made {
-            Ok(tiles) => tiles,
+        let (tiles, work) = match made {
+            Ok(made) => made,
             Err(error) => {
                 let tile = keys[0].tile;
                 tracing::error!(%tile, %error, "tile failed");
@@ -439,35 +448,47 @@ impl Workers<'_> {
         }
         // Servers holding an older version in memory drop it.
         coordinator.broadcast(&Event::Stored(keys.to_vec()))?;
-        for (key, tile) in keys.iter().zip(&tiles) {
+        for (k, (key, tile)) in keys.iter().zip(&tiles).enumerate() {
             coordinator.finish(key, true)?;
-            outcomes.push((*key, Outcome::Made(tile.bodies.stored_len() as u64)));
+            let work = if k == 0 { work } else { Work::default() };
+            outcomes.push((*key, Outcome::Made(tile.bodies.stored_len() as u64, work)));
         }
         Ok(())
     }
 }
 
+/// The work that made a tile: its render's stages and its compression.
+#[derive(Debug, Clone, Copy, Default)]
+struct Work {
+    stages: StageTimings,
+    compressing: Duration,
+}
+
 /// Makes one tile in the formats of `keys`, together, as the store keeps them (compressed,
-/// with their validators and the provenance `made_by`).
+/// with their validators and the provenance `made_by`), with the work it took.
 fn make_tiles(
     provider: &dyn TileProvider,
     (keys, made_by): (&[TileKey], Provenance),
     render_limit: Option<Duration>,
-) -> Result<Vec<StoredTile>, String> {
+) -> Result<(Vec<StoredTile>, Work), String> {
     let deadline = render_limit.map_or(Deadline::none(), Deadline::after);
     let made = provider
         .make_together(keys, deadline)
         .map_err(|e| e.to_string())?;
-    made.into_iter()
-        .map(|made| {
-            Ok(StoredTile {
-                etag: etag_of(&made.bytes),
-                bodies: Bodies::compress(made.bytes).map_err(|e| e.to_string())?,
-                made_by: made_by.clone(),
-                created_at: unix_now(),
-            })
-        })
-        .collect()
+    let mut work = Work::default();
+    let mut tiles = Vec::with_capacity(made.len());
+    for made in made {
+        work.stages += made.timings;
+        let started = Instant::now();
+        tiles.push(StoredTile {
+            etag: etag_of(&made.bytes),
+            bodies: Bodies::compress(made.bytes).map_err(|e| e.to_string())?,
+            made_by: made_by.clone(),
+            created_at: unix_now(),
+        });
+        work.compressing += started.elapsed();
+    }
+    Ok((tiles, work))
 }
 
 #[cfg(test)]

@@ -56,6 +56,20 @@ impl StageTimings {
     }
 }
 
+impl std::ops::AddAssign for StageTimings {
+    /// Each stage's time added: what several renders spent, stage by stage.
+    fn add_assign(&mut self, other: StageTimings) {
+        self.features += other.features;
+        self.structures += other.structures;
+        self.roads += other.roads;
+        self.triangulation += other.triangulation;
+        self.normals += other.normals;
+        self.ground += other.ground;
+        self.shapes += other.shapes;
+        self.encode += other.encode;
+    }
+}
+
 /// Counts that describe a rendered tile.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RenderStats {

@@ -81,6 +81,9 @@ fn shards_split_a_seed_and_a_second_run_makes_nothing() {
         let (to_make, already) = planned(&stderr);
         assert_eq!((to_make, already), (2, 0), "{stderr}");
         assert!(stderr.contains("tiles/s"), "{stderr}");
+        let stages = stage_seconds(&stderr).unwrap_or_else(|| panic!("no stages in:\n{stderr}"));
+        assert_eq!(stages.len(), 9, "eight stages and compressing: {stages:?}");
+        assert!(stages.iter().sum::<f64>() > 0.0, "{stages:?}");
         made += to_make;
     }
     assert_eq!(made, 4);
@@ -88,10 +91,33 @@ fn shards_split_a_seed_and_a_second_run_makes_nothing() {
     let (ok, stderr) = run(&["seed", "--bbox", &area, "--format", "glb"], &cache);
     assert!(ok, "{stderr}");
     assert_eq!(planned(&stderr), (0, 4));
+    assert_eq!(
+        stage_seconds(&stderr),
+        None,
+        "nothing made, no stages: {stderr}"
+    );
     // A box outside the data is refused by the parser, not by the renderer.
     let (ok, stderr) = run(&["seed", "--bbox", "7.44,43.72,7.40,43.75"], &cache);
     assert!(!ok);
     assert!(stderr.contains("empty"), "{stderr}");
+}
+
+/// The seconds of each stage (and of compressing) the summary gives, summed over the tiles
+/// made; `None` when it gives none.
+fn stage_seconds(stderr: &str) -> Option<Vec<f64>> {
+    let line = stderr
+        .lines()
+        .find(|l| l.starts_with("time in each stage"))?;
+    let (_, figures) = line.split_once(": ")?;
+    Some(
+        figures
+            .split([',', ';'])
+            .map(|part| {
+                let value = part.split_whitespace().last().unwrap_or_default();
+                value.parse().unwrap_or_else(|_| panic!("{part} in {line}"))
+            })
+            .collect(),
+    )
 }
 
 /// The summary's counts of elevation LP components: solved, and found solved.
