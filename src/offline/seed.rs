@@ -477,8 +477,14 @@ fn make_tiles(
         .map_err(|e| e.to_string())?;
     let mut work = Work::default();
     let mut tiles = Vec::with_capacity(made.len());
+    // The stages of the renders, each counted once however many formats it made.
+    let mut render = StageTimings::default();
     for made in made {
-        work.stages += made.timings;
+        if !made.shared {
+            work.stages += render;
+            render = StageTimings::default();
+        }
+        render.add_shared(made.timings);
         let started = Instant::now();
         tiles.push(StoredTile {
             etag: etag_of(&made.bytes),
@@ -488,6 +494,7 @@ fn make_tiles(
         });
         work.compressing += started.elapsed();
     }
+    work.stages += render;
     Ok((tiles, work))
 }
 

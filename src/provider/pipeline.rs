@@ -22,6 +22,9 @@ pub struct Made {
     pub lp_violations: usize,
     /// Everything the render counted (glb only).
     pub stats: Option<RenderStats>,
+    /// Made from the same render as the tile before it in the same call: the stages before
+    /// encoding were spent once for both.
+    pub shared: bool,
 }
 
 impl From<RenderedTile> for Made {
@@ -33,6 +36,7 @@ impl From<RenderedTile> for Made {
             timings: rendered.timings,
             bytes: rendered.glb,
             stats: Some(rendered.stats),
+            shared: false,
         }
     }
 }
@@ -46,6 +50,7 @@ impl From<RenderedTerrain> for Made {
             timings: rendered.timings,
             bytes: rendered.bytes,
             stats: None,
+            shared: false,
         }
     }
 }
@@ -166,9 +171,13 @@ pub fn make_together(
         crate::render::render_formats(tile, (&selection, &mosaic), settings, &formats, context)?;
     Ok(rendered
         .into_iter()
-        .map(|rendered| match rendered {
-            Rendered::Glb(tile) => Made::from(tile),
-            Rendered::Terrain(terrain) => Made::from(terrain),
+        .enumerate()
+        .map(|(k, rendered)| Made {
+            shared: k > 0,
+            ..match rendered {
+                Rendered::Glb(tile) => Made::from(tile),
+                Rendered::Terrain(terrain) => Made::from(terrain),
+            }
         })
         .collect())
 }

@@ -56,6 +56,30 @@ impl StageTimings {
     }
 }
 
+impl StageTimings {
+    /// Adds the stages of another format made from the same render: what both spent before
+    /// encoding was spent once (the longer of the two: a terrain has no shapes), and each
+    /// encoded its own.
+    pub fn add_shared(&mut self, other: StageTimings) {
+        let encode = self.encode + other.encode;
+        let mut stages = self.stages();
+        for (mine, theirs) in stages.iter_mut().zip(other.stages()) {
+            *mine = (*mine).max(theirs);
+        }
+        let [features, structures, roads, triangulation, normals, ground, shapes, _] = stages;
+        *self = StageTimings {
+            features,
+            structures,
+            roads,
+            triangulation,
+            normals,
+            ground,
+            shapes,
+            encode,
+        };
+    }
+}
+
 impl std::ops::AddAssign for StageTimings {
     /// Each stage's time added: what several renders spent, stage by stage.
     fn add_assign(&mut self, other: StageTimings) {
@@ -164,5 +188,37 @@ impl RenderStats {
             road_lp_constraints: road_profiles.constraints,
             road_lp_violations: road_violations,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn formats_made_from_one_render_count_its_stages_once_and_each_encoding() {
+        let ms = Duration::from_millis;
+        let glb = StageTimings {
+            features: ms(10),
+            triangulation: ms(30),
+            shapes: ms(20),
+            encode: ms(5),
+            ..StageTimings::default()
+        };
+        let terrain = StageTimings {
+            shapes: Duration::ZERO,
+            encode: ms(2),
+            ..glb
+        };
+        let mut both = StageTimings::default();
+        both.add_shared(terrain);
+        both.add_shared(glb);
+        assert_eq!(both.features, ms(10));
+        assert_eq!(both.triangulation, ms(30));
+        assert_eq!(both.shapes, ms(20));
+        assert_eq!(both.encode, ms(7));
+        let mut apart = glb;
+        apart += terrain;
+        assert_eq!(apart.features, ms(20), "two renders count twice");
     }
 }

@@ -103,6 +103,7 @@ impl TileProvider for Fake {
             lp_components: 0,
             lp_violations: 0,
             stats: None,
+            shared: false,
         })
     }
 
