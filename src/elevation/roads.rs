@@ -112,11 +112,7 @@ impl RoadLevels {
         // Each piece's cells, not the whole level's box: a long road's box holds many cells
         // it does not touch.
         for piece in &level.pieces {
-            let Rect { min, max } = piece.bounds();
-            let near = Rect {
-                min: [min[0] - ON_OUTLINE, min[1] - ON_OUTLINE],
-                max: [max[0] + ON_OUTLINE, max[1] + ON_OUTLINE],
-            };
+            let near = piece.bounds().widened(ON_OUTLINE);
             let (a, b) = (cell_of(near.min), cell_of(near.max));
             for x in a.0..=b.0 {
                 for y in a.1..=b.1 {
@@ -183,7 +179,7 @@ pub fn levels(
                 continue;
             };
             let pieces: Vec<Polygon> = pieces.to_vec();
-            let Some(bounds) = bounds_of(&pieces) else {
+            let Some(bounds) = Rect::around_all(&pieces) else {
                 continue;
             };
             // Stations by cross-section; where the strip is not a row of quads (it always
@@ -240,7 +236,7 @@ fn sidewalk_level(
         })
         .collect();
     let sections = Sections::from_quads(&pieces)?;
-    let bounds = bounds_of(&pieces)?;
+    let bounds = Rect::around_all(&pieces)?;
     let profile: Vec<(f64, f64)> = sections
         .starts()
         .iter()
@@ -265,14 +261,6 @@ fn sidewalk_level(
     edge.extend_from_slice(outer);
     edge.push(inner[n - 1]);
     Some((Level::new(band.feature, pieces, bounds, rule), edge))
-}
-
-/// The box around all of `pieces`; `None` for none.
-fn bounds_of(pieces: &[Polygon]) -> Option<Rect> {
-    pieces
-        .iter()
-        .map(Polygon::bounds)
-        .reduce(|a, b| a.union(&b))
 }
 
 /// The terrain along a line: at its vertices and every `step` (tile units) between them.

@@ -10,7 +10,7 @@
 
 use super::inference::Footprint;
 use super::FeatureSettings;
-use crate::geometry::{Point, Polygon};
+use crate::geometry::{Point, Polygon, Rect};
 use crate::osm::units::{parse_count, parse_length_m};
 use crate::osm::Tags;
 
@@ -208,11 +208,7 @@ pub fn has_shop_inside(footprints: &[Polygon], shops: &[Point], widest: f64) -> 
     if shops.is_empty() {
         return false;
     }
-    let bounds = footprints
-        .iter()
-        .map(Polygon::bounds)
-        .reduce(|a, b| a.union(&b));
-    let Some(bounds) = bounds else {
+    let Some(bounds) = Rect::around_all(footprints) else {
         return false;
     };
     let across = (bounds.max[0] - bounds.min[0]).max(bounds.max[1] - bounds.min[1]);

@@ -187,10 +187,7 @@ impl Surface {
         pieces: Vec<Polygon>,
         outline: Vec<Vec<Point>>,
     ) -> Option<Surface> {
-        let bounds = pieces
-            .iter()
-            .map(Polygon::bounds)
-            .reduce(|a, b| a.union(&b))?;
+        let bounds = Rect::around_all(&pieces)?;
         Some(Surface {
             class,
             feature,

@@ -449,12 +449,7 @@ fn drop_small_pieces(set: &mut FeatureSet, min_area: f64) {
                 closed
             })
             .collect();
-        surface.bounds = surface
-            .pieces
-            .iter()
-            .map(Polygon::bounds)
-            .reduce(|a, b| a.union(&b))
-            .unwrap_or(surface.bounds);
+        surface.bounds = Rect::around_all(&surface.pieces).unwrap_or(surface.bounds);
         true
     });
 }

@@ -370,12 +370,7 @@ pub(super) fn place(
         .collect();
     corners.sort_by(|a, b| a[0].total_cmp(&b[0]));
     let reach = |line: Vec<Point>, metre: f64| {
-        let bounds = Rect::around(&line);
-        let margin = SEPARATE_REACH_M * metre;
-        let bounds = Rect {
-            min: [bounds.min[0] - margin, bounds.min[1] - margin],
-            max: [bounds.max[0] + margin, bounds.max[1] + margin],
-        };
+        let bounds = Rect::around(&line).widened(SEPARATE_REACH_M * metre);
         (bounds, line)
     };
     let surroundings = Surroundings {

@@ -76,10 +76,7 @@ impl CellIndex {
     /// The index of `pieces` over `bounds` widened by `margin`: a cell nearer than `margin`
     /// to a segment of their outlines is crossed by it.
     pub fn new(pieces: &[Polygon], bounds: Rect, margin: f64) -> CellIndex {
-        let bounds = Rect {
-            min: [bounds.min[0] - margin, bounds.min[1] - margin],
-            max: [bounds.max[0] + margin, bounds.max[1] + margin],
-        };
+        let bounds = bounds.widened(margin);
         let segments: usize = pieces.iter().flat_map(Polygon::rings).map(Vec::len).sum();
         let side = ((segments as f64).sqrt().ceil() as usize * 2).clamp(4, CELLS);
         let size = [

@@ -65,6 +65,22 @@ impl Rect {
         rect
     }
 
+    /// The box around all of `polygons`; `None` for none.
+    pub fn around_all(polygons: &[Polygon]) -> Option<Rect> {
+        polygons
+            .iter()
+            .map(Polygon::bounds)
+            .reduce(|a, b| a.union(&b))
+    }
+
+    /// The same box grown by `margin` on every side.
+    pub fn widened(&self, margin: f64) -> Rect {
+        Rect {
+            min: [self.min[0] - margin, self.min[1] - margin],
+            max: [self.max[0] + margin, self.max[1] + margin],
+        }
+    }
+
     pub fn union(&self, other: &Rect) -> Rect {
         Rect {
             min: [self.min[0].min(other.min[0]), self.min[1].min(other.min[1])],

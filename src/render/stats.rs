@@ -54,9 +54,22 @@ impl StageTimings {
     pub fn total(&self) -> Duration {
         self.stages().iter().sum()
     }
-}
 
-impl StageTimings {
+    /// The timings of the stages whose times are given in the order of [`StageTimings::NAMES`].
+    fn from_stages(stages: [Duration; 8]) -> StageTimings {
+        let [features, structures, roads, triangulation, normals, ground, shapes, encode] = stages;
+        StageTimings {
+            features,
+            structures,
+            roads,
+            triangulation,
+            normals,
+            ground,
+            shapes,
+            encode,
+        }
+    }
+
     /// Adds the stages of another format made from the same render: what both spent before
     /// encoding was spent once (the longer of the two: a terrain has no shapes), and each
     /// encoded its own.
@@ -66,16 +79,9 @@ impl StageTimings {
         for (mine, theirs) in stages.iter_mut().zip(other.stages()) {
             *mine = (*mine).max(theirs);
         }
-        let [features, structures, roads, triangulation, normals, ground, shapes, _] = stages;
         *self = StageTimings {
-            features,
-            structures,
-            roads,
-            triangulation,
-            normals,
-            ground,
-            shapes,
             encode,
+            ..StageTimings::from_stages(stages)
         };
     }
 }
@@ -83,14 +89,11 @@ impl StageTimings {
 impl std::ops::AddAssign for StageTimings {
     /// Each stage's time added: what several renders spent, stage by stage.
     fn add_assign(&mut self, other: StageTimings) {
-        self.features += other.features;
-        self.structures += other.structures;
-        self.roads += other.roads;
-        self.triangulation += other.triangulation;
-        self.normals += other.normals;
-        self.ground += other.ground;
-        self.shapes += other.shapes;
-        self.encode += other.encode;
+        let mut stages = self.stages();
+        for (mine, theirs) in stages.iter_mut().zip(other.stages()) {
+            *mine += theirs;
+        }
+        *self = StageTimings::from_stages(stages);
     }
 }
 
