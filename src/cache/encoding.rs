@@ -16,12 +16,21 @@ const WORTH_KEEPING: f64 = 0.9;
 const BROTLI_QUALITY: u32 = 5;
 const BROTLI_WINDOW: u32 = 22;
 
+/// The levels of a form made while a client waits. On a 13.8 MB tile (one core): gzip level 1
+/// takes 75–110 ms against 420–600 ms at the default level (9 % larger); brotli quality 0
+/// 105 ms against 590–950 ms at quality 5 (41 % larger).
+const QUICK_GZIP_LEVEL: u32 = 1;
+const QUICK_BROTLI_QUALITY: u32 = 0;
+
 /// One tile in each coding that pays.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Bodies {
     pub identity: Bytes,
     pub gzip: Option<Bytes>,
     pub brotli: Option<Bytes>,
+    /// Made for a client waiting for it, with at most the one coded form named (none for
+    /// identity) made at a fast level, until the forms kept replace it ([`Bodies::compress`]).
+    pub quick: Option<Encoding>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -47,7 +56,7 @@ impl Bodies {
         let keep = |form: Vec<u8>| (form.len() <= limit).then(|| Bytes::from(form));
         let (gzipped, brotlied) = std::thread::scope(|scope| {
             let gzipping = scope.spawn(|| gzip(&identity));
-            let brotlied = brotli(&identity);
+            let brotlied = brotli(&identity, BROTLI_QUALITY);
             let gzipped = gzipping
                 .join()
                 .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
@@ -59,7 +68,43 @@ impl Bodies {
             identity: Bytes::from(identity),
             gzip,
             brotli,
+            quick: None,
         })
+    }
+
+    /// The form a client waits for, made fast: gzip when it accepts gzip (the quicker of the
+    /// two at these levels, and the smaller), else brotli, else none.
+    pub fn quick(identity: Vec<u8>, accepted: &Accepted) -> Result<Bodies, CodingError> {
+        let limit = (identity.len() as f64 * WORTH_KEEPING) as usize;
+        let keep = |form: Vec<u8>| (form.len() <= limit).then(|| Bytes::from(form));
+        let mut bodies = Bodies {
+            quick: Some(Encoding::Identity),
+            ..Bodies::default()
+        };
+        if accepted.allows(Encoding::Gzip) {
+            let made = gzip_at(&identity, QUICK_GZIP_LEVEL).map_err(CodingError::Compress)?;
+            bodies.gzip = keep(made);
+            bodies.quick = Some(Encoding::Gzip);
+        } else if accepted.allows(Encoding::Brotli) {
+            let made = brotli(&identity, QUICK_BROTLI_QUALITY).map_err(CodingError::Compress)?;
+            bodies.brotli = keep(made);
+            bodies.quick = Some(Encoding::Brotli);
+        }
+        bodies.identity = Bytes::from(identity);
+        Ok(bodies)
+    }
+
+    /// Whether a client that accepts `accepted` should wait for the forms kept: these bodies
+    /// were made in haste for another client, and would give this one the identity body
+    /// though it accepts a coding not tried.
+    pub fn awaits_better_for(&self, accepted: &Accepted) -> bool {
+        let Some(tried) = self.quick else {
+            return false;
+        };
+        self.choose(accepted).0 == Encoding::Identity
+            && [Encoding::Gzip, Encoding::Brotli]
+                .into_iter()
+                .any(|coding| coding != tried && accepted.allows(coding))
     }
 
     /// Rebuilds the bodies from their stored forms: the primary body in its coding (gzip or
@@ -80,6 +125,7 @@ impl Bodies {
             identity: Bytes::from(identity),
             gzip,
             brotli: brotli.map(Bytes::from),
+            quick: None,
         })
     }
 
@@ -183,16 +229,19 @@ impl Accepted {
 }
 
 pub fn gzip(data: &[u8]) -> std::io::Result<Vec<u8>> {
-    let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    gzip_at(data, flate2::Compression::default().level())
+}
+
+fn gzip_at(data: &[u8], level: u32) -> std::io::Result<Vec<u8>> {
+    let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::new(level));
     encoder.write_all(data)?;
     encoder.finish()
 }
 
-fn brotli(data: &[u8]) -> std::io::Result<Vec<u8>> {
+fn brotli(data: &[u8], quality: u32) -> std::io::Result<Vec<u8>> {
     let mut out = Vec::new();
     {
-        let mut writer =
-            brotli::CompressorWriter::new(&mut out, 1 << 16, BROTLI_QUALITY, BROTLI_WINDOW);
+        let mut writer = brotli::CompressorWriter::new(&mut out, 1 << 16, quality, BROTLI_WINDOW);
         writer.write_all(data)?;
         writer.flush()?;
     }
@@ -260,6 +309,46 @@ mod tests {
             bodies.choose(&Accepted::default()),
             (Encoding::Identity, &bodies.identity)
         );
+    }
+
+    #[test]
+    fn a_quick_body_has_only_the_form_its_client_takes() {
+        let original: Vec<u8> = (0..50_000u32)
+            .flat_map(|i| (i % 251).to_le_bytes())
+            .collect();
+        let both = Accepted::parse(["gzip, br"]);
+        let gzip_only = Accepted::parse(["gzip"]);
+        let br_only = Accepted::parse(["br"]);
+        let quick = Bodies::quick(original.clone(), &both).unwrap();
+        assert_eq!(quick.quick, Some(Encoding::Gzip));
+        assert!(quick.gzip.is_some() && quick.brotli.is_none());
+        assert_eq!(
+            gunzip(quick.gzip.as_ref().unwrap(), 1 << 20).unwrap(),
+            original
+        );
+        // Its own client, and any that takes gzip, are served; one that takes brotli only
+        // waits for the forms kept.
+        assert!(!quick.awaits_better_for(&both) && !quick.awaits_better_for(&gzip_only));
+        assert!(quick.awaits_better_for(&br_only));
+        assert!(!quick.awaits_better_for(&Accepted::default()));
+
+        let brotli = Bodies::quick(original.clone(), &br_only).unwrap();
+        assert_eq!(brotli.quick, Some(Encoding::Brotli));
+        assert!(brotli.gzip.is_none());
+        assert_eq!(
+            unbrotli(brotli.brotli.as_ref().unwrap(), 1 << 20).unwrap(),
+            original
+        );
+        assert!(brotli.awaits_better_for(&gzip_only) && !brotli.awaits_better_for(&both));
+
+        let plain = Bodies::quick(original.clone(), &Accepted::default()).unwrap();
+        assert_eq!(plain.quick, Some(Encoding::Identity));
+        assert!(plain.gzip.is_none() && plain.brotli.is_none());
+        assert!(plain.awaits_better_for(&gzip_only) && plain.awaits_better_for(&br_only));
+
+        let kept = Bodies::compress(original).unwrap();
+        assert!(!kept.awaits_better_for(&br_only));
+        assert!(kept.gzip.as_ref().unwrap().len() <= quick.gzip.as_ref().unwrap().len());
     }
 
     #[test]

@@ -13,6 +13,7 @@ pub mod coordinator;
 pub mod encoding;
 mod flight;
 pub mod postgres;
+mod refine;
 pub mod sqlite;
 pub mod store;
 
@@ -27,7 +28,7 @@ pub use archive::mbtiles::MbtilesStore;
 pub use archive::pmtiles::PmtilesStore;
 pub use archive::{open_archive, ArchiveStore, Contents};
 pub use coordinator::{Coordinator, Event, Local};
-use encoding::Bodies;
+use encoding::{Accepted, Bodies};
 pub use postgres::PostgresStore;
 pub use sqlite::SqliteStore;
 pub use store::{
@@ -65,7 +66,8 @@ pub struct CachedTile {
     /// Where the tile was found when it entered memory.
     pub loaded_from: Origin,
     /// Whether the durable store holds it (a tile that could not be stored, its disk full, is
-    /// served from memory only).
+    /// served from memory only; a tile answered in haste is stored a moment later, see
+    /// [`refine`]).
     pub stored: bool,
 }
 
@@ -137,6 +139,8 @@ pub struct TileCache {
     waiting: Arc<AtomicUsize>,
     /// Purges lately made, so a tile made again from before one is not stored after it.
     purges: Arc<Mutex<Purges>>,
+    /// Tiles answered in haste whose forms kept are being made.
+    refining: Arc<refine::Refining>,
     /// How the processes sharing the store share its work: a tile is claimed before it is
     /// made, and purges and new versions are told to the others.
     coordinator: Arc<dyn Coordinator>,
@@ -199,6 +203,11 @@ impl Drop for Waiting<'_> {
 /// Makes a tile's body, identity-coded.
 type Render<E> = Box<dyn FnOnce() -> Result<Vec<u8>, E> + Send>;
 
+/// A render that gave no tile though no purge was asked for it.
+fn dropped<E: std::error::Error>() -> CacheError<E> {
+    CacheError::Panicked("a tile was dropped unasked".into())
+}
+
 impl TileCache {
     /// A cache over a store it reads and writes.
     pub fn new(store: Arc<dyn TileStore>, memory_bytes: u64) -> TileCache {
@@ -225,6 +234,7 @@ impl TileCache {
             flights: Arc::default(),
             waiting: Arc::default(),
             purges: Arc::default(),
+            refining: Arc::default(),
             coordinator: Arc::new(Local::new()),
         }
     }
@@ -277,16 +287,21 @@ impl TileCache {
         F: FnOnce() -> Result<Vec<u8>, E> + Send + 'static,
         E: std::error::Error + Send + Sync + 'static,
     {
-        self.get_or_render_kept(key, wanted, true, render).await
+        self.get_or_render_kept(key, wanted, true, None, render)
+            .await
     }
 
     /// As [`TileCache::get_or_render`]; with `keep` false a tile made now is held in memory
-    /// only, never stored (a tile that holds no data).
+    /// only, never stored (a tile that holds no data). With `answer`, what the client asking
+    /// accepts: a tile made now for it is answered in that coding made fast, and its forms
+    /// kept are made afterwards (see [`refine`]); a client that accepts a coding such a
+    /// tile lacks waits for them.
     pub async fn get_or_render_kept<F, E>(
         &self,
         key: TileKey,
         wanted: Option<&Provenance>,
         keep: bool,
+        answer: Option<Accepted>,
         render: F,
     ) -> Result<Served, Arc<CacheError<E>>>
     where
@@ -296,20 +311,46 @@ impl TileCache {
         let held = self.store.clone();
         let coordinator = self.coordinator.clone();
         let made_by = wanted.cloned().unwrap_or_default();
+        let refining = self.refining.clone();
+        let memory = self.memory.clone();
+        let purges = self.purges.clone();
+        let since = self.purges_so_far();
         let lookup_or_render = async move {
+            // A tile answered in haste is stored once its forms kept are made.
+            if let Some(quick) = refining.quick(&key, &purges) {
+                return Ok(quick);
+            }
             if let Some(found) = lookup(&held, key).await? {
                 return Ok(Arc::new(found));
             }
             let store = held.writer().ok().filter(|_| keep).cloned();
             // A process alone with its store claims nothing: the single flight here is the
-            // whole of it.
+            // whole of it. The processes of a cluster read each other's tiles from the store
+            // as soon as they land, so they store them with their forms kept at once.
             let made = match store {
                 Some(store) if !coordinator.alone() => {
                     render_claimed(coordinator, store, key, made_by, Box::new(render)).await?
                 }
-                store => render_and_store(store, key, made_by, None, Box::new(render))
+                store if answer.is_some() => {
+                    let quick =
+                        render_and_store(None, key, made_by, None, answer, Box::new(render))
+                            .await?
+                            .ok_or_else(dropped)?;
+                    let quick = Arc::new(quick);
+                    refining.start(refine::Refinement {
+                        key,
+                        tile: quick.clone(),
+                        store,
+                        memory,
+                        purges,
+                        since,
+                        created_at: unix_now(),
+                    });
+                    return Ok(quick);
+                }
+                store => render_and_store(store, key, made_by, None, None, Box::new(render))
                     .await?
-                    .ok_or_else(|| CacheError::Panicked("a tile was dropped unasked".into()))?,
+                    .ok_or_else(dropped)?,
             };
             // Made here, or found in the store once another process made it.
             Ok(Arc::new(made))
@@ -336,12 +377,41 @@ impl TileCache {
                 .insert(key);
             Origin::Memory
         };
-        let tile = entry.into_value();
+        let mut tile = entry.into_value();
+        if answer.is_some_and(|accepted| tile.bodies.awaits_better_for(&accepted)) {
+            if let Some(refined) = self.refining.wait(&key).await {
+                if refined.etag == tile.etag {
+                    tile = refined;
+                }
+            }
+        }
         Ok(Served {
             stale: wanted.is_some_and(|wanted| tile.made_by != *wanted),
             tile,
             origin,
         })
+    }
+
+    /// Tiles answered in haste whose forms kept are being made now.
+    pub fn refining(&self) -> usize {
+        self.refining.len()
+    }
+
+    /// Waits until the forms kept of every tile answered in haste are made (and stored).
+    pub async fn refined(&self) {
+        self.refining.all_ended().await
+    }
+
+    /// Waits until the tile of `key`, if it was answered in haste, is stored with its forms
+    /// kept.
+    pub async fn refined_one(&self, key: &TileKey) {
+        self.refining.wait(key).await;
+    }
+
+    /// Tiles answered in haste that the store then could not take, so far (served from
+    /// memory).
+    pub fn unstored_after_answer(&self) -> u64 {
+        self.refining.unstored()
     }
 
     /// How many purges were made so far: give it to [`TileCache::remake`] for a tile chosen
@@ -366,7 +436,7 @@ impl TileCache {
     {
         let purges = Some((self.purges.clone(), purges_so_far));
         let store = self.store.writer().ok().cloned();
-        match render_and_store(store, key, wanted, purges, Box::new(render)).await? {
+        match render_and_store(store, key, wanted, purges, None, Box::new(render)).await? {
             Some(tile) => {
                 let remade = if tile.stored {
                     Remade::Stored
@@ -387,6 +457,8 @@ impl TileCache {
     /// them under way is not stored. Returns the keys removed.
     pub async fn purge(&self, filter: TileFilter) -> Result<Vec<TileKey>, StoreError> {
         self.record_purge(filter.clone());
+        // A tile answered in haste is in memory before it is in the store.
+        let refining = self.refining.keys_matching(&filter);
         let all = filter == TileFilter::All;
         let store = self.store.writer()?.clone();
         let removing = filter.clone();
@@ -397,8 +469,16 @@ impl TileCache {
             self.forget_all();
         } else {
             self.forget(&removed).await;
+            self.forget(&refining).await;
         }
         self.tell(Event::Purged(filter)).await;
+        // The tiles answered in haste that it keeps out of the store count as removed.
+        let unstored: Vec<TileKey> = refining
+            .into_iter()
+            .filter(|key| !removed.contains(key))
+            .collect();
+        let mut removed = removed;
+        removed.extend(unstored);
         Ok(removed)
     }
 
@@ -548,7 +628,6 @@ async fn render_claimed<E>(
 where
     E: std::error::Error + Send + Sync + 'static,
 {
-    let dropped = || CacheError::Panicked("a tile was dropped unasked".into());
     loop {
         let claiming = coordinator.clone();
         let claim = tokio::task::spawn_blocking(move || claiming.claim(&key))
@@ -559,7 +638,7 @@ where
                 // It may have landed between the lookup and the claim.
                 let made = match lookup(&Held::Store(store.clone()), key).await? {
                     Some(found) => Ok(found),
-                    None => render_and_store(Some(store), key, made_by, None, render)
+                    None => render_and_store(Some(store), key, made_by, None, None, render)
                         .await
                         .and_then(|made| made.ok_or_else(dropped)),
                 };
@@ -573,7 +652,7 @@ where
             Ok(false) => {}
             Err(error) => {
                 tracing::warn!(tile = %key.tile, %error, "claiming the tile failed; made here");
-                return render_and_store(Some(store), key, made_by, None, render)
+                return render_and_store(Some(store), key, made_by, None, None, render)
                     .await
                     .and_then(|made| made.ok_or_else(dropped));
             }
@@ -587,11 +666,14 @@ where
 
 /// Renders a tile on the blocking pool, compresses it and stores it (when given a store); with
 /// `purges`, not when a purge numbered past the one given removed it meanwhile (then `None`).
+/// With `quick`, what the client waiting accepts: only the form it takes is made, fast
+/// ([`Bodies::quick`]); else every form kept.
 async fn render_and_store<E>(
     store: Option<Arc<dyn TileStore>>,
     key: TileKey,
     made_by: Provenance,
     purges: Option<(Arc<Mutex<Purges>>, u64)>,
+    quick: Option<Accepted>,
     render: Render<E>,
 ) -> Result<Option<CachedTile>, CacheError<E>>
 where
@@ -599,9 +681,14 @@ where
 {
     tokio::task::spawn_blocking(move || {
         let data = render().map_err(CacheError::Render)?;
+        let etag = etag_of(&data);
+        let bodies = match quick {
+            Some(accepted) => Bodies::quick(data, &accepted)?,
+            None => Bodies::compress(data)?,
+        };
         let stored = StoredTile {
-            etag: etag_of(&data),
-            bodies: Bodies::compress(data)?,
+            etag,
+            bodies,
             made_by,
             created_at: unix_now(),
         };

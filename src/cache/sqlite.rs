@@ -213,6 +213,53 @@ impl SqliteStore {
         }
     }
 
+    /// Stores a tile in one step, replacing the one before where `only` (a `WHERE` on the row
+    /// held, or nothing) allows; says whether it was written.
+    fn upsert(&self, key: &TileKey, tile: &StoredTile, only: &str) -> Result<bool, StoreError> {
+        let (coding, primary) = tile.bodies.primary();
+        let mut connection = self.connection();
+        let transaction = connection.transaction().map_err(|e| self.error(e))?;
+        // An upsert, not a replace: the usage triggers see one update, not a delete and an
+        // insert. A tile made again keeps the time it was last served.
+        let written = transaction
+            .execute(
+                &format!(
+                    "INSERT INTO tiles
+                       (z, x, y, format, pipeline, data, etag, created_at,
+                        encoding, data_br, sources, size, accessed_at)
+                     VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?8)
+                     ON CONFLICT (z, x, y, format) DO UPDATE SET
+                       pipeline = excluded.pipeline, data = excluded.data, etag = excluded.etag,
+                       created_at = excluded.created_at, encoding = excluded.encoding,
+                       data_br = excluded.data_br, sources = excluded.sources,
+                       size = excluded.size
+                     {only}"
+                ),
+                params![
+                    key.tile.z,
+                    key.tile.x,
+                    key.tile.y,
+                    key.format.as_str(),
+                    tile.made_by.pipeline,
+                    primary.as_ref(),
+                    tile.etag,
+                    tile.created_at,
+                    coding.as_str(),
+                    tile.bodies.brotli.as_deref(),
+                    tile.made_by.sources,
+                    stored_bytes(key, tile) as i64,
+                ],
+            )
+            .map_err(|e| self.error(e))?;
+        let evicted = match written {
+            0 => 0,
+            _ => self.evict(&transaction, key).map_err(|e| self.error(e))?,
+        };
+        transaction.commit().map_err(|e| self.error(e))?;
+        super::store::log_eviction(evicted, self.max_bytes);
+        Ok(written > 0)
+    }
+
     /// Deletes the least recently served tiles (never `keep`) until the store is under
     /// [`EVICT_TO`] of its cap; returns how many went.
     fn evict(&self, connection: &Connection, keep: &TileKey) -> Result<u64, rusqlite::Error> {
@@ -485,42 +532,11 @@ impl TileReader for SqliteStore {
 
 impl TileStore for SqliteStore {
     fn put(&self, key: &TileKey, tile: &StoredTile) -> Result<(), StoreError> {
-        let (coding, primary) = tile.bodies.primary();
-        let mut connection = self.connection();
-        let transaction = connection.transaction().map_err(|e| self.error(e))?;
-        // An upsert, not a replace: the usage triggers see one update, not a delete and an
-        // insert. A tile made again keeps the time it was last served.
-        transaction
-            .execute(
-                "INSERT INTO tiles
-                   (z, x, y, format, pipeline, data, etag, created_at,
-                    encoding, data_br, sources, size, accessed_at)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?8)
-                 ON CONFLICT (z, x, y, format) DO UPDATE SET
-                   pipeline = excluded.pipeline, data = excluded.data, etag = excluded.etag,
-                   created_at = excluded.created_at, encoding = excluded.encoding,
-                   data_br = excluded.data_br, sources = excluded.sources,
-                   size = excluded.size",
-                params![
-                    key.tile.z,
-                    key.tile.x,
-                    key.tile.y,
-                    key.format.as_str(),
-                    tile.made_by.pipeline,
-                    primary.as_ref(),
-                    tile.etag,
-                    tile.created_at,
-                    coding.as_str(),
-                    tile.bodies.brotli.as_deref(),
-                    tile.made_by.sources,
-                    stored_bytes(key, tile) as i64,
-                ],
-            )
-            .map_err(|e| self.error(e))?;
-        let evicted = self.evict(&transaction, key).map_err(|e| self.error(e))?;
-        transaction.commit().map_err(|e| self.error(e))?;
-        super::store::log_eviction(evicted, self.max_bytes);
-        Ok(())
+        self.upsert(key, tile, "").map(|_| ())
+    }
+
+    fn put_if_vacant(&self, key: &TileKey, tile: &StoredTile) -> Result<bool, StoreError> {
+        self.upsert(key, tile, "WHERE tiles.etag = excluded.etag")
     }
 
     fn keep_solutions(&self, entries: &[super::store::SolutionEntry]) -> Result<(), StoreError> {
@@ -674,6 +690,39 @@ mod tests {
             },
             created_at: at,
         }
+    }
+
+    #[test]
+    fn a_tile_put_if_vacant_replaces_only_its_own_forms() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = SqliteStore::open(&dir.path().join("tiles.sqlite"), None).unwrap();
+        let data = vec![7; 10_000];
+        let quick = StoredTile {
+            bodies: Bodies::quick(data.clone(), &crate::cache::encoding::Accepted::default())
+                .unwrap(),
+            ..tile(data.clone(), "v1", 5)
+        };
+        assert!(store.put_if_vacant(&key(1), &quick).unwrap(), "none held");
+        let kept = tile(data, "v1", 6);
+        assert!(
+            store.put_if_vacant(&key(1), &kept).unwrap(),
+            "the same content in other forms"
+        );
+        let found = store.get(&key(1)).unwrap().unwrap();
+        assert_eq!(found.bodies, kept.bodies);
+        let usage = store.usage().unwrap();
+        assert_eq!(usage.tiles, 1);
+        assert!(
+            usage.bytes < 1_000,
+            "the identity form's bytes went: {usage:?}"
+        );
+        let other = tile(vec![8; 10_000], "v2", 7);
+        assert!(
+            !store.put_if_vacant(&key(1), &other).unwrap(),
+            "another tile is held"
+        );
+        assert_eq!(store.get(&key(1)).unwrap().unwrap(), found);
+        assert_eq!(usage_scanned(&store), (1, usage.bytes as i64));
     }
 
     #[test]
@@ -936,14 +985,21 @@ mod tests {
             }
         }
         store.remove(&TileFilter::Tiles(vec![key(2).tile])).unwrap();
-        let scanned: (i64, i64) = store
+        let usage = store.usage().unwrap();
+        assert_eq!(
+            (usage.tiles as i64, usage.bytes as i64),
+            usage_scanned(&store)
+        );
+        assert_eq!(usage.tiles, 4);
+    }
+
+    /// The rows and their sizes, counted.
+    fn usage_scanned(store: &SqliteStore) -> (i64, i64) {
+        store
             .connection()
             .query_row("SELECT count(*), sum(size) FROM tiles", [], |r| {
                 Ok((r.get(0)?, r.get(1)?))
             })
-            .unwrap();
-        let usage = store.usage().unwrap();
-        assert_eq!((usage.tiles as i64, usage.bytes as i64), scanned);
-        assert_eq!(usage.tiles, 4);
+            .unwrap()
     }
 }

@@ -177,6 +177,10 @@ pub trait TileStore: TileReader {
     /// Stores a tile in one step, replacing the one before: a reader sees the old tile or the
     /// new one, never a mix. May evict the least recently used tiles to stay under a size cap.
     fn put(&self, key: &TileKey, tile: &StoredTile) -> Result<(), StoreError>;
+    /// As [`TileStore::put`] where the store holds no tile of `key`, or holds this one (the
+    /// same validator) in other forms; false, and nothing written, where it holds another (one
+    /// stored since this one was begun).
+    fn put_if_vacant(&self, key: &TileKey, tile: &StoredTile) -> Result<bool, StoreError>;
     /// Records that tiles were served at `at` (seconds since the Unix epoch).
     fn touch(&self, keys: &[TileKey], at: i64) -> Result<(), StoreError>;
     /// Removes the matching tiles and names them.

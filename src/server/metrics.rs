@@ -160,6 +160,11 @@ pub struct PoolGauges {
     pub regenerating: usize,
     /// Requests waiting for a tile to be looked up or made (many on one tile share its make).
     pub for_tiles: usize,
+    /// Tiles answered in haste whose forms kept are being made.
+    pub refining: usize,
+    /// Tiles answered in haste that the store then could not take (a count so far, added to
+    /// the tiles unstored).
+    pub unstored_after_answer: u64,
 }
 
 impl Metrics {
@@ -197,7 +202,12 @@ impl Metrics {
     ) -> String {
         let none = FetchStats::default();
         let mut out = String::new();
-        for (name, help, value) in self.counters(downloads.unwrap_or(&none), lp_found) {
+        let counters = self.counters(
+            downloads.unwrap_or(&none),
+            lp_found,
+            pool.unstored_after_answer,
+        );
+        for (name, help, value) in counters {
             let _ = writeln!(
                 out,
                 "# HELP {name} {help}\n# TYPE {name} counter\n{name} {value}"
@@ -220,6 +230,7 @@ impl Metrics {
         &self,
         downloads: &FetchStats,
         lp_found: u64,
+        unstored_after_answer: u64,
     ) -> [(&'static str, &'static str, u64); 17] {
         let get = |c: &AtomicU64| c.load(Ordering::Relaxed);
         [
@@ -256,7 +267,7 @@ impl Metrics {
             (
                 "terrastitch_tiles_unstored_total",
                 "Tiles made but not stored, the store unable to take them (disk full, damaged), and served from memory only.",
-                get(&self.tiles_unstored),
+                get(&self.tiles_unstored) + unstored_after_answer,
             ),
             (
                 "terrastitch_debug_views_total",
@@ -379,6 +390,11 @@ fn write_queue(out: &mut String, pool: PoolGauges) {
         out,
         "# HELP terrastitch_tile_requests_waiting Requests waiting for a tile to be looked up or made; those for one tile share one make.\n# TYPE terrastitch_tile_requests_waiting gauge\nterrastitch_tile_requests_waiting {}",
         pool.for_tiles
+    );
+    let _ = writeln!(
+        out,
+        "# HELP terrastitch_tiles_refining Tiles answered in haste, in the coding asked for made fast, whose smaller forms are being made and stored.\n# TYPE terrastitch_tiles_refining gauge\nterrastitch_tiles_refining {}",
+        pool.refining
     );
 }
 

@@ -225,6 +225,8 @@ impl AppState {
             background_waiting,
             regenerating: self.work.regenerator.len(),
             for_tiles: self.cache.waiting(),
+            refining: self.cache.refining(),
+            unstored_after_answer: self.cache.unstored_after_answer(),
         }
     }
 }
@@ -434,8 +436,9 @@ async fn method_not_allowed(method: axum::http::Method, uri: axum::http::Uri) ->
     )
 }
 
-/// Serves until `shutdown` completes, then lets the requests in flight (and their renders)
-/// finish within the shutdown grace period. Runs the background tasks: recording which tiles memory served, making stale tiles
+/// Serves until `shutdown` completes, then lets the requests in flight (and their renders,
+/// and the coding again of tiles answered in haste) finish within the shutdown grace period.
+/// Runs the background tasks: recording which tiles memory served, making stale tiles
 /// again, and checking the sources for new versions when configured.
 pub async fn serve(
     listener: tokio::net::TcpListener,
@@ -471,6 +474,16 @@ pub async fn serve(
         shutdown,
     )
     .await;
+    // The tiles answered in haste get their forms kept stored, within the grace period.
+    if tokio::time::timeout(state.http.limits.grace, state.cache.refined())
+        .await
+        .is_err()
+    {
+        tracing::warn!(
+            tiles = state.cache.refining(),
+            "tiles answered in haste keep their quick forms: coding them again took too long"
+        );
+    }
     for task in background {
         task.abort();
     }

@@ -144,6 +144,8 @@ async fn remake(state: &AppState, job: Job) -> Result<bool, String> {
     // Counted before the tile is looked for: a purge after this, even one that comes between
     // the look and the render, keeps the new tile out of the store.
     let purges_so_far = state.cache.purges_so_far();
+    // A tile answered in haste is looked for once it is stored.
+    state.cache.refined_one(&key).await;
     let store = state.cache.reader();
     let listed =
         tokio::task::spawn_blocking(move || store.list(&TileFilter::Tiles(vec![key.tile]))).await;
@@ -190,6 +192,8 @@ pub async fn queue_stored(
     only_stale: bool,
 ) -> Result<usize, String> {
     let provider = state.provider().map_err(|e| e.message)?;
+    // The tiles answered in haste are among those stored once their forms kept are made.
+    state.cache.refined().await;
     let store = state.cache.reader();
     let keys: Vec<TileKey> = tokio::task::spawn_blocking(move || {
         let mut keys = Vec::new();

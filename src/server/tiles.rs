@@ -129,9 +129,10 @@ pub async fn serve(
         .map_err(|e| ApiError::internal(e.to_string()))?;
     let keep = provider.holds_data(key);
     let render = render_job(&state, provider, key, Priority::Request);
+    let accepted = accepted_codings(&request_headers);
     let served = state
         .cache
-        .get_or_render_kept(key, wanted.as_ref(), keep, render)
+        .get_or_render_kept(key, wanted.as_ref(), keep, Some(accepted), render)
         .await
         .map_err(|e| {
             let error = failure_response(&state, tile, &e);
@@ -155,7 +156,8 @@ pub async fn serve(
         Origin::Store => Metrics::count(&state.metrics.hits_store),
         Origin::Rendered => {
             Metrics::count(&state.metrics.misses);
-            if !served.tile.stored && keep {
+            // A tile answered in haste is stored later, and counted then if it cannot be.
+            if !served.tile.stored && keep && served.tile.bodies.quick.is_none() {
                 Metrics::count(&state.metrics.tiles_unstored);
             }
         }
@@ -194,15 +196,10 @@ async fn fetch(
 /// The tile's response: the smallest coding the client accepts, its validator, and the
 /// headers a download and a browser need; `304` when the client holds it.
 fn respond(state: &AppState, key: TileKey, served: &Served, request: &HeaderMap) -> Response {
-    let accepted = Accepted::parse(
-        request
-            .get_all(header::ACCEPT_ENCODING)
-            .iter()
-            .filter_map(|v| v.to_str().ok()),
-    );
+    let accepted = accepted_codings(request);
     let tile = &served.tile;
     let (coding, body) = tile.bodies.choose(&accepted);
-    let etag = coded_etag(&tile.etag, coding);
+    let etag = coded_etag(&tile.etag, coding, tile.bodies.quick.is_some());
     let mut headers = HeaderMap::new();
     match key.format {
         Format::Glb(_) => {
@@ -270,11 +267,23 @@ fn respond(state: &AppState, key: TileKey, served: &Served, request: &HeaderMap)
     (StatusCode::OK, headers, body.clone()).into_response()
 }
 
+/// The codings a request's `Accept-Encoding` allows.
+fn accepted_codings(request: &HeaderMap) -> Accepted {
+    Accepted::parse(
+        request
+            .get_all(header::ACCEPT_ENCODING)
+            .iter()
+            .filter_map(|v| v.to_str().ok()),
+    )
+}
+
 /// The validator of one coding of a tile: a strong ETag must differ between codings
-/// (RFC 9110 §8.8.3), so the coding is appended to the content's digest.
-fn coded_etag(etag: &str, coding: Encoding) -> String {
+/// (RFC 9110 §8.8.3), so the coding is appended to the content's digest. A form made in haste
+/// is replaced by a smaller one of the same content: its validator is weak.
+fn coded_etag(etag: &str, coding: Encoding, quick: bool) -> String {
     match coding {
         Encoding::Identity => etag.to_string(),
+        other if quick => format!("W/{}-{}\"", etag.trim_end_matches('"'), other.as_str()),
         other => format!("{}-{}\"", etag.trim_end_matches('"'), other.as_str()),
     }
 }
@@ -285,7 +294,7 @@ fn matches_etag(if_none_match: &str, etag: &str) -> bool {
     let bare = |tag: &str| tag.trim().trim_start_matches("W/").to_string();
     if_none_match
         .split(',')
-        .any(|tag| tag.trim() == "*" || bare(tag) == etag)
+        .any(|tag| tag.trim() == "*" || bare(tag) == bare(etag))
 }
 
 /// Who a render is for.

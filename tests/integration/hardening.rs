@@ -363,19 +363,26 @@ impl TileReader for FullDisk {
 
 impl TileStore for FullDisk {
     fn put(&self, _key: &TileKey, _tile: &StoredTile) -> Result<(), StoreError> {
-        Err(StoreError::Sqlite {
-            path: self.0.path().to_path_buf(),
-            source: rusqlite::Error::SqliteFailure(
-                rusqlite::ffi::Error::new(rusqlite::ffi::SQLITE_FULL),
-                Some("database or disk is full".to_string()),
-            ),
-        })
+        Err(full(self.0.path()))
+    }
+    fn put_if_vacant(&self, _key: &TileKey, _tile: &StoredTile) -> Result<bool, StoreError> {
+        Err(full(self.0.path()))
     }
     fn touch(&self, keys: &[TileKey], at: i64) -> Result<(), StoreError> {
         self.0.touch(keys, at)
     }
     fn remove(&self, filter: &TileFilter) -> Result<Vec<TileKey>, StoreError> {
         self.0.remove(filter)
+    }
+}
+
+fn full(path: &std::path::Path) -> StoreError {
+    StoreError::Sqlite {
+        path: path.to_path_buf(),
+        source: rusqlite::Error::SqliteFailure(
+            rusqlite::ffi::Error::new(rusqlite::ffi::SQLITE_FULL),
+            Some("database or disk is full".to_string()),
+        ),
     }
 }
 
@@ -518,6 +525,8 @@ async fn coarse_tiles_far_from_the_data_are_served_but_not_stored() {
         let response = server.get(path, &[]).await;
         assert_eq!(response.status(), 200, "{path}");
         assert!(!response.bytes().await.unwrap().is_empty());
+        // A tile made for a request is stored once its forms kept are made.
+        server.state.cache.refined().await;
         assert_eq!(store.usage().unwrap().tiles, stored, "{path}");
     }
     // Served again, from memory.

@@ -124,6 +124,7 @@ const CRATES: &[(&str, &[&str])] = &[
             "cli/serve.rs",
             "cache/mod.rs",
             "cache/flight.rs",
+            "cache/refine.rs",
             "cache/postgres/",
         ],
     ),
@@ -167,6 +168,7 @@ const CRATES: &[(&str, &[&str])] = &[
             "server/memory.rs",
             "server/connections.rs",
             "provider/osm_source.rs",
+            "cache/refine.rs",
         ],
     ),
 ];

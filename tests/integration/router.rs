@@ -217,6 +217,9 @@ async fn a_304_only_for_the_coding_asked() {
     let gzip = server.get(&url, &[("accept-encoding", "gzip")]).await;
     assert_eq!(gzip.headers()["content-encoding"], "gzip");
     let etag = gzip.headers()["etag"].to_str().unwrap().to_string();
+    // The tile was made for this request, its gzip form in haste: a weak validator, until the
+    // smaller form replaces it under the strong one. Either matches the other weakly.
+    let bare = |tag: &str| tag.trim_start_matches("W/").to_string();
 
     for (accept, expected) in [("gzip", 304), ("", 200), ("br", 200), ("br;q=0, gzip", 304)] {
         let response = server
@@ -226,10 +229,11 @@ async fn a_304_only_for_the_coding_asked() {
             )
             .await;
         assert_eq!(response.status(), expected, "Accept-Encoding: {accept}");
+        let sent = bare(response.headers()["etag"].to_str().unwrap());
         if expected == 304 {
-            assert_eq!(response.headers()["etag"], etag.as_str());
+            assert_eq!(sent, bare(&etag));
         } else {
-            assert_ne!(response.headers()["etag"], etag.as_str());
+            assert_ne!(sent, bare(&etag));
         }
     }
     server.stop().await;

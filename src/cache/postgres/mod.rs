@@ -139,6 +139,56 @@ impl PostgresStore {
     /// Deletes the least recently served tiles (never `keep`) until the store is under
     /// [`EVICT_TO`] of its cap, reading at most 10,000 candidates a time (the next store goes
     /// on); returns how many went.
+    /// Stores a tile in one step, replacing the one before where `only` (a `WHERE` on the row
+    /// held, or nothing) allows; says whether it was written.
+    fn upsert(&self, key: &TileKey, tile: &StoredTile, only: &str) -> Result<bool, StoreError> {
+        let (coding, primary) = tile.bodies.primary();
+        let (z, x, y) = key_columns(&key.tile);
+        let size = stored_bytes(key, tile) as i64;
+        let mut client = self.client()?;
+        let mut transaction = client.transaction().map_err(|e| self.error(e))?;
+        // A tile made again keeps the time it was last served.
+        let written = transaction
+            .execute(
+                &format!(
+                    "INSERT INTO tiles
+                   (z, x, y, format, pipeline, data, etag, created_at,
+                    encoding, data_br, sources, size, accessed_at)
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $8)
+                 ON CONFLICT (z, x, y, format) DO UPDATE SET
+                   pipeline = excluded.pipeline, data = excluded.data, etag = excluded.etag,
+                   created_at = excluded.created_at, encoding = excluded.encoding,
+                   data_br = excluded.data_br, sources = excluded.sources,
+                   size = excluded.size
+                 {only}"
+                ),
+                &[
+                    &z,
+                    &x,
+                    &y,
+                    &key.format.as_str(),
+                    &tile.made_by.pipeline,
+                    &primary.as_ref(),
+                    &tile.etag,
+                    &tile.created_at,
+                    &coding.as_str(),
+                    &tile.bodies.brotli.as_deref(),
+                    &tile.made_by.sources,
+                    &size,
+                ],
+            )
+            .map_err(|e| self.error(e))?;
+        let evicted = match written {
+            0 => 0,
+            _ => self
+                .evict(&mut transaction, key)
+                .map_err(|e| self.error(e))?,
+        };
+        transaction.commit().map_err(|e| self.error(e))?;
+        crate::cache::store::log_eviction(evicted, self.max_bytes);
+        Ok(written > 0)
+    }
+
     fn evict(
         &self,
         transaction: &mut postgres::Transaction<'_>,
@@ -361,45 +411,11 @@ impl TileReader for PostgresStore {
 
 impl TileStore for PostgresStore {
     fn put(&self, key: &TileKey, tile: &StoredTile) -> Result<(), StoreError> {
-        let (coding, primary) = tile.bodies.primary();
-        let (z, x, y) = key_columns(&key.tile);
-        let size = stored_bytes(key, tile) as i64;
-        let mut client = self.client()?;
-        let mut transaction = client.transaction().map_err(|e| self.error(e))?;
-        // A tile made again keeps the time it was last served.
-        transaction
-            .execute(
-                "INSERT INTO tiles
-                   (z, x, y, format, pipeline, data, etag, created_at,
-                    encoding, data_br, sources, size, accessed_at)
-                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $8)
-                 ON CONFLICT (z, x, y, format) DO UPDATE SET
-                   pipeline = excluded.pipeline, data = excluded.data, etag = excluded.etag,
-                   created_at = excluded.created_at, encoding = excluded.encoding,
-                   data_br = excluded.data_br, sources = excluded.sources,
-                   size = excluded.size",
-                &[
-                    &z,
-                    &x,
-                    &y,
-                    &key.format.as_str(),
-                    &tile.made_by.pipeline,
-                    &primary.as_ref(),
-                    &tile.etag,
-                    &tile.created_at,
-                    &coding.as_str(),
-                    &tile.bodies.brotli.as_deref(),
-                    &tile.made_by.sources,
-                    &size,
-                ],
-            )
-            .map_err(|e| self.error(e))?;
-        let evicted = self
-            .evict(&mut transaction, key)
-            .map_err(|e| self.error(e))?;
-        transaction.commit().map_err(|e| self.error(e))?;
-        crate::cache::store::log_eviction(evicted, self.max_bytes);
-        Ok(())
+        self.upsert(key, tile, "").map(|_| ())
+    }
+
+    fn put_if_vacant(&self, key: &TileKey, tile: &StoredTile) -> Result<bool, StoreError> {
+        self.upsert(key, tile, "WHERE tiles.etag = excluded.etag")
     }
 
     fn touch(&self, keys: &[TileKey], at: i64) -> Result<(), StoreError> {
