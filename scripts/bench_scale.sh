@@ -8,7 +8,9 @@
 # same after its eight neighbours in one process (the LP components they solved are found
 # solved), "memory ms" the render alone (the whole extract was read before it). Last, a diff of 1,000 changes to the
 # first copy (scripts/osm_diff.py) is applied to the store: its time and peak memory, and how
-# many tiles it expired. "store MB" counts the store and its node file.
+# many tiles it expired. "store MB" counts the store and its node file. "z10" and "z8" are
+# the far views over the first copy, `render` of its zoom-10 and zoom-8 parents from the
+# store: seconds and peak MB.
 #
 #   scripts/bench_scale.sh [COPIES...]      (default: 1 100 400)
 set -euo pipefail
@@ -43,9 +45,10 @@ render_ms() { # the render's own time, without the whole extract's load (--timin
 diff=$work/diff-1000.osc.gz
 [ -s "$diff" ] || "$python" scripts/osm_diff.py data/monaco-osrm-2016.osm.pbf many:1000 "$diff" 2>/dev/null
 
-printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s %10s %9s %9s %8s\n' \
+printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s %10s %9s %9s %8s %7s %7s %7s %7s\n' \
     copies "PBF MB" "import s" "MB/s" "import MB" "store MB" "ready s" "ready MB" "cold ms" \
-    "store ms" "after ms" "memory ms" "update s" "update MB" "expired"
+    "store ms" "after ms" "memory ms" "update s" "update MB" "expired" "z10 s" "z10 MB" \
+    "z8 s" "z8 MB"
 for n in "${copies[@]}"; do
     pbf=$work/c$n.osm.pbf
     srtm=$work/srtm-c$n
@@ -112,11 +115,20 @@ for n in "${copies[@]}"; do
         cmp -s "$work/tile-store.glb" "$work/tile-memory.glb" ||
             echo "warning: the tile from the store differs from the tile from memory" >&2
     fi
+    # The far views over the first copy (the zoom-10 and zoom-8 parents of the tile), from the
+    # store: time and peak memory of `render`.
+    read -r z10_s z10_mb < <(measure "$work/render-z10-c$n.log" \
+        "$bin" render 10/$((8529 >> 4))/$((5974 >> 4)) --store "$store" --osm "$pbf" \
+        --srtm "$srtm" -o "$work/parent-z10.glb")
+    read -r z8_s z8_mb < <(measure "$work/render-z8-c$n.log" \
+        "$bin" render 8/$((8529 >> 6))/$((5974 >> 6)) --store "$store" --osm "$pbf" \
+        --srtm "$srtm" -o "$work/parent-z8.glb")
     read -r update_s update_mb < <(measure "$work/update-c$n.log" \
         "$bin" update --store "$store" --osm "$pbf" --osc "$diff" --expired "$work/expired-c$n.txt")
     expired=$(wc -l <"$work/expired-c$n.txt")
-    printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s %10s %9s %9s %8s\n' \
+    printf '%-7s %9s %9s %8s %10s %10s %9s %9s %9s %10s %10s %10s %9s %9s %8s %7s %7s %7s %7s\n' \
         "$n" "$pbf_mb" "$import_s" "$mbps" "$import_mb" "$store_mb" \
         "$(awk "BEGIN {printf \"%.2f\", $ready_ms / 1000}")" "$ready_mb" "$cold_ms" \
-        "$store_ms" "$after_ms" "$memory_ms" "$update_s" "$update_mb" "$expired"
+        "$store_ms" "$after_ms" "$memory_ms" "$update_s" "$update_mb" "$expired" \
+        "$z10_s" "$z10_mb" "$z8_s" "$z8_mb"
 done

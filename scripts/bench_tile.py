@@ -5,15 +5,19 @@ Prints, for the release binary (and, with --base, for another binary, runs alter
 busy machine weighs on both alike):
   1. the densest bundled tile rendered cold (a process each) and warm (rendered a second
      time in the same process, with `--after`), median and least of each stage;
-  2. every zoom-14 tile of the bundled extract rendered cold: mean, p95 and most;
-  3. cold tiles asked of the server (`serve`, a fresh cache): the answer's time against the
-     render's, as the server logs it, by coding asked for.
+  2. cold tiles asked of the server (`serve`, a fresh cache): the answer's time against the
+     render's, as the server logs it, by coding asked for;
+  3. the flat viewer's first full view on a fresh cache, in headless Chromium
+     (tests/js/first_view.mjs; needs the packages `make test` installs in tests/js);
+  4. every zoom-14 tile of the bundled extract rendered cold: mean, p95 and most.
 
 Usage: scripts/bench_tile.py [--runs N] [--base OTHER_BINARY] [--tile Z/X/Y] [--pin]
 (from the repository root, after a release build). --pin runs every render on one core.
 """
 
 import argparse
+import contextlib
+import json
 import math
 import os
 import re
@@ -97,43 +101,73 @@ ASKED = [
 ]
 
 
+@contextlib.contextmanager
+def serving(binary, port):
+    """A server of the bundled data with an empty cache, ready: yields its base URL and the
+    file its log goes to."""
+    with tempfile.TemporaryDirectory() as scratch:
+        log_path = os.path.join(scratch, "serve.log")
+        with open(log_path, "w") as log:
+            server = subprocess.Popen(
+                [binary, "serve", "--listen", f"127.0.0.1:{port}", "--cache", os.path.join(scratch, "c.sqlite")],
+                stdout=subprocess.DEVNULL,
+                stderr=log,
+            )
+            try:
+                base = f"http://127.0.0.1:{port}"
+                for _ in range(300):
+                    try:
+                        urllib.request.urlopen(base + "/ready", timeout=1).read()
+                        break
+                    except OSError:
+                        time.sleep(0.1)
+                yield base, log_path
+            finally:
+                server.terminate()
+                server.wait()
+
+
 def cold_answers(binary, port):
     """Each tile of ASKED asked once of a server with an empty cache: (tile, coding, query,
     answer ms, render ms as logged)."""
-    with tempfile.TemporaryDirectory() as scratch:
-        log = open(os.path.join(scratch, "serve.log"), "w+")
-        server = subprocess.Popen(
-            [binary, "serve", "--listen", f"127.0.0.1:{port}", "--cache", os.path.join(scratch, "c.sqlite")],
-            stdout=subprocess.DEVNULL,
-            stderr=log,
-        )
-        try:
-            base = f"http://127.0.0.1:{port}"
-            for _ in range(300):
-                try:
-                    urllib.request.urlopen(base + "/ready", timeout=1).read()
-                    break
-                except OSError:
-                    time.sleep(0.1)
-            answers = []
-            for tile, coding, query in ASKED:
-                request = urllib.request.Request(
-                    f"{base}/tiles/{tile}.glb{query}", headers={"Accept-Encoding": coding}
-                )
-                started = time.monotonic()
-                with urllib.request.urlopen(request, timeout=120) as response:
-                    response.read()
-                answers.append((tile, coding, query, (time.monotonic() - started) * 1000.0))
-        finally:
-            server.terminate()
-            server.wait()
-        log.seek(0)
+    with serving(binary, port) as (base, log_path):
+        answers = []
+        for tile, coding, query in ASKED:
+            request = urllib.request.Request(
+                f"{base}/tiles/{tile}.glb{query}", headers={"Accept-Encoding": coding}
+            )
+            started = time.monotonic()
+            with urllib.request.urlopen(request, timeout=120) as response:
+                response.read()
+            answers.append((tile, coding, query, (time.monotonic() - started) * 1000.0))
         rendered = {}
-        for line in log:
-            m = RENDERED.search(ANSI.sub("", line))
-            if m:
-                rendered.setdefault(m.group(1), float(m.group(2)))
+        with open(log_path) as log:
+            for line in log:
+                m = RENDERED.search(ANSI.sub("", line))
+                if m:
+                    rendered.setdefault(m.group(1), float(m.group(2)))
     return [(t, c, q, a, rendered.get(t, float("nan"))) for t, c, q, a in answers]
+
+
+# The viewer's start view in the bench: Monte-Carlo from 1.8 km (as its own test opens it).
+START_VIEW = "/#43.7396,7.4255,1800,20,50"
+
+
+def first_view(binary, port):
+    """The flat viewer opened in headless Chromium on a server with an empty cache: the
+    report of tests/js/first_view.mjs, or None without its packages (`make test` installs
+    them)."""
+    if not os.path.isdir("tests/js/node_modules/playwright-core"):
+        return None
+    with serving(binary, port) as (base, _):
+        out = subprocess.run(
+            ["node", "tests/js/first_view.mjs", base + START_VIEW],
+            capture_output=True, text=True, check=False,
+        )
+    try:
+        return json.loads(out.stdout.strip())
+    except ValueError:
+        return {"error": (out.stdout + out.stderr)[-500:]}
 
 
 def main():
@@ -162,6 +196,19 @@ def main():
             print(
                 f"{n}: {tile}{query} Accept-Encoding {coding}: answered in {answer:.0f}, "
                 f"rendered in {rendered:.0f}, {answer - rendered:.0f} after the render"
+            )
+
+    print("== the flat viewer's first full view on an empty cache (nine zoom-14 tiles around its start)")
+    for n, b in binaries.items():
+        report = first_view(b, 18191)
+        if report is None:
+            print(f"{n}: skipped (tests/js has no node_modules: run make test once)")
+        elif report.get("error"):
+            print(f"{n}: failed: {report['error']}")
+        else:
+            print(
+                f"{n}: {report['firstFullViewMs']:.0f} ms from the page's request "
+                f"({report['inPageMs']:.0f} in the page), {len(report['requested'])} tiles asked for"
             )
 
     tiles = tiles_of(EXTRACT)
