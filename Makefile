@@ -67,7 +67,7 @@ tests/py/.venv/.installed: tests/py/requirements.txt
 # Server figures: one tile's cold render; cached requests per second and latency on loopback;
 # a cold burst of 200 requests over 20 tiles; seeding and exporting the sample's area
 # (needs `wrk` on the PATH).
-bench:
+bench: tests/py/.venv/.installed
 	$(CARGO) build --release
 	scripts/bench.sh
 

@@ -5,7 +5,8 @@
 #      browser (brotli) and uncompressed, and for a small tile;
 #   3. a cold burst: 200 concurrent requests over 20 tiles never rendered, its completion time,
 #      the answers, and the server's peak memory;
-#   4. seeding the whole area of the bundled extract: tiles per second;
+#   4. seeding the whole area of the bundled extract, then a synthetic mountain area
+#      (scripts/mountain_extract.py): tiles per second and the time in each stage;
 #   5. exporting it to MBTiles: the file's size;
 #   6. the bytes of three tiles in every glb variant (flat or east-north-up, plain or meshopt)
 #      as sent uncompressed, gzip and brotli, and each variant's render time.
@@ -70,6 +71,14 @@ stop_server
 
 echo "== 4. seed of the extract's area ($bounds)"
 "$bin" seed --bbox "$bounds" --format glb --cache "$out/seed.sqlite" 2>&1 | grep -E 'tiles in the box|made [0-9]+ tiles|time in each stage'
+
+# The same over a synthetic mountain area: a valley road crossing its river on bridges and
+# cutting through spurs in tunnels, roads of hairpin bends up steep sides, houses (over the
+# bundled SRTM file's Estéron valley).
+mountain_box=$(tests/py/.venv/bin/python scripts/mountain_extract.py "$out/mountain.osm.pbf" 2>"$out/mountain.txt")
+echo "== 4b. seed of a synthetic mountain area ($mountain_box: $(cat "$out/mountain.txt"))"
+"$bin" seed --bbox "$mountain_box" --osm "$out/mountain.osm.pbf" --srtm data --format glb \
+    --cache "$out/mountain.sqlite" 2>&1 | grep -E 'tiles in the box|made [0-9]+ tiles|time in each stage'
 
 echo "== 5. export of that area to MBTiles"
 "$bin" export --bbox "$bounds" --cache "$out/seed.sqlite" -o "$out/area.mbtiles" 2>&1 | grep -E '^exported'
