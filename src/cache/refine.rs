@@ -23,6 +23,9 @@ struct UnderWay {
     tile: Arc<CachedTile>,
     since: u64,
     ended: watch::Receiver<Outcome>,
+    /// Which refinement this is: one of a tile made again after a purge takes the place of
+    /// the one of the purged tile.
+    number: u64,
 }
 
 /// The refinements under way, by key.
@@ -31,6 +34,8 @@ pub(super) struct Refining {
     under_way: Mutex<HashMap<TileKey, UnderWay>>,
     /// Told whenever one ends.
     ended: Notify,
+    /// Refinements started so far.
+    started: std::sync::atomic::AtomicU64,
     /// Tiles the store could not take once refined (disk full, damaged): memory serves them.
     unstored: std::sync::atomic::AtomicU64,
 }
@@ -50,26 +55,30 @@ pub(super) struct Refinement {
 }
 
 impl Refining {
-    /// Starts refining, unless a refinement of the key is under way.
+    /// Starts refining. A tile is made again while its last one is refined only after a
+    /// purge removed that one: the new refinement takes its place.
     pub fn start(self: &Arc<Self>, refinement: Refinement) {
         let key = refinement.key;
         let (sender, receiver) = watch::channel(None);
-        {
-            let mut under_way = self.lock();
-            if under_way.contains_key(&key) {
-                return;
-            }
-            let entry = UnderWay {
-                tile: refinement.tile.clone(),
-                since: refinement.since,
-                ended: receiver,
-            };
-            under_way.insert(key, entry);
-        }
+        let number = self
+            .started
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let entry = UnderWay {
+            tile: refinement.tile.clone(),
+            since: refinement.since,
+            ended: receiver,
+            number,
+        };
+        self.lock().insert(key, entry);
         let refining = self.clone();
         tokio::spawn(async move {
             let refined = refine(refinement, &refining).await;
-            refining.lock().remove(&key);
+            {
+                let mut under_way = refining.lock();
+                if under_way.get(&key).is_some_and(|u| u.number == number) {
+                    under_way.remove(&key);
+                }
+            }
             let _ = sender.send(Some(refined));
             refining.ended.notify_waiters();
         });
@@ -340,5 +349,30 @@ mod tests {
             "the purged tile stays gone"
         );
         assert!(cache.peek(&key(1)).await.is_none());
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_tile_made_again_after_a_purge_is_stored_though_the_purged_one_was_refined() {
+        let (cache, store, _dir) = cache();
+        let gzip = Accepted::parse(["gzip"]);
+        let render = |fill: u8| move || Ok::<_, std::io::Error>(vec![fill; 8 << 20]);
+        cache
+            .get_or_render_kept(key(1), None, true, Some(gzip), render(1))
+            .await
+            .unwrap();
+        cache
+            .purge(TileFilter::Tiles(vec![key(1).tile]))
+            .await
+            .unwrap();
+        // Made again, most likely while the purged tile's forms are still being made.
+        let again = cache
+            .get_or_render_kept(key(1), None, true, Some(gzip), render(2))
+            .await
+            .unwrap();
+        assert_eq!(again.tile.bodies.identity[0], 2);
+        cache.refined().await;
+        let stored = store.get(&key(1)).unwrap().expect("the new tile is stored");
+        assert_eq!(stored.etag, again.tile.etag);
+        assert_eq!(cache.peek(&key(1)).await.unwrap().bodies.quick, None);
     }
 }
