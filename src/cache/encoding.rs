@@ -72,8 +72,8 @@ impl Bodies {
         })
     }
 
-    /// The form a client waits for, made fast: gzip when it accepts gzip (the quicker of the
-    /// two at these levels, and the smaller), else brotli, else none.
+    /// The form a client waits for, made fast: gzip when it accepts gzip (the smaller of the
+    /// two at these levels, and about as quick), else brotli, else none.
     pub fn quick(identity: Vec<u8>, accepted: &Accepted) -> Result<Bodies, CodingError> {
         let limit = (identity.len() as f64 * WORTH_KEEPING) as usize;
         let keep = |form: Vec<u8>| (form.len() <= limit).then(|| Bytes::from(form));

@@ -397,7 +397,8 @@ impl TileCache {
         self.refining.len()
     }
 
-    /// Waits until the forms kept of every tile answered in haste are made (and stored).
+    /// Waits until the forms kept of every tile answered in haste so far are made (and
+    /// stored).
     pub async fn refined(&self) {
         self.refining.all_ended().await
     }

@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
-use tokio::sync::{watch, Notify};
+use tokio::sync::watch;
 
 use super::encoding::Bodies;
 use super::{CachedTile, Purges, StoredTile, TileFilter, TileStore};
@@ -32,8 +32,6 @@ struct UnderWay {
 #[derive(Default)]
 pub(super) struct Refining {
     under_way: Mutex<HashMap<TileKey, UnderWay>>,
-    /// Told whenever one ends.
-    ended: Notify,
     /// Refinements started so far.
     started: std::sync::atomic::AtomicU64,
     /// Tiles the store could not take once refined (disk full, damaged): memory serves them.
@@ -80,7 +78,6 @@ impl Refining {
                 }
             }
             let _ = sender.send(Some(refined));
-            refining.ended.notify_waiters();
         });
     }
 
@@ -104,16 +101,13 @@ impl Refining {
         told.clone().flatten()
     }
 
-    /// Waits until no refinement is under way.
+    /// Waits until the refinements under way now have ended (not those begun meanwhile: a
+    /// busy server may never be without one).
     pub async fn all_ended(&self) {
-        loop {
-            let ended = self.ended.notified();
-            tokio::pin!(ended);
-            ended.as_mut().enable();
-            if self.lock().is_empty() {
-                return;
-            }
-            ended.await;
+        let under_way: Vec<watch::Receiver<Outcome>> =
+            self.lock().values().map(|u| u.ended.clone()).collect();
+        for mut ended in under_way {
+            let _ = ended.wait_for(Option::is_some).await;
         }
     }
 

@@ -5,7 +5,7 @@
 use crate::common;
 
 use common::pg_cluster::Cluster;
-use terrastitch::cache::encoding::Bodies;
+use terrastitch::cache::encoding::{Accepted, Bodies};
 use terrastitch::cache::{
     etag_of, PostgresStore, Provenance, StoredTile, TileFilter, TileReader, TileStore,
 };
@@ -65,6 +65,35 @@ fn a_tile_one_process_stores_is_read_by_another_with_its_codings_and_provenance(
     let usage = one.usage().expect("usage");
     assert_eq!(usage.tiles, 1);
     assert!(usage.bytes > again.bodies.stored_len() as u64, "{usage:?}");
+}
+
+#[test]
+fn a_tile_put_if_vacant_replaces_only_its_own_forms() {
+    let cluster = Cluster::start();
+    let store = PostgresStore::open(&cluster.database("vacant"), None).expect("store");
+    let data = vec![7; 10_000];
+    let quick = StoredTile {
+        bodies: Bodies::quick(data.clone(), &Accepted::default()).expect("identity"),
+        ..tile(data.clone(), "v1", 5)
+    };
+    assert!(
+        store.put_if_vacant(&key(1), &quick).expect("put"),
+        "none held"
+    );
+    let kept = tile(data, "v1", 6);
+    assert!(
+        store.put_if_vacant(&key(1), &kept).expect("put"),
+        "the same content in other forms"
+    );
+    let found = store.get(&key(1)).expect("read").expect("found");
+    assert_eq!(found.bodies, kept.bodies);
+    let other = tile(noise(8, 5_000), "v2", 7);
+    assert!(
+        !store.put_if_vacant(&key(1), &other).expect("put"),
+        "another tile is held"
+    );
+    assert_eq!(store.get(&key(1)).expect("read"), Some(found));
+    assert_eq!(store.usage().expect("usage").tiles, 1);
 }
 
 #[test]

@@ -136,9 +136,6 @@ impl PostgresStore {
         transaction.commit().map_err(|e| self.error(e))
     }
 
-    /// Deletes the least recently served tiles (never `keep`) until the store is under
-    /// [`EVICT_TO`] of its cap, reading at most 10,000 candidates a time (the next store goes
-    /// on); returns how many went.
     /// Stores a tile in one step, replacing the one before where `only` (a `WHERE` on the row
     /// held, or nothing) allows; says whether it was written.
     fn upsert(&self, key: &TileKey, tile: &StoredTile, only: &str) -> Result<bool, StoreError> {
@@ -152,15 +149,15 @@ impl PostgresStore {
             .execute(
                 &format!(
                     "INSERT INTO tiles
-                   (z, x, y, format, pipeline, data, etag, created_at,
-                    encoding, data_br, sources, size, accessed_at)
-                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $8)
-                 ON CONFLICT (z, x, y, format) DO UPDATE SET
-                   pipeline = excluded.pipeline, data = excluded.data, etag = excluded.etag,
-                   created_at = excluded.created_at, encoding = excluded.encoding,
-                   data_br = excluded.data_br, sources = excluded.sources,
-                   size = excluded.size
-                 {only}"
+                       (z, x, y, format, pipeline, data, etag, created_at,
+                        encoding, data_br, sources, size, accessed_at)
+                     VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $8)
+                     ON CONFLICT (z, x, y, format) DO UPDATE SET
+                       pipeline = excluded.pipeline, data = excluded.data, etag = excluded.etag,
+                       created_at = excluded.created_at, encoding = excluded.encoding,
+                       data_br = excluded.data_br, sources = excluded.sources,
+                       size = excluded.size
+                     {only}"
                 ),
                 &[
                     &z,
@@ -189,6 +186,9 @@ impl PostgresStore {
         Ok(written > 0)
     }
 
+    /// Deletes the least recently served tiles (never `keep`) until the store is under
+    /// [`EVICT_TO`] of its cap, reading at most 10,000 candidates a time (the next store goes
+    /// on); returns how many went.
     fn evict(
         &self,
         transaction: &mut postgres::Transaction<'_>,
