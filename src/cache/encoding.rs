@@ -52,8 +52,7 @@ impl Bodies {
     /// worth sending. The two are made at once, on two threads: a tile made for a request is
     /// answered when both are ready, so it waits for the slower rather than for their sum.
     pub fn compress(identity: Vec<u8>) -> Result<Bodies, CodingError> {
-        let limit = (identity.len() as f64 * WORTH_KEEPING) as usize;
-        let keep = |form: Vec<u8>| (form.len() <= limit).then(|| Bytes::from(form));
+        let keep = |form| worth_keeping(identity.len(), form);
         let (gzipped, brotlied) = std::thread::scope(|scope| {
             let gzipping = scope.spawn(|| gzip(&identity));
             let brotlied = brotli(&identity, BROTLI_QUALITY);
@@ -75,8 +74,7 @@ impl Bodies {
     /// The form a client waits for, made fast: gzip when it accepts gzip (the smaller of the
     /// two at these levels, and about as quick), else brotli, else none.
     pub fn quick(identity: Vec<u8>, accepted: &Accepted) -> Result<Bodies, CodingError> {
-        let limit = (identity.len() as f64 * WORTH_KEEPING) as usize;
-        let keep = |form: Vec<u8>| (form.len() <= limit).then(|| Bytes::from(form));
+        let keep = |form| worth_keeping(identity.len(), form);
         let mut bodies = Bodies {
             quick: Some(Encoding::Identity),
             ..Bodies::default()
@@ -226,6 +224,13 @@ impl Accepted {
             Encoding::Brotli => self.brotli,
         }
     }
+}
+
+/// A compressed form of a body `original` bytes long, if it is small enough to be worth
+/// sending.
+fn worth_keeping(original: usize, form: Vec<u8>) -> Option<Bytes> {
+    let limit = (original as f64 * WORTH_KEEPING) as usize;
+    (form.len() <= limit).then(|| Bytes::from(form))
 }
 
 pub fn gzip(data: &[u8]) -> std::io::Result<Vec<u8>> {

@@ -281,10 +281,10 @@ fn accepted_codings(request: &HeaderMap) -> Accepted {
 /// (RFC 9110 §8.8.3), so the coding is appended to the content's digest. A form made in haste
 /// is replaced by a smaller one of the same content: its validator is weak.
 fn coded_etag(etag: &str, coding: Encoding, quick: bool) -> String {
+    let weak = if quick { "W/" } else { "" };
     match coding {
         Encoding::Identity => etag.to_string(),
-        other if quick => format!("W/{}-{}\"", etag.trim_end_matches('"'), other.as_str()),
-        other => format!("{}-{}\"", etag.trim_end_matches('"'), other.as_str()),
+        other => format!("{weak}{}-{}\"", etag.trim_end_matches('"'), other.as_str()),
     }
 }
 
