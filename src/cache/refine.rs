@@ -239,7 +239,7 @@ async fn yielding<T: Send + 'static>(work: impl FnOnce() -> T + Send + 'static) 
 #[cfg(test)]
 mod tests {
     use crate::cache::encoding::Accepted;
-    use crate::cache::{SqliteStore, TileCache, TileFilter, TileReader};
+    use crate::cache::{Served, SqliteStore, TileCache, TileFilter, TileReader};
     use crate::format::{Encoding, Format, TileKey};
     use std::sync::Arc;
 
@@ -261,18 +261,32 @@ mod tests {
         (TileCache::new(store.clone(), 64 << 20), store, dir)
     }
 
+    /// Tile 1 as a client that accepts `accepted` is served it, made by `render` if need be.
+    async fn ask(
+        cache: &TileCache,
+        accepted: Accepted,
+        render: impl FnOnce() -> std::io::Result<Vec<u8>> + Send + 'static,
+    ) -> Served {
+        cache
+            .get_or_render_kept(key(1), None, true, Some(accepted), render)
+            .await
+            .unwrap()
+    }
+
+    async fn purge(cache: &TileCache) {
+        cache
+            .purge(TileFilter::Tiles(vec![key(1).tile]))
+            .await
+            .unwrap();
+    }
+
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn a_tile_answered_in_haste_is_then_stored_with_its_smaller_forms() {
         let (cache, store, _dir) = cache();
         let data = body(400_000);
         let made = data.clone();
         let gzip = Accepted::parse(["gzip"]);
-        let served = cache
-            .get_or_render_kept(key(1), None, true, Some(gzip), move || {
-                Ok::<_, std::io::Error>(made)
-            })
-            .await
-            .unwrap();
+        let served = ask(&cache, gzip, move || Ok(made)).await;
         let quick = served.tile.bodies.clone();
         assert_eq!(quick.quick, Some(Encoding::Gzip));
         assert!(quick.brotli.is_none(), "only the form asked for is made");
@@ -296,25 +310,13 @@ mod tests {
         let render = |renders: Arc<std::sync::atomic::AtomicUsize>| {
             move || {
                 renders.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
-                Ok::<_, std::io::Error>(body(400_000))
+                Ok(body(400_000))
             }
         };
-        let first = cache
-            .get_or_render_kept(
-                key(1),
-                None,
-                true,
-                Some(Accepted::default()),
-                render(renders.clone()),
-            )
-            .await
-            .unwrap();
+        let first = ask(&cache, Accepted::default(), render(renders.clone())).await;
         assert_eq!(first.tile.bodies.quick, Some(Encoding::Identity));
         let brotli = Accepted::parse(["br"]);
-        let second = cache
-            .get_or_render_kept(key(1), None, true, Some(brotli), render(renders.clone()))
-            .await
-            .unwrap();
+        let second = ask(&cache, brotli, render(renders.clone())).await;
         assert_eq!(second.tile.bodies.quick, None);
         assert_eq!(second.tile.bodies.choose(&brotli).0, Encoding::Brotli);
         assert_eq!(second.tile.etag, first.tile.etag);
@@ -326,16 +328,8 @@ mod tests {
         let (cache, store, _dir) = cache();
         // Large enough that its forms kept take a while: the purge comes before them or after
         // they are stored, and either way the tile is gone.
-        cache
-            .get_or_render_kept(key(1), None, true, Some(Accepted::parse(["gzip"])), || {
-                Ok::<_, std::io::Error>(body(8 << 20))
-            })
-            .await
-            .unwrap();
-        cache
-            .purge(TileFilter::Tiles(vec![key(1).tile]))
-            .await
-            .unwrap();
+        ask(&cache, Accepted::parse(["gzip"]), || Ok(body(8 << 20))).await;
+        purge(&cache).await;
         cache.refined().await;
         assert_eq!(
             store.usage().unwrap().tiles,
@@ -349,20 +343,11 @@ mod tests {
     async fn a_tile_made_again_after_a_purge_is_stored_though_the_purged_one_was_refined() {
         let (cache, store, _dir) = cache();
         let gzip = Accepted::parse(["gzip"]);
-        let render = |fill: u8| move || Ok::<_, std::io::Error>(vec![fill; 8 << 20]);
-        cache
-            .get_or_render_kept(key(1), None, true, Some(gzip), render(1))
-            .await
-            .unwrap();
-        cache
-            .purge(TileFilter::Tiles(vec![key(1).tile]))
-            .await
-            .unwrap();
+        let render = |fill: u8| move || Ok(vec![fill; 8 << 20]);
+        ask(&cache, gzip, render(1)).await;
+        purge(&cache).await;
         // Made again, most likely while the purged tile's forms are still being made.
-        let again = cache
-            .get_or_render_kept(key(1), None, true, Some(gzip), render(2))
-            .await
-            .unwrap();
+        let again = ask(&cache, gzip, render(2)).await;
         assert_eq!(again.tile.bodies.identity[0], 2);
         cache.refined().await;
         let stored = store.get(&key(1)).unwrap().expect("the new tile is stored");
