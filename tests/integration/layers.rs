@@ -133,6 +133,7 @@ const CRATES: &[(&str, &[&str])] = &[
         "rusqlite",
         &[
             "cache/sqlite.rs",
+            "cache/sqlite/",
             "cache/archive/mbtiles.rs",
             "cache/archive/mod.rs",
             "cache/store.rs",
