@@ -125,3 +125,14 @@ CREATE TABLE expired (
     PRIMARY KEY (x, y)
 ) WITHOUT ROWID;
 CREATE INDEX expired_by_generation ON expired (generation);
+
+-- The far views' generalised data (see far.rs): for each zoom far views are made at, a row
+-- for each tile holding data, with the ways and relations drawn there simplified and the
+-- building blocks the tile owns.
+CREATE TABLE far (
+    zoom INTEGER NOT NULL,
+    x INTEGER NOT NULL,
+    y INTEGER NOT NULL,
+    data BLOB NOT NULL,
+    PRIMARY KEY (zoom, x, y)
+) WITHOUT ROWID;

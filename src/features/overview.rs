@@ -18,17 +18,19 @@
 //! Left out: minor roads, paths, tunnels, bridges' structures, trees, objects, barriers, power
 //! lines, steps. Coarser than [`BLOCKS_UP_TO`] levels above the served zoom, no buildings.
 
-use geo::algorithm::buffer::{BufferStyle, LineJoin};
-use geo::{Area as _, Buffer, SimplifyVwPreserve};
+mod blocks;
+
+use std::collections::HashSet;
 
 use super::buildings;
 use super::{
-    areas_of, coastline, landcover, railways, roads, tile_rect, water, widened_surface, Area,
-    BuildingShape, FeatureClass, FeatureSet, FeatureSettings, Projection,
+    areas_of, coastline, landcover, railways, roads, tile_rect, water, widened_surface,
+    FeatureClass, FeatureSet, FeatureSettings, Projection,
 };
 use crate::geometry::{Point, Polygon, Rect};
+use crate::osm::far::{FarSource, Generalised};
 use crate::osm::index::Selection;
-use crate::osm::{ElementRef, ElementType, Tags, Way};
+use crate::osm::{ElementRef, ElementType, Relation, Tags, Way};
 use crate::tile::{LonLatBounds, TileId};
 
 /// Buildings are drawn as blocks up to this many levels above the served zoom.
@@ -39,10 +41,6 @@ const TOLERANCE_PER_TILE: f64 = 1.0 / 1024.0;
 const MIN_WIDTH_TOLERANCES: f64 = 1.5;
 /// Areas smaller than a square this many tolerances wide are left out.
 const MIN_AREA_TOLERANCES: f64 = 8.0;
-/// Blocks smaller than a square this many tolerances wide are left out.
-const MIN_BLOCK_TOLERANCES: f64 = 3.0;
-/// The upper bounds of the height bands buildings merge within, metres.
-const HEIGHT_BANDS_M: [f64; 4] = [12.0, 24.0, 48.0, 96.0];
 
 /// How far a tile is generalised.
 #[derive(Debug, Clone, Copy)]
@@ -124,17 +122,25 @@ impl Level {
     }
 }
 
-/// The generalised features of `level`'s tile.
+/// The generalised features of `level`'s tile: made from the data near it, or from its
+/// generalised data (a selection with the blocks it owns), whose lines are simplified already.
 pub fn collect(selection: &Selection<'_>, level: Level, settings: &FeatureSettings) -> FeatureSet {
+    let far = selection.blocks;
     let tile = level.tile;
     let projection = Projection::new(tile.z);
     let mut set = FeatureSet::default();
     set.add_feature(None, FeatureClass::Terrain, &Tags::default());
 
-    let simplified = simplify_ways(&selection.ways, &projection, level.tolerance_uv());
+    let simplified = match far {
+        Some(_) => Vec::new(),
+        None => simplify_ways(&selection.ways, &projection, level.tolerance_uv()),
+    };
     let coastlines = simplify_ways(&selection.coastlines, &projection, level.tolerance_uv());
     let generalised = Selection {
-        ways: simplified.iter().collect(),
+        ways: match far {
+            Some(_) => selection.ways.clone(),
+            None => simplified.iter().collect(),
+        },
         relations: selection.relations.clone(),
         coastlines: coastlines.iter().collect(),
         ..Selection::default()
@@ -153,10 +159,111 @@ pub fn collect(selection: &Selection<'_>, level: Level, settings: &FeatureSettin
     add_sea(&mut set, &generalised, level, &projection);
     water::drop_waterways_in_water_areas(&mut set);
     if level.levels_above <= BLOCKS_UP_TO {
-        add_blocks(&mut set, &areas_of(selection), &projection, level, settings);
+        let owned = match far {
+            Some(kept) => kept
+                .iter()
+                .map(|b| (blocks::from_world(b, tile.z), b.height_m))
+                .collect(),
+            None => {
+                let footprints = blocks::of_buildings(&areas_of(selection), &projection, settings);
+                blocks::owned(&footprints, level)
+            }
+        };
+        add_blocks(&mut set, owned, settings);
     }
     set.retain_touching(&tile_rect(tile));
     set
+}
+
+/// Adds the blocks a tile owns.
+fn add_blocks(set: &mut FeatureSet, owned: Vec<(Polygon, f64)>, settings: &FeatureSettings) {
+    let tags = Tags::from_pairs([("building", "block")]);
+    for (outline, height_m) in owned {
+        let feature = set.add_feature(None, FeatureClass::Building, &tags);
+        set.buildings
+            .push(blocks::block_shape(feature, outline, height_m, settings));
+    }
+}
+
+/// The generalised data of a far tile (see [`crate::osm::far`]): the ways and relations its
+/// features are made from, lines simplified to its tolerance, the areas it cannot show left
+/// out; and the blocks it owns, made from the buildings as mapped or from the finer level's
+/// blocks. Heights are those of the default settings.
+pub fn generalise(source: &FarSource<'_>) -> Generalised {
+    let tile = source.tile;
+    let level = Level {
+        tile,
+        levels_above: source.served_zoom.saturating_sub(tile.z).max(1),
+        data: None,
+    };
+    let projection = Projection::new(tile.z);
+    let tolerance = level.tolerance_uv();
+    let min_area = (MIN_AREA_TOLERANCES * tolerance).powi(2);
+    let relations: Vec<Relation> = source
+        .relations
+        .iter()
+        .filter(|r| r.tags.get("type") == Some("multipolygon") && draws_area(&r.tags))
+        .map(|&r| r.clone())
+        .collect();
+    let members: HashSet<i64> = relations
+        .iter()
+        .flat_map(|r| &r.members)
+        .filter(|m| m.element.element_type == ElementType::Way)
+        .map(|m| m.element.id)
+        .collect();
+    let kept: Vec<&Way> = source
+        .ways
+        .iter()
+        .copied()
+        .filter(|w| {
+            members.contains(&w.id)
+                || coastline::is_coastline(w)
+                || draws_line(w, level)
+                || (draws_area(&w.tags) && box_area(w, &projection) >= min_area)
+        })
+        .collect();
+    let mut ways = simplify_ways(&kept, &projection, tolerance);
+    ways.sort_by_key(|w| w.id);
+    ways.dedup_by_key(|w| w.id);
+    let blocks = if level.levels_above <= BLOCKS_UP_TO {
+        let footprints = match source.blocks {
+            Some(finer) => blocks::of_blocks(finer, tile.z),
+            None => {
+                let selection = Selection {
+                    ways: source.ways.to_vec(),
+                    relations: source.relations.to_vec(),
+                    ..Selection::default()
+                };
+                let settings = FeatureSettings::default();
+                blocks::of_buildings(&areas_of(&selection), &projection, &settings)
+            }
+        };
+        blocks::owned(&footprints, level)
+            .iter()
+            .map(|(outline, height_m)| blocks::to_world(outline, *height_m, tile.z))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    Generalised {
+        ways,
+        relations,
+        blocks,
+    }
+}
+
+/// Whether an area with these tags is drawn at far views: water or land cover.
+fn draws_area(tags: &Tags) -> bool {
+    water::is_water_area(tags) || landcover::Cover::from_tags(tags).is_some()
+}
+
+/// The area of a way's box, in the projection's units squared: no piece of it is larger.
+fn box_area(way: &Way, projection: &Projection) -> f64 {
+    if way.positions.is_empty() {
+        return 0.0;
+    }
+    let r = Rect::around(&projection.points(&way.positions));
+    (r.max[0] - r.min[0]) * (r.max[1] - r.min[1])
 }
 
 /// The sea of the tile, decided over the part of it the data covers as a served-zoom tile
@@ -371,25 +478,16 @@ fn add_line(
     level: Level,
     settings: &FeatureSettings,
 ) {
-    if way.positions.len() < 2 || super::structures::is_off_ground(&way.tags) || is_area(&way.tags)
-    {
+    if !draws_line(way, level) {
         return;
     }
-    let (class, width) = if let Some(highway) = way.tags.get("highway") {
-        if !level.draws_road(highway) {
-            return;
-        }
+    let (class, width) = if way.tags.get("highway").is_some() {
         (FeatureClass::Road, roads::width_m(&way.tags, settings))
-    } else if let Some(railway) = way.tags.get("railway") {
-        if !matches!(railway, "rail" | "light_rail" | "narrow_gauge") {
-            return;
-        }
+    } else if way.tags.get("railway").is_some() {
         let width = railways::width_m(way.tags.get("gauge"), false);
         (FeatureClass::Railway, Some(width))
-    } else if matches!(way.tags.get("waterway"), Some("river" | "canal")) {
-        water::add_waterway(set, way, projection);
-        return;
     } else {
+        water::add_waterway(set, way, projection);
         return;
     };
     let Some(width) = width else {
@@ -415,6 +513,21 @@ fn add_line(
         None => {
             set.features.pop();
         }
+    }
+}
+
+/// Whether `level` draws the way as a line: a major road, a railway or a river.
+fn draws_line(way: &Way, level: Level) -> bool {
+    if way.positions.len() < 2 || super::structures::is_off_ground(&way.tags) || is_area(&way.tags)
+    {
+        return false;
+    }
+    if let Some(highway) = way.tags.get("highway") {
+        level.draws_road(highway)
+    } else if let Some(railway) = way.tags.get("railway") {
+        matches!(railway, "rail" | "light_rail" | "narrow_gauge")
+    } else {
+        matches!(way.tags.get("waterway"), Some("river" | "canal"))
     }
 }
 
@@ -454,151 +567,6 @@ fn drop_small_pieces(set: &mut FeatureSet, min_area: f64) {
     });
 }
 
-/// A building footprint with the height it stands to.
-struct Footprint {
-    polygon: Polygon,
-    height_m: f64,
-    area: f64,
-    centre: Point,
-}
-
-/// Adds the blocks the tile owns, built from the buildings of `areas`.
-fn add_blocks(
-    set: &mut FeatureSet,
-    areas: &[Area<'_>],
-    projection: &Projection,
-    level: Level,
-    settings: &FeatureSettings,
-) {
-    let mut bands: Vec<Vec<Footprint>> = (0..=HEIGHT_BANDS_M.len()).map(|_| Vec::new()).collect();
-    for area in areas {
-        if !buildings::is_building(area.tags) {
-            continue;
-        }
-        let (height_m, _) = buildings::height_m(area.tags, settings);
-        let band = HEIGHT_BANDS_M
-            .iter()
-            .position(|&top| height_m < top)
-            .unwrap_or(HEIGHT_BANDS_M.len());
-        for polygon in area.polygons.iter().filter_map(|p| projection.polygon(p)) {
-            let bounds = polygon.bounds();
-            bands[band].push(Footprint {
-                area: polygon.area(),
-                centre: centre_of(&bounds),
-                polygon,
-                height_m,
-            });
-        }
-    }
-    let tile = tile_rect(level.tile);
-    let tags = Tags::from_pairs([("building", "block")]);
-    for footprints in bands.iter().filter(|b| !b.is_empty()) {
-        for (outline, height_m) in blocks_of(footprints, level.tolerance_uv()) {
-            if !tile.owns(centre_of(&outline.bounds())) {
-                continue;
-            }
-            let feature = set.add_feature(None, FeatureClass::Building, &tags);
-            set.buildings
-                .push(block_shape(feature, outline, height_m, settings));
-        }
-    }
-}
-
-fn centre_of(rect: &Rect) -> Point {
-    [
-        (rect.min[0] + rect.max[0]) / 2.0,
-        (rect.min[1] + rect.max[1]) / 2.0,
-    ]
-}
-
-/// A flat-roofed block standing on its lowest ground.
-fn block_shape(
-    feature: u32,
-    footprint: Polygon,
-    height_m: f64,
-    settings: &FeatureSettings,
-) -> BuildingShape {
-    let flat = Tags::from_pairs([("roof:shape", "flat")]);
-    BuildingShape {
-        feature,
-        footprint,
-        height_m,
-        height_tagged: true,
-        basement_m: 0.0,
-        roof: buildings::roof_spec(&flat, settings),
-        min_height_m: 0.0,
-        drawn: true,
-        base: None,
-        appearance: buildings::appearance(&Tags::default()),
-        // Far views draw walls without windows.
-        facade: Default::default(),
-        passages: Vec::new(),
-    }
-}
-
-/// The blocks of one height band: the footprints closed by `tolerance`, simplified, the small
-/// ones left out; each with the area-weighted mean height of the footprints whose centre it
-/// holds.
-fn blocks_of(footprints: &[Footprint], tolerance: f64) -> Vec<(Polygon, f64)> {
-    let all = geo::MultiPolygon::new(footprints.iter().map(|f| to_geo(&f.polygon)).collect());
-    let style = |distance: f64| BufferStyle::new(distance).line_join(LineJoin::Miter(2.0));
-    let closed = all
-        .buffer_with_style(style(tolerance))
-        .buffer_with_style(style(-tolerance));
-    let min_area = (MIN_BLOCK_TOLERANCES * tolerance).powi(2);
-    let mut blocks: Vec<(Polygon, f64)> = closed
-        .0
-        .iter()
-        .map(|p| p.simplify_vw_preserve(tolerance * tolerance))
-        .filter(|p| p.unsigned_area() >= min_area)
-        .filter_map(|p| from_geo(&p))
-        .filter_map(|polygon| {
-            let bounds = polygon.bounds();
-            let (mut weighted, mut total) = (0.0, 0.0);
-            for f in footprints {
-                if bounds.contains(f.centre) && polygon.contains(f.centre) {
-                    weighted += f.height_m * f.area;
-                    total += f.area;
-                }
-            }
-            (total > 0.0).then(|| (polygon, weighted / total))
-        })
-        .collect();
-    // The order the overlay returns them in, made independent of it.
-    blocks.sort_by(|a, b| {
-        let (ka, kb) = (a.0.outer[0], b.0.outer[0]);
-        ka[0].total_cmp(&kb[0]).then(ka[1].total_cmp(&kb[1]))
-    });
-    blocks
-}
-
-fn to_geo(polygon: &Polygon) -> geo::Polygon<f64> {
-    let ring = |points: &[Point]| {
-        geo::LineString::from(points.iter().map(|p| (p[0], p[1])).collect::<Vec<_>>())
-    };
-    geo::Polygon::new(
-        ring(&polygon.outer),
-        polygon.holes.iter().map(|h| ring(h)).collect(),
-    )
-}
-
-fn from_geo(polygon: &geo::Polygon<f64>) -> Option<Polygon> {
-    let ring = |line: &geo::LineString<f64>| {
-        crate::geometry::dedup_ring(&line.coords().map(|c| [c.x, c.y]).collect::<Vec<_>>())
-    };
-    let outer = ring(polygon.exterior());
-    if outer.len() < 3 {
-        return None;
-    }
-    let holes = polygon
-        .interiors()
-        .iter()
-        .map(ring)
-        .filter(|h| h.len() >= 3)
-        .collect();
-    Some(Polygon { outer, holes })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -614,83 +582,6 @@ mod tests {
                 .map(|&(lon, lat)| LonLat { lon, lat })
                 .collect(),
         }
-    }
-
-    fn square(x: f64, y: f64, size: f64) -> Polygon {
-        Polygon {
-            outer: vec![[x, y], [x + size, y], [x + size, y + size], [x, y + size]],
-            holes: Vec::new(),
-        }
-    }
-
-    fn footprint(polygon: Polygon, height_m: f64) -> Footprint {
-        let bounds = polygon.bounds();
-        Footprint {
-            area: polygon.area(),
-            centre: centre_of(&bounds),
-            polygon,
-            height_m,
-        }
-    }
-
-    #[test]
-    fn buildings_nearer_than_two_tolerances_merge_into_one_block() {
-        let t = 0.001;
-        let near = [
-            footprint(square(0.0, 0.0, 0.01), 10.0),
-            footprint(square(0.0115, 0.0, 0.01), 20.0),
-        ];
-        let blocks = blocks_of(&near, t);
-        assert_eq!(blocks.len(), 1);
-        // Weighted by area (equal here): the mean.
-        assert!((blocks[0].1 - 15.0).abs() < 1e-9);
-        let far = [
-            footprint(square(0.0, 0.0, 0.01), 10.0),
-            footprint(square(0.0130, 0.0, 0.01), 20.0),
-        ];
-        assert_eq!(blocks_of(&far, t).len(), 2);
-    }
-
-    #[test]
-    fn blocks_smaller_than_the_level_shows_are_left_out() {
-        let t = 0.001;
-        let tiny = [footprint(square(0.0, 0.0, 0.002), 10.0)];
-        assert!(blocks_of(&tiny, t).is_empty());
-        let large = [footprint(square(0.0, 0.0, 0.004), 10.0)];
-        assert_eq!(blocks_of(&large, t).len(), 1);
-    }
-
-    #[test]
-    fn a_block_keeps_its_footprints_outline_within_the_tolerance() {
-        let t = 0.001;
-        // An L of two touching rectangles with a notch far smaller than the tolerance.
-        let l = Polygon {
-            outer: vec![
-                [0.0, 0.0],
-                [0.02, 0.0],
-                [0.02, 0.0001],
-                [0.0201, 0.0001],
-                [0.0201, 0.01],
-                [0.01, 0.01],
-                [0.01, 0.02],
-                [0.0, 0.02],
-            ],
-            holes: Vec::new(),
-        };
-        let blocks = blocks_of(&[footprint(l.clone(), 9.0)], t);
-        assert_eq!(blocks.len(), 1);
-        let block = &blocks[0].0;
-        assert!(block.outer.len() < l.outer.len(), "{:?}", block.outer);
-        for p in &block.outer {
-            let off = l
-                .outer
-                .iter()
-                .zip(l.outer.iter().cycle().skip(1))
-                .map(|(&a, &b)| crate::geometry::distance_to_segment(*p, a, b))
-                .fold(f64::INFINITY, f64::min);
-            assert!(off <= t, "{p:?} lies {off} from the footprint");
-        }
-        assert!((block.area() - l.area()).abs() < 0.02 * l.area());
     }
 
     #[test]

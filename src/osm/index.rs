@@ -67,6 +67,8 @@ pub struct Selection<'a> {
     /// Where the ways of the data join and pass under bridges, near the tile or not (see
     /// [`OsmIndex::with_joints`]).
     pub roads: Option<&'a RoadGraph>,
+    /// The blocks of a far tile when this is its generalised data (see [`super::far`]).
+    pub blocks: Option<&'a [super::far::Block]>,
 }
 
 impl OsmIndex {
@@ -294,6 +296,7 @@ impl OsmIndex {
                 .collect(),
             all_ways: &self.data.ways,
             roads: Some(&self.roads),
+            blocks: None,
         }
     }
 }
@@ -392,6 +395,7 @@ impl<'a> Selection<'a> {
             structures: self.structures.clone(),
             all_ways: self.all_ways,
             roads: self.roads,
+            blocks: self.blocks,
         }
     }
 }

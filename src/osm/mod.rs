@@ -4,6 +4,7 @@
 
 pub mod areas;
 pub mod coast;
+pub mod far;
 #[cfg(test)]
 pub(crate) mod fixture;
 pub mod index;
@@ -103,7 +104,7 @@ pub struct Node {
 
 /// A way with the positions of its nodes. Nodes missing from the extract were dropped when the
 /// way was read; `nodes` and `positions` stay parallel.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Way {
     pub id: i64,
     pub tags: Tags,

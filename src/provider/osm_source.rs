@@ -29,6 +29,7 @@ pub fn rules() -> Rules {
         joins: crate::features::roads::joins,
         depth: crate::features::structures::foundation_depth_m,
         relation: crate::features::reads_relation,
+        generalise: crate::features::overview::generalise,
     }
 }
 
@@ -46,6 +47,8 @@ pub enum OsmSource {
 pub enum TileOsm<'a> {
     Whole(&'a OsmIndex),
     Closure(Box<OsmIndex>),
+    /// A far tile's generalised data, kept by the store.
+    Far(Box<crate::osm::far::FarTile>),
 }
 
 impl TileOsm<'_> {
@@ -54,6 +57,7 @@ impl TileOsm<'_> {
         match self {
             TileOsm::Whole(index) => index.query(tile, QUERY_MARGIN_DEG),
             TileOsm::Closure(index) => index.query(tile, QUERY_MARGIN_DEG),
+            TileOsm::Far(far) => far.selection(),
         }
     }
 }
@@ -76,6 +80,9 @@ impl OsmSource {
     pub fn tile(&self, tile: TileId) -> Result<TileOsm<'_>, StoreError> {
         match self {
             OsmSource::Memory(index) => Ok(TileOsm::Whole(index)),
+            OsmSource::Store(store) if crate::tile::is_overview_zoom(tile.z, store.zoom()) => {
+                Ok(TileOsm::Far(Box::new(store.far_tile(tile)?)))
+            }
             OsmSource::Store(store) => Ok(TileOsm::Closure(Box::new(
                 store.tile_index(tile, QUERY_MARGIN_DEG)?,
             ))),

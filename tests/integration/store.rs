@@ -299,6 +299,63 @@ fn every_tile_of_the_sample_selects_from_the_store_what_it_selects_from_memory()
     assert!(tiles >= 20, "{tiles} tiles hold data");
 }
 
+/// What a far view draws but its blocks: each surface's class and element, in order.
+fn drawn(set: &terrastitch::features::FeatureSet) -> Vec<String> {
+    set.surfaces
+        .iter()
+        .map(|s| {
+            let info = &set.features[s.feature as usize];
+            format!("{:?} {:?}", s.class, info.element)
+        })
+        .collect()
+}
+
+#[test]
+fn every_far_view_of_the_sample_draws_from_the_store_what_it_draws_from_memory() {
+    use terrastitch::features::overview::{collect, Level};
+    use terrastitch::provider::osm_source::rules;
+    use terrastitch::source::store::{import::import, OsmStore};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("osm.sqlite");
+    let imported = import(&[sample_osm()], &path, 14, &rules(), false, &|_| {}).unwrap();
+    let store = OsmStore::open(&path).unwrap();
+    let memory =
+        terrastitch::provider::Inputs::open(&[sample_osm()], &common::sample_srtm(), 14).unwrap();
+    let whole = common::whole(&memory);
+    let coverage = store.coverage();
+    let settings = terrastitch::features::FeatureSettings::default();
+    let margin = terrastitch::provider::inputs::QUERY_MARGIN_DEG;
+    let (mut views, mut with_blocks) = (0, 0);
+    for z in terrastitch::tile::overview_zooms(14) {
+        let shift = 14 - z;
+        for x in (8526 >> shift)..=(8533 >> shift) {
+            for y in (5972 >> shift)..=(5976 >> shift) {
+                let tile = terrastitch::TileId { z, x, y };
+                let level = Level::new(tile, 14, &coverage);
+                let from_memory = collect(&whole.query(tile, margin), level, &settings);
+                let far = store.far_tile(tile).unwrap();
+                let from_store = collect(&far.selection(), level, &settings);
+                assert_eq!(drawn(&from_store), drawn(&from_memory), "tile {tile}");
+                // Blocks are merged from the finer level's blocks, not from the buildings:
+                // as many or fewer, never none where there are some.
+                let (kept, made) = (from_store.buildings.len(), from_memory.buildings.len());
+                assert_eq!(kept == 0, made == 0, "tile {tile}: {kept} blocks, {made}");
+                assert!(
+                    kept <= made + made / 10 + 1,
+                    "tile {tile}: {kept} blocks, {made}"
+                );
+                views += 1;
+                with_blocks += usize::from(kept > 0);
+            }
+        }
+    }
+    assert!(
+        views >= 8 && with_blocks >= 4,
+        "{views} views, {with_blocks} with blocks"
+    );
+    assert!(imported.far_rows >= 8, "{} rows", imported.far_rows);
+}
+
 #[test]
 fn a_tile_reads_only_the_nearest_coast_and_finds_the_sea_every_coastline_gives() {
     let memory =

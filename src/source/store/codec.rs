@@ -49,6 +49,12 @@ impl Writer {
         }
     }
 
+    /// Bytes, with their length before them.
+    pub fn bytes(&mut self, value: &[u8]) {
+        self.unsigned(value.len() as u64);
+        self.0.extend_from_slice(value);
+    }
+
     /// Ids in order, each as the difference from the one before.
     pub fn ids(&mut self, ids: &[i64]) {
         self.unsigned(ids.len() as u64);
@@ -118,6 +124,13 @@ impl<'a> Reader<'a> {
         let mut bits = [0u8; 8];
         bits.copy_from_slice(head);
         Ok(f64::from_bits(u64::from_le_bytes(bits)))
+    }
+
+    pub fn bytes(&mut self) -> Result<&'a [u8], DecodeError> {
+        let n = self.count()?;
+        let (head, rest) = self.bytes.split_at(n);
+        self.bytes = rest;
+        Ok(head)
     }
 
     pub fn text(&mut self) -> Result<String, DecodeError> {

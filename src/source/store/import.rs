@@ -60,6 +60,8 @@ pub struct Rules {
     pub depth: fn(&Tags) -> Option<f64>,
     /// Which relations tiles are made from (the others are not kept).
     pub relation: fn(&Tags) -> bool,
+    /// What far views draw, generalised (see [`super::far`]).
+    pub generalise: crate::osm::far::Generalise,
 }
 
 /// What the import is doing.
@@ -70,6 +72,7 @@ pub enum Phase {
     Resolving,
     Indexing,
     Structures,
+    FarViews,
     Finishing,
 }
 
@@ -80,6 +83,7 @@ impl Phase {
             Phase::Resolving => "resolving ways",
             Phase::Indexing => "indexing",
             Phase::Structures => "bridges and tunnels",
+            Phase::FarViews => "far views",
             Phase::Finishing => "finishing",
         }
     }
@@ -108,6 +112,8 @@ pub struct Imported {
     pub relations: u64,
     pub groups: u64,
     pub joints: u64,
+    /// Rows of the far views' generalised data.
+    pub far_rows: u64,
     /// Bytes of the store file.
     pub store_bytes: u64,
 }
@@ -180,6 +186,8 @@ pub enum ImportError {
     },
     #[error(transparent)]
     Decode(#[from] DecodeError),
+    #[error(transparent)]
+    Store(#[from] super::StoreError),
 }
 
 /// Counts the bytes read and digests them (an extract's version is the digest of its bytes).
@@ -515,10 +523,30 @@ fn write_all(
     progress(&state);
     imported.groups = find_structures(partial, &structure_ways, zoom, rules)?;
     clock.done(Phase::Structures);
+    state.phase = Phase::FarViews;
+    progress(&state);
+    imported.far_rows = make_far(partial, zoom, rules)?;
+    clock.done(Phase::FarViews);
     state.phase = Phase::Finishing;
     progress(&state);
     write_meta(partial, &records, zoom)?;
     Ok(imported)
+}
+
+/// The far views' rows of every tile holding data, in one transaction.
+fn make_far(partial: &Partial, zoom: u8, rules: &Rules) -> Result<u64, ImportError> {
+    let sqlite = partial.sqlite();
+    partial.db.execute_batch("BEGIN").map_err(&sqlite)?;
+    let made = super::far::make(
+        &partial.db,
+        &partial.path,
+        zoom,
+        rules.generalise,
+        super::far::MARGIN_DEG,
+        None,
+    )?;
+    partial.db.execute_batch("COMMIT").map_err(&sqlite)?;
+    Ok(made.rows as u64)
 }
 
 /// Ways resolved at once, over the cores.

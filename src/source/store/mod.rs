@@ -11,6 +11,7 @@
 
 mod batch_insert;
 pub mod codec;
+pub mod far;
 pub mod import;
 mod resolve;
 pub mod update;
@@ -32,7 +33,7 @@ use codec::DecodeError;
 /// The schema of a store.
 pub const SCHEMA: &str = include_str!("../../../migrations/osm_store.sql");
 /// The store's format: a store of another is imported again.
-pub const FORMAT: u32 = 5;
+pub const FORMAT: u32 = 6;
 
 /// One extract as imported.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -296,6 +297,20 @@ impl OsmStore {
                 let _ = db.execute_batch("ROLLBACK");
             }
             closure
+        })
+    }
+
+    /// The generalised data of `tile`, a tile of a zoom far views are made at (see [`far`]),
+    /// with the coastline ways that may decide its side of the coast.
+    pub fn far_tile(&self, tile: TileId) -> Result<crate::osm::far::FarTile, StoreError> {
+        self.with_connection(|db| {
+            let data = far::read(db, &self.path, tile)?.unwrap_or_default();
+            let mut coast = BTreeMap::new();
+            self.add_nearest_coast(db, tile, &mut coast)?;
+            Ok(crate::osm::far::FarTile {
+                data,
+                coast: coast.into_values().collect(),
+            })
         })
     }
 

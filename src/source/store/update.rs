@@ -130,6 +130,14 @@ pub fn apply(
         }
     }
     drop(before);
+    super::far::make(
+        &db,
+        store,
+        meta.zoom,
+        rules.generalise,
+        super::far::MARGIN_DEG,
+        Some(&expired),
+    )?;
     let generation = meta.generation + 1;
     meta.write(&db, store, generation, change, origin, &expired)?;
     db.execute_batch("COMMIT").map_err(sqlite)?;

@@ -713,7 +713,7 @@ impl TunnelFootprint {
 }
 
 /// The OSM store's tables of elements and facts, each with the columns that order it.
-pub const STORE_TABLES: [(&str, &str); 9] = [
+pub const STORE_TABLES: [(&str, &str); 10] = [
     ("nodes", "id"),
     ("ways", "id"),
     ("relations", "id"),
@@ -723,6 +723,7 @@ pub const STORE_TABLES: [(&str, &str); 9] = [
     ("joints", "node, way"),
     ("way_facts", "way"),
     ("coastlines", "way"),
+    ("far", "zoom, x, y"),
 ];
 
 /// Every row of `tables` (a table, or a table with a `WHERE`, and the columns to order it by)
