@@ -159,7 +159,7 @@ pub fn collect(selection: &Selection<'_>, level: Level, settings: &FeatureSettin
     add_sea(&mut set, &generalised, level, &projection);
     water::drop_waterways_in_water_areas(&mut set);
     if level.levels_above <= BLOCKS_UP_TO {
-        let owned = match far {
+        let owned: Vec<(Polygon, f64)> = match far {
             Some(kept) => kept
                 .iter()
                 .map(|b| (blocks::from_world(b, tile.z), b.height_m))
@@ -169,7 +169,11 @@ pub fn collect(selection: &Selection<'_>, level: Level, settings: &FeatureSettin
                 blocks::owned(&footprints, level)
             }
         };
-        add_blocks(&mut set, owned, settings);
+        let shown = owned
+            .into_iter()
+            .filter(|(outline, _)| blocks::large_enough(outline, level.tolerance_uv()))
+            .collect();
+        add_blocks(&mut set, shown, settings);
     }
     set.retain_touching(&tile_rect(tile));
     set
@@ -188,7 +192,8 @@ fn add_blocks(set: &mut FeatureSet, owned: Vec<(Polygon, f64)>, settings: &Featu
 /// The generalised data of a far tile (see [`crate::osm::far`]): the ways and relations its
 /// features are made from, lines simplified to its tolerance, the areas it cannot show left
 /// out; and the blocks it owns, made from the buildings as mapped or from the finer level's
-/// blocks. Heights are those of the default settings.
+/// blocks, those too small to draw kept for a coarser level to join. Heights are those of the
+/// default settings.
 pub fn generalise(source: &FarSource<'_>) -> Generalised {
     let tile = source.tile;
     let level = Level {

@@ -57,16 +57,3 @@ pub struct FarTile {
     pub data: Generalised,
     pub coast: Vec<Way>,
 }
-
-impl FarTile {
-    /// What the tile is made from.
-    pub fn selection(&self) -> super::index::Selection<'_> {
-        super::index::Selection {
-            ways: self.data.ways.iter().collect(),
-            relations: self.data.relations.iter().collect(),
-            coastlines: self.coast.iter().collect(),
-            blocks: Some(&self.data.blocks),
-            ..Default::default()
-        }
-    }
-}

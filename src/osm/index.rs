@@ -301,6 +301,19 @@ impl OsmIndex {
     }
 }
 
+impl super::far::FarTile {
+    /// What the far tile is made from: its generalised data, with its blocks.
+    pub fn selection(&self) -> Selection<'_> {
+        Selection {
+            ways: self.data.ways.iter().collect(),
+            relations: self.data.relations.iter().collect(),
+            coastlines: self.coast.iter().collect(),
+            blocks: Some(&self.data.blocks),
+            ..Selection::default()
+        }
+    }
+}
+
 impl<'a> Selection<'a> {
     /// The open ways of the selection longer than `longest_m` (coastlines aside: the side of
     /// the coast is read from whole ways), each cut to what lies within `box_` (the line,

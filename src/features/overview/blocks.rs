@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 
 use geo::algorithm::buffer::{BufferStyle, LineJoin};
-use geo::{Area as _, Buffer, Simplify, SimplifyVwPreserve};
+use geo::{Buffer, Simplify, SimplifyVwPreserve};
 
 use super::super::{buildings, tile_rect, Area, BuildingShape, FeatureSettings, Projection};
 use super::Level;
@@ -88,7 +88,8 @@ pub(super) fn of_blocks(blocks: &[&Block], zoom: u8) -> Bands {
     bands
 }
 
-/// The blocks `level`'s tile owns, made from `bands`, with their heights.
+/// The blocks `level`'s tile owns, made from `bands`, with their heights: small ones too (a
+/// coarser level may join them to others; see [`large_enough`]).
 pub(super) fn owned(bands: &Bands, level: Level) -> Vec<(Polygon, f64)> {
     let tile = tile_rect(level.tile);
     let mut owned = Vec::new();
@@ -133,6 +134,12 @@ pub(super) fn from_world(block: &Block, zoom: u8) -> Polygon {
     }
 }
 
+/// Whether a block is large enough to be drawn at a level of this tolerance: at least a square
+/// [`MIN_BLOCK_TOLERANCES`] wide.
+pub(super) fn large_enough(outline: &Polygon, tolerance: f64) -> bool {
+    outline.area() >= (MIN_BLOCK_TOLERANCES * tolerance).powi(2)
+}
+
 fn centre_of(rect: &Rect) -> Point {
     [
         (rect.min[0] + rect.max[0]) / 2.0,
@@ -165,10 +172,10 @@ pub(super) fn block_shape(
     }
 }
 
-/// The blocks of one height band: the footprints closed by `tolerance`, simplified, the small
-/// ones left out; each with the area-weighted mean height of the footprints whose centre it
-/// holds. Footprints too far apart to join are closed apart, so the work grows with the
-/// number of footprints, not with its square.
+/// The blocks of one height band: the footprints closed by `tolerance`, simplified; each with
+/// the area-weighted mean height of the footprints whose centre it holds. Footprints too far
+/// apart to join are closed apart, so the work grows with the number of footprints, not with
+/// its square.
 fn blocks_of(footprints: &[Footprint], tolerance: f64) -> Vec<(Polygon, f64)> {
     let mut blocks: Vec<(Polygon, f64)> = clusters(footprints, tolerance)
         .iter()
@@ -228,7 +235,7 @@ fn blocks_of_cluster(footprints: &[&Footprint], tolerance: f64) -> Vec<(Polygon,
     let all = geo::MultiPolygon::new(
         footprints
             .iter()
-            .map(|f| to_geo(&f.polygon).simplify(tolerance / 2.0))
+            .map(|f| thinned(to_geo(&f.polygon), tolerance / 2.0))
             .collect(),
     );
     let style = |distance: f64| BufferStyle::new(distance).line_join(LineJoin::Miter(2.0));
@@ -236,7 +243,6 @@ fn blocks_of_cluster(footprints: &[&Footprint], tolerance: f64) -> Vec<(Polygon,
         .buffer_with_style(style(tolerance))
         .simplify(tolerance / 4.0)
         .buffer_with_style(style(-tolerance));
-    let min_area = (MIN_BLOCK_TOLERANCES * tolerance).powi(2);
     closed
         .0
         .iter()
@@ -244,7 +250,6 @@ fn blocks_of_cluster(footprints: &[&Footprint], tolerance: f64) -> Vec<(Polygon,
             p.simplify(tolerance / 4.0)
                 .simplify_vw_preserve(tolerance * tolerance)
         })
-        .filter(|p| p.unsigned_area() >= min_area)
         .filter_map(|p| from_geo(&p))
         .filter_map(|polygon| {
             let bounds = polygon.bounds();
@@ -258,6 +263,18 @@ fn blocks_of_cluster(footprints: &[&Footprint], tolerance: f64) -> Vec<(Polygon,
             (total > 0.0).then(|| (polygon, weighted / total))
         })
         .collect()
+}
+
+/// A footprint thinned to `epsilon`, or as it is where thinning would leave no area (a
+/// footprint about as small as `epsilon`: it still counts where it joins others).
+fn thinned(polygon: geo::Polygon<f64>, epsilon: f64) -> geo::Polygon<f64> {
+    use geo::Area;
+    let thin = polygon.simplify(epsilon);
+    if thin.exterior().0.len() >= 4 && thin.unsigned_area() >= 0.5 * polygon.unsigned_area() {
+        thin
+    } else {
+        polygon
+    }
 }
 
 fn to_geo(polygon: &Polygon) -> geo::Polygon<f64> {
@@ -323,10 +340,13 @@ mod tests {
     #[test]
     fn blocks_smaller_than_the_level_shows_are_left_out() {
         let t = 0.001;
-        let tiny = [footprint(square(0.0, 0.0, 0.002), 10.0)];
-        assert!(blocks_of(&tiny, t).is_empty());
-        let large = [footprint(square(0.0, 0.0, 0.004), 10.0)];
-        assert_eq!(blocks_of(&large, t).len(), 1);
+        let shown = |f: Footprint| {
+            let blocks = blocks_of(&[f], t);
+            assert_eq!(blocks.len(), 1, "kept, for a coarser level to join");
+            large_enough(&blocks[0].0, t)
+        };
+        assert!(!shown(footprint(square(0.0, 0.0, 0.002), 10.0)));
+        assert!(shown(footprint(square(0.0, 0.0, 0.004), 10.0)));
     }
 
     #[test]

@@ -22,14 +22,15 @@ pub const MARGIN_DEG: f64 = 0.002;
 /// What making the rows did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Made {
-    /// Rows written (those left empty are removed).
+    /// Rows holding something among those made (the empty ones are not kept).
     pub rows: usize,
 }
 
 /// Makes the rows of the far tiles over `changed` (tiles of the store's zoom `zoom` whose
-/// elements near them changed; every tile holding data when `None`), finest zoom first. The
-/// tiles made are the same whichever way a store came to hold its data, so a store updated
-/// holds the rows a store imported from the changed data holds.
+/// elements near them changed; every tile holding data when `None`), finest zoom first, each
+/// coarser zoom over the finer rows that changed. A row holds the same whichever way a store
+/// came to hold its data, so a store updated holds the rows a store imported from the changed
+/// data holds.
 pub(crate) fn make(
     db: &Connection,
     path: &Path,
@@ -68,6 +69,8 @@ pub(crate) fn make(
             .map(|t| ancestor(t, far_zoom))
             .collect();
         let list: Vec<TileId> = tiles.iter().copied().collect();
+        // Only the rows that changed reach the coarser zoom: its rows are made of these alone.
+        let mut altered = BTreeSet::new();
         for batch in list.chunks(BATCH) {
             let mut inputs = Vec::with_capacity(batch.len());
             for &tile in batch {
@@ -77,17 +80,20 @@ pub(crate) fn make(
                 });
             }
             for (input, row) in inputs.iter().zip(generalise_all(&inputs, zoom, generalise)) {
-                write(db, path, input.tile, &row)?;
-                made.rows += 1;
+                if write(db, path, input.tile, &row)? {
+                    altered.insert(input.tile);
+                }
+                made.rows += usize::from(!is_empty(&row));
             }
         }
         tracing::debug!(
             zoom = far_zoom,
             tiles = tiles.len(),
+            changed = altered.len(),
             ms = started.elapsed().as_millis() as u64,
             "far views generalised"
         );
-        under = tiles;
+        under = altered;
         finer = Some(far_zoom);
     }
     Ok(made)
@@ -308,18 +314,39 @@ pub(crate) fn read(
         .map_err(decode_error(path))
 }
 
-fn write(db: &Connection, path: &Path, tile: TileId, row: &Generalised) -> Result<(), StoreError> {
+fn is_empty(row: &Generalised) -> bool {
+    row.ways.is_empty() && row.blocks.is_empty()
+}
+
+/// Keeps a tile's row (none for an empty one); true when that changed what the store held.
+fn write(
+    db: &Connection,
+    path: &Path,
+    tile: TileId,
+    row: &Generalised,
+) -> Result<bool, StoreError> {
     let sqlite = sqlite_error(path);
-    if row.ways.is_empty() && row.blocks.is_empty() {
-        db.prepare_cached("DELETE FROM far WHERE zoom = ?1 AND x = ?2 AND y = ?3")
-            .and_then(|mut s| s.execute(params![tile.z, tile.x, tile.y]))
-            .map_err(sqlite)?;
-        return Ok(());
+    let held: Option<Vec<u8>> = db
+        .prepare_cached("SELECT data FROM far WHERE zoom = ?1 AND x = ?2 AND y = ?3")
+        .and_then(|mut s| {
+            s.query_row(params![tile.z, tile.x, tile.y], |r| r.get(0))
+                .optional()
+        })
+        .map_err(&sqlite)?;
+    let bytes = (!is_empty(row)).then(|| encode(row));
+    if held == bytes {
+        return Ok(false);
     }
-    db.prepare_cached("INSERT OR REPLACE INTO far (zoom, x, y, data) VALUES (?1, ?2, ?3, ?4)")
-        .and_then(|mut s| s.execute(params![tile.z, tile.x, tile.y, encode(row)]))
-        .map_err(sqlite)?;
-    Ok(())
+    match bytes {
+        None => db
+            .prepare_cached("DELETE FROM far WHERE zoom = ?1 AND x = ?2 AND y = ?3")
+            .and_then(|mut s| s.execute(params![tile.z, tile.x, tile.y])),
+        Some(bytes) => db
+            .prepare_cached("INSERT OR REPLACE INTO far (zoom, x, y, data) VALUES (?1, ?2, ?3, ?4)")
+            .and_then(|mut s| s.execute(params![tile.z, tile.x, tile.y, bytes])),
+    }
+    .map_err(&sqlite)?;
+    Ok(true)
 }
 
 /// A row's bytes: its ways (positions as floats, bit for bit), relations and blocks.
