@@ -11,7 +11,8 @@ use rusqlite::{params, Connection, OptionalExtension};
 
 use super::codec::{self, DecodeError, Reader, Writer};
 use super::{decode_error, in_cells, relation, relation_ways, sqlite_error, way, StoreError};
-use crate::osm::far::{Block, FarSource, Generalise, Generalised, WorldPoint};
+use crate::geometry::Rect;
+use crate::osm::far::{Block, FarSource, Generalise, Generalised};
 use crate::osm::index::meets;
 use crate::osm::{bounds_of, LonLat, Relation, Way};
 use crate::tile::TileId;
@@ -277,23 +278,19 @@ fn from_finer(
 const BLOCKS_REACH_TILES: f64 = 1.0 / 16.0;
 
 /// The square of `tile` grown by `grown` of its width, in world coordinates.
-fn world_rect(tile: TileId, grown: f64) -> [WorldPoint; 2] {
+fn world_rect(tile: TileId, grown: f64) -> Rect {
     let size = 1.0 / f64::from(1u32 << tile.z);
     let (x, y) = (f64::from(tile.x) * size, f64::from(tile.y) * size);
     let pad = grown * size;
-    [[x - pad, y - pad], [x + size + pad, y + size + pad]]
+    Rect {
+        min: [x - pad, y - pad],
+        max: [x + size + pad, y + size + pad],
+    }
 }
 
 /// Whether the bounds of a block's outline meet `rect`.
-fn reaches(block: &Block, rect: &[WorldPoint; 2]) -> bool {
-    let (mut min, mut max) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for p in &block.outer {
-        for k in 0..2 {
-            min[k] = min[k].min(p[k]);
-            max[k] = max[k].max(p[k]);
-        }
-    }
-    (0..2).all(|k| min[k] <= rect[1][k] && max[k] >= rect[0][k])
+fn reaches(block: &Block, rect: &Rect) -> bool {
+    Rect::around(&block.outer).intersects(rect)
 }
 
 /// The row of a far tile; `None` when it holds nothing.
@@ -302,16 +299,20 @@ pub(crate) fn read(
     path: &Path,
     tile: TileId,
 ) -> Result<Option<Generalised>, StoreError> {
-    let data: Option<Vec<u8>> = db
-        .prepare_cached("SELECT data FROM far WHERE zoom = ?1 AND x = ?2 AND y = ?3")
+    held(db, path, tile)?
+        .map(|bytes| decode(&bytes))
+        .transpose()
+        .map_err(decode_error(path))
+}
+
+/// The bytes of a far tile's row, as kept.
+fn held(db: &Connection, path: &Path, tile: TileId) -> Result<Option<Vec<u8>>, StoreError> {
+    db.prepare_cached("SELECT data FROM far WHERE zoom = ?1 AND x = ?2 AND y = ?3")
         .and_then(|mut s| {
             s.query_row(params![tile.z, tile.x, tile.y], |row| row.get(0))
                 .optional()
         })
-        .map_err(sqlite_error(path))?;
-    data.map(|bytes| decode(&bytes))
-        .transpose()
-        .map_err(decode_error(path))
+        .map_err(sqlite_error(path))
 }
 
 fn is_empty(row: &Generalised) -> bool {
@@ -325,16 +326,8 @@ fn write(
     tile: TileId,
     row: &Generalised,
 ) -> Result<bool, StoreError> {
-    let sqlite = sqlite_error(path);
-    let held: Option<Vec<u8>> = db
-        .prepare_cached("SELECT data FROM far WHERE zoom = ?1 AND x = ?2 AND y = ?3")
-        .and_then(|mut s| {
-            s.query_row(params![tile.z, tile.x, tile.y], |r| r.get(0))
-                .optional()
-        })
-        .map_err(&sqlite)?;
     let bytes = (!is_empty(row)).then(|| encode(row));
-    if held == bytes {
+    if held(db, path, tile)? == bytes {
         return Ok(false);
     }
     match bytes {
@@ -345,7 +338,7 @@ fn write(
             .prepare_cached("INSERT OR REPLACE INTO far (zoom, x, y, data) VALUES (?1, ?2, ?3, ?4)")
             .and_then(|mut s| s.execute(params![tile.z, tile.x, tile.y, bytes])),
     }
-    .map_err(&sqlite)?;
+    .map_err(sqlite_error(path))?;
     Ok(true)
 }
 
