@@ -1,6 +1,7 @@
 //! `terrastitch render`: one tile to a file, made by the provider as the server makes it.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
@@ -10,7 +11,7 @@ use super::flags::SourceArgs;
 use crate::config::Config;
 use crate::format::{Format, Variant};
 use crate::provider::{
-    Availability, Deadline, Fetching, Made, Renderer, StageTimings, TileProvider,
+    Availability, Deadline, Fetching, Made, Renderer, Solutions, StageTimings, TileProvider,
 };
 use crate::tile::TileId;
 
@@ -34,6 +35,10 @@ pub struct RenderArgs {
     /// bridges and road stretches they settled already settled, as a server or a seed does
     #[arg(long, value_name = "Z/X/Y")]
     after: Vec<String>,
+    /// Write the input of every LP component solved afresh (by this tile and those of
+    /// `--after`) to this file, as text: fixtures for holding one solver to another
+    #[arg(long, value_name = "FILE")]
+    record_lp: Option<PathBuf>,
 }
 
 pub fn run(args: RenderArgs, config: Config) -> Result<()> {
@@ -50,7 +55,10 @@ pub fn run(args: RenderArgs, config: Config) -> Result<()> {
         .map(|t| t.parse())
         .collect::<Result<_, _>>()?;
     let started = Instant::now();
-    let renderer = super::open_renderer(&config)?;
+    let mut renderer = super::open_renderer(&config)?;
+    if args.record_lp.is_some() {
+        renderer = renderer.with_solutions(Arc::new(Solutions::recording()));
+    }
     // Opening the sources counts in the load of the first tile rendered.
     let mut opened = Some(started.elapsed());
     for &earlier in &before {
@@ -61,6 +69,11 @@ pub fn run(args: RenderArgs, config: Config) -> Result<()> {
     let (took, made) = make(&renderer, tile, variant)?;
     std::fs::write(&args.output, &made.bytes)
         .with_context(|| format!("cannot write {}", args.output.display()))?;
+    if let Some(path) = &args.record_lp {
+        let recorded = renderer.solutions().take_recorded().concat();
+        std::fs::write(path, recorded)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
     if args.timings {
         // What the render's stages did not take went to reading the tile's inputs.
         let load = took.saturating_sub(made.timings.total()) + opened.unwrap_or_default();

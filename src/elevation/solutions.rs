@@ -42,6 +42,9 @@ pub struct Solutions {
     solved: AtomicU64,
     /// Components solved afresh and not yet taken for a durable store.
     unsaved: Mutex<Vec<Key>>,
+    /// When recording, the input of each component solved afresh, as its solver's caller
+    /// writes it (for fixtures that hold a solver to another).
+    recorded: Option<Mutex<Vec<String>>>,
 }
 
 impl Default for Solutions {
@@ -60,8 +63,9 @@ impl std::fmt::Debug for Solutions {
     }
 }
 
-/// Format of an encoded entry; a change makes stored entries unreadable, not wrong.
-const ENCODING: u8 = 1;
+/// Format of an encoded entry and version of the solvers behind it (2: small components by
+/// the interior-point solver made for them); a change makes stored entries unreadable, not wrong.
+const ENCODING: u8 = 2;
 
 impl Solutions {
     /// A memo keeping at most `bytes` of solutions.
@@ -80,7 +84,37 @@ impl Solutions {
             found: AtomicU64::new(0),
             solved: AtomicU64::new(0),
             unsaved: Mutex::new(Vec::new()),
+            recorded: None,
         }
+    }
+
+    /// A memo of the usual size that also keeps the input of every component solved afresh.
+    pub fn recording() -> Solutions {
+        Solutions {
+            recorded: Some(Mutex::new(Vec::new())),
+            ..Solutions::default()
+        }
+    }
+
+    pub fn records(&self) -> bool {
+        self.recorded.is_some()
+    }
+
+    /// Keeps a component's input, when recording.
+    pub fn record(&self, input: String) {
+        if let Some(recorded) = &self.recorded {
+            recorded
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .push(input);
+        }
+    }
+
+    /// The inputs recorded since the last call.
+    pub fn take_recorded(&self) -> Vec<String> {
+        self.recorded.as_ref().map_or_else(Vec::new, |recorded| {
+            std::mem::take(&mut *recorded.lock().unwrap_or_else(|p| p.into_inner()))
+        })
     }
 
     /// The component kept by `key` when `sound` accepts it, else `solve`'s answer, then kept
