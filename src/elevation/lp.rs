@@ -11,9 +11,9 @@
 //!
 //! The problem is split into independent components (union-find over constraints and
 //! smoothness terms); a variable in no constraint keeps its target without entering an LP.
-//! A component of up to a few hundred variables is solved by [`interior`], an interior-point
-//! solver made for these programs; a larger one, or one it gives up on, by clarabel
-//! ([`reference`]), a general interior-point solver. Both hold equalities to about 1e-9:
+//! Each component is solved by [`interior`], an interior-point solver made for these programs
+//! (its Newton system dense for a small component, banded for a large one); one it gives up on,
+//! by clarabel ([`reference`]), a general interior-point solver. Both hold equalities to about 1e-9:
 //! two-variable equalities are snapped exactly afterwards. `tests.rs` holds the first to the
 //! second's optimum on components recorded from the bundled tiles ([`text`]).
 
@@ -21,7 +21,9 @@ use std::collections::HashMap;
 
 use super::solutions::{self, Key, KeyWriter, Solutions};
 
+mod envelope;
 pub mod interior;
+mod kkt;
 pub mod reference;
 pub mod text;
 
@@ -348,26 +350,10 @@ fn component_key(component: &Problem) -> Key {
     key.finish()
 }
 
-/// Free variables and hard equalities of a component the interior-point solver made for these
-/// programs takes: its dense factorisation is faster than clarabel's sparse one up to about 400
-/// (measured on the bundled tiles' components), and slower beyond.
-const INTERIOR_MAX_SIZE: usize = 300;
-
-/// One component solved afresh: by [`interior`] when it is small enough and converges, else by
-/// clarabel. Violations name the constraint by its position in the component.
+/// One component solved afresh: by [`interior`] when it converges, else by clarabel.
+/// Violations name the constraint by its position in the component.
 fn solve_afresh(component: &Problem) -> Option<solutions::Solved> {
-    let free = component.fixed.iter().filter(|f| f.is_none()).count();
-    let equalities = component
-        .constraints
-        .iter()
-        .filter(|c| c.penalty.is_none() && c.kind == Relation::Equal)
-        .count();
-    if free + equalities <= INTERIOR_MAX_SIZE {
-        if let Some(solved) = interior::solve(component) {
-            return Some(solved);
-        }
-    }
-    reference::solve(component)
+    interior::solve(component).or_else(|| reference::solve(component))
 }
 
 /// What `values` cost in `problem`'s objective: each free variable's weighted distance to its

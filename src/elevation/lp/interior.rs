@@ -15,6 +15,7 @@
 //! caller turns to clarabel) on what it is not made for: hard constraints among fixed values
 //! only, a negative weight, or no convergence within its iterations.
 
+use super::kkt::Kkt;
 use super::{shortfall, Problem, Relation, VIOLATION_EPS};
 use crate::elevation::solutions::Solved;
 
@@ -301,7 +302,7 @@ impl Iterate {
     /// Iterates to an optimum; `None` if it is not reached.
     fn run(mut self, p: &Program) -> Option<Vec<f64>> {
         let scale = Scale::of(p);
-        let mut system = System::new(p);
+        let mut system = System::new(p)?;
         for _ in 0..MAX_ITERATIONS {
             let r = self.residuals(p);
             if self.converged(p, &r, &scale) {
@@ -438,11 +439,7 @@ impl Scale {
 /// The Newton system over the free variables and the equalities' duals, with each term's
 /// auxiliary variable eliminated, factorised once per iteration for both of its directions.
 struct System {
-    n: usize,
-    /// `[H Eᵀ; E 0]`, row-major, as assembled and as LU-factorised.
-    assembled: Vec<f64>,
-    matrix: Vec<f64>,
-    pivots: Vec<usize>,
+    kkt: Kkt,
     /// Per term with an auxiliary variable: `Σ D·cu`, `Σ D·cu·cx` (with `D = y/s` over its
     /// rows), 0 for a bound.
     alpha: Vec<f64>,
@@ -450,23 +447,22 @@ struct System {
 }
 
 impl System {
-    fn new(p: &Program) -> System {
-        let n = p.free.len() + p.equalities.len();
-        System {
-            n,
-            assembled: vec![0.0; n * n],
-            matrix: vec![0.0; n * n],
-            pivots: vec![0; n],
+    fn new(p: &Program) -> Option<System> {
+        let cliques = p
+            .terms
+            .iter()
+            .map(|t| t.a.iter().map(|&(j, _)| j).collect());
+        Some(System {
+            kkt: Kkt::new(p.free.len(), &p.equalities, cliques)?,
             alpha: vec![0.0; p.terms.len()],
             beta: vec![0.0; p.terms.len()],
-        }
+        })
     }
 
     /// Assembles and factorises the system at `it`; `None` if it is singular even with the
     /// largest regularisation tried.
     fn factorise(&mut self, p: &Program, it: &Iterate) -> Option<()> {
-        let (n, free) = (self.n, p.free.len());
-        self.assembled.iter_mut().for_each(|m| *m = 0.0);
+        self.kkt.clear();
         for (k, t) in p.terms.iter().enumerate() {
             let [(_, cx1, _), (_, cx2, _)] = t.rows();
             let d1 = it.y[2 * k] / it.s[2 * k];
@@ -480,38 +476,15 @@ impl System {
                 (self.alpha[k], self.beta[k]) = (d1 + d2, d1 * cx1 + d2 * cx2);
                 d1 * d2 * (cx1 - cx2) * (cx1 - cx2) / (d1 + d2)
             };
-            for &(i, ci) in &t.a {
-                for &(j, cj) in &t.a {
-                    self.assembled[i * n + j] += weight * ci * cj;
-                }
-            }
+            self.kkt.add_outer(&t.a, weight);
         }
-        for (e, (a, _)) in p.equalities.iter().enumerate() {
-            for &(j, c) in a {
-                self.assembled[(free + e) * n + j] += c;
-                self.assembled[j * n + free + e] += c;
-            }
-        }
-        // Regularisation keeps the system solvable where a variable is only bounded, the more
-        // the closer it is to singular; residuals are computed exactly, so it slows
-        // convergence at most, never moves the optimum.
-        let largest = (0..free).fold(0.0f64, |m, i| m.max(self.assembled[i * n + i]));
-        for relative in [1e-17, 1e-14, 1e-11] {
-            let delta = relative * (1.0 + largest);
-            self.matrix.copy_from_slice(&self.assembled);
-            for i in 0..n {
-                self.matrix[i * n + i] += if i < free { delta } else { -delta };
-            }
-            if lu(&mut self.matrix, &mut self.pivots, n).is_some() {
-                return Some(());
-            }
-        }
-        None
+        self.kkt.factorise(&p.equalities)
     }
 
     /// The direction for complementarity target `comp` (`S·Δy + Y·Δs = comp`).
     fn direction(&self, p: &Program, it: &Iterate, r: &Residuals, comp: &[f64]) -> Direction {
-        let (n, free, m) = (self.n, p.free.len(), p.terms.len());
+        let (free, m) = (p.free.len(), p.terms.len());
+        let n = free + p.equalities.len();
         // v = S⁻¹·comp − W·r_p, per row.
         let mut rhs = vec![0.0; n];
         let mut rho_u = vec![0.0; m];
@@ -537,7 +510,7 @@ impl System {
         for (e, residual) in r.equalities.iter().enumerate() {
             rhs[free + e] = -residual;
         }
-        lu_solve(&self.matrix, &self.pivots, n, &mut rhs);
+        self.kkt.solve(&p.equalities, &mut rhs);
         let dx = rhs[..free].to_vec();
         let mut d = Direction {
             u: vec![0.0; m],
@@ -558,52 +531,5 @@ impl System {
             }
         }
         d
-    }
-}
-
-/// LU factorisation with partial pivoting of the `n × n` row-major `a`, in place; `None` when
-/// a pivot is negligible against the matrix.
-fn lu(a: &mut [f64], pivots: &mut [usize], n: usize) -> Option<()> {
-    let largest = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let tiny = 1e-300_f64.max(largest * 1e-18);
-    for col in 0..n {
-        let pivot = (col..n)
-            .max_by(|&i, &j| a[i * n + col].abs().total_cmp(&a[j * n + col].abs()))
-            .unwrap_or(col);
-        if a[pivot * n + col].abs() <= tiny || !a[pivot * n + col].is_finite() {
-            return None;
-        }
-        pivots[col] = pivot;
-        if pivot != col {
-            for j in 0..n {
-                a.swap(col * n + j, pivot * n + j);
-            }
-        }
-        let p = a[col * n + col];
-        for i in col + 1..n {
-            let f = a[i * n + col] / p;
-            if f == 0.0 {
-                continue;
-            }
-            a[i * n + col] = f;
-            for j in col + 1..n {
-                a[i * n + j] -= f * a[col * n + j];
-            }
-        }
-    }
-    Some(())
-}
-
-fn lu_solve(a: &[f64], pivots: &[usize], n: usize, b: &mut [f64]) {
-    for (col, &pivot) in pivots.iter().enumerate() {
-        b.swap(col, pivot);
-    }
-    for i in 0..n {
-        let sum: f64 = (0..i).map(|j| a[i * n + j] * b[j]).sum();
-        b[i] -= sum;
-    }
-    for i in (0..n).rev() {
-        let sum: f64 = (i + 1..n).map(|j| a[i * n + j] * b[j]).sum();
-        b[i] = (b[i] - sum) / a[i * n + i];
     }
 }
