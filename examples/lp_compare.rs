@@ -1,7 +1,8 @@
 //! The LP component solver against clarabel on recorded components (`render --record-lp`):
 //! objective, hard constraints, violations, the largest difference of a value, and time.
 //!
-//! Usage: lp_compare FILE…
+//! Usage: [LP_MIN_FREE=N] [LP_MAX_FREE=N] lp_compare FILE…   (only components with that many
+//! free variables)
 
 use std::time::{Duration, Instant};
 
@@ -33,7 +34,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let started = Instant::now();
         let b = reference::solve(c);
         theirs += started.elapsed();
-        let free = c.fixed.iter().filter(|f| f.is_none()).count();
         match (a, b) {
             (None, _) => {
                 gave_up += 1;

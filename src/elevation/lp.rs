@@ -13,9 +13,10 @@
 //! smoothness terms); a variable in no constraint keeps its target without entering an LP.
 //! Each component is solved by [`interior`], an interior-point solver made for these programs
 //! (its Newton system dense for a small component, banded for a large one); one it gives up on,
-//! by clarabel ([`reference`]), a general interior-point solver. Both hold equalities to about 1e-9:
-//! two-variable equalities are snapped exactly afterwards. `tests.rs` holds the first to the
-//! second's optimum on components recorded from the bundled tiles ([`text`]).
+//! by clarabel ([`reference`]), a general interior-point solver. Both hold equalities to about
+//! 1e-9: two-variable equalities are snapped exactly afterwards. The integration test `lp`
+//! holds the first to the second's optimum on components recorded from the bundled tiles
+//! ([`text`]).
 
 use std::collections::HashMap;
 
@@ -100,7 +101,7 @@ pub struct Outcome {
 }
 
 /// Slack below this (metres) is rounding, not a violation.
-const VIOLATION_EPS: f64 = 1e-4;
+pub const VIOLATION_EPS: f64 = 1e-4;
 
 /// Solves the problem component by component; a component `memo` holds is found there, one
 /// solved is kept in it.

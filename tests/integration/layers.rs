@@ -160,7 +160,7 @@ const CRATES: &[(&str, &[&str])] = &[
             "elevation/solutions.rs",
         ],
     ),
-    ("good_lp", &["elevation/lp.rs"]),
+    ("good_lp", &["elevation/lp/reference.rs"]),
     ("gltf_json", &["output/glb.rs", "output/glb/"]),
     ("meshopt", &["output/glb.rs"]),
     (

@@ -20,6 +20,7 @@ mod ground_mesh;
 mod hardening;
 mod hostile;
 mod layers;
+mod lp;
 mod offline;
 mod overview;
 mod postgres;
