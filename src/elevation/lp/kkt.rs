@@ -106,6 +106,17 @@ impl Kkt {
     /// solvable; `None` if none of those tried does. Residuals are computed exactly, so the
     /// regularisation slows convergence at most, never moves the optimum.
     pub fn factorise(&mut self, equalities: &[(Vec<(usize, f64)>, f64)]) -> Option<()> {
+        if let Kkt::Dense {
+            n, free, assembled, ..
+        } = self
+        {
+            for (e, (a, _)) in equalities.iter().enumerate() {
+                for &(j, c) in a {
+                    assembled[(*free + e) * *n + j] += c;
+                    assembled[j * *n + *free + e] += c;
+                }
+            }
+        }
         for relative in [1e-17, 1e-14, 1e-11] {
             if self.try_factorise(equalities, relative).is_some() {
                 return Some(());
@@ -128,12 +139,6 @@ impl Kkt {
                 pivots,
             } => {
                 let n = *n;
-                for (e, (a, _)) in equalities.iter().enumerate() {
-                    for &(j, c) in a {
-                        assembled[(*free + e) * n + j] = c;
-                        assembled[j * n + *free + e] = c;
-                    }
-                }
                 let largest = (0..*free).fold(0.0f64, |m, i| m.max(assembled[i * n + i]));
                 let delta = relative * (1.0 + largest);
                 matrix.copy_from_slice(assembled);

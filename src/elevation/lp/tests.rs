@@ -240,3 +240,33 @@ fn a_component_written_as_text_reads_back_the_same() {
     assert!(text::read("component\nv 1.0 NaN -\nend\n").is_err());
     assert!(text::read("component\nv 1.0 1.0 -\ns 1.0 3:1.0\nend\n").is_err());
 }
+
+#[test]
+fn a_variable_named_twice_in_a_row_counts_twice_in_both_solvers() {
+    // 2·a = b, hard; a smoothness term and a soft bound naming a twice as well.
+    let mut p = Problem::default();
+    let a = p.variable(3.0, 1.0);
+    let b = p.variable(5.0, 2.0);
+    let c = p.variable(1.0, 1.0);
+    p.constraints.push(Constraint {
+        terms: vec![(a, 1.0), (b, -1.0), (a, 1.0)],
+        kind: Relation::Equal,
+        rhs: 0.0,
+        penalty: None,
+        label: 0,
+    });
+    p.constraints.push(at_least(c, a, 1.0, Some(10.0), 1));
+    p.smoothness.push(Smoothness {
+        terms: vec![(a, 0.5), (c, -1.0), (a, 0.5)],
+        weight: 0.25,
+    });
+    let ours = interior::solve(&p).expect("the solver takes it");
+    let theirs = reference::solve(&p).expect("clarabel takes it");
+    assert!(
+        (2.0 * ours.values[a] - ours.values[b]).abs() < 1e-7,
+        "{:?}",
+        ours.values
+    );
+    let (f, g) = (objective(&p, &ours.values), objective(&p, &theirs.values));
+    assert!((f - g).abs() < 1e-6 * g.max(1.0), "{f} against {g}");
+}
