@@ -1,14 +1,15 @@
 //! An interior-point solver made for the elevation programs: Mehrotra's predictor–corrector
-//! on the program's own shape, for components of a few dozen variables.
+//! on the program's own shape.
 //!
 //! Every term of a component's objective is one of three kinds over a sparse row `a·x` of its
 //! free variables: a charged distance `|a·x − b|` (a variable's distance to its target, a
 //! smoothness term, a soft equality), a charged shortfall `max(0, b − a·x)` (a soft bound) or
 //! nothing at all with a hard bound `a·x ≥ b`. Each charged term has one auxiliary variable `u`
 //! (`u ≥ |a·x − b|`, or `u ≥ b − a·x` and `u ≥ 0`), which appears in its own two rows only: the
-//! Newton system eliminates it on the spot, so what is factorised is a dense matrix over the
-//! free variables and the hard equalities, a few dozen wide. A general solver (clarabel) pays
-//! for a sparse factorisation of the whole split program instead, over ten times the size.
+//! Newton system eliminates it on the spot, so what is factorised is a matrix over the free
+//! variables and the hard equalities only ([`super::kkt`]: dense for a small component, banded
+//! for a large one). A general solver (clarabel) pays for a sparse factorisation of the whole
+//! split program instead, several times the size.
 //!
 //! Like clarabel it follows the central path to a gap of about 1e-9, so where the optimum is
 //! not a single point both end near the same point of the optimal face. It gives up (and the
