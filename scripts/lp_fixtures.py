@@ -15,6 +15,15 @@ import sys
 BUCKETS = [(5, 80), (10, 80), (20, 60), (50, 50), (100, 20), (300, 10)]
 
 
+def size(component):
+    """Free variables and hard equalities: the width of the component solver's system."""
+    lines = component.splitlines()
+    free = sum(1 for line in lines if line.startswith("v ") and line.endswith(" -"))
+    # c <relation> <rhs> <penalty> …: a hard equality has "=" and no penalty.
+    equal = sum(1 for line in lines if line.split()[:2] == ["c", "="] and line.split()[3] == "-")
+    return free + equal
+
+
 def components(paths):
     seen = set()
     for path in paths:
@@ -33,9 +42,7 @@ def components(paths):
 
 def main():
     out, recorded = sys.argv[1], sys.argv[2:]
-    sized = [(sum(1 for l in c.splitlines() if l.startswith("v ") and l.endswith(" -"))
-              + sum(1 for l in c.splitlines() if l.startswith("c = ") and l.split()[3] == "-"), c)
-             for c in components(recorded)]
+    sized = [(size(c), c) for c in components(recorded)]
     picked = []
     low = -1
     for high, count in BUCKETS:

@@ -360,7 +360,7 @@ fn solve_afresh(component: &Problem) -> Option<solutions::Solved> {
 /// What `values` cost in `problem`'s objective: each free variable's weighted distance to its
 /// target, each smoothness term, and each soft constraint's penalty for its shortfall.
 pub fn objective(problem: &Problem, values: &[f64]) -> f64 {
-    let dot = |terms: &[(usize, f64)]| terms.iter().map(|&(v, a)| a * values[v]).sum::<f64>();
+    let dot = |terms: &[(usize, f64)]| dot(terms, values);
     let targets: f64 = (0..values.len())
         .filter(|&v| problem.fixed[v].is_none())
         .map(|v| problem.weights[v] * (values[v] - problem.targets[v]).abs())
@@ -376,6 +376,11 @@ pub fn objective(problem: &Problem, values: &[f64]) -> f64 {
         .map(|c| c.penalty.unwrap_or(0.0) * shortfall(c, dot(&c.terms)))
         .sum();
     targets + smooth + penalties
+}
+
+/// `Σ coefficient · value` over `terms`.
+pub fn dot(terms: &[(usize, f64)], values: &[f64]) -> f64 {
+    terms.iter().map(|&(v, a)| a * values[v]).sum()
 }
 
 /// How far a constraint with left-hand side `lhs` is from holding.

@@ -4,7 +4,7 @@
 use std::io::Read;
 
 use terrastitch::elevation::lp::VIOLATION_EPS;
-use terrastitch::elevation::lp::{interior, objective, reference, shortfall, text, Problem};
+use terrastitch::elevation::lp::{dot, interior, objective, reference, shortfall, text, Problem};
 use terrastitch::elevation::solutions::Solved;
 
 /// Components recorded from the ten golden tiles by `render --record-lp` and picked by
@@ -45,9 +45,8 @@ fn the_component_solver_reaches_clarabels_optimum_on_recorded_components() {
             }
         }
         for (at, hard) in c.constraints.iter().enumerate() {
-            let lhs: f64 = hard.terms.iter().map(|&(v, a)| a * ours.values[v]).sum();
             if hard.penalty.is_none() {
-                let miss = shortfall(hard, lhs);
+                let miss = shortfall(hard, dot(&hard.terms, &ours.values));
                 assert!(
                     miss <= 1e-6 * (1.0 + hard.rhs.abs()),
                     "component {k}: hard constraint {at} misses by {miss}"

@@ -11,6 +11,7 @@
 pub struct Envelope {
     /// Position of each variable in the order, and the variable at each position.
     position: Vec<usize>,
+    variable: Vec<usize>,
     /// Per row (in the order): its first column, and where its entries start in `values`.
     first: Vec<usize>,
     start: Vec<usize>,
@@ -22,6 +23,10 @@ impl Envelope {
     /// The envelope of a matrix over `n` variables in which each clique's variables meet.
     pub fn new<'a>(n: usize, cliques: impl Iterator<Item = &'a [usize]> + Clone) -> Envelope {
         let position = reverse_cuthill_mckee(n, cliques.clone());
+        let mut variable = vec![0; n];
+        for (v, &p) in position.iter().enumerate() {
+            variable[p] = v;
+        }
         let mut first: Vec<usize> = (0..n).collect();
         for clique in cliques {
             let lowest = clique.iter().map(|&v| position[v]).min().unwrap_or(0);
@@ -39,6 +44,7 @@ impl Envelope {
         start.push(size);
         Envelope {
             position,
+            variable,
             first,
             start,
             values: vec![0.0; size],
@@ -88,15 +94,14 @@ impl Envelope {
     /// `A·x` for the matrix as assembled (not factorised), `x` indexed by variable.
     pub fn multiply(&self, x: &[f64]) -> Vec<f64> {
         let n = self.first.len();
-        let mut inverse = vec![0; n];
-        for (v, &p) in self.position.iter().enumerate() {
-            inverse[p] = v;
-        }
         let mut out = vec![0.0; n];
         for row in 0..n {
             let (f, s) = (self.first[row], self.start[row]);
-            let i = inverse[row];
-            for (&j, &a) in inverse[f..row].iter().zip(&self.values[s..s + row - f]) {
+            let i = self.variable[row];
+            for (&j, &a) in self.variable[f..row]
+                .iter()
+                .zip(&self.values[s..s + row - f])
+            {
                 out[i] += a * x[j];
                 out[j] += a * x[i];
             }

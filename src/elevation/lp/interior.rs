@@ -17,7 +17,7 @@
 //! only, a negative weight, or no convergence within its iterations.
 
 use super::kkt::Kkt;
-use super::{shortfall, Problem, Relation, VIOLATION_EPS};
+use super::{dot, shortfall, Problem, Relation, VIOLATION_EPS};
 use crate::elevation::solutions::Solved;
 
 /// Primal and dual residuals, relative to the size of the data, at which a point is feasible.
@@ -142,8 +142,7 @@ fn violations(component: &Problem, values: &[f64]) -> Vec<(u32, f64)> {
         .enumerate()
         .filter(|(_, c)| c.penalty.is_some())
         .filter_map(|(at, c)| {
-            let lhs: f64 = c.terms.iter().map(|&(v, a)| a * values[v]).sum();
-            let amount = shortfall(c, lhs);
+            let amount = shortfall(c, dot(&c.terms, values));
             (amount > VIOLATION_EPS).then_some((at as u32, amount))
         })
         .collect()
@@ -210,11 +209,7 @@ fn program(component: &Problem) -> Option<Program> {
         if a.is_empty() {
             // Among fixed values only: a soft one is reported as it stands, a hard one must
             // hold (else the component is infeasible, which clarabel reports).
-            let holds = match c.kind {
-                Relation::Equal => b.abs() <= FEASIBLE * (1.0 + c.rhs.abs()),
-                Relation::AtLeast => b <= FEASIBLE * (1.0 + c.rhs.abs()),
-                Relation::AtMost => b >= -FEASIBLE * (1.0 + c.rhs.abs()),
-            };
+            let holds = shortfall(c, constant) <= FEASIBLE * (1.0 + c.rhs.abs());
             if c.penalty.is_none() && !holds {
                 return None;
             }
