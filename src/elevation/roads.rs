@@ -44,12 +44,16 @@ pub struct RoadLevels {
     /// What each level is: junction levels win over the roads that meet them, and roads over
     /// the sidewalks beside them.
     kinds: Vec<Kind>,
-    /// For each cell, the levels that may cover a point of it, in order, each with the box of
-    /// its pieces in the cell, so most are passed over without being read.
-    grid: FxHashMap<(i64, i64), Vec<(u32, Rect)>>,
+    /// For each cell, the pieces of levels that may cover a point of it, in the levels'
+    /// order, so most are passed over on their box.
+    grid: FxHashMap<(i64, i64), Vec<Piece>>,
     /// The lines the ground bends along: each sidewalk band's ends and outer edge.
     edges: Vec<Vec<Point>>,
 }
+
+/// A piece of a level in a cell of the grid: the level, the piece, and the piece's box widened
+/// by [`ON_OUTLINE`].
+type Piece = (u32, u32, Rect);
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kind {
@@ -65,14 +69,17 @@ impl RoadLevels {
         let cell = cell_of(p);
         let candidates = self.grid.get(&cell)?;
         let (mut road, mut side): (Option<f64>, Option<f64>) = (None, None);
-        for &(i, bounds) in candidates {
-            if !bounds.contains(p) {
+        // The level found covering `p` last: its other pieces need not be read.
+        let mut covering = None;
+        for &(i, piece, bounds) in candidates {
+            if covering == Some(i) || !bounds.contains(p) {
                 continue;
             }
             let level = &self.levels[i as usize];
-            if !level.covers(p) {
+            if !level.piece_covers(piece as usize, p) {
                 continue;
             }
+            covering = Some(i);
             let h = level.rule.elevation(p);
             let lowest = |now: Option<f64>| Some(now.map_or(h, |r: f64| r.min(h)));
             match self.kinds[i as usize] {
@@ -109,18 +116,17 @@ impl RoadLevels {
 
     fn push(&mut self, level: Level, kind: Kind) {
         let index = self.levels.len() as u32;
-        // Each piece's cells, not the whole level's box: a long road's box holds many cells
-        // it does not touch.
-        for piece in &level.pieces {
+        // Each piece in its own cells: a long road's box holds many cells it does not touch,
+        // and a piece's box holds little but the piece.
+        for (k, piece) in level.pieces.iter().enumerate() {
             let near = piece.bounds().widened(ON_OUTLINE);
             let (a, b) = (cell_of(near.min), cell_of(near.max));
             for x in a.0..=b.0 {
                 for y in a.1..=b.1 {
-                    let listed = self.grid.entry((x, y)).or_default();
-                    match listed.last_mut() {
-                        Some((last, bounds)) if *last == index => *bounds = bounds.union(&near),
-                        _ => listed.push((index, near)),
-                    }
+                    self.grid
+                        .entry((x, y))
+                        .or_default()
+                        .push((index, k as u32, near));
                 }
             }
         }

@@ -450,6 +450,17 @@ impl Level {
         }
     }
 
+    /// True for a point inside piece `k` of the area or on that piece's outline: the area
+    /// covers a point where one of its pieces does.
+    pub fn piece_covers(&self, k: usize, p: Point) -> bool {
+        self.pieces.get(k).is_some_and(|piece| {
+            piece.contains(p)
+                || piece.rings().any(|ring| {
+                    (0..ring.len()).any(|i| on_segment(p, ring[i], ring[(i + 1) % ring.len()]))
+                })
+        })
+    }
+
     /// True for a point inside the area or on its outline.
     pub fn covers(&self, p: Point) -> bool {
         match self.cells.cell(p) {
@@ -519,6 +530,28 @@ mod tests {
                 let found: Vec<*const Level> =
                     grid.covering(&levels, p).map(|l| l as *const Level).collect();
                 prop_assert_eq!(scanned, found, "{:?}", p);
+            }
+        }
+
+        #[test]
+        fn a_level_covers_a_point_where_one_of_its_pieces_does(
+            squares in prop::collection::vec((0.0..1.0f64, 0.0..1.0f64, 0.0..0.3f64), 1..12),
+            points in prop::collection::vec((-0.1..1.4f64, -0.1..1.4f64), 1..60),
+        ) {
+            let pieces: Vec<Polygon> = squares
+                .iter()
+                .flat_map(|&(x, y, s)| square(x, y, s).pieces)
+                .collect();
+            let bounds = Rect::around_all(&pieces).expect("pieces");
+            let level = Level::new(0, pieces, bounds, Rule::Level(0.0));
+            // The points, every corner, and points a hair inside and outside each edge.
+            let near_edges = squares.iter().flat_map(|&(x, y, s)| {
+                [[x - 1e-10, y + s / 2.0], [x + 1e-10, y + s / 2.0], [x + s / 2.0, y + s + 5e-10]]
+            });
+            let corners = squares.iter().flat_map(|&(x, y, s)| [[x, y], [x + s, y + s]]);
+            for p in points.iter().map(|&(x, y)| [x, y]).chain(corners).chain(near_edges) {
+                let by_pieces = (0..level.pieces.len()).any(|k| level.piece_covers(k, p));
+                prop_assert_eq!(level.covers(p), by_pieces, "{:?}", p);
             }
         }
     }

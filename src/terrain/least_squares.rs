@@ -49,11 +49,46 @@ fn stencil() -> impl Iterator<Item = (i64, i64)> {
     (-1..=1).flat_map(|dr| (-1..=1).map(move |dc| (dr, dc)))
 }
 
-/// Evaluates the blended local quadratics over a mosaic; caches each site's coefficients.
+/// Sites a side of a block of cached coefficients.
+const BLOCK: i64 = 32;
+
+/// The coefficients of a block of sites, `None` where not fitted yet or outside the data.
+type Block = Box<[Option<Coefficients>; (BLOCK * BLOCK) as usize]>;
+
+/// Evaluates the blended local quadratics over a mosaic; caches each site's coefficients, by
+/// blocks of sites, so the sites around a point are read from one or two blocks.
 pub struct LeastSquares<'a> {
     mosaic: &'a Mosaic,
     pseudo_inverse: SMatrix<f64, 6, 9>,
-    coefficients: RefCell<rustc_hash::FxHashMap<(i64, i64, i64), Coefficients>>,
+    blocks: RefCell<Blocks>,
+}
+
+/// Blocks of fitted sites by `(steps, block row, block column)`, with the last one read.
+#[derive(Default)]
+struct Blocks {
+    index: rustc_hash::FxHashMap<(i64, i64, i64), usize>,
+    blocks: Vec<Block>,
+    /// The block read last, and where it is in `blocks`.
+    last: Option<((i64, i64, i64), usize)>,
+}
+
+impl Blocks {
+    /// The block of `key`, made empty if new.
+    fn block(&mut self, key: (i64, i64, i64)) -> &mut Block {
+        let at = match self.last {
+            Some((last, at)) if last == key => at,
+            _ => {
+                let count = self.blocks.len();
+                let at = *self.index.entry(key).or_insert(count);
+                if at == count {
+                    self.blocks.push(Box::new([None; (BLOCK * BLOCK) as usize]));
+                }
+                self.last = Some((key, at));
+                at
+            }
+        };
+        &mut self.blocks[at]
+    }
 }
 
 impl<'a> LeastSquares<'a> {
@@ -61,15 +96,30 @@ impl<'a> LeastSquares<'a> {
         LeastSquares {
             mosaic,
             pseudo_inverse: pseudo_inverse(),
-            coefficients: RefCell::new(rustc_hash::FxHashMap::default()),
+            blocks: RefCell::new(Blocks::default()),
         }
     }
 
     /// The fitted coefficients of a site, in grid steps (x east, z north) from the site.
     fn site_coefficients(&self, steps: i64, lat_step: i64, lon_step: i64) -> Option<Coefficients> {
-        if let Some(c) = self.coefficients.borrow().get(&(steps, lat_step, lon_step)) {
-            return Some(*c);
+        let key = (
+            steps,
+            lat_step.div_euclid(BLOCK),
+            lon_step.div_euclid(BLOCK),
+        );
+        let slot = (lat_step.rem_euclid(BLOCK) * BLOCK + lon_step.rem_euclid(BLOCK)) as usize;
+        let mut blocks = self.blocks.borrow_mut();
+        let block = blocks.block(key);
+        if let Some(c) = block[slot] {
+            return Some(c);
         }
+        let c = self.fitted(steps, lat_step, lon_step)?;
+        block[slot] = Some(c);
+        Some(c)
+    }
+
+    /// The coefficients of a site fitted to its neighbourhood; `None` outside the data.
+    fn fitted(&self, steps: i64, lat_step: i64, lon_step: i64) -> Option<Coefficients> {
         let centre = self.mosaic.site(steps, lat_step, lon_step)?;
         let mut values = SVector::<f64, 9>::zeros();
         for (i, (dr, dc)) in stencil().enumerate() {
@@ -86,13 +136,9 @@ impl<'a> LeastSquares<'a> {
                 .unwrap_or(centre);
         }
         let solved = self.pseudo_inverse * values;
-        let c = [
+        Some([
             solved[0], solved[1], solved[2], solved[3], solved[4], solved[5],
-        ];
-        self.coefficients
-            .borrow_mut()
-            .insert((steps, lat_step, lon_step), c);
-        Some(c)
+        ])
     }
 
     /// The elevation at a point, `None` outside the data.
@@ -186,6 +232,24 @@ mod tests {
                 );
             }
             previous = Some(value);
+        }
+    }
+
+    #[test]
+    fn a_model_read_at_many_points_gives_what_a_fresh_model_gives_at_each() {
+        // Points over several blocks of cached sites, read in a scattered order.
+        let mosaic = file(|r, c| 50.0 * (c / 11.0).sin() * (r / 13.0).cos() + 0.3 * r);
+        let reused = LeastSquares::new(&mosaic);
+        for k in 0..2000u32 {
+            let t = f64::from(k);
+            let lon = 7.45 + 0.1 * ((t * 0.618_034).fract());
+            let lat = 43.45 + 0.1 * ((t * 0.414_214).fract());
+            let fresh = LeastSquares::new(&mosaic).elevation(lon, lat);
+            assert_eq!(
+                reused.elevation(lon, lat).map(f64::to_bits),
+                fresh.map(f64::to_bits),
+                "{lon} {lat}"
+            );
         }
     }
 
