@@ -2,6 +2,8 @@
 //! terrain (water lying flat, a cut down to a tunnel's portal, ground raised over a tunnel's
 //! roof), as areas with their rule. [`super::ground`] puts them together.
 
+use std::sync::OnceLock;
+
 use crate::geometry::cells::{Cell, CellIndex};
 use crate::geometry::{distance_to_segment, ring_contains, Point, Polygon, Rect};
 
@@ -19,7 +21,9 @@ pub struct Level {
     pub rule: Rule,
     /// How the rule bounds the ground there.
     pub bound: Bound,
-    cells: CellIndex,
+    /// Where the area lies, made when it is first asked whether it covers a point: the levels
+    /// of roads are found piece by piece and never need it.
+    cells: OnceLock<CellIndex>,
 }
 
 /// How a level's rule bounds the ground it covers.
@@ -182,33 +186,11 @@ impl Sections {
         }) {
             return self.starts[k];
         }
-        // The quad that holds `p`, else the nearest; a quad whose box lies further than the
-        // nearest so far is passed over unmeasured.
-        let mut best: Option<(f64, usize)> = None;
-        for k in 0..self.sections.len() - 1 {
-            let (l0, r0) = self.sections[k];
-            let (l1, r1) = self.sections[k + 1];
-            let ring = [l0, l1, r1, r0];
-            if let Some((d, _)) = best {
-                if box_distance(&ring, p) > d * (1.0 + 1e-9) {
-                    continue;
-                }
-            }
-            let outside = if ring_contains(&ring, p) {
-                0.0
-            } else {
-                (0..4)
-                    .map(|i| distance_to_segment(p, ring[i], ring[(i + 1) % 4]))
-                    .fold(f64::INFINITY, f64::min)
-            };
-            if best.is_none_or(|(d, _)| outside < d) {
-                best = Some((outside, k));
-                if outside == 0.0 {
-                    break;
-                }
-            }
-        }
-        best.map_or(0.0, |(_, k)| {
+        // The first quad that holds `p`, else the nearest.
+        let quad = (0..self.sections.len() - 1)
+            .find(|&k| Rect::around(&self.quad(k)).contains(p) && self.outside(k, p) == 0.0)
+            .or_else(|| self.nearest(p));
+        quad.map_or(0.0, |k| {
             let (l0, r0) = self.sections[k];
             let (l1, r1) = self.sections[k + 1];
             let d0 = distance_to_segment(p, l0, r0);
@@ -216,6 +198,43 @@ impl Sections {
             let share = if d0 + d1 > 0.0 { d0 / (d0 + d1) } else { 0.0 };
             self.starts[k] + share * (self.starts[k + 1] - self.starts[k])
         })
+    }
+
+    /// The quad between sections `k` and `k + 1`.
+    fn quad(&self, k: usize) -> [Point; 4] {
+        let (l0, r0) = self.sections[k];
+        let (l1, r1) = self.sections[k + 1];
+        [l0, l1, r1, r0]
+    }
+
+    /// How far `p` lies outside quad `k`: 0 inside it.
+    fn outside(&self, k: usize, p: Point) -> f64 {
+        let ring = self.quad(k);
+        if ring_contains(&ring, p) {
+            0.0
+        } else {
+            (0..4)
+                .map(|i| distance_to_segment(p, ring[i], ring[(i + 1) % 4]))
+                .fold(f64::INFINITY, f64::min)
+        }
+    }
+
+    /// The quad nearest `p`, the first of those as near; a quad whose box lies further than
+    /// the nearest so far is passed over unmeasured.
+    fn nearest(&self, p: Point) -> Option<usize> {
+        let mut best: Option<(f64, usize)> = None;
+        for k in 0..self.sections.len() - 1 {
+            if let Some((d, _)) = best {
+                if box_distance(&self.quad(k), p) > d * (1.0 + 1e-9) {
+                    continue;
+                }
+            }
+            let outside = self.outside(k, p);
+            if best.is_none_or(|(d, _)| outside < d) {
+                best = Some((outside, k));
+            }
+        }
+        best.map(|(_, k)| k)
     }
 }
 
@@ -342,7 +361,7 @@ const LEVEL_CELLS: usize = 64;
 
 impl LevelGrid {
     pub fn new(levels: &[Level]) -> LevelGrid {
-        let mut all = levels.iter().map(|l| l.cells.bounds());
+        let mut all = levels.iter().map(Level::reach);
         let Some(first) = all.next() else {
             return LevelGrid::default();
         };
@@ -357,7 +376,7 @@ impl LevelGrid {
             cells: vec![Vec::new(); side * side],
         };
         for (k, level) in levels.iter().enumerate() {
-            let b = level.cells.bounds();
+            let b = level.reach();
             let (lo, hi) = (grid.index(b.min), grid.index(b.max));
             for row in lo[1]..=hi[1] {
                 for column in lo[0]..=hi[0] {
@@ -413,14 +432,13 @@ impl LevelGrid {
 
 impl Level {
     pub fn new(surface: u32, pieces: Vec<Polygon>, bounds: Rect, rule: Rule) -> Level {
-        let cells = CellIndex::new(&pieces, bounds, ON_OUTLINE);
         Level {
             surface,
             pieces,
             bounds,
             rule,
             bound: Bound::Exact,
-            cells,
+            cells: OnceLock::new(),
         }
     }
 
@@ -450,6 +468,11 @@ impl Level {
         }
     }
 
+    /// The box of the points the level may cover: its bounds and the margin of its outline.
+    pub fn reach(&self) -> Rect {
+        self.bounds.widened(ON_OUTLINE)
+    }
+
     /// True for a point inside piece `k` of the area or on that piece's outline: the area
     /// covers a point where one of its pieces does.
     pub fn piece_covers(&self, k: usize, p: Point) -> bool {
@@ -463,7 +486,10 @@ impl Level {
 
     /// True for a point inside the area or on its outline.
     pub fn covers(&self, p: Point) -> bool {
-        match self.cells.cell(p) {
+        let cells = self
+            .cells
+            .get_or_init(|| CellIndex::new(&self.pieces, self.bounds, ON_OUTLINE));
+        match cells.cell(p) {
             None | Some(Cell::Outside) => false,
             Some(Cell::Inside) => true,
             // Inside a piece first: most points a level is asked about lie inside it, and
