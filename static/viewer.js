@@ -393,8 +393,17 @@ function wantedTiles() {
       }
     }
   }
-  // Nearest first; at one distance (the tiles around the target) the finest first.
-  return wanted.sort((a, b) => a.d - b.d || b.z - a.z);
+  // The zoom-14 tile under the target and its eight neighbours first (the view is whole once
+  // they are in), then nearest first; at one distance (the tiles around the target) the finest
+  // first.
+  const [tx, ty] = [Math.floor(u), Math.floor(v)];
+  const later = (t) => (isAround(t, tx, ty) ? 0 : 1);
+  return wanted.sort((a, b) => later(a) - later(b) || a.d - b.d || b.z - a.z);
+}
+
+/** Whether `tile` is the zoom-14 tile (`cx`, `cy`) or one of its eight neighbours. */
+function isAround(tile, cx, cy) {
+  return tile.z === ZOOM && Math.abs(tile.x - cx) <= 1 && Math.abs(tile.y - cy) <= 1;
 }
 
 /** The nearest loaded ancestor of a tile among the levels drawn, or null. */
@@ -462,6 +471,15 @@ function scheduleTiles() {
 async function loadTile(tile) {
   tile.state = 'loading';
   fetching++;
+  // The request's place is given up once its body is in: the server goes on with the next
+  // tile while this one is parsed.
+  let fetchHeld = true;
+  const release = () => {
+    if (fetchHeld) {
+      fetchHeld = false;
+      fetching--;
+    }
+  };
   const url = `tiles/${keyOf(tile)}.glb?compress=${COMPRESS}`;
   stats.requested.push(keyOf(tile));
   showStatus();
@@ -476,7 +494,10 @@ async function loadTile(tile) {
       }
       throw new Error(`tile ${keyOf(tile)}: ${response.status} ${message}`);
     }
-    const gltf = await loader.parseAsync(await response.arrayBuffer(), '');
+    const body = await response.arrayBuffer();
+    release();
+    scheduleTiles();
+    const gltf = await loader.parseAsync(body, '');
     const group = gltf.scene;
     const f = span(tile.z);
     group.position.set((tile.x * f - origin.x) * TILE_M, 0, (tile.y * f - origin.y) * TILE_M);
@@ -502,7 +523,7 @@ async function loadTile(tile) {
     stats.failed.push({ tile: keyOf(tile), error: String(error.message || error) });
     showError(String(error.message || error));
   } finally {
-    fetching--;
+    release();
     scheduleTiles();
   }
 }
@@ -563,7 +584,7 @@ function checkFirstView() {
   const wanted = wantedTiles();
   const cx = Math.floor(controls.target.x / TILE_M + origin.x);
   const cy = Math.floor(controls.target.z / TILE_M + origin.y);
-  const around = wanted.filter((t) => t.z === ZOOM && Math.abs(t.x - cx) <= 1 && Math.abs(t.y - cy) <= 1);
+  const around = wanted.filter((t) => isAround(t, cx, cy));
   const start = around.length > 0 ? around : wanted.slice(0, 9);
   if (start.length > 0 && start.every((t) => tiles.get(keyOf(t))?.state === 'loaded')) {
     stats.firstFullView = performance.now() - started;
@@ -942,15 +963,38 @@ scheduleTiles();
   box.checked = layers.shadows;
   setShadows(layers.shadows);
 }
+// What the last frame cost: from its start to the next tick of the loop, for a frame's drawing
+// holds up the page until it is done. While tiles are coming in, a frame that cost more than
+// SLOW_FRAME_MS (software WebGL, a weak device) leaves as long again, up to MAX_FRAME_GAP_MS
+// (a page left in the background ticks late), to the rest of the page (reading and parsing
+// those tiles) before the next one; on a GPU, or with nothing loading, frames follow each other
+// as the display asks.
+const SLOW_FRAME_MS = 50;
+const MAX_FRAME_GAP_MS = 1000;
+let frameStarted = null;
+let nextFrameAt = 0;
 renderer.setAnimationLoop(() => {
+  const now = performance.now();
+  if (frameStarted !== null) {
+    const cost = now - frameStarted;
+    nextFrameAt = cost > SLOW_FRAME_MS ? now + Math.min(cost, MAX_FRAME_GAP_MS) : 0;
+    frameStarted = null;
+  }
   // The damping moves the camera on for a while after the hand lets go: a 'change' each time.
   controls.update();
-  if (!redraw) return;
+  if (!redraw || (now < nextFrameAt && tilesLoading())) return;
   redraw = false;
+  frameStarted = now;
   followSun(controls.target);
   renderer.render(scene, camera);
   stats.frames++;
 });
+
+/** Whether a tile is being fetched or parsed. */
+function tilesLoading() {
+  for (const tile of tiles.values()) if (tile.state === 'loading') return true;
+  return false;
+}
 
 /** Where a feature of the loaded tiles shows on screen, for tests: its first vertex in view. */
 function locate(osmId) {
