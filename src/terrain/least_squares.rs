@@ -49,46 +49,23 @@ fn stencil() -> impl Iterator<Item = (i64, i64)> {
     (-1..=1).flat_map(|dr| (-1..=1).map(move |dc| (dr, dc)))
 }
 
-/// Sites a side of a block of cached coefficients.
-const BLOCK: i64 = 32;
-
-/// The coefficients of a block of sites, `None` where not fitted yet or outside the data.
-type Block = Box<[Option<Coefficients>; (BLOCK * BLOCK) as usize]>;
-
-/// Evaluates the blended local quadratics over a mosaic; caches each site's coefficients, by
-/// blocks of sites, so the sites around a point are read from one or two blocks.
+/// Evaluates the blended local quadratics over a mosaic; caches each site's coefficients, and
+/// keeps the sites around the last point read, which the next point often shares (a grid of
+/// samples along a row, the four reads of a normal).
 pub struct LeastSquares<'a> {
     mosaic: &'a Mosaic,
     pseudo_inverse: SMatrix<f64, 6, 9>,
-    blocks: RefCell<Blocks>,
+    coefficients: RefCell<rustc_hash::FxHashMap<(i64, i64, i64), Coefficients>>,
+    window: RefCell<Window>,
 }
 
-/// Blocks of fitted sites by `(steps, block row, block column)`, with the last one read.
+/// The sites a point's elevation blends: a rectangle of them around its grid cell, named by
+/// the grid's steps, the cell and the rectangle's reach, with each site's coefficients once
+/// read (`None` inside: outside the data).
 #[derive(Default)]
-struct Blocks {
-    index: rustc_hash::FxHashMap<(i64, i64, i64), usize>,
-    blocks: Vec<Block>,
-    /// The block read last, and where it is in `blocks`.
-    last: Option<((i64, i64, i64), usize)>,
-}
-
-impl Blocks {
-    /// The block of `key`, made empty if new.
-    fn block(&mut self, key: (i64, i64, i64)) -> &mut Block {
-        let at = match self.last {
-            Some((last, at)) if last == key => at,
-            _ => {
-                let count = self.blocks.len();
-                let at = *self.index.entry(key).or_insert(count);
-                if at == count {
-                    self.blocks.push(Box::new([None; (BLOCK * BLOCK) as usize]));
-                }
-                self.last = Some((key, at));
-                at
-            }
-        };
-        &mut self.blocks[at]
-    }
+struct Window {
+    key: Option<[i64; 5]>,
+    sites: Vec<Option<Option<Coefficients>>>,
 }
 
 impl<'a> LeastSquares<'a> {
@@ -96,25 +73,19 @@ impl<'a> LeastSquares<'a> {
         LeastSquares {
             mosaic,
             pseudo_inverse: pseudo_inverse(),
-            blocks: RefCell::new(Blocks::default()),
+            coefficients: RefCell::new(rustc_hash::FxHashMap::default()),
+            window: RefCell::new(Window::default()),
         }
     }
 
     /// The fitted coefficients of a site, in grid steps (x east, z north) from the site.
     fn site_coefficients(&self, steps: i64, lat_step: i64, lon_step: i64) -> Option<Coefficients> {
-        let key = (
-            steps,
-            lat_step.div_euclid(BLOCK),
-            lon_step.div_euclid(BLOCK),
-        );
-        let slot = (lat_step.rem_euclid(BLOCK) * BLOCK + lon_step.rem_euclid(BLOCK)) as usize;
-        let mut blocks = self.blocks.borrow_mut();
-        let block = blocks.block(key);
-        if let Some(c) = block[slot] {
-            return Some(c);
+        let key = (steps, lat_step, lon_step);
+        if let Some(c) = self.coefficients.borrow().get(&key) {
+            return Some(*c);
         }
         let c = self.fitted(steps, lat_step, lon_step)?;
-        block[slot] = Some(c);
+        self.coefficients.borrow_mut().insert(key, c);
         Some(c)
     }
 
@@ -153,16 +124,27 @@ impl<'a> LeastSquares<'a> {
         let reach_x = (radius_m / step_x).ceil() as i64;
         let reach_z = (radius_m / step_z).ceil() as i64;
         let (cx, cz) = (fx.floor() as i64, fz.floor() as i64);
+        let mut window = self.window.borrow_mut();
+        let key = [steps, cz, cx, reach_z, reach_x];
+        if window.key != Some(key) {
+            window.key = Some(key);
+            window.sites.clear();
+            window.sites.resize((4 * reach_z * reach_x) as usize, None);
+        }
         let mut weighted = 0.0;
         let mut weights = 0.0;
+        let mut site = 0;
         for lat_step in cz - reach_z + 1..=cz + reach_z {
             for lon_step in cx - reach_x + 1..=cx + reach_x {
+                site += 1;
                 let (dx, dz) = (fx - lon_step as f64, fz - lat_step as f64);
                 let distance = ((dx * step_x).powi(2) + (dz * step_z).powi(2)).sqrt();
                 if distance >= radius_m {
                     continue;
                 }
-                let Some(c) = self.site_coefficients(steps, lat_step, lon_step) else {
+                let read = window.sites[site - 1]
+                    .get_or_insert_with(|| self.site_coefficients(steps, lat_step, lon_step));
+                let Some(c) = *read else {
                     continue;
                 };
                 let value =
@@ -237,19 +219,22 @@ mod tests {
 
     #[test]
     fn a_model_read_at_many_points_gives_what_a_fresh_model_gives_at_each() {
-        // Points over several blocks of cached sites, read in a scattered order.
+        // Points over many cells in a scattered order, each followed by one a few metres off
+        // (mostly among the same sites).
         let mosaic = file(|r, c| 50.0 * (c / 11.0).sin() * (r / 13.0).cos() + 0.3 * r);
         let reused = LeastSquares::new(&mosaic);
         for k in 0..2000u32 {
             let t = f64::from(k);
             let lon = 7.45 + 0.1 * ((t * 0.618_034).fract());
             let lat = 43.45 + 0.1 * ((t * 0.414_214).fract());
-            let fresh = LeastSquares::new(&mosaic).elevation(lon, lat);
-            assert_eq!(
-                reused.elevation(lon, lat).map(f64::to_bits),
-                fresh.map(f64::to_bits),
-                "{lon} {lat}"
-            );
+            for (lon, lat) in [(lon, lat), (lon + 0.000_05, lat - 0.000_03)] {
+                let fresh = LeastSquares::new(&mosaic).elevation(lon, lat);
+                assert_eq!(
+                    reused.elevation(lon, lat).map(f64::to_bits),
+                    fresh.map(f64::to_bits),
+                    "{lon} {lat}"
+                );
+            }
         }
     }
 
