@@ -59,6 +59,10 @@ pub struct LeastSquares<'a> {
     window: RefCell<Window>,
 }
 
+/// Most sites a quarter of a [`Window`] holds (its reach north times its reach east): 2 × 18 at
+/// 85° of latitude, where tiles end.
+const MAX_WINDOW: i64 = 64;
+
 /// The sites a point's elevation blends: a rectangle of them around its grid cell, named by
 /// the grid's steps, the cell and the rectangle's reach, with each site's coefficients once
 /// read (`None` inside: outside the data).
@@ -126,7 +130,9 @@ impl<'a> LeastSquares<'a> {
         let (cx, cz) = (fx.floor() as i64, fz.floor() as i64);
         let mut window = self.window.borrow_mut();
         let key = [steps, cz, cx, reach_z, reach_x];
-        if window.key != Some(key) {
+        // Near a pole the sites blended are many: those are read from the map alone.
+        let windowed = reach_z.saturating_mul(reach_x) <= MAX_WINDOW;
+        if windowed && window.key != Some(key) {
             window.key = Some(key);
             window.sites.clear();
             window.sites.resize((4 * reach_z * reach_x) as usize, None);
@@ -142,9 +148,12 @@ impl<'a> LeastSquares<'a> {
                 if distance >= radius_m {
                     continue;
                 }
-                let read = window.sites[site - 1]
-                    .get_or_insert_with(|| self.site_coefficients(steps, lat_step, lon_step));
-                let Some(c) = *read else {
+                let read = match window.sites.get_mut(site - 1).filter(|_| windowed) {
+                    Some(kept) => *kept
+                        .get_or_insert_with(|| self.site_coefficients(steps, lat_step, lon_step)),
+                    None => self.site_coefficients(steps, lat_step, lon_step),
+                };
+                let Some(c) = read else {
                     continue;
                 };
                 let value =
