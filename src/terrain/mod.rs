@@ -7,6 +7,8 @@
 //! point's elevation from the sites around it alone, in global coordinates, so the same point
 //! gets the same value whichever tile asks.
 
+use std::cell::Cell;
+
 pub mod cell;
 pub mod least_squares;
 pub mod mosaic;
@@ -41,6 +43,9 @@ pub struct TerrainModel<'a> {
     pub interpolation: Interpolation,
     method: Method<'a>,
     tiles_per_axis: f64,
+    /// The last `v` read (its bits) and its latitude: points come along rows, and a normal's
+    /// reads east and west of a vertex share their `v`.
+    last_latitude: Cell<Option<(u64, f64)>>,
 }
 
 impl<'a> TerrainModel<'a> {
@@ -57,6 +62,7 @@ impl<'a> TerrainModel<'a> {
             interpolation,
             method,
             tiles_per_axis: f64::from(1u32 << zoom),
+            last_latitude: Cell::new(None),
         }
     }
 
@@ -78,8 +84,19 @@ impl<'a> TerrainModel<'a> {
     /// Elevation in metres at `[u, v]`, `None` where no file covers the point.
     pub fn known_elevation_uv(&self, p: [f64; 2]) -> Option<f64> {
         let lon = crate::tile::u_to_lon(p[0], self.tiles_per_axis);
-        let lat = crate::tile::v_to_lat(p[1], self.tiles_per_axis);
-        self.elevation(lon, lat)
+        self.elevation(lon, self.latitude(p[1]))
+    }
+
+    /// The latitude of `v`, in degrees.
+    fn latitude(&self, v: f64) -> f64 {
+        match self.last_latitude.get() {
+            Some((bits, lat)) if bits == v.to_bits() => lat,
+            _ => {
+                let lat = crate::tile::v_to_lat(v, self.tiles_per_axis);
+                self.last_latitude.set(Some((v.to_bits(), lat)));
+                lat
+            }
+        }
     }
 
     /// Where the raster's samples lie inside a box of tile units.
