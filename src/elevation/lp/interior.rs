@@ -69,7 +69,7 @@ impl Term {
     }
 
     fn dot(&self, x: &[f64]) -> f64 {
-        self.a.iter().map(|&(j, c)| c * x[j]).sum()
+        dot(&self.a, x)
     }
 }
 
@@ -374,8 +374,7 @@ impl Iterate {
             }
         }
         for ((a, b), nu) in p.equalities.iter().zip(&self.nu) {
-            let lhs: f64 = a.iter().map(|&(j, c)| c * self.x[j]).sum();
-            r.equalities.push(lhs - b);
+            r.equalities.push(dot(a, &self.x) - b);
             for &(j, c) in a {
                 r.dual_x[j] -= nu * c;
                 size[j] += (nu * c).abs();

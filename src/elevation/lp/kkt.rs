@@ -4,6 +4,7 @@
 //! in a banded order and takes the equalities through their Schur complement
 //! `E·H⁻¹·Eᵀ`, a few columns wide.
 
+use super::dot;
 use super::envelope::Envelope;
 
 /// Systems up to this size (free variables and equalities) are factorised dense; larger ones
@@ -169,7 +170,7 @@ impl Kkt {
                 }
                 for (e, (a, _)) in equalities.iter().enumerate() {
                     for (f, column) in columns.iter().enumerate() {
-                        schur[e * m + f] = a.iter().map(|&(j, c)| c * column[j]).sum();
+                        schur[e * m + f] = dot(a, column);
                     }
                 }
                 lu(schur, pivots, m)
@@ -228,7 +229,7 @@ impl Kkt {
         let (x, w) = rhs.split_at_mut(factors.size());
         factors.solve(x);
         for (we, (a, _)) in w.iter_mut().zip(equalities) {
-            *we = a.iter().map(|&(j, c)| c * x[j]).sum::<f64>() - *we;
+            *we = dot(a, x) - *we;
         }
         lu_solve(schur, pivots, equalities.len(), w);
         for (column, we) in columns.iter().zip(w.iter()) {
