@@ -36,3 +36,34 @@ pub fn threads_for(items: usize, per_thread: usize, most: usize) -> usize {
         .min(items / per_thread.max(1))
         .max(1)
 }
+
+/// `a` and `b` at once, `a` on a thread of its own when there is more than one core: for two
+/// pieces of a tile's work that share nothing they write. A panic in either is passed on.
+pub fn join<A: Send, B>(a: impl FnOnce() -> A + Send, b: impl FnOnce() -> B) -> (A, B) {
+    if threads_for(2, 1, 2) < 2 {
+        return (a(), b());
+    }
+    let budget = crate::budget::Inherited::here();
+    std::thread::scope(|scope| {
+        let first = scope.spawn(move || budget.run(a));
+        let second = b();
+        let first = first
+            .join()
+            .unwrap_or_else(|payload| std::panic::resume_unwind(payload));
+        (first, second)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn join_gives_both_results_and_passes_a_panic_on() {
+        let items: Vec<u64> = (0..10_000).collect();
+        let (sum, count) = join(|| items.iter().sum::<u64>(), || items.len());
+        assert_eq!((sum, count), (49_995_000, 10_000));
+        let panicked = std::panic::catch_unwind(|| join(|| panic!("in the other thread"), || 1));
+        assert!(panicked.is_err());
+    }
+}

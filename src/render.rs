@@ -218,14 +218,25 @@ fn prepare<'a>(
     let selection = &selection.with_cut_ways(&cut);
     // What the tile draws, with a row for each bridge and tunnel way near it: all the features
     // stage gives. Elevation adds only the surfaces of the ground tunnels cut, once, below.
-    let (mut feature_set, structure_features) = drawn_features(tile, selection, settings);
-    timings.features = started.elapsed();
+    // Bridges and tunnels, each settled whole by the LP, read the OSM data and the terrain
+    // only: they are settled on a thread of their own meanwhile.
+    let ((structures, structures_took), (mut feature_set, structure_features)) =
+        crate::parallel::join(
+            || {
+                let started = Instant::now();
+                let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
+                let settled = settle_groups(tile, selection, &terrain, settings, context.solutions);
+                (settled, started.elapsed())
+            },
+            || drawn_features(tile, selection, settings),
+        );
+    // The features' time is what the pair took beyond the structures'.
+    timings.features = started.elapsed().saturating_sub(structures_took);
     deadline.check(tile, "features")?;
 
-    // Bridges and tunnels, each settled whole by the LP; the ground their tunnels cut.
+    // The ground the tunnels cut.
     let started = Instant::now();
     let margin = settings.mesh.max_error_m;
-    let structures = settle_groups(tile, selection, &terrain, settings, context.solutions);
     let cuts = elevation::structures::ground_cuts(
         &structures,
         selection.all_ways,
@@ -240,7 +251,7 @@ fn prepare<'a>(
         &structure_features,
         selection.all_ways,
     );
-    timings.structures = started.elapsed();
+    timings.structures = structures_took + started.elapsed();
     deadline.check(tile, "structures")?;
 
     let started = Instant::now();
@@ -730,6 +741,81 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         frame,
         terrain,
         water,
+        cuts,
+        roads,
+        steps,
+        levels,
+        feature_set,
+        ..
+    } = prepared;
+    let started = Instant::now();
+    // The terrain model keeps caches of one thread's: the other thread makes a model of its own.
+    let (mosaic, interpolation) = (terrain.mosaic, terrain.interpolation);
+    // Buildings and barriers stand on the settled ground, not on its mesh: they are made on a
+    // thread of their own while the ground's parts and what is drawn on them are made here.
+    // Their parts are of kinds nothing else makes, so they join the others in any order.
+    let (solids, (mut parts, mut instanced, slivers, ground_took)) = crate::parallel::join(
+        || {
+            let terrain = TerrainModel::new(mosaic, interpolation, tile.z);
+            let settled = SettledGround::indexed(&terrain, (water, cuts), roads, steps, levels);
+            let mut parts = mesh::buildings::build(
+                &feature_set.buildings,
+                frame,
+                &terrain,
+                &settled,
+                srtm_step_uv(tile),
+            );
+            parts.extend(mesh::barriers::build(
+                &feature_set.barriers,
+                frame,
+                &settled,
+            ));
+            parts
+        },
+        || drawn_shapes(tile, prepared),
+    );
+    for (part, buffers) in solids {
+        let previous = parts.insert(part, buffers);
+        debug_assert!(previous.is_none(), "{part:?} made twice");
+    }
+    // Nothing that is not a finite number reaches the tile, whatever the data made of it.
+    let dropped = parts
+        .values_mut()
+        .map(mesh::MeshBuffers::drop_non_finite)
+        .chain(
+            instanced
+                .values_mut()
+                .map(mesh::instances::Instances::drop_non_finite),
+        )
+        .sum::<usize>();
+    if dropped > 0 {
+        tracing::warn!(%tile, dropped, "triangles and instances placed at numbers that are not finite were left out");
+    }
+    timings.ground = ground_took;
+    timings.shapes = started.elapsed().saturating_sub(ground_took);
+    Shapes {
+        parts,
+        instanced,
+        slivers,
+    }
+}
+
+/// The ground's parts and what is drawn on the ground's mesh: markings, sidewalks, stairs,
+/// bridges and tunnels, power lines and the instances placed; with the slivers dropped and
+/// the time the ground's parts took.
+fn drawn_shapes(
+    tile: TileId,
+    prepared: &Prepared<'_>,
+) -> (
+    BTreeMap<Part, MeshBuffers>,
+    BTreeMap<mesh::models::Model, mesh::instances::Instances>,
+    usize,
+    std::time::Duration,
+) {
+    let Prepared {
+        frame,
+        terrain,
+        water,
         structures,
         structure_features,
         cuts,
@@ -756,23 +842,9 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         frame,
         SKIRT_ERRORS * surface_margin_m,
     );
-    timings.ground = started.elapsed();
+    let ground_took = started.elapsed();
 
-    let started = Instant::now();
-    let sample_step_uv = srtm_step_uv(tile);
     let settled = SettledGround::indexed(terrain, (water, cuts), roads, steps, levels);
-    parts.extend(mesh::buildings::build(
-        &feature_set.buildings,
-        frame,
-        terrain,
-        &settled,
-        sample_step_uv,
-    ));
-    parts.extend(mesh::barriers::build(
-        &feature_set.barriers,
-        frame,
-        &settled,
-    ));
     let drawn = mesh::drawn_ground::DrawnGround::new(
         (ground, &feature_set.surfaces),
         &vertex_y,
@@ -806,31 +878,13 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         .flat_map(|s| &s.profiles)
         .filter(|p| p.kind == crate::osm::structures::StructureKind::Bridge)
         .collect();
-    let mut instanced = mesh::instances::place(
+    let instanced = mesh::instances::place(
         (&feature_set.trees, &feature_set.objects),
         feature_set,
         &drawn,
         &decks,
     );
-    // Nothing that is not a finite number reaches the tile, whatever the data made of it.
-    let dropped = parts
-        .values_mut()
-        .map(mesh::MeshBuffers::drop_non_finite)
-        .chain(
-            instanced
-                .values_mut()
-                .map(mesh::instances::Instances::drop_non_finite),
-        )
-        .sum::<usize>();
-    if dropped > 0 {
-        tracing::warn!(%tile, dropped, "triangles and instances placed at numbers that are not finite were left out");
-    }
-    timings.shapes = started.elapsed();
-    Shapes {
-        parts,
-        instanced,
-        slivers,
-    }
+    (parts, instanced, slivers, ground_took)
 }
 
 /// A tile made in one of its formats.
