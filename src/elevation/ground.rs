@@ -37,6 +37,17 @@ impl LevelIndex {
             cuts: LevelGrid::new(cuts),
         }
     }
+
+    /// The water areas and cuts of those this index was made of that cover `p`, water first.
+    pub fn covering<'l>(
+        &'l self,
+        (water, cuts): (&'l [Level], &'l [Level]),
+        p: [f64; 2],
+    ) -> impl Iterator<Item = &'l Level> {
+        self.water
+            .covering(water, p)
+            .chain(self.cuts.covering(cuts, p))
+    }
 }
 
 impl<'a> Ground<'a> {
@@ -65,10 +76,7 @@ impl<'a> Ground<'a> {
 
     /// The water areas and cuts that cover `p` (floors among them), water first.
     pub fn levels_at(&self, p: [f64; 2]) -> impl Iterator<Item = &Level> {
-        self.index
-            .water
-            .covering(self.water, p)
-            .chain(self.index.cuts.covering(self.cuts, p))
+        self.index.covering((self.water, self.cuts), p)
     }
 }
 

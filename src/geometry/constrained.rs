@@ -25,7 +25,27 @@ const CROSSING_CELLS: usize = 256;
 /// Inserts `segments` into a copy of `seed` as constraint edges; returns it with the number of
 /// segments and pieces left out.
 pub fn insert(seed: &Cdt, segments: &[(Point2<f64>, Point2<f64>)]) -> (Cdt, usize) {
-    let pieces = split_at_crossings(segments);
+    insert_split(seed, &Split::of(segments))
+}
+
+/// Segments split where they cross or touch each other: what [`insert_split`] inserts. It
+/// needs no triangulation, so it can be made while the triangulation's seed is.
+pub struct Split {
+    /// Each segment as the points it passes through in order.
+    pieces: Vec<Vec<Point2<f64>>>,
+}
+
+impl Split {
+    pub fn of(segments: &[(Point2<f64>, Point2<f64>)]) -> Split {
+        Split {
+            pieces: split_at_crossings(segments),
+        }
+    }
+}
+
+/// Inserts segments split already into a copy of `seed` as constraint edges (see [`insert`]).
+pub fn insert_split(seed: &Cdt, split: &Split) -> (Cdt, usize) {
+    let pieces = &split.pieces;
     let mut skipped: Vec<bool> = vec![false; pieces.len()];
     let mut dropped_segments = 0;
     loop {
@@ -54,7 +74,8 @@ pub fn insert(seed: &Cdt, segments: &[(Point2<f64>, Point2<f64>)]) -> (Cdt, usiz
             Ok(()) => return (cdt, dropped_segments + refused.get()),
             Err(_) => {
                 let k = progress.get();
-                tracing::debug!(segment = ?segments[k], "constraint segment left out of the triangulation");
+                let segment = pieces[k].first().zip(pieces[k].last());
+                tracing::debug!(?segment, "constraint segment left out of the triangulation");
                 skipped[k] = true;
                 dropped_segments += 1;
                 if dropped_segments >= MAX_DROPPED {

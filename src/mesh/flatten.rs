@@ -19,55 +19,98 @@ use crate::tile::TileFrame;
 pub fn flatten(ground: &mut Ground, model: &SettledGround<'_>, frame: &TileFrame) {
     let size_m = frame.size_m;
     let roads = model.roads;
-    let rule_of: HashMap<u32, &Rule> = model
-        .water
+    // The levels covering a point, read on any thread (the model's terrain is one thread's).
+    let (water, cuts, index) = (model.water, model.cuts, model.index());
+    let levels_at = |p: Point| index.covering((water, cuts), p);
+    let uv_of = |vertex: u32| {
+        let [x, z] = ground.vertices[vertex as usize];
+        let (u, v) = frame.local_to_uv(x, z);
+        [u, v]
+    };
+    let rule_of: HashMap<u32, &Rule> = water
         .iter()
-        .chain(model.cuts)
+        .chain(cuts)
         .filter(|l| l.bound == Bound::Exact)
         .map(|l| (l.surface, &l.rule))
         .collect();
     let on_edge = |p: Point| p[0] == 0.0 || p[1] == 0.0 || p[0] == size_m || p[1] == size_m;
-    let mut settled: Vec<Option<f64>> = vec![None; ground.vertices.len()];
+    let threads = |items: usize| crate::parallel::threads_for(items, VERTICES_PER_THREAD, 2);
+
     // Roads first: a vertex a road shares with water or a cut takes the water's or the cut's.
     let road_surfaces: HashSet<u32> = roads.surfaces().collect();
+    let road_vertices = vertices_of(ground, |s| road_surfaces.contains(&s));
+    let road_levels =
+        crate::parallel::map_chunks(&road_vertices, threads(road_vertices.len()), &|chunk| {
+            chunk
+                .iter()
+                .map(|&vertex| {
+                    let p = uv_of(vertex);
+                    // A vertex on water or in a cut (on its outline, say, next to a twin the
+                    // triangulation made a hair away) keeps what the ground model gave it.
+                    if levels_at(p).any(|l| l.bound == Bound::Exact) {
+                        None
+                    } else {
+                        roads.elevation(p)
+                    }
+                })
+                .collect()
+        });
     let mut on_road: Vec<Option<f64>> = vec![None; ground.vertices.len()];
-    for triangle in &ground.triangles {
-        if !triangle.surface.is_some_and(|s| road_surfaces.contains(&s)) {
-            continue;
-        }
-        for &vertex in &triangle.vertices {
-            let slot = &mut on_road[vertex as usize];
-            if slot.is_none() {
-                let [x, z] = ground.vertices[vertex as usize];
-                let (u, v) = frame.local_to_uv(x, z);
-                // A vertex on water or in a cut (on its outline, say, next to a twin the
-                // triangulation made a hair away) keeps what the ground model gave it.
-                if !model.levels_at([u, v]).any(|l| l.bound == Bound::Exact) {
-                    *slot = roads.elevation([u, v]);
-                }
-            }
-        }
+    for (&vertex, level) in road_vertices.iter().zip(road_levels) {
+        on_road[vertex as usize] = level;
     }
-    for triangle in &ground.triangles {
-        let Some(rule) = triangle.surface.and_then(|s| rule_of.get(&s)) else {
-            continue;
-        };
-        for &vertex in &triangle.vertices {
-            let [x, z] = ground.vertices[vertex as usize];
-            let (u, v) = frame.local_to_uv(x, z);
-            let level = rule.elevation([u, v]);
-            let slot = &mut settled[vertex as usize];
-            *slot = Some(slot.map_or(level, |l: f64| l.min(level)));
-        }
+
+    // The lowest level each vertex of a water area or a cut is given by the rules of its
+    // triangles, taken in the triangles' order.
+    let ruled: Vec<(u32, &Rule)> = ground
+        .triangles
+        .iter()
+        .filter_map(|t| {
+            t.surface
+                .and_then(|s| rule_of.get(&s))
+                .map(|&rule| (t, rule))
+        })
+        .flat_map(|(t, rule)| t.vertices.map(|vertex| (vertex, rule)))
+        .collect();
+    let rule_levels = crate::parallel::map_chunks(&ruled, threads(ruled.len()), &|chunk| {
+        chunk
+            .iter()
+            .map(|&(vertex, rule)| rule.elevation(uv_of(vertex)))
+            .collect()
+    });
+    let mut settled: Vec<Option<f64>> = vec![None; ground.vertices.len()];
+    for (&(vertex, _), level) in ruled.iter().zip(rule_levels) {
+        let slot = &mut settled[vertex as usize];
+        *slot = Some(slot.map_or(level, |l: f64| l.min(level)));
     }
+
     for (v, level) in settled.into_iter().enumerate() {
         if let Some(level) = level.or(on_road[v]) {
-            let [x, z] = ground.vertices[v];
-            let (u, w) = frame.local_to_uv(x, z);
-            let raised = model.levels_at([u, w]).any(|l| l.bound == Bound::AtLeast);
+            let raised = levels_at(uv_of(v as u32)).any(|l| l.bound == Bound::AtLeast);
             if !on_edge(ground.vertices[v]) && !raised {
                 ground.elevations[v] = level;
             }
         }
     }
+}
+
+/// Vertices below this many are flattened on one thread.
+const VERTICES_PER_THREAD: usize = 4_096;
+
+/// The vertices of the triangles whose surface `of` selects, each once, in the order the
+/// triangles first name them.
+fn vertices_of(ground: &Ground, of: impl Fn(u32) -> bool) -> Vec<u32> {
+    let mut seen = vec![false; ground.vertices.len()];
+    let mut vertices = Vec::new();
+    for triangle in &ground.triangles {
+        if !triangle.surface.is_some_and(&of) {
+            continue;
+        }
+        for &vertex in &triangle.vertices {
+            if !std::mem::replace(&mut seen[vertex as usize], true) {
+                vertices.push(vertex);
+            }
+        }
+    }
+    vertices
 }

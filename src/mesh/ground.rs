@@ -288,13 +288,28 @@ pub fn triangulate_lines(
         ]
     };
 
-    // 1. Samples and their weights.
+    let mut segments = clipped_outlines(surfaces, &rect);
+    segments.extend(clipped_lines(lines, &rect));
+    let to_local = |p: Point| {
+        let (x, z) = frame.uv_to_local(p[0], p[1]);
+        Point2::new(x, z)
+    };
+
+    // 1. Samples and their weights; meanwhile, on a thread of its own, the outlines split
+    // where they cross, ready to be inserted.
     let points: Vec<Point> = (0..=n)
         .flat_map(|j| (0..=n).map(move |i| (i, j)))
         .map(|(i, j)| sample_uv(i, j))
         .collect();
-    let heights = sample(&points);
-    let weights = feature_weights(frame, settings, weighting_outlines, n);
+    let (split, (heights, weights)) = crate::parallel::join(
+        || constraint_split(size, &segments, &to_local),
+        || {
+            (
+                sample(&points),
+                feature_weights(frame, settings, weighting_outlines, n),
+            )
+        },
+    );
     let grid = HeightGrid {
         columns: n + 1,
         rows: n + 1,
@@ -304,14 +319,7 @@ pub fn triangulate_lines(
         weights: Some(weights),
     };
 
-    let mut segments = clipped_outlines(surfaces, &rect);
-    segments.extend(clipped_lines(lines, &rect));
-
     // 2. The edges.
-    let to_local = |p: Point| {
-        let (x, z) = frame.uv_to_local(p[0], p[1]);
-        Point2::new(x, z)
-    };
     let mut edge_points: Vec<Point2<f64>> = Vec::new();
     for side in Side::ALL {
         for vertex in edge_vertices(
@@ -333,7 +341,7 @@ pub fn triangulate_lines(
     let cdt = Cdt::bulk_load(edge_points).map_err(|e| GroundError::Insertion(format!("{e:?}")))?;
 
     // 3. Feature outlines as constraints.
-    let (cdt, dropped) = insert_constraints(&cdt, size, &segments, &to_local);
+    let (cdt, dropped) = crate::geometry::constrained::insert_split(&cdt, &split);
 
     // 4. Greedy insertion inside.
     let limits = RefineLimits {
@@ -467,15 +475,14 @@ fn off_grid_heights(
         .collect()
 }
 
-/// Inserts the outline segments into a copy of `seed` as constraint edges
-/// ([`crate::geometry::constrained::insert`]) and returns it with the number of pieces left out. Segments
-/// along the tile's border are left out: the edge vertices already lie on them.
-fn insert_constraints(
-    seed: &Cdt,
+/// The outline segments split where they cross, ready to be inserted as constraint edges
+/// ([`crate::geometry::constrained::insert_split`]). Segments along the tile's border are left
+/// out: the edge vertices already lie on them.
+fn constraint_split(
     size: f64,
     segments: &[(Point, Point)],
-    to_local: &dyn Fn(Point) -> Point2<f64>,
-) -> (Cdt, usize) {
+    to_local: &(dyn Fn(Point) -> Point2<f64> + Sync),
+) -> crate::geometry::constrained::Split {
     let on_border = |(a, b): &(Point2<f64>, Point2<f64>)| {
         let on_line = |p: f64, q: f64| p == q && (p == 0.0 || p == size);
         on_line(a.x, b.x) || on_line(a.y, b.y)
@@ -485,7 +492,7 @@ fn insert_constraints(
         .map(|&(a, b)| (to_local(a), to_local(b)))
         .filter(|s| s.0 != s.1 && !on_border(s))
         .collect();
-    crate::geometry::constrained::insert(seed, &local)
+    crate::geometry::constrained::Split::of(&local)
 }
 
 /// Error weights of the samples: `1 + feature_weight · (1 − d / feature_distance)` within
