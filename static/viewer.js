@@ -193,10 +193,7 @@ const downward = new THREE.Raycaster();
 function groundUnder(x, z) {
   const ground = [];
   for (const tile of tiles.values()) {
-    if (tile.state !== 'loaded' || !tile.group || tile.z !== ZOOM) continue;
-    const size = span(tile.z) * TILE_M;
-    const corner = tile.group.position;
-    if (x < corner.x || x > corner.x + size || z < corner.z || z > corner.z + size) continue;
+    if (tile.state !== 'loaded' || !tile.group || tile.z !== ZOOM || !holds(tile, { x, z })) continue;
     tile.group.updateMatrixWorld();
     tile.group.traverse((o) => {
       if (o.isMesh && !o.isInstancedMesh && !SKIPPED_NODES.test(o.name) && !SKIPPED_NODES.test(o.parent?.name ?? '')) {
@@ -207,6 +204,13 @@ function groundUnder(x, z) {
   if (ground.length === 0) return null;
   downward.set(new THREE.Vector3(x, 1e5, z), new THREE.Vector3(0, -1, 0));
   return downward.intersectObjects(ground, false)[0]?.point.y ?? null;
+}
+
+/** Whether a loaded tile's square holds the point `p` of the world, seen from above. */
+function holds(tile, p) {
+  const size = span(tile.z) * TILE_M;
+  const corner = tile.group.position;
+  return p.x >= corner.x && p.x <= corner.x + size && p.z >= corner.z && p.z <= corner.z + size;
 }
 
 /** Least height of the camera over the ground, metres. */
@@ -515,7 +519,11 @@ async function loadTile(tile) {
     applyToggles(group);
     scene.add(group);
     stats.loaded.push(keyOf(tile));
-    settleOnGround();
+    // Only a finest tile under the point looked at or under the camera can change where they
+    // stand (reading the ground casts a ray through every triangle of the tile under a point).
+    if (tile.z === ZOOM && (holds(tile, controls.target) || holds(tile, camera.position))) {
+      settleOnGround();
+    }
     if (layers.debug && tile.z === ZOOM) addDebug(tile);
     checkFirstView();
   } catch (error) {
