@@ -165,17 +165,16 @@ pub(super) fn drop_waterways_in_water_areas(set: &mut FeatureSet) {
         return;
     }
     let in_water = |p: Point, surfaces: &[Surface]| areas.iter().any(|&i| surfaces[i].contains(p));
-    let mut kept: Vec<Surface> = Vec::with_capacity(set.surfaces.len());
+    // The waterways that run into water areas, each with what is left of it outside them (none
+    // when nothing is); the other surfaces stay as they are.
+    let mut trimmed: std::collections::BTreeMap<usize, Option<Surface>> = Default::default();
     for (index, surface) in set.surfaces.iter().enumerate() {
-        if areas.contains(&index) || !is_waterway(set, surface) {
-            kept.push(surface.clone());
-            continue;
-        }
-        if !areas
-            .iter()
-            .any(|&i| set.surfaces[i].bounds.intersects(&surface.bounds))
+        if areas.contains(&index)
+            || !is_waterway(set, surface)
+            || !areas
+                .iter()
+                .any(|&i| set.surfaces[i].bounds.intersects(&surface.bounds))
         {
-            kept.push(surface.clone());
             continue;
         }
         // The quads run along the waterway: [left i, left i+1, right i+1, right i].
@@ -185,44 +184,56 @@ pub(super) fn drop_waterways_in_water_areas(set: &mut FeatureSet) {
             .map(|quad| !quad.outer.iter().all(|&p| in_water(p, &set.surfaces)))
             .collect();
         if outside.iter().all(|&o| o) {
-            kept.push(surface.clone());
             continue;
         }
-        let mut pieces: Vec<Polygon> = Vec::new();
-        let mut outline: Vec<Vec<Point>> = Vec::new();
-        let mut run: Vec<&Polygon> = Vec::new();
-        let close = |run: &mut Vec<&Polygon>, outline: &mut Vec<Vec<Point>>| {
-            if let (Some(first), Some(last)) = (run.first(), run.last()) {
-                let mut left = vec![first.outer[0]];
-                let mut right = vec![first.outer[3]];
-                left.extend(run.iter().map(|q| q.outer[1]));
-                right.extend(run.iter().map(|q| q.outer[2]));
-                outline.push(left);
-                outline.push(right);
-                outline.push(vec![first.outer[0], first.outer[3]]);
-                outline.push(vec![last.outer[1], last.outer[2]]);
-            }
-            run.clear();
-        };
-        for (quad, &keep) in surface.pieces.iter().zip(&outside) {
-            if keep {
-                run.push(quad);
-                pieces.push(quad.clone());
-            } else {
-                close(&mut run, &mut outline);
-            }
+        trimmed.insert(index, outside_water(surface, &outside));
+    }
+    if trimmed.is_empty() {
+        return;
+    }
+    set.surfaces = std::mem::take(&mut set.surfaces)
+        .into_iter()
+        .enumerate()
+        .filter_map(|(index, surface)| match trimmed.remove(&index) {
+            Some(left) => left,
+            None => Some(surface),
+        })
+        .collect();
+}
+
+/// What is left of a waterway's surface of quads outside water areas (`outside`: each quad's),
+/// with the outline of each run of quads left.
+fn outside_water(surface: &Surface, outside: &[bool]) -> Option<Surface> {
+    let mut pieces: Vec<Polygon> = Vec::new();
+    let mut outline: Vec<Vec<Point>> = Vec::new();
+    let mut run: Vec<&Polygon> = Vec::new();
+    let close = |run: &mut Vec<&Polygon>, outline: &mut Vec<Vec<Point>>| {
+        if let (Some(first), Some(last)) = (run.first(), run.last()) {
+            let mut left = vec![first.outer[0]];
+            let mut right = vec![first.outer[3]];
+            left.extend(run.iter().map(|q| q.outer[1]));
+            right.extend(run.iter().map(|q| q.outer[2]));
+            outline.push(left);
+            outline.push(right);
+            outline.push(vec![first.outer[0], first.outer[3]]);
+            outline.push(vec![last.outer[1], last.outer[2]]);
         }
-        close(&mut run, &mut outline);
-        if let Some(mut trimmed) =
-            Surface::from_parts(FeatureClass::Water, surface.feature, pieces, outline)
-        {
-            // The water still runs down the whole way.
-            trimmed.centreline.clone_from(&surface.centreline);
-            trimmed.water = surface.water;
-            kept.push(trimmed);
+        run.clear();
+    };
+    for (quad, &keep) in surface.pieces.iter().zip(outside) {
+        if keep {
+            run.push(quad);
+            pieces.push(quad.clone());
+        } else {
+            close(&mut run, &mut outline);
         }
     }
-    set.surfaces = kept;
+    close(&mut run, &mut outline);
+    let mut trimmed = Surface::from_parts(FeatureClass::Water, surface.feature, pieces, outline)?;
+    // The water still runs down the whole way.
+    trimmed.centreline.clone_from(&surface.centreline);
+    trimmed.water = surface.water;
+    Some(trimmed)
 }
 
 #[cfg(test)]
