@@ -225,8 +225,8 @@ fn prepare<'a>(
             || {
                 let started = Instant::now();
                 let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
-                let settled = settle_groups(tile, selection, &terrain, settings, context.solutions);
-                (settled, started.elapsed())
+                let groups = settle_groups(tile, selection, &terrain, settings, context.solutions);
+                (groups, started.elapsed())
             },
             || drawn_features(tile, selection, settings),
         );
@@ -754,7 +754,7 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
     // Buildings and barriers stand on the settled ground, not on its mesh: they are made on a
     // thread of their own while the ground's parts and what is drawn on them are made here.
     // Their parts are of kinds nothing else makes, so they join the others in any order.
-    let (solids, (mut parts, mut instanced, slivers, ground_took)) = crate::parallel::join(
+    let (solids, (drawn, ground_took)) = crate::parallel::join(
         || {
             let terrain = TerrainModel::new(mosaic, interpolation, tile.z);
             let settled = SettledGround::indexed(&terrain, (water, cuts), roads, steps, levels);
@@ -774,6 +774,11 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
         },
         || drawn_shapes(tile, prepared),
     );
+    let Shapes {
+        mut parts,
+        mut instanced,
+        slivers,
+    } = drawn;
     for (part, buffers) in solids {
         let previous = parts.insert(part, buffers);
         debug_assert!(previous.is_none(), "{part:?} made twice");
@@ -801,17 +806,9 @@ fn shapes(tile: TileId, prepared: &Prepared<'_>, timings: &mut StageTimings) -> 
 }
 
 /// The ground's parts and what is drawn on the ground's mesh: markings, sidewalks, stairs,
-/// bridges and tunnels, power lines and the instances placed; with the slivers dropped and
-/// the time the ground's parts took.
-fn drawn_shapes(
-    tile: TileId,
-    prepared: &Prepared<'_>,
-) -> (
-    BTreeMap<Part, MeshBuffers>,
-    BTreeMap<mesh::models::Model, mesh::instances::Instances>,
-    usize,
-    std::time::Duration,
-) {
+/// bridges and tunnels, power lines and the instances placed; with the time the ground's
+/// parts took.
+fn drawn_shapes(tile: TileId, prepared: &Prepared<'_>) -> (Shapes, std::time::Duration) {
     let Prepared {
         frame,
         terrain,
@@ -884,7 +881,12 @@ fn drawn_shapes(
         &drawn,
         &decks,
     );
-    (parts, instanced, slivers, ground_took)
+    let shapes = Shapes {
+        parts,
+        instanced,
+        slivers,
+    };
+    (shapes, ground_took)
 }
 
 /// A tile made in one of its formats.

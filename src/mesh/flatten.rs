@@ -34,7 +34,8 @@ pub fn flatten(ground: &mut Ground, model: &SettledGround<'_>, frame: &TileFrame
         .map(|l| (l.surface, &l.rule))
         .collect();
     let on_edge = |p: Point| p[0] == 0.0 || p[1] == 0.0 || p[0] == size_m || p[1] == size_m;
-    let threads = |items: usize| crate::parallel::threads_for(items, VERTICES_PER_THREAD, 2);
+    let threads =
+        |items: usize| crate::parallel::threads_for(items, VERTICES_PER_THREAD, MAX_THREADS);
 
     // Roads first: a vertex a road shares with water or a cut takes the water's or the cut's.
     let road_surfaces: HashSet<u32> = roads.surfaces().collect();
@@ -96,6 +97,8 @@ pub fn flatten(ground: &mut Ground, model: &SettledGround<'_>, frame: &TileFrame
 
 /// Vertices below this many are flattened on one thread.
 const VERTICES_PER_THREAD: usize = 4_096;
+/// Most threads the vertices' levels are read on.
+const MAX_THREADS: usize = 4;
 
 /// The vertices of the triangles whose surface `of` selects, each once, in the order the
 /// triangles first name them.

@@ -5,7 +5,8 @@ use super::*;
 /// Time spent in each stage of a render.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageTimings {
-    /// OSM elements into surfaces, buildings and the other features.
+    /// OSM elements into surfaces, buildings and the other features: what it took beyond the
+    /// bridges and tunnels settled beside it.
     pub features: Duration,
     /// Bridges and tunnels settled by the LP, and the ground they reshape.
     pub structures: Duration,
@@ -18,7 +19,8 @@ pub struct StageTimings {
     pub normals: Duration,
     /// The ground's triangles sorted into the tile's parts.
     pub ground: Duration,
-    /// Buildings, barriers, bridges and tunnels, power lines, trees and objects meshed.
+    /// Buildings, barriers, bridges and tunnels, power lines, trees and objects meshed: what it
+    /// took beyond the ground's parts, made beside the buildings.
     pub shapes: Duration,
     /// The glb or quantized-mesh written.
     pub encode: Duration,
