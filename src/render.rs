@@ -28,15 +28,13 @@ use crate::output::{glb, quantized_mesh};
 use crate::terrain::{Elevation, Interpolation, Mosaic, TerrainModel};
 use crate::tile::{TileFrame, TileId};
 
+mod elevations;
 mod stats;
 mod terrain;
+use elevations::{elevations, long_ways_cut, Elevations};
+pub use elevations::{settle_road_profiles, settle_structures};
 pub use stats::{RenderStats, StageTimings};
 pub use terrain::{render_overview_terrain, render_terrain, RenderedTerrain};
-
-/// How far beyond a tile a line cut to the tile is kept, degrees (about 2 km): ten times as far
-/// as a tile's query reaches, so that where the line bends near the tile, the segments on
-/// either side are long enough that the bend is drawn as in the whole way.
-const LONG_WAY_MARGIN_DEG: f64 = 0.02;
 
 /// Settings that change what a tile looks like (and so belong in the cache key).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -212,59 +210,23 @@ fn prepare<'a>(
     let frame = tile.frame();
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
 
-    let started = Instant::now();
     let all_ways = selection.all_ways;
     let (cut, draped) = long_ways_cut(tile, selection, settings);
     let selection = &selection.with_cut_ways(&cut);
-    // What the tile draws, with a row for each bridge and tunnel way near it: all the features
-    // stage gives. Elevation adds only the surfaces of the ground tunnels cut, once, below.
-    // Bridges and tunnels, each settled whole by the LP, read the OSM data and the terrain
-    // only: they are settled on a thread of their own meanwhile.
-    let ((structures, structures_took), (mut feature_set, structure_features)) =
-        crate::parallel::join(
-            || {
-                let started = Instant::now();
-                let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
-                let groups = settle_groups(tile, selection, &terrain, settings, context.solutions);
-                (groups, started.elapsed())
-            },
-            || drawn_features(tile, selection, settings),
-        );
-    // The features' time is what the pair took beyond the structures'.
-    timings.features = started.elapsed().saturating_sub(structures_took);
-    deadline.check(tile, "features")?;
-
-    // The ground the tunnels cut.
-    let started = Instant::now();
-    let margin = settings.mesh.max_error_m;
-    let cuts = elevation::structures::ground_cuts(
-        &structures,
-        selection.all_ways,
-        &structure_features,
-        &features::Projection::new(tile.z),
-        &settings.features,
-        margin,
-    );
-    let cuts = add_ground_cuts(
-        &mut feature_set,
+    let Elevations {
+        feature_set,
+        structure_features,
+        structures,
         cuts,
-        &structure_features,
-        selection.all_ways,
-    );
-    timings.structures = structures_took + started.elapsed();
-    deadline.check(tile, "structures")?;
-
-    let started = Instant::now();
-    let road_profiles = settle_roads(
+        road_profiles,
+    } = elevations(
         tile,
         selection,
-        &feature_set,
         (&terrain, settings),
         &draped,
-        context.solutions,
-    );
-    timings.roads = started.elapsed();
-    deadline.check(tile, "roads")?;
+        timings,
+        context,
+    )?;
 
     let started = Instant::now();
     let Surfaces {
@@ -294,28 +256,11 @@ fn prepare<'a>(
         road_profiles,
         all_ways,
         feature_settings: settings.features.clone(),
-        surface_margin_m: margin,
+        surface_margin_m: settings.mesh.max_error_m,
         feature_set,
         ground,
         normals,
     })
-}
-
-/// The features stage: what the tile draws, and the feature row of each bridge and tunnel way
-/// near it (by index into all ways).
-fn drawn_features(
-    tile: TileId,
-    selection: &Selection<'_>,
-    settings: &RenderSettings,
-) -> (FeatureSet, HashMap<u32, u32>) {
-    let mut feature_set = features::collect(selection, tile, &settings.features);
-    let structure_features = features::structures::rows(
-        &mut feature_set,
-        &selection.structures,
-        selection.all_ways,
-        tile,
-    );
-    (feature_set, structure_features)
 }
 
 /// The levels the settled surfaces give the ground, and their index.
@@ -492,186 +437,6 @@ fn ground_normals(
         settled,
         &|vertices, terrain, settled| mesh::normals::normals_at(vertices, frame, terrain, settled),
     )
-}
-
-/// Adds the ground the tunnels reshape to the feature set: a row for each way's approach cuts,
-/// a surface for each cut and raised stretch; returns the levels the ground takes, each naming
-/// its surface.
-fn add_ground_cuts(
-    set: &mut FeatureSet,
-    cuts: elevation::structures::GroundCuts,
-    structure_rows: &HashMap<u32, u32>,
-    ways: &[crate::osm::Way],
-) -> Vec<elevation::settled::Level> {
-    let mut rows: HashMap<u32, u32> = HashMap::new();
-    for (way, class) in cuts.rows {
-        if let Some(&structure_row) = structure_rows.get(&way) {
-            let row =
-                features::structures::add_cut_row(set, structure_row, class, &ways[way as usize]);
-            rows.insert(way, row);
-        }
-    }
-    let mut levels = Vec::with_capacity(cuts.cuts.len());
-    for cut in cuts.cuts {
-        let mut level = cut.level;
-        if let Some(mut surface) = cut.surface {
-            if let Some(&row) = cut.row_of.and_then(|way| rows.get(&way)) {
-                surface.feature = row;
-            }
-            level.surface = set.surfaces.len() as u32;
-            set.surfaces.push(surface);
-        }
-        levels.push(level);
-    }
-    levels
-}
-
-/// Settles every bridge and tunnel that reaches the tile, each group whole; violated soft
-/// constraints are logged at debug level.
-fn settle_groups(
-    tile: TileId,
-    selection: &Selection<'_>,
-    terrain: &dyn Elevation,
-    settings: &RenderSettings,
-    solutions: &Solutions,
-) -> Vec<elevation::structures::Settled> {
-    let projection = features::Projection::new(tile.z);
-    selection
-        .structures
-        .iter()
-        .map(|group| {
-            let settled = elevation::structures::settle(
-                group,
-                selection.all_ways,
-                terrain,
-                &projection,
-                &settings.features,
-                settings.mesh.max_error_m,
-                solutions,
-            );
-            log_violations(
-                tile,
-                settled.violations(crate::output::debug::VIOLATION_TOLERANCE_M),
-            );
-            settled
-        })
-        .collect()
-}
-
-/// Settles the profiles of the ground roads drawn in `set`; violated soft constraints are
-/// logged at debug level.
-/// The profiles of the ground roads the tile draws, `draped` aside (they follow the terrain).
-fn settle_roads(
-    tile: TileId,
-    selection: &Selection<'_>,
-    set: &FeatureSet,
-    (terrain, settings): (&dyn Elevation, &RenderSettings),
-    draped: &std::collections::BTreeSet<i64>,
-    solutions: &Solutions,
-) -> elevation::road_profiles::RoadProfiles {
-    let Some(graph) = selection.roads else {
-        return Default::default();
-    };
-    let drawn: std::collections::HashSet<i64> = set
-        .surfaces
-        .iter()
-        .filter(|s| s.class == features::FeatureClass::Road && !s.piece_lines.is_empty())
-        .filter_map(|s| set.features.get(s.feature as usize)?.element)
-        .filter(|e| e.element_type == crate::osm::ElementType::Way)
-        .map(|e| e.id)
-        .collect();
-    let ways: Vec<&crate::osm::Way> = selection
-        .ways
-        .iter()
-        .copied()
-        .filter(|w| drawn.contains(&w.id) && !draped.contains(&w.id))
-        .collect();
-    // The tile and a little around it: what the tile draws of a stretch reaches no farther.
-    let reach = 0.05;
-    let (x, y) = (f64::from(tile.x), f64::from(tile.y));
-    let area = crate::geometry::Rect {
-        min: [x - reach, y - reach],
-        max: [x + 1.0 + reach, y + 1.0 + reach],
-    };
-    let profiles = elevation::road_profiles::settle(
-        area,
-        &ways,
-        selection.all_ways,
-        graph,
-        terrain,
-        &features::Projection::new(tile.z),
-        &settings.features,
-        solutions,
-    );
-    log_violations(tile, profiles.violations.iter());
-    profiles
-}
-
-/// Logs soft constraints that had to give way, at debug level.
-fn log_violations<'a>(
-    tile: TileId,
-    reports: impl Iterator<Item = &'a elevation::structures::ConstraintReport>,
-) {
-    for report in reports {
-        tracing::debug!(
-            %tile,
-            way = report.way,
-            constraint = report.kind.as_str(),
-            bound = report.bound,
-            violation = report.violation,
-            "soft constraint violated"
-        );
-    }
-}
-
-/// The ground roads of a tile, settled as its glb settles them.
-pub fn settle_road_profiles(
-    tile: TileId,
-    selection: &Selection<'_>,
-    mosaic: &Mosaic,
-    settings: &RenderSettings,
-    solutions: &Solutions,
-) -> elevation::road_profiles::RoadProfiles {
-    let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
-    let (cut, draped) = long_ways_cut(tile, selection, settings);
-    let selection = &selection.with_cut_ways(&cut);
-    let set = features::collect(selection, tile, &settings.features);
-    settle_roads(
-        tile,
-        selection,
-        &set,
-        (&terrain, settings),
-        &draped,
-        solutions,
-    )
-}
-
-/// The lines of `selection` too long to settle whole, cut to the part near the tile, and
-/// their ids: they are drawn on the terrain.
-fn long_ways_cut(
-    tile: TileId,
-    selection: &Selection<'_>,
-    settings: &RenderSettings,
-) -> (Vec<crate::osm::Way>, std::collections::BTreeSet<i64>) {
-    let near = tile.bounds().expanded(LONG_WAY_MARGIN_DEG);
-    let cut = selection.cut_long_ways(&near, settings.features.longest_way_m());
-    let draped: std::collections::BTreeSet<i64> = cut.iter().map(|w| w.id).collect();
-    if !draped.is_empty() {
-        tracing::debug!(%tile, ways = ?draped, "lines too long to settle whole drawn from the part near the tile");
-    }
-    (cut, draped)
-}
-
-/// The bridges and tunnels that reach a tile, settled as its glb settles them.
-pub fn settle_structures(
-    tile: TileId,
-    selection: &Selection<'_>,
-    mosaic: &Mosaic,
-    settings: &RenderSettings,
-    solutions: &Solutions,
-) -> Vec<elevation::structures::Settled> {
-    let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
-    settle_groups(tile, selection, &terrain, settings, solutions)
 }
 
 /// Renders one tile as glb from the elements near it and the SRTM files around it, with a memo

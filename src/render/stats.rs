@@ -5,10 +5,10 @@ use super::*;
 /// Time spent in each stage of a render.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageTimings {
-    /// OSM elements into surfaces, buildings and the other features: what it took beyond the
-    /// bridges and tunnels settled beside it.
+    /// OSM elements into surfaces, buildings and the other features.
     pub features: Duration,
-    /// Bridges and tunnels settled by the LP, and the ground they reshape.
+    /// Bridges and tunnels settled by the LP, and the ground they reshape: what settling them
+    /// took beyond the features and the ground roads, settled beside it.
     pub structures: Duration,
     /// Ground roads held to their grade by the LP.
     pub roads: Duration,
