@@ -31,7 +31,7 @@ use crate::tile::{TileFrame, TileId};
 mod elevations;
 mod stats;
 mod terrain;
-use elevations::{elevations, long_ways_cut, Elevations};
+use elevations::{elevations, Elevations};
 pub use elevations::{settle_road_profiles, settle_structures};
 pub use stats::{RenderStats, StageTimings};
 pub use terrain::{render_overview_terrain, render_terrain, RenderedTerrain};
@@ -211,22 +211,13 @@ fn prepare<'a>(
     let terrain = TerrainModel::new(mosaic, settings.interpolation, tile.z);
 
     let all_ways = selection.all_ways;
-    let (cut, draped) = long_ways_cut(tile, selection, settings);
-    let selection = &selection.with_cut_ways(&cut);
     let Elevations {
         feature_set,
         structure_features,
         structures,
         cuts,
         road_profiles,
-    } = elevations(
-        tile,
-        selection,
-        (&terrain, settings),
-        &draped,
-        timings,
-        context,
-    )?;
+    } = elevations(tile, selection, (&terrain, settings), timings, context)?;
 
     let started = Instant::now();
     let Surfaces {

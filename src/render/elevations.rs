@@ -29,13 +29,20 @@ pub(super) fn elevations(
     tile: TileId,
     selection: &Selection<'_>,
     (terrain, settings): (&TerrainModel<'_>, &RenderSettings),
-    draped: &std::collections::BTreeSet<i64>,
     timings: &mut StageTimings,
     context: Context<'_>,
 ) -> Result<Elevations, RenderError> {
+    // Lines too long to settle whole are drawn on the terrain, cut to the part near the tile
+    // (counted with the features).
+    let started = Instant::now();
+    let (cut, draped) = long_ways_cut(tile, selection, settings);
+    let selection = &selection.with_cut_ways(&cut);
+    let draped = &draped;
+    let cutting = started.elapsed();
+
     let started = Instant::now();
     let (mosaic, solutions) = (terrain.mosaic, context.solutions);
-    let ((structures, structures_took), (mut feature_set, structure_features, road_profiles)) =
+    let ((structures, structures_took), (mut feature_set, structure_features, roads)) =
         crate::parallel::join(
             || {
                 let started = Instant::now();
@@ -46,7 +53,7 @@ pub(super) fn elevations(
             || {
                 let started = Instant::now();
                 let (set, structure_features) = drawn_features(tile, selection, settings);
-                timings.features = started.elapsed();
+                let features_took = started.elapsed();
                 let started = Instant::now();
                 let drawn = drawn_road_ways(&set);
                 let profiles = settle_roads(
@@ -57,15 +64,17 @@ pub(super) fn elevations(
                     draped,
                     solutions,
                 );
-                timings.roads = started.elapsed();
-                (set, structure_features, (drawn, profiles))
+                let roads = (drawn, profiles, features_took, started.elapsed());
+                (set, structure_features, roads)
             },
         );
+    let (drawn, mut road_profiles, features_took, roads_took) = roads;
+    timings.features = cutting + features_took;
+    timings.roads = roads_took;
     // Settling the bridges and tunnels counts for what it took beyond the features and roads.
-    let beside = timings.features + timings.roads;
     let hidden = started
         .elapsed()
-        .saturating_sub(beside)
+        .saturating_sub(features_took + roads_took)
         .min(structures_took);
     context.deadline.check(tile, "features")?;
 
@@ -89,7 +98,6 @@ pub(super) fn elevations(
     timings.structures = hidden + started.elapsed();
     context.deadline.check(tile, "structures")?;
 
-    let (drawn, mut road_profiles) = road_profiles;
     let drawn_now = drawn_road_ways(&feature_set);
     if drawn_now != drawn {
         let started = Instant::now();
@@ -287,7 +295,7 @@ pub fn settle_road_profiles(
 
 /// The lines of `selection` too long to settle whole, cut to the part near the tile, and
 /// their ids: they are drawn on the terrain.
-pub(super) fn long_ways_cut(
+fn long_ways_cut(
     tile: TileId,
     selection: &Selection<'_>,
     settings: &RenderSettings,
