@@ -361,27 +361,7 @@ pub fn triangulate_lines(
 
     // 5. Classification.
     let buckets = SurfaceBuckets::new(rect, BUCKETS_PER_SIDE, surfaces);
-    // Where surfaces overlap, the lowest rank wins: the class's priority, where a track
-    // embedded in a road ranks as the road and before it and a road through a building before
-    // the building; among land covers the smaller area (the detail: a pitch in a park); then
-    // the lower feature id.
-    let rank: Vec<(u8, bool, f64, u32)> = surfaces
-        .iter()
-        .map(|s| {
-            let priority = if s.passage {
-                0
-            } else if s.embedded {
-                FeatureClass::Road.ground_priority() + 1
-            } else {
-                s.class.ground_priority() + 1
-            };
-            let detail = match s.class {
-                FeatureClass::LandCover => s.pieces.iter().map(Polygon::area).sum(),
-                _ => 0.0,
-            };
-            (priority, !s.embedded, detail, s.feature)
-        })
-        .collect();
+    let rank = ground_ranks(surfaces);
     let vertices: Vec<Point> = tin.positions.iter().map(|p| [p.x, p.y]).collect();
     let elevations = tin.heights;
     let surface_of = |&[a, b, c]: &[u32; 3]| {
@@ -418,6 +398,30 @@ pub fn triangulate_lines(
         edge_vertices: edge_count,
         dropped_constraints: dropped,
     })
+}
+
+/// The rank of each surface where surfaces overlap, the lowest winning: the class's priority,
+/// where a track embedded in a road ranks as the road and before it and a road through a
+/// building before the building; among land covers the smaller area (the detail: a pitch in a
+/// park); then the lower feature id.
+fn ground_ranks(surfaces: &[Surface]) -> Vec<(u8, bool, f64, u32)> {
+    surfaces
+        .iter()
+        .map(|s| {
+            let priority = if s.passage {
+                0
+            } else if s.embedded {
+                FeatureClass::Road.ground_priority() + 1
+            } else {
+                s.class.ground_priority() + 1
+            };
+            let detail = match s.class {
+                FeatureClass::LandCover => s.pieces.iter().map(Polygon::area).sum(),
+                _ => 0.0,
+            };
+            (priority, !s.embedded, detail, s.feature)
+        })
+        .collect()
 }
 
 /// The outline segments of `surfaces` clipped to the tile's `rect`, in global tile units.
