@@ -312,16 +312,10 @@ pub fn rows(
                 let Some(way) = all_ways.get(chain_way.way as usize) else {
                     continue;
                 };
-                if rows.contains_key(&chain_way.way) || way.positions.is_empty() {
+                if rows.contains_key(&chain_way.way) {
                     continue;
                 }
-                let reach = projection.metres(STRUCTURE_REACH_M, way.positions[0].lat);
-                let near = crate::geometry::Rect::around(&projection.points(&way.positions));
-                let meets = near.min[0] - reach <= rect.max[0]
-                    && near.max[0] + reach >= rect.min[0]
-                    && near.min[1] - reach <= rect.max[1]
-                    && near.max[1] + reach >= rect.min[1];
-                if meets {
+                if reaches(way, &projection, &rect) {
                     let element = ElementRef {
                         element_type: ElementType::Way,
                         id: way.id,
@@ -343,6 +337,32 @@ pub fn rows(
         }
     }
     rows
+}
+
+/// True for a group with a way that reaches into the tile: a group without one is neither
+/// drawn there nor cuts its ground.
+pub fn group_reaches(group: &Group, all_ways: &[Way], tile: TileId) -> bool {
+    let projection = Projection::new(tile.z);
+    let rect = super::tile_rect(tile);
+    group
+        .chains
+        .iter()
+        .flat_map(|chain| &chain.ways)
+        .filter_map(|chain_way| all_ways.get(chain_way.way as usize))
+        .any(|way| reaches(way, &projection, &rect))
+}
+
+/// True for a way within [`STRUCTURE_REACH_M`] of `rect` (the tile, projected).
+fn reaches(way: &Way, projection: &Projection, rect: &crate::geometry::Rect) -> bool {
+    let Some(first) = way.positions.first() else {
+        return false;
+    };
+    let reach = projection.metres(STRUCTURE_REACH_M, first.lat);
+    let near = crate::geometry::Rect::around(&projection.points(&way.positions));
+    near.min[0] - reach <= rect.max[0]
+        && near.max[0] + reach >= rect.min[0]
+        && near.min[1] - reach <= rect.max[1]
+        && near.max[1] + reach >= rect.min[1]
 }
 
 /// Adds the row of a tunnel's approach cut: the element of the structure way's row

@@ -171,7 +171,8 @@ fn add_ground_cuts(
 }
 
 /// Settles every bridge and tunnel that reaches the tile, each group whole; violated soft
-/// constraints are logged at debug level.
+/// constraints are logged at debug level. A group near the tile none of whose ways reaches it
+/// is left unsettled: the tile neither draws it nor cuts its ground for it.
 fn settle_groups(
     tile: TileId,
     selection: &Selection<'_>,
@@ -183,6 +184,7 @@ fn settle_groups(
     selection
         .structures
         .iter()
+        .filter(|group| features::structures::group_reaches(group, selection.all_ways, tile))
         .map(|group| {
             let settled = elevation::structures::settle(
                 group,
