@@ -232,7 +232,7 @@ fn prepare<'a>(
     deadline.check(tile, "triangulation")?;
 
     let started = Instant::now();
-    let normals = ground_normals(&ground, &frame, mosaic, settings, &settled);
+    let normals = mesh::normals::ground_normals(&ground, &frame, &terrain);
     timings.normals = started.elapsed();
     Ok(Prepared {
         frame,
@@ -351,7 +351,7 @@ fn prepare_overview<'a>(
     deadline.check(tile, "triangulation")?;
 
     let started = Instant::now();
-    let normals = ground_normals(&ground, &frame, mosaic, settings, &settled);
+    let normals = mesh::normals::ground_normals(&ground, &frame, &terrain);
     timings.normals = started.elapsed();
     Ok(Prepared {
         frame,
@@ -410,24 +410,6 @@ fn with_ground_models<R: Send>(
         let ground = SettledGround::indexed(&terrain, (water, cuts), roads, steps, index);
         f(chunk, &terrain, &ground)
     })
-}
-
-/// The normals of the ground's vertices (see [`with_ground_models`]).
-fn ground_normals(
-    ground: &mesh::ground::Ground,
-    frame: &crate::tile::TileFrame,
-    mosaic: &Mosaic,
-    settings: &RenderSettings,
-    settled: &elevation::ground::Ground<'_>,
-) -> Vec<[f64; 3]> {
-    with_ground_models(
-        &ground.vertices,
-        frame,
-        mosaic,
-        settings,
-        settled,
-        &|vertices, terrain, settled| mesh::normals::normals_at(vertices, frame, terrain, settled),
-    )
 }
 
 /// Renders one tile as glb from the elements near it and the SRTM files around it, with a memo

@@ -1,10 +1,12 @@
-//! A unit normal for every ground vertex, from the gradient of the settled ground by central
-//! differences. A vertex on the tile's edge takes the terrain's gradient instead: the settled
-//! ground beyond the edge depends on features this tile does not hold, the terrain does not, so
-//! a vertex on a shared edge gets the same normal in both tiles.
+//! A unit normal for every ground vertex. Inside the tile it is the mean of the normals of the
+//! triangles around the vertex, each weighted by its area, so the shading follows the ground as
+//! it is drawn. A vertex on the tile's edge takes the terrain's gradient by central differences
+//! instead: the triangles beyond the edge are the neighbour's, and depend on features this tile
+//! does not hold, the terrain does not, so a vertex on a shared edge gets the same normal in
+//! both tiles.
 
 use super::ground::Ground;
-use super::normalize;
+use super::{normalize, triangle_normal};
 use crate::terrain::Elevation;
 use crate::tile::TileFrame;
 
@@ -13,99 +15,181 @@ use crate::tile::TileFrame;
 const NORMAL_STEP_M: f64 = 10.0;
 const NORMAL_STEP_ZOOM: u8 = 14;
 
-/// The normal of each of `ground`'s vertices in the local frame (x east, y up, z south).
+/// The normal of each of `ground`'s vertices in the local frame (x east, y up, z south): the
+/// area-weighted mean of its triangles' normals, `terrain`'s gradient on the tile's edge, up
+/// for a vertex no triangle uses.
 pub fn ground_normals(
     ground: &Ground,
     frame: &TileFrame,
     terrain: &dyn Elevation,
-    settled: &dyn Elevation,
 ) -> Vec<[f64; 3]> {
-    normals_at(&ground.vertices, frame, terrain, settled)
-}
-
-/// The normals at `vertices` (local metres): the settled ground's gradient, the terrain's on
-/// the tile's edge.
-pub fn normals_at(
-    vertices: &[[f64; 2]],
-    frame: &TileFrame,
-    terrain: &dyn Elevation,
-    settled: &dyn Elevation,
-) -> Vec<[f64; 3]> {
-    let zoom = frame.tile.z;
-    let step = NORMAL_STEP_M * 2f64.powi(i32::from(NORMAL_STEP_ZOOM.saturating_sub(zoom)));
-    let size = frame.size_m;
-    vertices
+    let positions: Vec<[f64; 3]> = ground
+        .vertices
         .iter()
-        .map(|&[x, z]| {
-            let on_edge = x == 0.0 || z == 0.0 || x == size || z == size;
-            let model: &dyn Elevation = if on_edge { terrain } else { settled };
-            let height_at = |x: f64, z: f64| {
-                let (u, v) = frame.local_to_uv(x, z);
-                frame.elevation_to_y(model.elevation_uv([u, v]), z)
-            };
-            let h = step;
-            let dy_dx = (height_at(x + h, z) - height_at(x - h, z)) / (2.0 * h);
-            let dy_dz = (height_at(x, z + h) - height_at(x, z - h)) / (2.0 * h);
-            normalize([-dy_dx, 1.0, -dy_dz]).unwrap_or([0.0, 1.0, 0.0])
+        .zip(&ground.elevations)
+        .map(|(&[x, z], &elevation)| [x, frame.elevation_to_y(elevation, z), z])
+        .collect();
+    let mut sums = vec![[0.0; 3]; positions.len()];
+    for triangle in &ground.triangles {
+        let [a, b, c] = triangle.vertices.map(|i| i as usize);
+        let (Some(&pa), Some(&pb), Some(&pc)) =
+            (positions.get(a), positions.get(b), positions.get(c))
+        else {
+            continue;
+        };
+        // Twice the triangle's area long; upward whichever way round its corners run.
+        let mut n = triangle_normal([pa, pb, pc]);
+        if n[1] < 0.0 {
+            n = n.map(|c| -c);
+        }
+        for i in [a, b, c] {
+            for (sum, c) in sums[i].iter_mut().zip(n) {
+                *sum += c;
+            }
+        }
+    }
+    let size = frame.size_m;
+    ground
+        .vertices
+        .iter()
+        .zip(sums)
+        .map(|(&[x, z], sum)| {
+            if x == 0.0 || z == 0.0 || x == size || z == size {
+                gradient_normal([x, z], frame, terrain)
+            } else {
+                normalize(sum).unwrap_or([0.0, 1.0, 0.0])
+            }
         })
         .collect()
+}
+
+/// The normal of `model` at local `(x, z)` from its gradient by central differences.
+fn gradient_normal([x, z]: [f64; 2], frame: &TileFrame, model: &dyn Elevation) -> [f64; 3] {
+    let zoom = frame.tile.z;
+    let h = NORMAL_STEP_M * 2f64.powi(i32::from(NORMAL_STEP_ZOOM.saturating_sub(zoom)));
+    let height_at = |x: f64, z: f64| {
+        let (u, v) = frame.local_to_uv(x, z);
+        frame.elevation_to_y(model.elevation_uv([u, v]), z)
+    };
+    let dy_dx = (height_at(x + h, z) - height_at(x - h, z)) / (2.0 * h);
+    let dy_dz = (height_at(x, z + h) - height_at(x, z - h)) / (2.0 * h);
+    normalize([-dy_dx, 1.0, -dy_dz]).unwrap_or([0.0, 1.0, 0.0])
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::ground::GroundTriangle;
     use crate::tile::TileId;
-    use std::cell::Cell;
 
-    /// Rolling ground that counts its reads: not to be shared between threads.
-    struct Rolling {
-        reads: Cell<usize>,
+    /// Ground sloping up to the east, `slope` metres a metre.
+    struct Sloping {
+        frame: TileFrame,
+        slope: f64,
     }
 
-    impl Elevation for Rolling {
+    impl Elevation for Sloping {
         fn elevation_uv(&self, p: [f64; 2]) -> f64 {
-            self.reads.set(self.reads.get() + 1);
-            100.0 * (p[0] * 40.0).sin() * (p[1] * 30.0).cos()
+            let (x, _) = self.frame.uv_to_local(p[0], p[1]);
+            100.0 + self.slope * x
         }
     }
 
-    #[test]
-    fn normals_spread_over_threads_are_the_normals_of_one_thread() {
-        let frame = TileId {
+    fn frame() -> TileFrame {
+        TileId {
             z: 14,
             x: 8529,
             y: 5974,
         }
-        .frame();
+        .frame()
+    }
+
+    /// A square grid of `n` × `n` cells over the whole tile, elevations from `terrain`.
+    fn grid(frame: &TileFrame, n: u32, terrain: &dyn Elevation) -> Ground {
         let size = frame.size_m;
-        let vertices: Vec<[f64; 2]> = (0..5000)
-            .map(|k| {
-                let t = f64::from(k) / 5000.0;
-                [size * t, size * ((t * 37.0).fract())]
-            })
-            .chain([[0.0, 0.0], [size, size / 2.0]])
-            .collect();
-        let ground = Ground {
-            vertices,
-            ..Ground::default()
-        };
-        let one = Rolling {
-            reads: Cell::new(0),
-        };
-        let alone = ground_normals(&ground, &frame, &one, &one);
-        for threads in [2, 3, 7] {
-            // Each thread with a model of its own, as a render shares them out.
-            let spread = crate::parallel::map_chunks(&ground.vertices, threads, &|chunk| {
-                let own = Rolling {
-                    reads: Cell::new(0),
-                };
-                normals_at(chunk, &frame, &own, &own)
-            });
-            assert_eq!(spread, alone, "{threads} threads");
+        let mut ground = Ground::default();
+        for j in 0..=n {
+            for i in 0..=n {
+                let [x, z] = [i, j].map(|k| size * f64::from(k) / f64::from(n));
+                let (u, v) = frame.local_to_uv(x, z);
+                ground.vertices.push([x, z]);
+                ground.elevations.push(terrain.elevation_uv([u, v]));
+            }
         }
+        let at = |i: u32, j: u32| j * (n + 1) + i;
+        for j in 0..n {
+            for i in 0..n {
+                for vertices in [
+                    [at(i, j), at(i, j + 1), at(i + 1, j)],
+                    [at(i + 1, j), at(i, j + 1), at(i + 1, j + 1)],
+                ] {
+                    ground.triangles.push(GroundTriangle {
+                        vertices,
+                        surface: None,
+                    });
+                }
+            }
+        }
+        ground
+    }
+
+    #[test]
+    fn a_plane_has_the_planes_normal_at_every_vertex() {
+        let frame = frame();
+        let terrain = Sloping { frame, slope: 0.25 };
+        let ground = grid(&frame, 6, &terrain);
+        let normals = ground_normals(&ground, &frame, &terrain);
+        for ((&[_, z], n), e) in ground.vertices.iter().zip(&normals).zip(&ground.elevations) {
+            let scale = frame.elevation_to_y(1.0, z);
+            let expected = normalize([-0.25 * scale, 1.0, 0.0]).unwrap();
+            let off = (0..3)
+                .map(|k| (n[k] - expected[k]).abs())
+                .fold(0.0, f64::max);
+            assert!(off < 1e-3, "{n:?} against {expected:?} at elevation {e}");
+        }
+    }
+
+    #[test]
+    fn a_bump_inside_tilts_its_neighbours_but_not_the_edge() {
+        let frame = frame();
+        let terrain = Sloping { frame, slope: 0.0 };
+        let flat = grid(&frame, 4, &terrain);
+        let mut bumped = flat.clone();
+        // Vertex (1, 2) rises: (2, 2) is beside it inside the tile, (0, 2) and (0, 3) beside
+        // it on the western edge.
+        bumped.elevations[11] += 300.0;
+        let before = ground_normals(&flat, &frame, &terrain);
+        let after = ground_normals(&bumped, &frame, &terrain);
         assert!(
-            alone.iter().any(|n| n[0].abs() > 0.01),
-            "the ground is not flat"
+            after[12][0] > 0.1,
+            "the eastern neighbour leans east: {:?}",
+            after[12]
+        );
+        assert!(
+            after[6][2] < -0.1,
+            "the northern neighbour leans north: {:?}",
+            after[6]
+        );
+        for edge in [10, 15] {
+            assert_eq!(after[edge], before[edge], "vertex {edge}");
+            assert_eq!(
+                after[edge],
+                gradient_normal(flat.vertices[edge], &frame, &terrain)
+            );
+        }
+    }
+
+    #[test]
+    fn a_vertex_no_triangle_uses_points_up() {
+        let frame = frame();
+        let terrain = Sloping { frame, slope: 0.5 };
+        let mut ground = grid(&frame, 2, &terrain);
+        ground.triangles.clear();
+        let normals = ground_normals(&ground, &frame, &terrain);
+        assert_eq!(normals[4], [0.0, 1.0, 0.0]);
+        assert!(
+            normals[3][0] < -0.1,
+            "an edge vertex keeps the terrain's slope"
         );
     }
 }
