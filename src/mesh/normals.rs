@@ -1,9 +1,10 @@
 //! A unit normal for every ground vertex. Inside the tile it is the mean of the normals of the
-//! triangles around the vertex, each weighted by its area, so the shading follows the ground as
-//! it is drawn. A vertex on the tile's edge takes the terrain's gradient by central differences
-//! instead: the triangles beyond the edge are the neighbour's, and depend on features this tile
-//! does not hold, the terrain does not, so a vertex on a shared edge gets the same normal in
-//! both tiles.
+//! triangles around the vertex, each weighted by its area as seen from above, so the shading
+//! follows the ground as it is drawn, and a steep narrow triangle (the face of a step the
+//! ground takes at a wall or a cut) turns the normals of the flat ground beside it little. A
+//! vertex on the tile's edge takes the terrain's gradient by central differences instead: the
+//! triangles beyond the edge are the neighbour's, and depend on features this tile does not
+//! hold, the terrain does not, so a vertex on a shared edge gets the same normal in both tiles.
 
 use super::ground::Ground;
 use super::{normalize, triangle_normal};
@@ -16,8 +17,8 @@ const NORMAL_STEP_M: f64 = 10.0;
 const NORMAL_STEP_ZOOM: u8 = 14;
 
 /// The normal of each of `ground`'s vertices in the local frame (x east, y up, z south): the
-/// area-weighted mean of its triangles' normals, `terrain`'s gradient on the tile's edge, up
-/// for a vertex no triangle uses.
+/// mean of its triangles' normals weighted by their areas seen from above, `terrain`'s gradient
+/// on the tile's edge, up for a vertex no triangle uses.
 pub fn ground_normals(
     ground: &Ground,
     frame: &TileFrame,
@@ -37,11 +38,14 @@ pub fn ground_normals(
         else {
             continue;
         };
-        // Twice the triangle's area long; upward whichever way round its corners run.
-        let mut n = triangle_normal([pa, pb, pc]);
-        if n[1] < 0.0 {
-            n = n.map(|c| -c);
+        // Upward whichever way round its corners run, as long as twice the triangle's area
+        // seen from above.
+        let n = triangle_normal([pa, pb, pc]);
+        let length = super::dot(n, n).sqrt();
+        if length == 0.0 || !length.is_finite() {
+            continue;
         }
+        let n = n.map(|c| c * n[1] / length);
         for i in [a, b, c] {
             for (sum, c) in sums[i].iter_mut().zip(n) {
                 *sum += c;
@@ -177,6 +181,38 @@ mod tests {
                 gradient_normal(flat.vertices[edge], &frame, &terrain)
             );
         }
+    }
+
+    #[test]
+    fn a_steep_face_beside_flat_ground_turns_its_normal_little() {
+        let frame = frame();
+        let terrain = Sloping { frame, slope: 0.0 };
+        let c = frame.size_m / 2.0;
+        // Flat ground north-east of the vertex, a face rising 100 m over 17.6 m south-west of
+        // it: their areas are about the same, the face's seen from above a sixth of the flat's.
+        let ground = Ground {
+            vertices: vec![
+                [c, c],
+                [c + 100.0, c],
+                [c, c + 100.0],
+                [c, c - 100.0],
+                [c - 17.6, c - 50.0],
+            ],
+            elevations: vec![0.0, 0.0, 0.0, 0.0, 100.0],
+            triangles: [[0, 1, 2], [0, 3, 4]]
+                .map(|vertices| GroundTriangle {
+                    vertices,
+                    surface: None,
+                })
+                .to_vec(),
+            ..Ground::default()
+        };
+        let normal = ground_normals(&ground, &frame, &terrain)[0];
+        let tilt = normal[1].acos().to_degrees();
+        assert!(
+            (2.0..12.0).contains(&tilt),
+            "{normal:?} leans {tilt} degrees"
+        );
     }
 
     #[test]
