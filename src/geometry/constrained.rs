@@ -41,6 +41,11 @@ impl Split {
             pieces: split_at_crossings(segments),
         }
     }
+
+    /// Every point the pieces pass through: the vertices [`insert_split`] inserts.
+    pub fn points(&self) -> impl Iterator<Item = Point2<f64>> + '_ {
+        self.pieces.iter().flatten().copied()
+    }
 }
 
 /// Inserts segments split already into a copy of `seed` as constraint edges (see [`insert`]).

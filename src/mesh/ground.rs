@@ -338,10 +338,30 @@ pub fn triangulate_lines(
     edge_points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     edge_points.dedup();
     let edge_count = edge_points.len();
+    let known: Vec<Point2<f64>> = edge_points.clone();
     let cdt = Cdt::bulk_load(edge_points).map_err(|e| GroundError::Insertion(format!("{e:?}")))?;
 
-    // 3. Feature outlines as constraints.
-    let (cdt, dropped) = crate::geometry::constrained::insert_split(&cdt, &split);
+    // 3. Feature outlines as constraints; meanwhile, here, the settled ground at the points
+    // they bring, which lie off the sample grid.
+    let ((cdt, dropped), mut read) = crate::parallel::join(
+        || crate::geometry::constrained::insert_split(&cdt, &split),
+        || {
+            off_grid_heights(
+                known.into_iter().chain(split.points()),
+                &grid,
+                frame,
+                sample,
+            )
+        },
+    );
+    // Any vertex read above is found there (a point is read alike whichever points are read
+    // with it).
+    let missing: Vec<Point2<f64>> = cdt
+        .vertices()
+        .map(|v| v.position())
+        .filter(|p| !read.contains_key(&(p.x.to_bits(), p.y.to_bits())))
+        .collect();
+    read.extend(off_grid_heights(missing.into_iter(), &grid, frame, sample));
 
     // 4. Greedy insertion inside.
     let limits = RefineLimits {
@@ -349,7 +369,6 @@ pub fn triangulate_lines(
         keep_border: true,
         max_insertions: usize::MAX,
     };
-    let read = off_grid_heights(&cdt, &grid, frame, sample);
     let (tin, report) = refine(&cdt, &grid, limits, &mut |p| {
         read.get(&(p.x.to_bits(), p.y.to_bits()))
             .copied()
@@ -451,20 +470,18 @@ fn clipped_lines<'a>(
     segments
 }
 
-/// The elevations of the seed's vertices off the sample grid (where outlines meet and cross),
+/// The elevations of `points` off the sample grid (where outlines meet and cross, each once),
 /// read all at once through `sample` (over threads), by their local position's bits: the
 /// refinement looks them up rather than reading them one by one.
 fn off_grid_heights(
-    cdt: &Cdt,
+    points: impl Iterator<Item = Point2<f64>>,
     grid: &HeightGrid,
     frame: &TileFrame,
     sample: &Sampler<'_>,
 ) -> rustc_hash::FxHashMap<(u64, u64), f64> {
-    let off_grid: Vec<Point2<f64>> = cdt
-        .vertices()
-        .map(|v| v.position())
-        .filter(|&p| grid.sample_at(p).is_none())
-        .collect();
+    let mut off_grid: Vec<Point2<f64>> = points.filter(|&p| grid.sample_at(p).is_none()).collect();
+    off_grid.sort_unstable_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    off_grid.dedup();
     let uv: Vec<Point> = off_grid
         .iter()
         .map(|p| {
