@@ -249,6 +249,17 @@ impl MeshBuffers {
         self.indices.len() / 3
     }
 
+    /// The bytes of the buffers as they are held.
+    pub fn byte_len(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.positions.as_slice())
+            + size_of_val(self.normals.as_slice())
+            + size_of_val(self.feature_ids.as_slice())
+            + size_of_val(self.indices.as_slice())
+            + size_of_val(self.colours.as_slice())
+            + size_of_val(self.uvs.as_slice())
+    }
+
     /// The colour of the vertices pushed from now on (linear RGBA). Once painted, every
     /// vertex of these buffers has a colour.
     pub fn paint(&mut self, colour: [u8; 4]) {

@@ -377,8 +377,14 @@ pub fn write(
         }
         None => (parts, instanced),
     };
+    // Room for the plain buffers at once, rather than growing through copies of many MB.
+    let room = if variant.meshopt {
+        0
+    } else {
+        parts.values().map(MeshBuffers::byte_len).sum()
+    };
     let mut builder = BinaryBuilder {
-        bytes: Vec::new(),
+        bytes: Vec::with_capacity(room),
         root: json::Root::default(),
         fallback: variant.meshopt.then_some(0),
         textures: BTreeMap::new(),
@@ -887,33 +893,23 @@ fn asset(description: &TileDescription, enu: Option<&EastNorthUp>) -> json::Asse
 
 /// Wraps JSON and binary chunks in the glb container.
 pub fn container(json_bytes: &[u8], binary: &[u8]) -> Vec<u8> {
-    let mut json_chunk = json_bytes.to_vec();
-    while json_chunk.len() % 4 != 0 {
-        json_chunk.push(b' ');
-    }
-    let mut binary_chunk = binary.to_vec();
-    while binary_chunk.len() % 4 != 0 {
-        binary_chunk.push(0);
-    }
-    let total = 12
-        + 8
-        + json_chunk.len()
-        + if binary_chunk.is_empty() {
-            0
-        } else {
-            8 + binary_chunk.len()
-        };
+    // Each chunk padded to four bytes: the JSON with spaces, the binary with zeros.
+    let padded = |len: usize| len.div_ceil(4) * 4;
+    let (json_len, binary_len) = (padded(json_bytes.len()), padded(binary.len()));
+    let total = 12 + 8 + json_len + if binary.is_empty() { 0 } else { 8 + binary_len };
     let mut out = Vec::with_capacity(total);
     out.extend_from_slice(b"glTF");
     out.extend_from_slice(&2u32.to_le_bytes());
     out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json_chunk.len() as u32).to_le_bytes());
+    out.extend_from_slice(&(json_len as u32).to_le_bytes());
     out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json_chunk);
-    if !binary_chunk.is_empty() {
-        out.extend_from_slice(&(binary_chunk.len() as u32).to_le_bytes());
+    out.extend_from_slice(json_bytes);
+    out.resize(out.len() + json_len - json_bytes.len(), b' ');
+    if !binary.is_empty() {
+        out.extend_from_slice(&(binary_len as u32).to_le_bytes());
         out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&binary_chunk);
+        out.extend_from_slice(binary);
+        out.resize(out.len() + binary_len - binary.len(), 0);
     }
     out
 }
