@@ -525,21 +525,30 @@ pub fn collect(selection: &Selection<'_>, tile: TileId, settings: &FeatureSettin
     let projection = Projection::new(tile.z);
     let mut set = FeatureSet::default();
     set.add_feature(None, FeatureClass::Terrain, &Tags::default());
-    let areas = areas_of(selection);
-    let rows = rows::shared_walls(&areas);
+    // The areas and the walls they share read the selection alone: they are made on a thread
+    // of their own while the roads are added.
+    let ((areas, rows), carriageways) = crate::parallel::join(
+        || {
+            let areas = areas_of(selection);
+            let rows = rows::shared_walls(&areas);
+            (areas, rows)
+        },
+        || {
+            carriageways::add_roads(
+                &mut set,
+                &selection.ways,
+                &selection.nodes,
+                &projection,
+                settings,
+            )
+        },
+    );
     let shops: Vec<Point> = selection
         .nodes
         .iter()
         .filter(|n| facades::is_shop(&n.tags))
         .map(|n| projection.point(n.position))
         .collect();
-    let carriageways = carriageways::add_roads(
-        &mut set,
-        &selection.ways,
-        &selection.nodes,
-        &projection,
-        settings,
-    );
     for way in &selection.ways {
         carriageways::add_railway(&mut set, way, &projection);
         water::add_waterway(&mut set, way, &projection);
