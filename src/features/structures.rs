@@ -383,6 +383,63 @@ mod tests {
 
     use crate::osm::tags;
 
+    use crate::osm::LonLat;
+
+    /// Three tunnel ways joined end to end around the tile 14/8529/5974, `gap` degrees
+    /// outside its west, north and east sides (inside where negative), from south of it.
+    fn tunnel_around(gap: f64) -> (TileId, Vec<Way>) {
+        let tile = TileId {
+            z: 14,
+            x: 8529,
+            y: 5974,
+        };
+        let b = tile.bounds();
+        let (west, east, north) = (b.west - gap, b.east + gap, b.north + gap.abs());
+        let corners = [
+            LonLat {
+                lon: west,
+                lat: b.south - 0.001,
+            },
+            LonLat {
+                lon: west,
+                lat: north,
+            },
+            LonLat {
+                lon: east,
+                lat: north,
+            },
+            LonLat {
+                lon: east,
+                lat: b.south - 0.001,
+            },
+        ];
+        let ways = (0..3)
+            .map(|k| Way {
+                id: k as i64 + 1,
+                tags: crate::osm::tags(&[("highway", "primary"), ("tunnel", "yes")]),
+                nodes: vec![k as i64 + 10, k as i64 + 11],
+                positions: vec![corners[k], corners[k + 1]],
+            })
+            .collect();
+        (tile, ways)
+    }
+
+    #[test]
+    fn a_group_reaches_a_tile_exactly_when_the_tile_draws_one_of_its_ways() {
+        for (gap, reaches) in [(0.005, false), (-0.001, true)] {
+            let (tile, ways) = tunnel_around(gap);
+            let groups = crate::osm::structures::find(&ways, classify);
+            assert_eq!(groups.len(), 1, "one group of three ways");
+            let group = &groups[0];
+            let b = tile.bounds();
+            let spans = group.bounds.west < b.west && group.bounds.east > b.east;
+            assert!(spans || reaches, "the group's box spans the tile");
+            assert_eq!(group_reaches(group, &ways, tile), reaches, "gap {gap}");
+            let drawn = rows(&mut FeatureSet::default(), &[group], &ways, tile);
+            assert_eq!(!drawn.is_empty(), reaches, "gap {gap}");
+        }
+    }
+
     #[test]
     fn bridges_and_tunnels_take_their_layers() {
         assert_eq!(
