@@ -338,20 +338,15 @@ pub fn triangulate_lines(
     edge_points.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
     edge_points.dedup();
     let edge_count = edge_points.len();
-    let known: Vec<Point2<f64>> = edge_points.clone();
     let cdt = Cdt::bulk_load(edge_points).map_err(|e| GroundError::Insertion(format!("{e:?}")))?;
 
-    // 3. Feature outlines as constraints; meanwhile, here, the settled ground at the points
-    // they bring, which lie off the sample grid.
+    // 3. Feature outlines as constraints; meanwhile, here, the settled ground at the edge's
+    // vertices and the points the outlines bring, which lie off the sample grid.
     let ((cdt, dropped), mut read) = crate::parallel::join(
         || crate::geometry::constrained::insert_split(&cdt, &split),
         || {
-            off_grid_heights(
-                known.into_iter().chain(split.points()),
-                &grid,
-                frame,
-                sample,
-            )
+            let seed = cdt.vertices().map(|v| v.position());
+            off_grid_heights(seed.chain(split.points()), &grid, frame, sample)
         },
     );
     // Any vertex read above is found there (a point is read alike whichever points are read
