@@ -330,6 +330,13 @@ impl TileFrame {
         )
     }
 
+    /// True for a local point exactly on the tile's edge: a vertex there is shared with the
+    /// neighbour, and its elevation and normal are made from what both tiles know alike.
+    pub fn on_edge(&self, [x, z]: [f64; 2]) -> bool {
+        let size = self.size_m;
+        x == 0.0 || z == 0.0 || x == size || z == size
+    }
+
     /// Local `(x, z)` metres to global tile units.
     pub fn local_to_uv(&self, x: f64, z: f64) -> (f64, f64) {
         (

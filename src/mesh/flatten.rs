@@ -17,7 +17,6 @@ use crate::tile::TileFrame;
 /// ceilings ([`Bound`]) are left to the ground model (`model`, whose water areas, cuts and
 /// roads these are), a vertex under a floor too.
 pub fn flatten(ground: &mut Ground, model: &SettledGround<'_>, frame: &TileFrame) {
-    let size_m = frame.size_m;
     let roads = model.roads;
     // The levels covering a point, read on any thread (the model's terrain is one thread's).
     let (water, cuts, index) = (model.water, model.cuts, model.index());
@@ -33,7 +32,6 @@ pub fn flatten(ground: &mut Ground, model: &SettledGround<'_>, frame: &TileFrame
         .filter(|l| l.bound == Bound::Exact)
         .map(|l| (l.surface, &l.rule))
         .collect();
-    let on_edge = |p: Point| p[0] == 0.0 || p[1] == 0.0 || p[0] == size_m || p[1] == size_m;
     let threads =
         |items: usize| crate::parallel::threads_for(items, VERTICES_PER_THREAD, MAX_THREADS);
 
@@ -88,7 +86,7 @@ pub fn flatten(ground: &mut Ground, model: &SettledGround<'_>, frame: &TileFrame
     for (v, level) in settled.into_iter().enumerate() {
         if let Some(level) = level.or(on_road[v]) {
             let raised = levels_at(uv_of(v as u32)).any(|l| l.bound == Bound::AtLeast);
-            if !on_edge(ground.vertices[v]) && !raised {
+            if !frame.on_edge(ground.vertices[v]) && !raised {
                 ground.elevations[v] = level;
             }
         }

@@ -7,7 +7,7 @@
 //! hold, the terrain does not, so a vertex on a shared edge gets the same normal in both tiles.
 
 use super::ground::Ground;
-use super::{normalize, triangle_normal};
+use super::{dot, normalize, triangle_normal};
 use crate::terrain::Elevation;
 use crate::tile::TileFrame;
 
@@ -41,7 +41,7 @@ pub fn ground_normals(
         // Upward whichever way round its corners run, as long as twice the triangle's area
         // seen from above.
         let n = triangle_normal([pa, pb, pc]);
-        let length = super::dot(n, n).sqrt();
+        let length = dot(n, n).sqrt();
         if length == 0.0 || !length.is_finite() {
             continue;
         }
@@ -52,14 +52,13 @@ pub fn ground_normals(
             }
         }
     }
-    let size = frame.size_m;
     ground
         .vertices
         .iter()
         .zip(sums)
-        .map(|(&[x, z], sum)| {
-            if x == 0.0 || z == 0.0 || x == size || z == size {
-                gradient_normal([x, z], frame, terrain)
+        .map(|(&vertex, sum)| {
+            if frame.on_edge(vertex) {
+                gradient_normal(vertex, frame, terrain)
             } else {
                 normalize(sum).unwrap_or([0.0, 1.0, 0.0])
             }
